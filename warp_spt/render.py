@@ -1,20 +1,52 @@
-"""render(): split the image into tiles, launch the specialised kernel from a thread pool, return linear HDR."""
+"""render(): split the image into tiles, launch the specialised kernel from a thread pool, return linear HDR.
+
+Warp runs a CPU kernel on one thread and releases the GIL while it runs, so tiles launched from a
+pool of Python threads use every core. Each pixel's samples are summed in a fixed order (passes of
+PASS_SAMPLES in sample order), so the image depends only on the seed, never on threads or tiles.
+"""
 
 from __future__ import annotations
 
+import os
+import queue
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import warp as wp
 
 from .camera import Camera
+from .device_scene import DeviceScene, Features
+from .film import Film
+from .integrator import camera_params, get_kernel
 from .scene import Scene
 from .sky import Sky
 
 ProgressFn = Callable[[int, int], None]
 
+PASS_SAMPLES = 8          # samples per launch: bounds the time between progress reports / Ctrl-C checks
+TILE_PIXELS = 4096        # pixels per launch
+MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
+
+
+@dataclass
+class RenderStats:
+    """What the last render did, for callers that want more than the image."""
+
+    features: Features
+    dropped_samples: int      # non-finite samples discarded (should always be 0)
+    rays: int                 # rays traced (closest-hit queries)
+    tiles: int
+    threads: int
+
+
+last_stats: RenderStats | None = None
+
 
 def render(
-    scene: Scene,
+    scene: Scene | DeviceScene,
     camera: Camera | None = None,
     *,
     width: int = 500,
@@ -28,9 +60,150 @@ def render(
     texture_filter: str = "nearest",
     progress: bool | ProgressFn = False,
     sample_offset: int = 0,
+    features: Features | None = None,
+    tile_pixels: int = TILE_PIXELS,
 ) -> np.ndarray:
     """Render ``scene`` and return a float32 (height, width, 3) array of linear radiance.
 
-    (Work in progress: the engine lands with issue 3.)
+    ``spp`` samples per pixel starting at global sample index ``sample_offset`` (renders of disjoint
+    sample ranges can be merged, see :class:`warp_spt.film.Film`); ``max_depth`` counts surface hits as in
+    the seed; ``sky`` defaults to the seed's (blue) BlackSky; ``threads`` defaults to every core;
+    ``features`` overrides the scene's own feature set (a superset gives the same image, slower).
+    ``progress`` is True for a tqdm bar or a callable ``(done, total)`` in samples x pixels, called on
+    the calling thread. Ctrl-C stops the workers and re-raises KeyboardInterrupt.
     """
-    raise NotImplementedError
+    film = render_film(scene, camera, width=width, height=height, spp=spp, max_depth=max_depth, sky=sky,
+                       seed=seed, threads=threads, device=device, texture_filter=texture_filter,
+                       progress=progress, sample_offset=sample_offset, features=features,
+                       tile_pixels=tile_pixels)
+    return film.image()
+
+
+def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, width: int = 500,
+                height: int = 500, spp: int = 16, max_depth: int = 6, sky: Sky | None = None, seed: int = 0,
+                threads: int | None = None, device: str = "cpu", texture_filter: str = "nearest",
+                progress: bool | ProgressFn = False, sample_offset: int = 0,
+                features: Features | None = None, tile_pixels: int = TILE_PIXELS) -> Film:
+    """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count)."""
+    global last_stats
+    _check_args(width, height, spp, max_depth, seed, sample_offset, texture_filter, tile_pixels)
+    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=device)
+    feats = features or dev.features
+    kernel = get_kernel(feats, dev.device)
+    camera = camera or Camera()
+    sky = sky or Sky.black()
+    cam = camera_params(camera, width, height)
+    n = width * height
+    film = wp.zeros(n, dtype=wp.vec3d, device=dev.device)
+    counters = wp.zeros((n, 2), dtype=wp.int64, device=dev.device)   # rays traced, samples dropped
+    tiles = [(p, min(n, p + tile_pixels)) for p in range(0, n, tile_pixels)]
+    nthreads = max(1, min(threads or os.cpu_count() or 1, len(tiles)))
+    common = dict(width=width, sample_offset=sample_offset, spp=spp, max_depth=max_depth,
+                  sky_kind=int(sky.kind), sky_color=wp.vec3(*sky.color), seed=wp.uint32(seed & 0xFFFFFFFF),
+                  bilinear=int(texture_filter == "bilinear"))
+
+    stop = threading.Event()
+    done_q: queue.Queue[int] = queue.Queue()
+
+    def work(tile: tuple[int, int]) -> None:
+        lo, hi = tile
+        for s0 in range(0, spp, PASS_SAMPLES):
+            if stop.is_set():
+                return
+            count = min(PASS_SAMPLES, spp - s0)
+            wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
+                dev.arrays, cam, common["width"], lo, common["sample_offset"] + s0, count,
+                common["max_depth"], common["sky_kind"], common["sky_color"], common["seed"],
+                common["bilinear"], film, counters])
+            done_q.put(count * (hi - lo))
+
+    report = _progress_reporter(progress, n * spp)
+    try:
+        if nthreads == 1:
+            for t in tiles:
+                work(t)
+                _drain(done_q, report)
+        else:
+            with ThreadPoolExecutor(max_workers=nthreads) as pool:
+                futures = [pool.submit(work, t) for t in tiles]
+                try:
+                    _wait(futures, done_q, report)
+                except BaseException:
+                    stop.set()      # let running launches finish, start no more
+                    for f in futures:
+                        f.cancel()
+                    raise
+    finally:
+        report(None)
+    c = counters.numpy().sum(axis=0)
+    last_stats = RenderStats(feats, int(c[1]), int(c[0]), len(tiles), nthreads)
+    sums = film.numpy().reshape(height, width, 3)
+    return Film(sums, spp)
+
+
+def _check_args(width, height, spp, max_depth, seed, sample_offset, texture_filter, tile_pixels) -> None:
+    for name, v in (("width", width), ("height", height), ("spp", spp), ("max_depth", max_depth),
+                    ("tile_pixels", tile_pixels)):
+        if not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    if width * height > MAX_PIXELS:
+        raise ValueError(f"image of {width}x{height} pixels is too large (at most {MAX_PIXELS} pixels)")
+    if sample_offset < 0 or sample_offset + spp > 2**31 - 1:
+        raise ValueError("sample indices must lie in [0, 2**31)")
+    if not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed must be an integer, got {seed!r}")
+    if texture_filter not in ("nearest", "bilinear"):
+        raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {texture_filter!r}")
+
+
+def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:
+    """A function taking increments (None closes the bar), or a no-op."""
+    if progress is False or progress is None:
+        return lambda inc: None
+    if callable(progress):
+        state = {"done": 0}
+
+        def call(inc: int | None) -> None:
+            if inc:
+                state["done"] += inc
+                progress(state["done"], total)
+        return call
+    from tqdm.auto import tqdm
+    bar = tqdm(total=total, unit="samples", unit_scale=True, dynamic_ncols=True, leave=False)
+
+    def update(inc: int | None) -> None:
+        if inc is None:
+            bar.close()
+        else:
+            bar.update(inc)
+    return update
+
+
+def _drain(q: queue.Queue, report: Callable[[int | None], None]) -> None:
+    inc = 0
+    while True:
+        try:
+            inc += q.get_nowait()
+        except queue.Empty:
+            break
+    if inc:
+        report(inc)
+
+
+def _wait(futures, q: queue.Queue, report) -> None:
+    """Wait for every tile (unlike the seed, Q7), reporting progress from this thread."""
+    pending = list(futures)
+    while pending:
+        try:
+            report(q.get(timeout=0.1))
+        except queue.Empty:
+            pass
+        _drain(q, report)
+        still = []
+        for f in pending:
+            if f.done():
+                f.result()          # re-raise a worker's exception here
+            else:
+                still.append(f)
+        pending = still
+    _drain(q, report)

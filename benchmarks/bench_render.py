@@ -1,0 +1,122 @@
+"""Render speed: camera samples/s, rays/s and seconds on the demo scenes, 1 thread and all threads,
+kernel compile time (cold and cached) and what each kernel specialisation saves.
+
+    python benchmarks/bench_render.py            # 512x512, 16 spp, depth 6 and 8 (a few minutes)
+    python benchmarks/bench_render.py --quick    # 128x128, 4 spp: a smoke run
+
+Figures are from one run; compare ratios within a run, not absolute times across machines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import warp as wp  # noqa: E402
+
+wp.config.quiet = True
+
+import warp_spt.render as R  # noqa: E402
+from warp_spt.demo import demo_files  # noqa: E402
+from warp_spt.device_scene import DeviceScene, Features  # noqa: E402
+from warp_spt.integrator import get_kernel  # noqa: E402
+from warp_spt.loader import load_scene  # noqa: E402
+from warp_spt.sky import Sky  # noqa: E402
+
+SEED_DEMO = REPO.parent / "shared" / "seed" / "demo"
+
+
+def scenes() -> dict[str, DeviceScene]:
+    out = {}
+    objs, mtls = demo_files()
+    out["builtin demo"] = DeviceScene(load_scene(objs, mtls))
+    if (SEED_DEMO / "cornell_export.obj").is_file():
+        seed = load_scene([str(SEED_DEMO / "cornell_export.obj"), str(SEED_DEMO / "baller.obj")],
+                          [str(SEED_DEMO / "testMiku.mtl")])
+        out["seed demo (no character)"] = DeviceScene(seed)
+    return out
+
+
+def timed_render(scene: DeviceScene, size: int, spp: int, depth: int, threads: int,
+                 features: Features | None = None) -> tuple[float, int]:
+    t = time.perf_counter()
+    R.render(scene, width=size, height=size, spp=spp, max_depth=depth, sky=Sky.gradient(),
+             threads=threads, features=features)
+    return time.perf_counter() - t, R.last_stats.rays
+
+
+def speed_table(all_scenes: dict[str, DeviceScene], size: int, spp: int) -> None:
+    ncpu = os.cpu_count() or 1
+    print(f"\n## Speed: {size}x{size}, {spp} spp (GradientSky), threads 1 and {ncpu}")
+    print("| scene | tris | depth | threads | seconds | camera samples/s | rays/s | speed-up |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, sc in all_scenes.items():
+        get_kernel(sc.features)      # compile outside the timing
+        timed_render(sc, 16, 1, 2, 1)
+        for depth in (6, 8):
+            base = None
+            for threads in (1, ncpu):
+                secs, rays = timed_render(sc, size, spp, depth, threads)
+                base = base or secs
+                print(f"| {name} | {sc.scene.num_triangles} | {depth} | {threads} | {secs:.2f} | "
+                      f"{size * size * spp / secs:,.0f} | {rays / secs:,.0f} | {base / secs:.2f}x |")
+
+
+def specialisation_table(sc: DeviceScene, size: int, spp: int) -> None:
+    """Time the scene's own kernel against kernels with one unused feature switched back on."""
+    own = sc.features
+    print(f"\n## What specialisation saves (builtin demo, {size}x{size}, {spp} spp, depth 8, all threads)")
+    print(f"scene features: {own}")
+    print("| kernel | seconds | relative to specialised |")
+    print("|---|---|---|")
+    variants = {"specialised": own, "general (every feature)": Features.general()}
+    for field in ("meshes", "spheres", "textures", "checker", "refraction", "emitters", "smooth"):
+        if not getattr(own, field):
+            variants[f"+ {field} code"] = replace(own, **{field: True})
+    base = None
+    for label, feats in variants.items():
+        get_kernel(feats)
+        timed_render(sc, 16, 1, 2, None, feats)
+        best = min(timed_render(sc, size, spp, 8, None, feats)[0] for _ in range(2))
+        base = base or best
+        print(f"| {label} | {best:.3f} | {best / base:.3f} |")
+
+
+def compile_times() -> None:
+    """Cold compile in a fresh process with an empty kernel cache, then a cached load in another."""
+    print("\n## Kernel compile (builtin demo's kernel), fresh processes")
+    code = ("import time,warp as wp; wp.config.quiet=True; wp.init(); t=time.perf_counter();"
+            "from warp_spt.demo import demo_files; from warp_spt.loader import load_scene;"
+            "from warp_spt.device_scene import DeviceScene; from warp_spt.integrator import get_kernel;"
+            "o,m=demo_files(); s=DeviceScene(load_scene(o,m)); t=time.perf_counter();"
+            "get_kernel(s.features); print(time.perf_counter()-t)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, WARP_CACHE_PATH=cache, PYTHONPATH=str(REPO))
+        for label in ("cold (empty cache)", "cached"):
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+            secs = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else f"failed: {out.stderr[-300:]}"
+            print(f"- {label}: {float(secs):.2f} s" if secs[0].isdigit() else f"- {label}: {secs}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="128x128, 4 spp")
+    args = ap.parse_args()
+    size, spp = (128, 4) if args.quick else (512, 16)
+    compile_times()
+    all_scenes = scenes()
+    speed_table(all_scenes, size, spp)
+    specialisation_table(all_scenes["builtin demo"], size // 2, spp)
+
+
+if __name__ == "__main__":
+    main()

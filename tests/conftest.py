@@ -1,0 +1,27 @@
+"""Shared test fixtures: scene-file writers and the seed's data (skipped when ../shared is absent)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"
+SEED_DEMO = SHARED / "seed" / "demo"
+
+os.environ.setdefault("WARP_SPT_QUIET", "1")
+
+
+@pytest.fixture(scope="session")
+def seed_demo() -> Path:
+    """The seed's demo folder; the test is skipped where ../shared is not beside the repo."""
+    if not (SEED_DEMO / "cornell_export.obj").is_file():
+        pytest.skip("../shared/seed/demo is absent (a user's clone has no shared/)")
+    return SEED_DEMO
+
+
+@pytest.fixture(scope="session")
+def scene_dir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("scenes")

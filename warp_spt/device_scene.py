@@ -1,0 +1,189 @@
+"""Scene upload: numpy Scene -> Warp meshes (one per OBJ), our top-level BVH, texture atlas, material table.
+
+The result, :class:`DeviceScene`, carries one :class:`SceneArrays` struct that every kernel takes,
+plus the :class:`Features` the scene actually uses, from which the integrator specialises its kernel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from .bvh import build_tlas
+from .scene import TEX_CHECKER, Scene
+from .textures import pack_atlas
+from .validate import validate_scene
+
+
+@wp.struct
+class SceneArrays:
+    """Everything a kernel reads about the scene (device arrays; see upload())."""
+
+    # Triangles: one wp.Mesh per OBJ file; per-face data is concatenated across meshes.
+    mesh_ids: wp.array(dtype=wp.uint64)
+    face_offset: wp.array(dtype=wp.int32)      # first face of mesh i in the per-face arrays
+    face_material: wp.array(dtype=wp.int32)
+    corner_uv: wp.array(dtype=wp.vec2)         # 3 per face
+    corner_normal: wp.array(dtype=wp.vec3)     # 3 per face (smooth shading only)
+    num_meshes: int
+    # Analytic spheres
+    spheres: wp.array(dtype=wp.vec4)           # centre xyz, radius
+    sphere_material: wp.array(dtype=wp.int32)
+    # Top-level BVH over mesh bounds (items 0..num_meshes-1) and spheres (the rest)
+    node_lower: wp.array(dtype=wp.vec3)
+    node_upper: wp.array(dtype=wp.vec3)
+    node_left: wp.array(dtype=wp.int32)
+    node_right: wp.array(dtype=wp.int32)
+    node_first: wp.array(dtype=wp.int32)
+    node_count: wp.array(dtype=wp.int32)
+    items: wp.array(dtype=wp.int32)
+    # Materials (structure of arrays) and the texture atlas
+    mat_diffuse: wp.array(dtype=wp.vec3)
+    mat_reflect: wp.array(dtype=wp.vec3)
+    mat_refract: wp.array(dtype=wp.vec3)
+    mat_emission: wp.array(dtype=wp.vec3)
+    mat_tex: wp.array(dtype=wp.vec4i)
+    mat_roughness: wp.array(dtype=wp.float32)
+    mat_fuzz: wp.array(dtype=wp.float32)
+    mat_ior: wp.array(dtype=wp.float32)
+    mat_refractable: wp.array(dtype=wp.int32)
+    texels: wp.array2d(dtype=wp.vec3)
+    tiles: wp.array(dtype=wp.vec4i)
+    # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
+    extent: float
+
+
+@dataclass(frozen=True)
+class Features:
+    """What a scene uses; each False lets the kernel drop that code entirely (wp.static)."""
+
+    meshes: bool = True
+    spheres: bool = True
+    textures: bool = True
+    checker: bool = True
+    refraction: bool = True
+    emitters: bool = True
+    smooth: bool = True
+
+    @staticmethod
+    def general() -> "Features":
+        """The kernel that handles any scene (used to check specialisations against)."""
+        return Features()
+
+
+class DeviceScene:
+    """A Scene on a Warp device. Keeps the Warp objects alive while kernels use them."""
+
+    def __init__(self, scene: Scene, device: str = "cpu"):
+        validate_scene(scene)
+        self.device = device
+        self.scene = scene
+        self.features = _features(scene)
+        self._meshes: list[wp.Mesh] = []
+        self.arrays = self._upload(scene, device)
+
+    def _upload(self, scene: Scene, device: str) -> SceneArrays:
+        s = SceneArrays()
+        self._upload_meshes(s, scene, device)
+        self._upload_spheres_and_tlas(s, scene, device)
+        self._upload_materials(s, scene, device)
+        b = scene.bounds
+        s.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
+        return s
+
+    def _upload_meshes(self, s: SceneArrays, scene: Scene, device: str) -> None:
+        offsets, mats, uvs, normals = [], [], [], []
+        start = 0
+        for m in scene.meshes:
+            points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
+            idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+            self._meshes.append(wp.Mesh(points=points, indices=idx, bvh_constructor="sah"))
+            offsets.append(start)
+            start += len(m.indices)
+            mats.append(m.face_material.astype(np.int32))
+            uvs.append(m.corner_uv.reshape(-1, 2).astype(np.float32))
+            if self.features.smooth:
+                normals.append(_corner_normals(m).reshape(-1, 3))
+        s.num_meshes = len(self._meshes)
+        s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
+        s.face_offset = _arr(offsets, wp.int32, device, np.int32)
+        s.face_material = _arr(_cat(mats, (0,), np.int32), wp.int32, device, np.int32)
+        s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32)
+        s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
+
+    def _upload_spheres_and_tlas(self, s: SceneArrays, scene: Scene, device: str) -> None:
+        lowers, uppers = [], []
+        for m in scene.meshes:
+            p = m.positions[m.indices.reshape(-1)].astype(np.float64)
+            lowers.append(p.min(0))
+            uppers.append(p.max(0))
+        sph = scene.spheres.astype(np.float64).reshape(-1, 4)
+        lowers.extend(sph[:, :3] - sph[:, 3:4])
+        uppers.extend(sph[:, :3] + sph[:, 3:4])
+        self.tlas = build_tlas(np.asarray(lowers).reshape(-1, 3), np.asarray(uppers).reshape(-1, 3))
+        t = self.tlas
+        s.spheres = _arr(scene.spheres.reshape(-1, 4), wp.vec4, device, np.float32)
+        s.sphere_material = _arr(scene.sphere_material, wp.int32, device, np.int32)
+        s.node_lower = _arr(t.lower, wp.vec3, device, np.float32)
+        s.node_upper = _arr(t.upper, wp.vec3, device, np.float32)
+        s.node_left = _arr(t.left, wp.int32, device, np.int32)
+        s.node_right = _arr(t.right, wp.int32, device, np.int32)
+        s.node_first = _arr(t.first, wp.int32, device, np.int32)
+        s.node_count = _arr(t.count, wp.int32, device, np.int32)
+        s.items = _arr(t.items, wp.int32, device, np.int32)
+
+    def _upload_materials(self, s: SceneArrays, scene: Scene, device: str) -> None:
+        mt = scene.materials
+        s.mat_diffuse = _arr(mt.diffuse, wp.vec3, device, np.float32)
+        s.mat_reflect = _arr(mt.reflect, wp.vec3, device, np.float32)
+        s.mat_refract = _arr(mt.refract, wp.vec3, device, np.float32)
+        s.mat_emission = _arr(mt.emission, wp.vec3, device, np.float32)
+        s.mat_tex = _arr(mt.tex, wp.vec4i, device, np.int32)
+        s.mat_roughness = _arr(mt.roughness, wp.float32, device, np.float32)
+        s.mat_fuzz = _arr(mt.fuzz, wp.float32, device, np.float32)
+        s.mat_ior = _arr(mt.ior, wp.float32, device, np.float32)
+        s.mat_refractable = _arr(mt.refractable.astype(np.int32), wp.int32, device, np.int32)
+        atlas = pack_atlas(scene.textures)
+        s.texels = wp.array(np.ascontiguousarray(atlas.texels, dtype=np.float32), dtype=wp.vec3, device=device)
+        s.tiles = _arr(atlas.tiles, wp.vec4i, device, np.int32)
+
+
+def _features(scene: Scene) -> Features:
+    """Which code paths the scene's used materials and geometry need."""
+    used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
+    mt = scene.materials
+    tex = mt.tex[used]
+    emits = (mt.emission[used] > 0).any() or (tex[:, 3] >= 0).any()
+    return Features(
+        meshes=any(len(m.indices) for m in scene.meshes),
+        spheres=len(scene.spheres) > 0,
+        textures=bool((tex >= 0).any()),
+        checker=bool((tex == TEX_CHECKER).any()),
+        refraction=bool(mt.refractable[used].any()),
+        emitters=bool(emits),
+        smooth=any(m.corner_normal is not None for m in scene.meshes),
+    )
+
+
+def _corner_normals(m) -> np.ndarray:
+    """Per-corner unit normals; meshes without vn get their flat face normal at every corner."""
+    if m.corner_normal is not None:
+        return m.corner_normal.astype(np.float32)
+    p = m.positions[m.indices].astype(np.float64)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return np.repeat(n[:, None, :], 3, axis=1).astype(np.float32)
+
+
+def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.ndarray:
+    return np.concatenate(parts).astype(dtype) if parts else np.zeros(empty_shape, dtype)
+
+
+def _arr(data, dtype, device: str, np_dtype) -> wp.array:
+    """A device array; empty inputs become one zero element so no kernel sees a null pointer."""
+    a = np.ascontiguousarray(np.asarray(data, dtype=np_dtype))
+    if a.shape[0] == 0:
+        a = np.zeros((1, *a.shape[1:]), dtype=np_dtype)
+    return wp.array(a, dtype=dtype, device=device)

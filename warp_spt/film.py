@@ -1,0 +1,281 @@
+"""The film (per-pixel float64 sample sums), tone maps, and image files written atomically.
+
+Splitting and merging renders: a :class:`Film` stores per-pixel *sums* and the number of samples
+per pixel. Renders of disjoint sample ranges (``render(..., sample_offset=...)``) can be produced on
+different machines and merged with :meth:`Film.add`. Because every sample's random stream depends
+only on (seed, pixel, sample index), the merged result is deterministic; it is bit-for-bit identical
+to a single film that accumulated the same partial sums in the same order (float64 addition is not
+associative, so merge in a fixed order, e.g. by increasing sample offset).
+
+Tone maps: :func:`tonemap_seed` is the seed's curve (SEMANTICS §4) bit for bit, :func:`tonemap_srgb`
+the standard sRGB transfer function. File formats by extension: ``.png`` (8-bit, tone mapped),
+``.npy`` and ``.pfm`` (float32 linear radiance).
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+from typing import BinaryIO, Callable
+
+import numpy as np
+
+FILM_FORMAT_VERSION = 1
+
+
+# ---------------------------------------------------------------------------------------------
+# Film
+
+
+class Film:
+    """Per-pixel float64 radiance sums ``sum`` (H, W, 3) over ``spp`` samples per pixel.
+
+    ``Film(sums, spp)`` takes the array as it is (no copy when it is already float64): the film
+    owns it from then on, and :meth:`add` / :meth:`accumulate` update it in place.
+    """
+
+    def __init__(self, sum: np.ndarray, spp: int = 0) -> None:  # noqa: A002 - the field's name
+        a = np.ascontiguousarray(sum, dtype=np.float64)
+        if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 1:
+            raise ValueError(f"film sums must be (H, W, 3) with H, W >= 1, got shape {a.shape}")
+        if int(spp) < 0:
+            raise ValueError(f"spp must be >= 0, got {spp}")
+        self.sum = a
+        self.spp = int(spp)
+
+    @classmethod
+    def empty(cls, height: int, width: int) -> "Film":
+        """A film of height x width pixels with no samples."""
+        if height < 1 or width < 1:
+            raise ValueError(f"film size must be at least 1x1, got {width}x{height}")
+        return cls(np.zeros((height, width, 3), dtype=np.float64), 0)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.sum.shape[0], self.sum.shape[1]
+
+    def accumulate(self, sample_sum: np.ndarray, spp: int) -> None:
+        """Add a block of sums over ``spp`` further samples per pixel."""
+        a = np.asarray(sample_sum, dtype=np.float64)
+        if a.shape != self.sum.shape:
+            raise ValueError(f"cannot accumulate sums of shape {a.shape} into a film of shape {self.sum.shape}")
+        self.sum += a
+        self.spp += int(spp)
+
+    def add(self, other: "Film") -> None:
+        """Merge another film of the same size (e.g. a disjoint sample range) into this one."""
+        if other.sum.shape != self.sum.shape:
+            raise ValueError(f"cannot merge a film of shape {other.sum.shape} into one of shape {self.sum.shape}")
+        self.accumulate(other.sum, other.spp)
+
+    def image(self) -> np.ndarray:
+        """Mean radiance per pixel, float32 (H, W, 3)."""
+        if self.spp <= 0:
+            raise ValueError("film has no samples yet (spp == 0)")
+        return (self.sum / self.spp).astype(np.float32)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write sums and sample count to an ``.npz`` file (atomically)."""
+        def write(f: BinaryIO) -> None:
+            np.savez(f, sum=self.sum, spp=np.int64(self.spp), version=np.int64(FILM_FORMAT_VERSION))
+
+        atomic_write(path, write)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Film":
+        """Read a film written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as data:
+            missing = {"sum", "spp", "version"} - set(data.files)
+            if missing:
+                raise ValueError(f"{path}: not a film file (missing {sorted(missing)})")
+            if int(data["version"]) != FILM_FORMAT_VERSION:
+                raise ValueError(f"{path}: film format version {int(data['version'])}, expected {FILM_FORMAT_VERSION}")
+            try:
+                return cls(data["sum"], int(data["spp"]))
+            except ValueError as exc:
+                raise ValueError(f"{path}: {exc}") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Tone maps
+
+
+def seed_lut() -> np.ndarray:
+    """The seed's 256-entry float32 LUT: (i/256)^2 up to i = 204, then 0.128 / (1 - i/256).
+
+    Computed in float64 and rounded once to float32 (the seed stores floats).
+    """
+    x = np.arange(256, dtype=np.float64) / 256.0
+    with np.errstate(divide="ignore"):
+        lut = np.where(np.arange(256) <= 204, x * x, 0.128 / (1.0 - x))
+    return lut.astype(np.float32)
+
+
+def _seed_search_result(below: int) -> int:
+    """The seed's binary search, run for an input x with exactly ``below`` LUT entries < x.
+
+    Since the LUT is strictly increasing, ``LUT[M] < x`` is the same as ``M < below``, so the whole
+    search path (and the returned last midpoint) depends on ``below`` only.
+    """
+    lo, hi, mid = 0, 255, 128
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if mid < below:
+            lo = mid
+        else:
+            hi = mid
+    return mid
+
+
+_LUT = seed_lut()
+_SEARCH_RESULT = np.array([_seed_search_result(j) for j in range(257)], dtype=np.uint8)
+
+
+def tonemap_seed(img: np.ndarray) -> np.ndarray:
+    """The seed's tone curve per channel, exactly: float32 input, uint8 (H, W, 3) in [1, 254].
+
+    NaN and negative values give 1 (every comparison fails or succeeds the same way as for 0).
+    """
+    x = np.asarray(img, dtype=np.float32)
+    below = np.searchsorted(_LUT, x, side="left")      # count of LUT entries < x
+    below = np.where(np.isnan(x), 0, below)             # NaN < LUT[M] is false at every step
+    return _SEARCH_RESULT[below]
+
+
+def tonemap_srgb(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """sRGB encoding of linear radiance times ``exposure``, clamped to [0, 1], rounded to uint8.
+
+    NaN gives 0.
+    """
+    x = np.nan_to_num(np.asarray(img, dtype=np.float64) * exposure, nan=0.0)
+    x = np.clip(x, 0.0, 1.0)
+    y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.floor(y * 255.0 + 0.5).astype(np.uint8)
+
+
+# ---------------------------------------------------------------------------------------------
+# Image files
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], None]) -> None:
+    """Call ``write(f)`` on a temporary file next to ``path``, then rename it over ``path``.
+
+    On any exception (KeyboardInterrupt included) the temporary file is removed and ``path`` is
+    untouched, so a failed write never leaves a partial file or clobbers an existing one.
+    """
+    target = Path(path)
+    tmp = target.with_name(f".{target.name}.{uuid.uuid4().hex}.tmp")
+    try:
+        # os.open with mode 0o666 lets the umask decide the permissions, as for a plain open()
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _check_rgb(img: np.ndarray) -> np.ndarray:
+    a = np.asarray(img)
+    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 1:
+        raise ValueError(f"image must be (H, W, 3), got shape {a.shape}")
+    return a
+
+
+def _write_png(f: BinaryIO, img8: np.ndarray) -> None:
+    from PIL import Image
+
+    Image.fromarray(np.ascontiguousarray(img8, dtype=np.uint8)).save(f, format="PNG")
+
+
+def _write_npy(f: BinaryIO, img: np.ndarray) -> None:
+    np.save(f, np.ascontiguousarray(img, dtype=np.float32))
+
+
+def _write_pfm(f: BinaryIO, img: np.ndarray) -> None:
+    h, w = img.shape[:2]
+    f.write(f"PF\n{w} {h}\n-1.0\n".encode("ascii"))       # negative scale: little-endian
+    f.write(np.ascontiguousarray(img[::-1], dtype="<f4").tobytes())   # rows bottom to top
+
+
+_WRITERS: dict[str, Callable[[BinaryIO, np.ndarray], None]] = {
+    ".png": _write_png, ".npy": _write_npy, ".pfm": _write_pfm,
+}
+_TONEMAPS = {"seed": tonemap_seed, "srgb": tonemap_srgb}
+
+
+def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed") -> None:
+    """Save a linear (H, W, 3) image; the format follows the extension (.png, .npy, .pfm).
+
+    ``.png`` is tone mapped with ``tonemap`` ("seed" or "srgb"); ``.npy`` and ``.pfm`` keep float32
+    linear radiance. The write is atomic (see :func:`atomic_write`).
+    """
+    ext = Path(path).suffix.lower()
+    if ext not in _WRITERS:
+        raise ValueError(f"{path}: unsupported image extension {ext!r}; supported: {', '.join(_WRITERS)}")
+    if tonemap not in _TONEMAPS:
+        raise ValueError(f"unknown tone map {tonemap!r}; expected one of {', '.join(_TONEMAPS)}")
+    data = _check_rgb(img)
+    if ext == ".png":
+        data = _TONEMAPS[tonemap](data)
+    atomic_write(path, lambda f: _WRITERS[ext](f, data))
+
+
+def _pfm_header(f: BinaryIO, path) -> list[bytes]:
+    """The four whitespace-separated header tokens (type, width, height, scale) of a PFM file."""
+    tokens: list[bytes] = []
+    tok = b""
+    while len(tokens) < 4:
+        c = f.read(1)
+        if not c:
+            raise ValueError(f"{path}: truncated PFM header")
+        if c.isspace():
+            if tok:
+                tokens.append(tok)
+                tok = b""
+        else:
+            tok += c
+            if len(tok) > 32:
+                raise ValueError(f"{path}: malformed PFM header")
+    return tokens      # exactly one whitespace byte follows the scale, as the spec requires
+
+
+def read_pfm(path: str | os.PathLike) -> np.ndarray:
+    """Read a PFM file ("PF" colour or "Pf" grey, either byte order) as float32 (H, W, 3), row 0 = top."""
+    with open(path, "rb") as f:
+        kind, w, h, scale = _pfm_header(f, path)
+        if kind not in (b"PF", b"Pf"):
+            raise ValueError(f"{path}: not a PFM file (magic {kind!r}, expected b'PF' or b'Pf')")
+        try:
+            width, height, s = int(w), int(h), float(scale)
+        except ValueError:
+            raise ValueError(f"{path}: malformed PFM header {w!r} {h!r} {scale!r}") from None
+        if width < 1 or height < 1 or s == 0.0:
+            raise ValueError(f"{path}: invalid PFM size {width}x{height} or scale {s}")
+        channels = 3 if kind == b"PF" else 1
+        count = width * height * channels
+        raw = f.read(4 * count)
+    if len(raw) != 4 * count:
+        raise ValueError(f"{path}: PFM data holds {len(raw)} bytes, expected {4 * count} ({width}x{height}x{channels} floats)")
+    data = np.frombuffer(raw, dtype="<f4" if s < 0 else ">f4")
+    img = data.reshape(height, width, channels)[::-1].astype(np.float32)
+    return np.repeat(img, 3, axis=2) if channels == 1 else img
+
+
+def load_image(path: str | os.PathLike) -> np.ndarray:
+    """Read .npy / .pfm (float32 linear) or .png (uint8 RGB) as an (H, W, 3) array."""
+    ext = Path(path).suffix.lower()
+    if ext == ".npy":
+        return _check_rgb(np.load(path, allow_pickle=False))
+    if ext == ".pfm":
+        return read_pfm(path)
+    if ext == ".png":
+        from PIL import Image
+
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"), dtype=np.uint8)
+    raise ValueError(f"{path}: unsupported image extension {ext!r}; supported: .png, .npy, .pfm")

@@ -25,7 +25,7 @@ import warp as wp  # noqa: E402
 
 wp.config.quiet = True
 
-import warp_spt.render as R  # noqa: E402
+import warp_spt.renderer as R  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.device_scene import DeviceScene, Features  # noqa: E402
 from warp_spt.integrator import get_kernel  # noqa: E402

@@ -26,8 +26,12 @@ from warp_spt.camera import Camera  # noqa: E402  (after the path set-up, to use
 from warp_spt.demo import PRESETS, demo_files  # noqa: E402
 from warp_spt.film import save_image, tonemap_seed  # noqa: E402
 from warp_spt.loader import load_scene  # noqa: E402
-from warp_spt.render import render  # noqa: E402
+from warp_spt.renderer import render  # noqa: E402
 from warp_spt.sky import Sky  # noqa: E402
+
+import warp  # noqa: E402
+
+warp.config.log_level = warp.LOG_WARNING   # no banner or kernel-load lines between the progress bars
 
 SEED_DEMO = REPO.parent / "shared" / "seed" / "demo"
 DOCS = REPO / "docs"

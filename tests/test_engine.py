@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt import render as R
+from warp_spt import renderer as R
 from warp_spt.camera import Camera
 from warp_spt.device_scene import DeviceScene, Features
 from warp_spt.loader import load_scene

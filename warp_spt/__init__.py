@@ -1,9 +1,45 @@
 """warp_spt: a small physically based path tracer on NVIDIA Warp.
 
-The public surface: :func:`load_scene` (OBJ/MTL files to a :class:`Scene`), :func:`render` (a Scene
-to a linear float32 image), :class:`Camera`, :class:`Sky`, :func:`save_image` and :class:`SceneError`.
+The public surface, in the order data flows::
+
+    scene = warp_spt.load_scene(["box.obj", "balls.obj"], ["box.mtl"])   # text -> numpy Scene
+    image = warp_spt.render(scene, warp_spt.Camera(), width=512, height=512, spp=16)  # linear float32
+    warp_spt.save_image("out.png", image)                                  # tone-mapped PNG, .npy or .pfm
+
+:func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
+bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
+separate sample ranges merge exactly; :func:`render_film` returns one.
 """
 
 from __future__ import annotations
 
+from .camera import Camera
+from .errors import SceneError
+from .film import Film, save_image, tonemap_seed, tonemap_srgb
+from .loader import load_scene
+from .mtl import load_mtl
+from .obj import load_obj
+from .renderer import render, render_film
+from .scene import Material, ObjData, Scene
+from .sky import Sky
+
 __version__ = "0.1.0"
+
+__all__ = [
+    "Camera",
+    "Film",
+    "Material",
+    "ObjData",
+    "Scene",
+    "SceneError",
+    "Sky",
+    "load_mtl",
+    "load_obj",
+    "load_scene",
+    "render",
+    "render_film",
+    "save_image",
+    "tonemap_seed",
+    "tonemap_srgb",
+    "__version__",
+]

@@ -315,7 +315,7 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     _quiet_warp(opts.quiet)
     from .film import save_image
     from .loader import load_scene
-    from .render import render
+    from .renderer import render
 
     start = time.perf_counter()
     scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below

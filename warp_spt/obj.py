@@ -132,6 +132,8 @@ class LineReader:
             out[k] = parse_int(part, self.path, lineno, what)
             if out[k] == 0:
                 raise SceneError(self.path, lineno, f"{what} 0 is invalid: OBJ indices start at 1")
+            if abs(out[k]) >= 2**62:  # the bulk scanner's integers saturate there
+                raise SceneError(self.path, lineno, f"{what} {out[k]} is out of range")
         return out
 
     def _sphere(self, lineno: int, args: list[bytes]) -> None:

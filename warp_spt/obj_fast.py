@@ -25,18 +25,16 @@ from .tokens import strip_comment
 _SPACE, _NL, _HASH, _SLASH = 32, 10, 35, 47
 
 
-def _table(chars: bytes, base: np.ndarray | None = None) -> np.ndarray:
-    t = np.zeros(256, dtype=bool) if base is None else base.copy()
-    t[np.frombuffer(chars, np.uint8)] = True
-    return t
-
-
-_WS = _table(b" \t\r\n\x0b\x0c")
-# Characters a vertex or face line may hold; anything else sends the file to the line reader
-# (which rejects "nan", "inf", hex floats... with a precise message).
-_FLOAT_OK = _table(b"0123456789+-.eE", _WS)
-_INDEX_OK = _table(b"0123456789+-/", _WS)
-_DIGIT = _table(b"0123456789")
+# Byte sets for bytes.translate(None, delete=...), which returns the bytes NOT in the set: a fast
+# check that a text holds only the characters its numbers may use (the line reader rejects "nan",
+# "inf", hex floats, stray control characters... with a precise message).
+_BLANKS = b" \t\r\n\x0b\x0c"
+_FLOAT_CHARS = b"0123456789+-.eE" + _BLANKS
+_INDEX_CHARS = b"0123456789+-/" + _BLANKS
+# everything but the control characters that are not blanks: a file holding one goes to the line reader
+_NOT_ODD_CONTROL = bytes(c for c in range(256) if c >= 32 or c in _BLANKS)
+_DIGIT = np.zeros(256, dtype=bool)
+_DIGIT[np.frombuffer(b"0123456789", np.uint8)] = True
 
 
 class _Lines:
@@ -44,11 +42,15 @@ class _Lines:
 
     def __init__(self, buf: np.ndarray):
         n = len(buf)
-        ws = _WS[buf].view(np.int8)
-        edge = np.diff(ws, prepend=np.int8(1), append=np.int8(1))
-        self.start = np.flatnonzero(edge == -1)   # first byte of each token
-        self.end = np.flatnonzero(edge == 1)      # one past its last byte
-        del ws, edge
+        ws = buf <= _SPACE  # exact: the caller has ruled out other control characters
+        bounds = np.flatnonzero(ws[1:] != ws[:-1]) + 1   # token starts and ends, alternating
+        if not ws[0]:
+            bounds = np.concatenate([[0], bounds])
+        if not ws[-1]:
+            bounds = np.concatenate([bounds, [n]])
+        del ws
+        self.start = bounds[0::2]   # first byte of each token
+        self.end = bounds[1::2]     # one past its last byte
         self.newline = np.flatnonzero(buf == _NL)
         tok_line = np.searchsorted(self.newline, self.start)
         first = np.ones(len(self.start), dtype=bool)
@@ -84,9 +86,11 @@ def scan_bulk(data: bytes, path: str) -> RawObj | None:
     buf = np.frombuffer(data, dtype=np.uint8)
     if len(buf) == 0:
         return LineReader(path).raw()
+    if data.translate(None, _NOT_ODD_CONTROL):
+        return None
     lay = _Lines(buf)
     bulk = lay.is_v | lay.is_vt | lay.is_vn | lay.is_f
-    if not _counts_ok(lay) or _comment_in(buf, lay, bulk):
+    if not _counts_ok(lay) or (b"#" in data and _comment_in(buf, lay, bulk)):
         return None
     reader = LineReader(path)
     try:
@@ -97,7 +101,7 @@ def scan_bulk(data: bytes, path: str) -> RawObj | None:
     except SceneError:
         return None
     vertex = _vertex_lines(buf, lay)
-    faces = _face_lines(buf, lay)
+    faces = _face_lines(buf, data, lay)
     if vertex is None or faces is None:
         return None
     raw = reader.raw()
@@ -120,8 +124,6 @@ def _counts_ok(lay: _Lines) -> bool:
 def _comment_in(buf: np.ndarray, lay: _Lines, bulk: np.ndarray) -> bool:
     """Whether some bulk line holds a ``#`` (a trailing comment: left to the line reader)."""
     hashes = np.flatnonzero(buf == _HASH)
-    if len(hashes) == 0:
-        return False
     return bool(np.isin(lay.line[bulk], np.searchsorted(lay.newline, hashes)).any())
 
 
@@ -139,14 +141,17 @@ def _values(buf: np.ndarray, lay: _Lines, sel: np.ndarray, integers: bool) -> np
     keep = np.zeros(len(bounds) - 1, dtype=bool)
     keep[1::2] = True
     text = buf[np.repeat(keep, np.diff(bounds))]
-    if not (_INDEX_OK if integers else _FLOAT_OK)[text].all():
+    raw = text.tobytes()
+    if raw.translate(None, _INDEX_CHARS if integers else _FLOAT_CHARS):
         return None
     if integers:
         text[text == _SLASH] = _SPACE
         # numpy's integer reader takes a lone sign as 0 and skips blanks after a sign
-        signs = np.flatnonzero((text == ord("+")) | (text == ord("-")))
-        if len(signs) and not _DIGIT[np.append(text, _SPACE)[signs + 1]].all():
-            return None
+        if b"-" in raw or b"+" in raw:
+            signs = np.flatnonzero((text == ord("+")) | (text == ord("-")))
+            if not _DIGIT[np.append(text, np.uint8(_SPACE))[signs + 1]].all():
+                return None
+    del raw
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", DeprecationWarning)  # numpy < 2.3 only warned on bad text
@@ -173,7 +178,12 @@ def _vertex_lines(buf: np.ndarray, lay: _Lines):
     return tuple(out)
 
 
-def _face_lines(buf: np.ndarray, lay: _Lines):
+def _count_in(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """How many of the sorted ``positions`` fall in each [lo, hi)."""
+    return np.searchsorted(positions, hi) - np.searchsorted(positions, lo)
+
+
+def _face_lines(buf: np.ndarray, data: bytes, lay: _Lines):
     """(corner_v, corner_vt, corner_vn, poly_size, poly_line), or None."""
     sel = lay.is_f
     poly_size = (lay.ntok - 1)[sel]
@@ -183,10 +193,11 @@ def _face_lines(buf: np.ndarray, lay: _Lines):
         return z, z.copy(), z.copy(), poly_size, poly_line
     corner_tok = np.repeat(lay.is_f, lay.ntok) & ~lay.is_first
     cs, ce = lay.start[corner_tok], lay.end[corner_tok]
-    slash = np.flatnonzero(buf == _SLASH)
-    nsl = np.searchsorted(slash, ce) - np.searchsorted(slash, cs)
-    double = slash[:-1][np.diff(slash) == 1]       # '//' starts
-    nds = np.searchsorted(double, ce) - np.searchsorted(double, cs)
+    nsl = _count_in(np.flatnonzero(buf == _SLASH), cs, ce) if b"/" in data else np.zeros(len(cs), np.int64)
+    nds = np.zeros(len(cs), np.int64)
+    if b"//" in data:
+        slash = np.flatnonzero(buf == _SLASH)
+        nds = _count_in(slash[:-1][np.diff(slash) == 1], cs, ce)   # '//' starts
     # valid corners: v, v/vt, v/vt/vn, v//vn, never starting or ending with '/'
     if (nsl > 2).any() or (buf[cs] == _SLASH).any() or (buf[ce - 1] == _SLASH).any():
         return None

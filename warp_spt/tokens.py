@@ -62,7 +62,9 @@ def parse_float(tok: bytes, path: str, lineno: int, tag: str) -> float:
     if not _FLOAT_RE.fullmatch(tok):
         raise SceneError(path, lineno, f"expected a number after '{tag}', got {show(tok)}")
     value = float(tok)
-    if not math.isfinite(value) or not np.isfinite(np.float32(value)):
+    with np.errstate(over="ignore"):
+        finite32 = bool(np.isfinite(np.float32(value)))
+    if not math.isfinite(value) or not finite32:
         raise SceneError(path, lineno, f"expected a finite number after '{tag}', got {show(tok)}")
     return value
 
@@ -70,10 +72,18 @@ def parse_float(tok: bytes, path: str, lineno: int, tag: str) -> float:
 def parse_floats(toks: Sequence[bytes], counts: Sequence[int], path: str, lineno: int, tag: str) -> list[float]:
     """Parse the numbers after ``tag``; their count must be one of ``counts``."""
     if len(toks) not in counts:
-        want = " or ".join(str(c) for c in counts) if len(counts) < 4 else f"{counts[0]} to {counts[-1]}"
+        want = _phrase(counts)
         noun = "number" if counts == (1,) else "numbers"
         raise SceneError(path, lineno, f"expected {want} {noun} after '{tag}', got {len(toks)}")
     return [parse_float(t, path, lineno, tag) for t in toks]
+
+
+def _phrase(counts: Sequence[int]) -> str:
+    """(3,) -> "3", (1, 3) -> "1 or 3", (3, 4, 6) -> "3, 4 or 6", (1, 2, 3) -> "1 to 3"."""
+    if len(counts) > 2 and list(counts) == list(range(counts[0], counts[-1] + 1)):
+        return f"{counts[0]} to {counts[-1]}"
+    head = ", ".join(str(c) for c in counts[:-1])
+    return f"{head} or {counts[-1]}" if head else str(counts[-1])
 
 
 def parse_int(tok: bytes, path: str, lineno: int, what: str) -> int:

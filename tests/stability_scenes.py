@@ -7,13 +7,13 @@ agree when every block of pixels agrees within a bound derived from the batches'
 
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from warp_spt import renderer as R
 from warp_spt.camera import Camera
 from warp_spt.device_scene import DeviceScene, Features
 from warp_spt.loader import load_scene
@@ -21,9 +21,6 @@ from warp_spt.sky import Sky
 
 from .scenes import material, write_scene_files
 
-# warp_spt/__init__.py re-exports the function render(), which shadows the submodule attribute:
-# import the module itself to reach render() and last_stats.
-R = importlib.import_module("warp_spt.render")
 
 GENERAL = Features.general()     # one kernel serves every scene of the suite (one compile)
 
@@ -78,7 +75,7 @@ def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0) -> tuple
         ("white", [(0, 0, 0), (0, 0, s), (s, 0, s), (s, 0, 0)]),          # front wall (behind the camera)
         ("red", [(0, 0, 0), (0, s, 0), (0, s, s), (0, 0, s)]),            # left
         ("green", [(s, 0, 0), (s, 0, s), (s, s, s), (s, s, 0)]),          # right
-        ("light", [(12, 12, s - 0.25), (20, 12, s - 0.25), (20, 20, s - 0.25), (12, 20, s - 0.25)]),
+        ("light", [(10, 10, s - 0.25), (22, 10, s - 0.25), (22, 22, s - 0.25), (10, 22, s - 0.25)]),
     ]
     quads += box_quads((6, 16, 0), (14, 24, 16), "white")                 # tall block on the floor
     quads += box_quads((18, 6, 0), (26, 14, 8), "white")                  # short block on the floor
@@ -87,7 +84,7 @@ def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0) -> tuple
     mtl = (material("white", Kd=(0.75, 0.75, 0.75), Roughness=1)
            + material("red", Kd=(0.75, 0.2, 0.2), Roughness=1)
            + material("green", Kd=(0.2, 0.75, 0.2), Roughness=1)
-           + material("light", Kd=(0.75, 0.75, 0.75), Kl=(12, 12, 12), Roughness=1)
+           + material("light", Kd=(0.75, 0.75, 0.75), Kl=(5, 5, 5), Roughness=1)
            + material("gloss", Kd=(0.8, 0.6, 0.3), Roughness=0.5, Fuzz=0.2)
            + material("glass", Kd=(0.95, 0.95, 0.95), Kt=(0.95, 0.95, 0.95), Roughness=0, Fuzz=0,
                       Kn=1.5, Refractable=True))

@@ -27,6 +27,10 @@ class SceneArrays:
     face_material: wp.array(dtype=wp.int32)
     corner_uv: wp.array(dtype=wp.vec2)         # 3 per face
     corner_normal: wp.array(dtype=wp.vec3)     # 3 per face (smooth shading only)
+    # 1 when corner_normal holds 3 normals per face. A kernel compiled with smooth-shading code
+    # (e.g. Features.general()) for a scene without vn must not read the one-element dummy array:
+    # it did, out of bounds, and shaded with garbage normals.
+    has_corner_normals: int
     num_meshes: int
     # Analytic spheres
     spheres: wp.array(dtype=wp.vec4)           # centre xyz, radius
@@ -112,6 +116,7 @@ class DeviceScene:
         s.face_material = _arr(_cat(mats, (0,), np.int32), wp.int32, device, np.int32)
         s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32)
         s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
+        s.has_corner_normals = int(self.features.smooth)
 
     def _upload_spheres_and_tlas(self, s: SceneArrays, scene: Scene, device: str) -> None:
         lowers, uppers = [], []

@@ -92,9 +92,11 @@ def make_shading(features: Features):
                 w = 1.0 - h.u - h.v
                 sf.uv = s.corner_uv[3 * g] * h.u + s.corner_uv[3 * g + 1] * h.v + s.corner_uv[3 * g + 2] * w
                 if wp.static(features.smooth):
-                    n = s.corner_normal[3 * g] * h.u + s.corner_normal[3 * g + 1] * h.v + s.corner_normal[3 * g + 2] * w
-                    if wp.length(n) > 1.0e-12:
-                        ns = wp.normalize(n)
+                    if s.has_corner_normals != 0:
+                        n = (s.corner_normal[3 * g] * h.u + s.corner_normal[3 * g + 1] * h.v
+                             + s.corner_normal[3 * g + 2] * w)
+                        if wp.length(n) > 1.0e-12:
+                            ns = wp.normalize(n)
         else:
             if wp.static(features.spheres):
                 sph = s.spheres[h.index]

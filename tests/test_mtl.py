@@ -1,0 +1,162 @@
+"""MTL reader: the seed's tags and defaults (SEMANTICS §6), the standard tags' mapping, errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from warp_spt.errors import SceneError
+from warp_spt.mtl import builtin_checker, load_mtl, parse_mtl_bytes
+from warp_spt.scene import CHECKER_NAME, TextureRef
+
+# SEMANTICS §6.2, written out independently of the Material defaults
+SEED_DIFFUSE = (0x9F / 256, 0x8F / 256, 0x7C / 256)
+SEED_REFLECT = (0xAF / 256, 0xBF / 256, 0xCF / 256)
+SEED_REFRACT = (0xBB / 256, 0xBC / 256, 0xB1 / 256)
+
+
+def mtl(text: str, path: str = "lib/m.mtl"):
+    return parse_mtl_bytes(text.encode("utf-8"), path)
+
+
+def one(text: str):
+    (m,) = mtl("newmtl m\n" + text).values()
+    return m
+
+
+def test_defaults_of_a_new_material():
+    m = one("")
+    assert m.name == "m" and m.source == "lib/m.mtl" and m.line == 1
+    assert m.diffuse == pytest.approx(SEED_DIFFUSE) and m.diffuse == pytest.approx((0.62109375, 0.55859375, 0.484375))
+    assert m.reflect == pytest.approx(SEED_REFLECT)
+    assert m.refract == pytest.approx(SEED_REFRACT)
+    assert m.emission == (0, 0, 0)
+    assert (m.roughness, m.fuzz, m.ior, m.refractable, m.checker) == (0.85, pytest.approx(0.62), 1.0, False, False)
+    assert m.diffuse_map is m.reflect_map is m.refract_map is m.emission_map is None
+
+
+def test_builtin_checker():
+    c = builtin_checker()
+    assert c.name == CHECKER_NAME and c.checker
+    assert (c.roughness, c.fuzz, c.ior, c.refractable) == (0.75, pytest.approx(0.62), 1.0, False)
+    assert c.refract == pytest.approx(SEED_REFRACT) and c.emission == (0, 0, 0)
+
+
+def test_seed_tags():
+    m = one("Kd 0.1 0.2 0.3\nKl 1.8 1.8 1.8\nKt 0.4 0.5 0.6\nRoughness 0.13\nFuzz 0.18\nKn 1.62\nRefractable\n")
+    assert m.diffuse == m.reflect == (0.1, 0.2, 0.3)
+    assert m.emission == (1.8, 1.8, 1.8) and m.refract == (0.4, 0.5, 0.6)
+    assert (m.roughness, m.fuzz, m.ior, m.refractable) == (0.13, 0.18, 1.62, True)
+
+
+def test_kd_sets_reflect_and_kr_only_reflect_in_line_order():
+    assert one("Kd 1 0 0\nKr 0 1 0\n").diffuse == (1, 0, 0) and one("Kd 1 0 0\nKr 0 1 0\n").reflect == (0, 1, 0)
+    m = one("Kr 0 1 0\nKd 1 0 0\n")
+    assert m.reflect == (1, 0, 0)
+
+
+def test_texture_tags_and_map_kt():
+    m = one("map_Kd tex/a.png\nmap_Kl glow.png\nmap_Kt t.png\n")
+    assert m.diffuse_map == m.reflect_map == TextureRef("tex/a.png", "lib/m.mtl", 2)
+    assert m.emission_map == TextureRef("glow.png", "lib/m.mtl", 3)
+    assert m.refract_map == TextureRef("t.png", "lib/m.mtl", 4)
+    m2 = one("map_Kd a.png\nmap_Kr r.png\n")
+    assert m2.diffuse_map.path == "a.png" and m2.reflect_map.path == "r.png"
+
+
+def test_constant_and_texture_replace_each_other():
+    assert one("map_Kd a.png\nKd 1 1 1\n").diffuse_map is None
+    m = one("Kd 1 1 1\nmap_Kd a.png\n")
+    assert m.diffuse_map.path == "a.png" and m.diffuse == (1, 1, 1)
+
+
+def test_texture_options_are_skipped_and_names_keep_spaces():
+    m = one("map_Kd -s 2 2 1 -o 0.5 -clamp on -bm 0.3 dir\\my tex.png\n")
+    assert m.diffuse_map.path == "dir\\my tex.png"
+
+
+def test_later_definition_wins_and_lines_before_newmtl_are_ignored():
+    lib = mtl("Kd 0 0 0\nnewmtl a\nKd 1 0 0\nnewmtl b\nKd 0 1 0\nnewmtl a\nKd 0 0 1\n")
+    assert set(lib) == {"a", "b"}
+    assert lib["a"].diffuse == (0, 0, 1) and lib["a"].line == 6 and lib["b"].diffuse == (0, 1, 0)
+
+
+def test_unknown_tags_comments_case_and_grey_colours():
+    m = one("# c\nKa 1 1 1\nNs 100\nbump b.png\nfoo bar\nkd 0.5  # grey\nKE 2\n")
+    assert m.diffuse == m.reflect == (0.5, 0.5, 0.5) and m.emission == (2, 2, 2)
+
+
+def test_standard_tags():
+    m = one("Kd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nKe 1 2 3\nNi 1.45\nTf 0.9 1 0.9\n")
+    assert m.diffuse == (0.8, 0.8, 0.8) and m.reflect == (0.5, 0.5, 0.5)
+    assert m.emission == (1, 2, 3) and m.ior == 1.45 and m.refract == (0.9, 1, 0.9)
+    assert one("map_Ke e.png\nmap_Ks s.png\n").emission_map.path == "e.png"
+
+
+@pytest.mark.parametrize("text, rough, fuzz, refractable", [
+    ("illum 2\n", 0.85, 0.62, False),
+    ("illum 3\n", 0.0, 0.0, False),
+    ("illum 5\n", 0.0, 0.0, False),
+    ("illum 4\n", 0.0, 0.0, True),
+    ("illum 7\n", 0.0, 0.0, True),
+    ("d 1\n", 0.85, 0.62, False),
+    ("d 0.25\n", 0.25, 0.62, True),
+    ("Tr 0.75\n", 0.25, 0.62, True),
+    ("illum 3\nd 0.5\n", 0.0, 0.0, True),
+    ("Roughness 0.4\nFuzz 0.1\nillum 7\n", 0.4, 0.1, True),   # explicit seed tags win
+    ("d 0.2\nRoughness 0.6\n", 0.6, 0.62, True),
+])
+def test_illum_and_opacity_mapping(text, rough, fuzz, refractable):
+    m = one(text)
+    assert (m.roughness, m.fuzz, m.refractable) == (pytest.approx(rough), pytest.approx(fuzz), refractable)
+
+
+ERRORS = [
+    ("newmtl\n", 1, "expected a material name after 'newmtl'"),
+    ("newmtl a\nKd 1 1\n", 2, "expected 1 or 3 numbers after 'Kd', got 2"),
+    ("newmtl a\nKd 1 x 1\n", 2, "expected a number after 'Kd', got 'x'"),
+    ("newmtl a\n\nKl 1 nan 1\n", 3, "expected a number after 'Kl', got 'nan'"),
+    ("newmtl a\nKd 1 -1 1\n", 2, "expected colour values >= 0 after 'Kd'"),
+    ("newmtl a\nRoughness 1.5\n", 2, "expected a value in [0, 1] after 'Roughness', got 1.5"),
+    ("newmtl a\nRoughness\n", 2, "expected 1 number after 'Roughness', got 0"),
+    ("newmtl a\nFuzz -0.1\n", 2, "expected a value >= 0 after 'Fuzz'"),
+    ("newmtl a\nKn 0\n", 2, "expected a value > 0 after 'Kn', got 0"),
+    ("newmtl a\nNi -1\n", 2, "expected a value > 0 after 'Ni'"),
+    ("newmtl a\nd 2\n", 2, "expected a value in [0, 1] after 'd'"),
+    ("newmtl a\nillum x\n", 2, "expected an integer illumination model, got 'x'"),
+    ("newmtl a\nmap_Kd\n", 2, "expected a texture file name after 'map_Kd'"),
+    ("newmtl a\nKt 1e400 1 1\n", 2, "expected a finite number after 'Kt'"),
+]
+
+
+@pytest.mark.parametrize("text, line, message", ERRORS)
+def test_errors_name_file_line_and_expectation(text, line, message):
+    with pytest.raises(SceneError) as info:
+        mtl(text, path="x/bad.mtl")
+    assert (info.value.path, info.value.line) == ("x/bad.mtl", line)
+    assert message in info.value.message
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(SceneError, match="cannot read MTL file"):
+        load_mtl(tmp_path / "nope.mtl")
+
+
+def test_crlf_and_utf8_names(tmp_path):
+    p = tmp_path / "u.mtl"
+    p.write_bytes("newmtl 红色 材质\r\nKd 1 0 0\r\n".encode("utf-8"))
+    lib = load_mtl(p)
+    assert lib["红色 材质"].diffuse == (1, 0, 0)
+
+
+def test_seed_demo_library(seed_demo):
+    lib = load_mtl(seed_demo / "testMiku.mtl")
+    assert set(lib) == {f"Texture{k}" for k in range(7)} | {
+        "light", "white", "green", "red", "Box1", "Box2", "Ball1", "Ball2", "Floor", "BackWall"}
+    assert lib["light"].emission == (1.8, 1.8, 1.8) and lib["light"].diffuse == (1, 1, 1)
+    assert lib["Floor"].roughness == 0.7 and lib["Floor"].fuzz == 0.18
+    b2 = lib["Ball2"]
+    assert (b2.refract, b2.roughness, b2.fuzz, b2.ior, b2.refractable) == ((1, 1, 1), 0.0, 0.0, 0.5, True)
+    assert lib["Texture3"].diffuse_map.path == "renderRes/face_MikuAp.png" and lib["Texture3"].emission == (0.15,) * 3
+    assert lib["Texture2"].diffuse == pytest.approx((0.87, 0.783, 0.83955), abs=1e-6)
+    alt = load_mtl(seed_demo / "testMiku_ior1.62.mtl")["Ball2"]
+    assert (alt.ior, alt.fuzz) == (1.62, 0.18)

@@ -55,19 +55,22 @@ def comparison() -> Path | None:
     if not reference.is_file():
         print(f"skipping the comparison: {reference} not found")
         return None
-    here = os.getcwd()
-    os.chdir(SEED_DEMO)   # the seed's MTL names textures relative to the working directory
-    try:
-        scene = load_scene(["cornell_export.obj", "baller.obj"], ["testMiku.mtl"])
-    finally:
-        os.chdir(here)
-    img = timed("seed demo 512x512, 16 spp", lambda: render(
-        scene, Camera(), width=512, height=512, spp=16, max_depth=8, sky=Sky.gradient(), progress=True))
-    ours = Image.fromarray(tonemap_seed(img))
+    panels = [(None, "seed (Java), 512p16s.png")]
+    for mtl, label in (("testMiku.mtl", "warp_spt, the same command line (Kn 0.5)"),
+                       ("testMiku_ior1.62.mtl", "warp_spt, the other shipped MTL (Kn 1.62)")):
+        here = os.getcwd()
+        os.chdir(SEED_DEMO)   # the seed's MTL names textures relative to the working directory
+        try:
+            scene = load_scene(["cornell_export.obj", "baller.obj"], [mtl])
+        finally:
+            os.chdir(here)
+        img = timed(f"seed demo with {mtl}, 512x512, 16 spp", lambda: render(
+            scene, Camera(), width=512, height=512, spp=16, max_depth=8, sky=Sky.gradient(), progress=True))
+        panels.append((Image.fromarray(tonemap_seed(img)), label))
     with Image.open(reference) as im:
-        theirs = im.convert("RGB")
+        panels[0] = (im.convert("RGB"), panels[0][1])
     out = DOCS / "seed_vs_warp_spt.png"
-    side_by_side([(theirs, "seed (Java), 512p16s.png"), (ours, "warp_spt, the same command line")]).save(out)
+    side_by_side(panels).save(out)
     return out
 
 

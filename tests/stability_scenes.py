@@ -156,12 +156,13 @@ def normal_quantile(p: float) -> float:
 
 @dataclass
 class Comparison:
-    """Block-wise two-sample comparison of batched images."""
+    """Two batched images compared block by block and as a whole (Welch t statistics)."""
 
-    z: np.ndarray          # (blocks, 3) Welch t statistics
-    bound: float           # |z| above this fails
-    dof: float
-    rel_diff: float        # |mean difference| / mean over the whole image
+    z: np.ndarray          # (blocks, 3) per block and channel
+    z_total: float         # of the whole image's mean
+    bound: float           # a block |z| above this fails
+    bound_total: float     # the whole-image |z| above this fails
+    rel_diff: float        # whole-image mean difference, relative to the mean
     rel_se: float          # its standard error, relative
 
     @property
@@ -177,33 +178,41 @@ def block_means(batches: np.ndarray, block: int) -> np.ndarray:
     return b.reshape(k, -1, 3)
 
 
-def compare(a: np.ndarray, b: np.ndarray, block: int = 4, alpha: float = 1e-4) -> Comparison:
-    """Compare two batched images (K, H, W, 3) block by block.
-
-    Each block mean is averaged over K independent batches; its standard error comes from the
-    batches' spread. The Welch statistic of every block and channel is held against the t quantile
-    at a family-wise false-failure probability ``alpha`` (Bonferroni over blocks x channels).
-    Blocks where both images have zero spread must agree exactly.
-    """
-    ma, mb = block_means(a, block), block_means(b, block)
+def welch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Welch t statistic of the means of samples a and b (axis 0); 0 where both are constant and equal."""
     k = a.shape[0]
-    va, vb = ma.var(axis=0, ddof=1) / k, mb.var(axis=0, ddof=1) / k
-    diff = ma.mean(axis=0) - mb.mean(axis=0)
-    se = np.sqrt(va + vb)
-    z = np.where(se > 0, diff / np.where(se > 0, se, 1.0), np.where(diff == 0, 0.0, np.inf))
-    dof = 2 * (k - 1)       # the smallest Welch dof when one side's spread dominates is k - 1: be safe
-    bound = t_quantile(alpha / (2 * z.size), k - 1)
+    diff = a.mean(axis=0) - b.mean(axis=0)
+    se = np.sqrt(a.var(axis=0, ddof=1) / k + b.var(axis=0, ddof=1) / k)
+    return np.where(se > 0, diff / np.where(se > 0, se, 1.0), np.where(diff == 0, 0.0, np.inf))
+
+
+def compare(a: np.ndarray, b: np.ndarray, block: int = 4, alpha: float = 1e-4) -> Comparison:
+    """Compare two batched images (K, H, W, 3) block by block and as a whole.
+
+    Each block mean is averaged over K independent batches and its standard error comes from the
+    batches' spread. A block's Welch statistic is held against Student's t quantile at a
+    family-wise false-failure probability ``alpha`` (Bonferroni over blocks x channels, plus the
+    whole-image test). Degrees of freedom K - 1, the least Welch's approximation can give, so the
+    bound is conservative. Blocks where both images have zero spread must agree exactly.
+    """
+    k = a.shape[0]
+    ma, mb = block_means(a, block), block_means(b, block)
+    z = welch(ma, mb)
     tot_a, tot_b = a.mean(axis=(1, 2, 3)), b.mean(axis=(1, 2, 3))
     mean = 0.5 * (tot_a.mean() + tot_b.mean())
     rel_se = math.sqrt(tot_a.var(ddof=1) / k + tot_b.var(ddof=1) / k) / mean
-    return Comparison(z, bound, dof, abs(tot_a.mean() - tot_b.mean()) / mean, rel_se)
+    tests = z.size + 1
+    return Comparison(z, float(welch(tot_a[:, None], tot_b[:, None])[0]),
+                      t_quantile(alpha / (2 * tests), k - 1), t_quantile(alpha / (2 * tests), k - 1),
+                      abs(tot_a.mean() - tot_b.mean()) / mean, rel_se)
 
 
 def assert_same_image(a: np.ndarray, b: np.ndarray, what: str, block: int = 4, alpha: float = 1e-4) -> Comparison:
-    """Fail unless the batched images agree block by block within the statistical bound."""
+    """Fail unless the batched images agree block by block and as a whole within the statistical bound."""
     c = compare(a, b, block, alpha)
-    assert c.worst <= c.bound, (f"{what}: worst block |t| = {c.worst:.2f} > {c.bound:.2f}; whole image differs by "
-                                f"{c.rel_diff:.2%} (standard error {c.rel_se:.2%})")
+    assert c.worst <= c.bound and abs(c.z_total) <= c.bound_total, (
+        f"{what}: worst block |t| = {c.worst:.2f} (bound {c.bound:.2f}); whole image differs by "
+        f"{c.rel_diff:.2%} (standard error {c.rel_se:.2%}, |t| = {abs(c.z_total):.2f})")
     return c
 
 

@@ -19,6 +19,7 @@ from typing import Sequence, TextIO
 from . import __version__
 from .camera import Camera
 from .demo import PRESETS, demo_files
+from .progress import ProgressBar
 from .sky import Sky
 
 PROG = "warp-spt"
@@ -277,33 +278,6 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
         raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} is not writable")
     if Path(out).is_dir():
         raise RunError(f"cannot write -out {out!r}: it is a directory")
-
-
-class ProgressBar:
-    """Adapts the renderer's ``(done_units, total_units)`` callback to a tqdm bar counted in samples.
-
-    Counting samples (pixels x spp) makes tqdm show the rate as samples/s and an ETA. tqdm.auto
-    draws a widget in Jupyter and text on stderr elsewhere; ``delay`` keeps quick renders silent.
-    """
-
-    def __init__(self, total_samples: int, *, file: TextIO | None = None, delay: float = 0.5):
-        self.total_samples = int(total_samples)
-        self._file = file
-        self._delay = delay
-        self._bar = None
-
-    def __call__(self, done: int, total: int) -> None:
-        if self._bar is None:
-            from tqdm.auto import tqdm  # lazy: tqdm.auto probes for Jupyter when imported
-            self._bar = tqdm(total=self.total_samples, unit="sample", unit_scale=True, desc="rendering",
-                             file=self._file or sys.stderr, delay=self._delay, dynamic_ncols=True)
-        target = self.total_samples if total <= 0 else round(self.total_samples * min(done, total) / total)
-        if target > self._bar.n:
-            self._bar.update(target - self._bar.n)
-
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
 
 
 def run(opts: Options, *, stderr: TextIO | None = None) -> int:

@@ -22,10 +22,17 @@ from .shading import make_shading, offset_origin, sky_radiance
 
 @wp.struct
 class CameraParams:
-    """The image plane of camera.Camera.frame(), in float32."""
+    """The image plane of camera.Camera.frame(), in float32.
+
+    Primary rays use ``to_upper_left`` (the corner relative to the origin, subtracted in float64):
+    with the absolute corner, a camera at 1e5 rounded every target point to 1/128 unit before the
+    origin was subtracted, which bent primary rays by up to a few percent
+    (tests/test_stability.py, shifted Cornell box).
+    """
 
     origin: wp.vec3
     upper_left: wp.vec3
+    to_upper_left: wp.vec3     # upper_left - origin
     x_step: wp.vec3
     y_step: wp.vec3
     right: wp.vec3
@@ -35,9 +42,10 @@ class CameraParams:
 
 def camera_params(camera: Camera, width: int, height: int) -> CameraParams:
     """Pack a Camera's frame for the kernel."""
-    f = camera.frame(width, height)
+    f = dict(camera.frame(width, height))
+    f["to_upper_left"] = f["upper_left"] - f["origin"]     # in float64, before rounding to float32
     c = CameraParams()
-    for name in ("origin", "upper_left", "x_step", "y_step", "right", "up"):
+    for name in ("origin", "upper_left", "to_upper_left", "x_step", "y_step", "right", "up"):
         setattr(c, name, wp.vec3(*np.asarray(f[name], dtype=np.float32).tolist()))
     c.lens_radius = float(f["lens_radius"])
     return c
@@ -99,12 +107,13 @@ def _make_kernel(features: Features):
             r2 = wp.randf(state)
             r3 = wp.randf(state)
             r4 = wp.randf(state)
-            target = cam.upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)
-            o = cam.origin
+            target = cam.to_upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)   # relative to origin
+            lens = wp.vec3(0.0, 0.0, 0.0)
             if cam.lens_radius > 0.0:
                 k = concentric_disk(r3, r4)
-                o = o + (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
-            d = wp.normalize(target - o)
+                lens = (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
+            o = cam.origin + lens
+            d = wp.normalize(target - lens)
             L, n = radiance(s, o, d, max_depth, sky_kind, sky_color, bilinear, state)
             rays += n
             if wp.isfinite(L):

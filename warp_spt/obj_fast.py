@@ -52,13 +52,16 @@ class _Lines:
         self.start = bounds[0::2]   # first byte of each token
         self.end = bounds[1::2]     # one past its last byte
         self.newline = np.flatnonzero(buf == _NL)
-        tok_line = np.searchsorted(self.newline, self.start)
-        first = np.ones(len(self.start), dtype=bool)
-        first[1:] = tok_line[1:] != tok_line[:-1]
-        self.tag_tok = np.flatnonzero(first)
+        # first token at or after each line start; a line has tokens when that token starts
+        # before the next line does (fewer queries than finding the line of every token)
+        line_start = np.concatenate([[0], self.newline + 1])
+        first_tok = np.searchsorted(self.start, line_start)
+        nonblank = first_tok < np.append(first_tok[1:], len(self.start))
+        self.tag_tok = first_tok[nonblank]
+        self.line = np.flatnonzero(nonblank)    # 0-based line of each non-blank line
         self.ntok = np.diff(self.tag_tok, append=len(self.start))
-        self.line = tok_line[self.tag_tok]      # 0-based line of each non-blank line
-        self.is_first = first
+        self.is_first = np.zeros(len(self.start), dtype=bool)
+        self.is_first[self.tag_tok] = True
         ts = self.start[self.tag_tok]
         tlen = self.end[self.tag_tok] - ts
         b0, b1 = buf[ts], buf[np.minimum(ts + 1, n - 1)]
@@ -178,9 +181,11 @@ def _vertex_lines(buf: np.ndarray, lay: _Lines):
     return tuple(out)
 
 
-def _count_in(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """How many of the sorted ``positions`` fall in each [lo, hi)."""
-    return np.searchsorted(positions, hi) - np.searchsorted(positions, lo)
+def _per_token(positions: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """How many of the sorted byte ``positions`` fall in each token (they all lie inside tokens)."""
+    if len(positions) == 0:
+        return np.zeros(len(start), np.int64)
+    return np.bincount(np.searchsorted(start, positions, side="right") - 1, minlength=len(start))
 
 
 def _face_lines(buf: np.ndarray, data: bytes, lay: _Lines):
@@ -193,11 +198,12 @@ def _face_lines(buf: np.ndarray, data: bytes, lay: _Lines):
         return z, z.copy(), z.copy(), poly_size, poly_line
     corner_tok = np.repeat(lay.is_f, lay.ntok) & ~lay.is_first
     cs, ce = lay.start[corner_tok], lay.end[corner_tok]
-    nsl = _count_in(np.flatnonzero(buf == _SLASH), cs, ce) if b"/" in data else np.zeros(len(cs), np.int64)
-    nds = np.zeros(len(cs), np.int64)
-    if b"//" in data:
+    nsl = nds = np.zeros(len(cs), np.int64)
+    if b"/" in data:   # slashes and '//' starts are never blanks, so each lies in one token
         slash = np.flatnonzero(buf == _SLASH)
-        nds = _count_in(slash[:-1][np.diff(slash) == 1], cs, ce)   # '//' starts
+        nsl = _per_token(slash, lay.start)[corner_tok]
+        if b"//" in data:
+            nds = _per_token(slash[:-1][np.diff(slash) == 1], lay.start)[corner_tok]
     # valid corners: v, v/vt, v/vt/vn, v//vn, never starting or ending with '/'
     if (nsl > 2).any() or (buf[cs] == _SLASH).any() or (buf[ce - 1] == _SLASH).any():
         return None

@@ -27,6 +27,10 @@ from .sky import Sky
 ProgressFn = Callable[[int, int], None]
 
 PASS_SAMPLES = 8          # samples per launch: bounds the time between progress reports / Ctrl-C checks
+PASS_WORK = 1 << 16       # ...but at least this many pixel-samples per launch, so tiny images with huge
+                          # spp (1x1 at 2**20 spp: 131072 launches, ~3 s of launch overhead) are not
+                          # launch-bound. Depends on the image size only: the image stays independent
+                          # of tiles and threads.
 TILE_PIXELS = 4096        # pixels per launch
 MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
 
@@ -98,6 +102,7 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
     counters = wp.zeros((n, 2), dtype=wp.int64, device=dev.device)   # rays traced, samples dropped
     tiles = [(p, min(n, p + tile_pixels)) for p in range(0, n, tile_pixels)]
     nthreads = max(1, min(threads or os.cpu_count() or 1, len(tiles)))
+    per_pass = max(PASS_SAMPLES, PASS_WORK // n)
     common = dict(width=width, sample_offset=sample_offset, spp=spp, max_depth=max_depth,
                   sky_kind=int(sky.kind), sky_color=wp.vec3(*sky.color), seed=wp.uint32(seed & 0xFFFFFFFF),
                   bilinear=int(texture_filter == "bilinear"))
@@ -107,10 +112,10 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
 
     def work(tile: tuple[int, int]) -> None:
         lo, hi = tile
-        for s0 in range(0, spp, PASS_SAMPLES):
+        for s0 in range(0, spp, per_pass):
             if stop.is_set():
                 return
-            count = min(PASS_SAMPLES, spp - s0)
+            count = min(per_pass, spp - s0)
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
                 dev.arrays, cam, common["width"], lo, common["sample_offset"] + s0, count,
                 common["max_depth"], common["sky_kind"], common["sky_color"], common["seed"],
@@ -160,22 +165,23 @@ def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int
     """A function taking increments (None closes the bar), or a no-op."""
     if progress is False or progress is None:
         return lambda inc: None
+    state = {"done": 0}
     if callable(progress):
-        state = {"done": 0}
 
         def call(inc: int | None) -> None:
             if inc:
                 state["done"] += inc
                 progress(state["done"], total)
         return call
-    from tqdm.auto import tqdm
-    bar = tqdm(total=total, unit="samples", unit_scale=True, dynamic_ncols=True, leave=False)
+    from .progress import ProgressBar
+    bar = ProgressBar(total, delay=0.0)
 
     def update(inc: int | None) -> None:
         if inc is None:
             bar.close()
         else:
-            bar.update(inc)
+            state["done"] += inc
+            bar(state["done"], total)
     return update
 
 

@@ -190,9 +190,9 @@ def compare(a: np.ndarray, b: np.ndarray, block: int = 4, alpha: float = 1e-4) -
     """Compare two batched images (K, H, W, 3) block by block and as a whole.
 
     Each block mean is averaged over K independent batches and its standard error comes from the
-    batches' spread. A block's Welch statistic is held against Student's t quantile at a
-    family-wise false-failure probability ``alpha`` (Bonferroni over blocks x channels, plus the
-    whole-image test). Degrees of freedom K - 1, the least Welch's approximation can give, so the
+    batches' spread. Welch statistics are held against Student's t quantiles at a family-wise
+    false-failure probability ``alpha``: half for the blocks (Bonferroni over blocks x channels),
+    half for the whole image's mean. Degrees of freedom K - 1, the least Welch's approximation can give, so the
     bound is conservative. Blocks where both images have zero spread must agree exactly.
     """
     k = a.shape[0]
@@ -201,9 +201,9 @@ def compare(a: np.ndarray, b: np.ndarray, block: int = 4, alpha: float = 1e-4) -
     tot_a, tot_b = a.mean(axis=(1, 2, 3)), b.mean(axis=(1, 2, 3))
     mean = 0.5 * (tot_a.mean() + tot_b.mean())
     rel_se = math.sqrt(tot_a.var(ddof=1) / k + tot_b.var(ddof=1) / k) / mean
-    tests = z.size + 1
+    # half of alpha for the blocks (two-sided, Bonferroni), half for the whole image
     return Comparison(z, float(welch(tot_a[:, None], tot_b[:, None])[0]),
-                      t_quantile(alpha / (2 * tests), k - 1), t_quantile(alpha / (2 * tests), k - 1),
+                      t_quantile(alpha / (4 * z.size), k - 1), t_quantile(alpha / 4, k - 1),
                       abs(tot_a.mean() - tot_b.mean()) / mean, rel_se)
 
 
@@ -214,6 +214,11 @@ def assert_same_image(a: np.ndarray, b: np.ndarray, what: str, block: int = 4, a
         f"{what}: worst block |t| = {c.worst:.2f} (bound {c.bound:.2f}); whole image differs by "
         f"{c.rel_diff:.2%} (standard error {c.rel_se:.2%}, |t| = {abs(c.z_total):.2f})")
     return c
+
+
+def furnace_value(emission: float, albedo: float, depth: int) -> float:
+    """Radiance of a closed furnace: every path makes exactly ``depth`` hits, hit k adds E * A^k."""
+    return emission * depth if albedo == 1 else emission * (1 - albedo**depth) / (1 - albedo)
 
 
 def sky(value: float) -> Sky:

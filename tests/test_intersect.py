@@ -7,13 +7,14 @@ import pytest
 import warp as wp
 
 from warp_spt.device_scene import DeviceScene, Features, SceneArrays
-from warp_spt.geometry import make_closest_hit
+from warp_spt.geometry import make_closest_hit, make_occluded
 from warp_spt.loader import load_scene
 
 from .scenes import write_scene_files
 
 
 _closest = make_closest_hit(Features.general())
+_occluded = make_occluded(Features.general())
 
 
 @wp.kernel(enable_backward=False)
@@ -24,6 +25,13 @@ def _cast(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3)
     t[i] = h.t
     kind[i] = h.kind
     index[i] = h.index
+
+
+@wp.kernel(enable_backward=False)
+def _shadow(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
+            t_max: wp.array(dtype=float), blocked: wp.array(dtype=int)):
+    i = wp.tid()
+    blocked[i] = wp.where(_occluded(s, o[i], d[i], t_max[i]), 1, 0)
 
 
 def cast(scene: DeviceScene, o: np.ndarray, d: np.ndarray):
@@ -108,3 +116,23 @@ def test_ray_from_inside_sphere_hits_far_side(scene_dir):
     objs, _ = write_scene_files(scene_dir, "inside", "b 0 0 0 2\n")
     t, kind, _ = cast(DeviceScene(load_scene(objs, [])), np.array([[0.5, 0, 0]]), np.array([[1.0, 0, 0]]))
     assert kind[0] == 1 and abs(t[0] - 1.5) < 1e-6
+
+
+def test_any_hit_occlusion_agrees_with_the_closest_hit(mixed):
+    # A shadow ray to distance t_max is blocked exactly when the closest hit lies before t_max.
+    rng = np.random.default_rng(9)
+    n = 20000
+    o = rng.uniform(-8, 8, size=(n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t, kind, _ = cast(mixed, o, d)
+    t_max = rng.uniform(0.0, 25.0, size=n).astype(np.float32)
+    blocked = wp.zeros(n, dtype=int)
+    wp.launch(_shadow, dim=n, inputs=[mixed.arrays, wp.array(o.astype(np.float32), dtype=wp.vec3),
+                                      wp.array(d.astype(np.float32), dtype=wp.vec3),
+                                      wp.array(t_max, dtype=float), blocked])
+    expected = (kind >= 0) & (t < t_max)
+    clear = np.abs(t - t_max) > 1e-4 * np.maximum(1.0, t_max)     # ties at t == t_max may go either way
+    got = blocked.numpy().astype(bool)
+    assert expected[clear].sum() > 500 and (~expected[clear]).sum() > 500
+    assert np.array_equal(got[clear], expected[clear])

@@ -129,30 +129,21 @@ class DeviceScene:
         uppers.extend(sph[:, :3] + sph[:, 3:4])
         self.tlas = build_tlas(np.asarray(lowers).reshape(-1, 3), np.asarray(uppers).reshape(-1, 3))
         t = self.tlas
-        s.spheres = _arr(scene.spheres.reshape(-1, 4), wp.vec4, device, np.float32)
-        s.sphere_material = _arr(scene.sphere_material, wp.int32, device, np.int32)
-        s.node_lower = _arr(t.lower, wp.vec3, device, np.float32)
-        s.node_upper = _arr(t.upper, wp.vec3, device, np.float32)
-        s.node_left = _arr(t.left, wp.int32, device, np.int32)
-        s.node_right = _arr(t.right, wp.int32, device, np.int32)
-        s.node_first = _arr(t.first, wp.int32, device, np.int32)
-        s.node_count = _arr(t.count, wp.int32, device, np.int32)
-        s.items = _arr(t.items, wp.int32, device, np.int32)
+        _set_arrays(s, device, spheres=(scene.spheres.reshape(-1, 4), wp.vec4),
+                    sphere_material=(scene.sphere_material, wp.int32),
+                    node_lower=(t.lower, wp.vec3), node_upper=(t.upper, wp.vec3),
+                    node_left=(t.left, wp.int32), node_right=(t.right, wp.int32),
+                    node_first=(t.first, wp.int32), node_count=(t.count, wp.int32), items=(t.items, wp.int32))
 
     def _upload_materials(self, s: SceneArrays, scene: Scene, device: str) -> None:
         mt = scene.materials
-        s.mat_diffuse = _arr(mt.diffuse, wp.vec3, device, np.float32)
-        s.mat_reflect = _arr(mt.reflect, wp.vec3, device, np.float32)
-        s.mat_refract = _arr(mt.refract, wp.vec3, device, np.float32)
-        s.mat_emission = _arr(mt.emission, wp.vec3, device, np.float32)
-        s.mat_tex = _arr(mt.tex, wp.vec4i, device, np.int32)
-        s.mat_roughness = _arr(mt.roughness, wp.float32, device, np.float32)
-        s.mat_fuzz = _arr(mt.fuzz, wp.float32, device, np.float32)
-        s.mat_ior = _arr(mt.ior, wp.float32, device, np.float32)
-        s.mat_refractable = _arr(mt.refractable.astype(np.int32), wp.int32, device, np.int32)
         atlas = pack_atlas(scene.textures)
+        _set_arrays(s, device, mat_diffuse=(mt.diffuse, wp.vec3), mat_reflect=(mt.reflect, wp.vec3),
+                    mat_refract=(mt.refract, wp.vec3), mat_emission=(mt.emission, wp.vec3),
+                    mat_tex=(mt.tex, wp.vec4i), mat_roughness=(mt.roughness, wp.float32),
+                    mat_fuzz=(mt.fuzz, wp.float32), mat_ior=(mt.ior, wp.float32),
+                    mat_refractable=(mt.refractable.astype(np.int32), wp.int32), tiles=(atlas.tiles, wp.vec4i))
         s.texels = wp.array(np.ascontiguousarray(atlas.texels, dtype=np.float32), dtype=wp.vec3, device=device)
-        s.tiles = _arr(atlas.tiles, wp.vec4i, device, np.int32)
 
 
 def _features(scene: Scene) -> Features:
@@ -184,6 +175,13 @@ def _corner_normals(m) -> np.ndarray:
 
 def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.ndarray:
     return np.concatenate(parts).astype(dtype) if parts else np.zeros(empty_shape, dtype)
+
+
+def _set_arrays(s: SceneArrays, device: str, **fields: tuple) -> None:
+    """Upload each ``name=(data, warp dtype)`` into the struct field of that name."""
+    for name, (data, dtype) in fields.items():
+        np_dtype = np.int32 if dtype in (wp.int32, wp.vec4i) else np.float32
+        setattr(s, name, _arr(data, dtype, device, np_dtype))
 
 
 def _arr(data, dtype, device: str, np_dtype) -> wp.array:

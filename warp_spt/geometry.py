@@ -167,3 +167,50 @@ def make_closest_hit(features: Features):
         return hit
 
     return closest_hit
+
+
+def make_occluded(features: Features):
+    """An any-hit visibility test for shadow rays: True when something lies on the ray before t_max.
+
+    Stops at the first blocker found (``wp.mesh_query_ray_anyhit`` inside meshes), so it is cheaper
+    than a closest hit; the traversal order does not matter. Ready for light sampling.
+    """
+
+    @wp.func
+    def blocks(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        if item < s.num_meshes:
+            if wp.static(features.meshes):
+                return wp.mesh_query_ray_anyhit(s.mesh_ids[item], o, d, t_max)
+        else:
+            if wp.static(features.spheres):
+                return sphere_hit(s.spheres[item - s.num_meshes], o, d, t_max) < t_max
+        return False
+
+    @wp.func
+    def occluded(s: SceneArrays, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        inv = safe_inverse(d)
+        nodes = vec_stack_i()
+        sp = int(0)
+        if box_entry(s.node_lower[0], s.node_upper[0], o, inv, t_max) < NO_HIT:
+            nodes[0] = 0
+            sp = 1
+        while sp > 0:
+            sp -= 1
+            node = nodes[sp]
+            left = s.node_left[node]
+            if left < 0:
+                first = s.node_first[node]
+                for k in range(first, first + s.node_count[node]):
+                    if blocks(s, s.items[k], o, d, t_max):
+                        return True
+            else:
+                right = s.node_right[node]
+                if box_entry(s.node_lower[left], s.node_upper[left], o, inv, t_max) < NO_HIT and sp < wp.static(STACK):
+                    nodes[sp] = left
+                    sp += 1
+                if box_entry(s.node_lower[right], s.node_upper[right], o, inv, t_max) < NO_HIT and sp < wp.static(STACK):
+                    nodes[sp] = right
+                    sp += 1
+        return False
+
+    return occluded

@@ -18,8 +18,8 @@ import warp as wp
 from .camera import Camera
 from .device_scene import DeviceScene, Features, SceneArrays
 from .geometry import KIND_MISS, NO_HIT, make_closest_hit
-from .integrator import CameraParams, camera_params
-from .sampling import concentric_disk, stream_state
+from .integrator import CameraParams, camera_params, camera_ray
+from .sampling import stream_state
 from .shading import make_shading, offset_origin, sky_radiance
 from .sky import Sky
 
@@ -28,7 +28,7 @@ MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
 
 def _make_kernel(features: Features, depth: int):
     closest_hit = make_closest_hit(features)
-    surface_at, emission, scatter = make_shading(features)
+    surface_at, emission, sample_scatter = make_shading(features)
 
     @wp.kernel(module="unique")
     def trace_diff(s: SceneArrays, cam: CameraParams, width: int, spp: int, sky_kind: int,
@@ -43,12 +43,7 @@ def _make_kernel(features: Features, depth: int):
             r2 = wp.randf(state)
             r3 = wp.randf(state)
             r4 = wp.randf(state)
-            target = cam.upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)
-            o = cam.origin
-            if cam.lens_radius > 0.0:
-                k = concentric_disk(r3, r4)
-                o = o + (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
-            d = wp.normalize(target - o)
+            o, d = camera_ray(cam, x, y, r1, r2, r3, r4)
             throughput = wp.vec3(1.0, 1.0, 1.0)
             total = wp.vec3(0.0, 0.0, 0.0)
             alive = int(1)
@@ -65,11 +60,7 @@ def _make_kernel(features: Features, depth: int):
                         if bounce == wp.static(depth - 1):
                             alive = 0
                         else:
-                            u_lobe = wp.randf(state)
-                            u1 = wp.randf(state)
-                            u2 = wp.randf(state)
-                            u_fresnel = wp.randf(state)
-                            sc = scatter(s, sf, d, u_lobe, u1, u2, u_fresnel, bilinear)
+                            sc, state = sample_scatter(s, sf, d, bilinear, state)
                             if sc.alive == 0:
                                 alive = 0
                             else:

@@ -31,7 +31,6 @@ class CameraParams:
     """
 
     origin: wp.vec3
-    upper_left: wp.vec3
     to_upper_left: wp.vec3     # upper_left - origin
     x_step: wp.vec3
     y_step: wp.vec3
@@ -45,15 +44,29 @@ def camera_params(camera: Camera, width: int, height: int) -> CameraParams:
     f = dict(camera.frame(width, height))
     f["to_upper_left"] = f["upper_left"] - f["origin"]     # in float64, before rounding to float32
     c = CameraParams()
-    for name in ("origin", "upper_left", "to_upper_left", "x_step", "y_step", "right", "up"):
+    for name in ("origin", "to_upper_left", "x_step", "y_step", "right", "up"):
         setattr(c, name, wp.vec3(*np.asarray(f[name], dtype=np.float32).tolist()))
     c.lens_radius = float(f["lens_radius"])
     return c
 
 
+@wp.func
+def camera_ray(cam: CameraParams, x: float, y: float, r1: float, r2: float, r3: float, r4: float):
+    """The primary ray through pixel (x, y) at offset (r1, r2) in the pixel, lens sample (r3, r4).
+
+    The image plane is the focal plane, so every lens point sees the same target: a thin lens.
+    """
+    target = cam.to_upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)   # relative to origin
+    lens = wp.vec3(0.0, 0.0, 0.0)
+    if cam.lens_radius > 0.0:
+        k = concentric_disk(r3, r4)
+        lens = (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
+    return cam.origin + lens, wp.normalize(target - lens)
+
+
 def _make_kernel(features: Features):
     closest_hit = make_closest_hit(features)
-    surface_at, emission, scatter = make_shading(features)
+    surface_at, emission, sample_scatter = make_shading(features)
 
     @wp.func
     def radiance(s: SceneArrays, o_in: wp.vec3, d_in: wp.vec3, max_depth: int, sky_kind: int,
@@ -77,11 +90,7 @@ def _make_kernel(features: Features):
                 total += wp.cw_mul(throughput, emission(s, sf, bilinear))
             if depth >= max_depth:
                 break
-            u_lobe = wp.randf(state)
-            u1 = wp.randf(state)
-            u2 = wp.randf(state)
-            u_fresnel = wp.randf(state)
-            sc = scatter(s, sf, d, u_lobe, u1, u2, u_fresnel, bilinear)
+            sc, state = sample_scatter(s, sf, d, bilinear, state)
             if sc.alive == 0:
                 break
             throughput = wp.cw_mul(throughput, sc.weight)
@@ -107,13 +116,7 @@ def _make_kernel(features: Features):
             r2 = wp.randf(state)
             r3 = wp.randf(state)
             r4 = wp.randf(state)
-            target = cam.to_upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)   # relative to origin
-            lens = wp.vec3(0.0, 0.0, 0.0)
-            if cam.lens_radius > 0.0:
-                k = concentric_disk(r3, r4)
-                lens = (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
-            o = cam.origin + lens
-            d = wp.normalize(target - lens)
+            o, d = camera_ray(cam, x, y, r1, r2, r3, r4)
             L, n = radiance(s, o, d, max_depth, sky_kind, sky_color, bilinear, state)
             rays += n
             if wp.isfinite(L):

@@ -110,7 +110,7 @@ def triangle_point(mesh: wp.uint64, face: int, u: float, v: float, extent: float
 
 
 def make_shading(features: Features):
-    """``surface_at`` and ``scatter`` functions specialised to the scene's features."""
+    """``surface_at``, ``emission`` and ``sample_scatter`` functions specialised to the scene's features."""
 
     @wp.func
     def color(s: SceneArrays, tex: int, const: wp.vec3, uv: wp.vec2, bilinear: int) -> wp.vec3:
@@ -206,4 +206,15 @@ def make_shading(features: Features):
             out.alive = 0              # fuzz pushed it below the surface: absorbed (seed leaked, Q6)
         return out
 
-    return surface_at, emission, scatter
+    @wp.func
+    def sample_scatter(s: SceneArrays, sf: Surface, d: wp.vec3, bilinear: int, state_in: wp.uint32):
+        """Draw this bounce's four random numbers and scatter; returns the advanced random state
+        (a state passed into a function is not advanced in the caller, so it comes back explicitly)."""
+        state = state_in
+        u_lobe = wp.randf(state)
+        u1 = wp.randf(state)
+        u2 = wp.randf(state)
+        u_fresnel = wp.randf(state)
+        return scatter(s, sf, d, u_lobe, u1, u2, u_fresnel, bilinear), state
+
+    return surface_at, emission, sample_scatter

@@ -71,10 +71,10 @@ def speed_table(all_scenes: dict[str, DeviceScene], size: int, spp: int) -> None
                       f"{size * size * spp / secs:,.0f} | {rays / secs:,.0f} | {base / secs:.2f}x |")
 
 
-def specialisation_table(sc: DeviceScene, size: int, spp: int) -> None:
+def specialisation_table(name: str, sc: DeviceScene, size: int, spp: int) -> None:
     """Time the scene's own kernel against kernels with one unused feature switched back on."""
     own = sc.features
-    print(f"\n## What specialisation saves (builtin demo, {size}x{size}, {spp} spp, depth 8, all threads)")
+    print(f"\n## What specialisation saves ({name}, {size}x{size}, {spp} spp, depth 8, all threads)")
     print(f"scene features: {own}")
     print("| kernel | seconds | relative to specialised |")
     print("|---|---|---|")
@@ -115,7 +115,8 @@ def main() -> None:
     compile_times()
     all_scenes = scenes()
     speed_table(all_scenes, size, spp)
-    specialisation_table(all_scenes["builtin demo"], size // 2, spp)
+    for name, sc in all_scenes.items():
+        specialisation_table(name, sc, size // 2, spp)
 
 
 if __name__ == "__main__":

@@ -88,18 +88,38 @@ def test_clear_glass_sphere_conserves_energy_in_uniform_sky(scene_dir):
     assert img.mean() > 0.999
 
 
-def test_textured_emitter_matches_texels(scene_dir, tmp_path):
+@pytest.fixture(scope="module")
+def screen(tmp_path_factory):
+    """A 4x4-texel emissive quad 4 units in front of the camera; returns (scene, texels)."""
     from PIL import Image
+    folder = tmp_path_factory.mktemp("screen")
     tex = np.random.default_rng(1).integers(0, 256, size=(4, 4, 3), dtype=np.uint8)
-    Image.fromarray(tex).save(tmp_path / "t.png")
+    Image.fromarray(tex).save(folder / "t.png")
     quad = quad_obj([(-2, 4, -2), (2, 4, -2), (2, 4, 2), (-2, 4, 2)], material="screen")
-    mtl = material("screen", Kd=(0, 0, 0)) + f"map_Kl {tmp_path / 't.png'}\n"
-    objs, mtls = write_scene_files(tmp_path, "screen", quad, mtl)
-    # the quad exactly fills a 4x4 image: one texel per pixel, whatever the jitter inside the pixel
-    cam = Camera(position=(0, 0, 0), direction=(0, 1, 0), fov=2 * np.degrees(np.arctan(0.5)),
-                 aperture=0.0, focus=4.0)
-    img = R.render(load_scene(objs, mtls), cam, width=4, height=4, spp=4, max_depth=1, sky=Sky.constant(0, 0, 0))
-    assert np.allclose(img, tex / 255.0, atol=1e-6)
+    mtl = material("screen", Kd=(0, 0, 0)) + f"map_Kl {folder / 't.png'}\n"
+    objs, mtls = write_scene_files(folder, "screen", quad, mtl)
+    return load_scene(objs, mtls), tex / 255.0
+
+
+SCREEN_FOV = 2 * np.degrees(np.arctan(0.5))   # the quad exactly fills the view at distance 4
+
+
+@pytest.mark.parametrize("aperture", [0.0, 0.5])
+def test_textured_emitter_in_focus_matches_texels(screen, aperture):
+    # One texel per pixel, whatever the jitter inside the pixel; with a thin lens focused on the
+    # quad, every lens point sees the same point of it, so a wide aperture changes nothing.
+    scene, texels = screen
+    cam = Camera(position=(0, 0, 0), direction=(0, 1, 0), fov=SCREEN_FOV, aperture=aperture, focus=4.0)
+    img = R.render(scene, cam, width=4, height=4, spp=4, max_depth=1, sky=Sky.constant(0, 0, 0))
+    assert np.allclose(img, texels, atol=1e-6)
+
+
+def test_out_of_focus_emitter_is_blurred(screen):
+    # Focused at 2 instead of 4, a lens of radius 0.5 spreads each point over about 0.5 texel.
+    scene, texels = screen
+    cam = Camera(position=(0, 0, 0), direction=(0, 1, 0), fov=SCREEN_FOV, aperture=0.5, focus=2.0)
+    img = R.render(scene, cam, width=4, height=4, spp=64, max_depth=1, sky=Sky.constant(0, 0, 0))
+    assert np.abs(img - texels).mean() > 0.05
 
 
 def test_same_seed_same_image_across_threads_and_tiles(furnace):

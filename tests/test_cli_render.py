@@ -13,6 +13,8 @@ from PIL import Image
 from warp_spt.cli import main
 from warp_spt.sky import Sky
 
+from .reference import literal_seed_search
+
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 SEED_DEMO = SHARED / "seed" / "demo"
 SKY = (0.25, 0.5, 1.0)
@@ -35,19 +37,6 @@ def lit_scene(tmp_path: Path) -> tuple[Path, Path]:
                    "v -5 -5 30\nv 5 -5 30\nv 5 5 30\nv -5 5 30\n"
                    "usemtl floor\nf 1 2 3 4\nusemtl lamp\nf 5 6 7 8\nusemtl glass\nb 4 0 6 5\n")
     return obj, mtl
-
-
-def seed_tonemap(x: float) -> int:
-    """The seed's 8-bit mapping (SEMANTICS §4), implemented here independently: LUT + binary search."""
-    lut = [(i / 256) ** 2 if i <= 204 else 0.128 / (1 - i / 256) for i in range(256)]
-    lo, hi, mid = 0, 255, 128
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if lut[mid] < x:
-            lo = mid
-        else:
-            hi = mid
-    return mid
 
 
 def srgb8(x: float) -> int:
@@ -89,7 +78,7 @@ def test_pfm_is_linear_radiance_of_the_sky(tmp_path):
     np.testing.assert_allclose(img, np.broadcast_to(SKY, img.shape), rtol=1e-6)
 
 
-@pytest.mark.parametrize("tonemap, curve", [("seed", seed_tonemap), ("srgb", srgb8)])
+@pytest.mark.parametrize("tonemap, curve", [("seed", literal_seed_search), ("srgb", srgb8)])
 def test_png_is_tone_mapped(tmp_path, tonemap, curve):
     with Image.open(render_sky(tmp_path, "sky.png", "--tonemap", tonemap)) as im:
         assert im.mode == "RGB" and im.size == (16, 12)

@@ -11,21 +11,9 @@ import pytest
 from warp_spt import film as film_mod
 from warp_spt.film import Film, load_image, read_pfm, save_image, tonemap_seed, tonemap_srgb
 
+from .reference import literal_seed_search
+
 # ------------------------------------------------------------------ seed tone map
-
-
-def literal_seed_search(x: float) -> int:
-    """SEMANTICS §4 transcribed literally: float32 LUT, L=0, R=255, M=128, return the last M."""
-    lut = [np.float32((i / 256) ** 2) if i <= 204 else np.float32(0.128 / (1 - i / 256)) for i in range(256)]
-    xf = np.float32(x)
-    lo, hi, mid = 0, 255, 128
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if lut[mid] < xf:
-            lo = mid
-        else:
-            hi = mid
-    return mid
 
 
 SEED_SAMPLES = {0.01: 26, 0.1: 80, 0.25: 128, 0.5: 182, 0.64: 204, 0.7: 210, 1.0: 224, 1.5: 234,

@@ -77,12 +77,16 @@ def mixed(scene_dir):
     return DeviceScene(load_scene(objs, []))
 
 
-def test_random_rays_match_analytic_intersections(mixed):
-    rng = np.random.default_rng(5)
-    n = 20000
+def _random_rays(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Origins uniform in [-8, 8]^3 and uniformly distributed unit directions."""
     o = rng.uniform(-8, 8, size=(n, 3))
     d = rng.normal(size=(n, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return o, d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def test_random_rays_match_analytic_intersections(mixed):
+    n = 20000
+    o, d = _random_rays(np.random.default_rng(5), n)
     o32, d32 = o.astype(np.float32).astype(np.float64), d.astype(np.float32).astype(np.float64)
     spheres = [((0, 8, 0), 1.5), ((2, -6, 1), 0.5), ((-4, 0, 0), 2.0)]
     tri = [np.array(p, float) for p in ((-3, 4, -3), (3, 4, -3), (0, 4, 3))]
@@ -122,9 +126,7 @@ def test_any_hit_occlusion_agrees_with_the_closest_hit(mixed):
     # A shadow ray to distance t_max is blocked exactly when the closest hit lies before t_max.
     rng = np.random.default_rng(9)
     n = 20000
-    o = rng.uniform(-8, 8, size=(n, 3))
-    d = rng.normal(size=(n, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o, d = _random_rays(rng, n)
     t, kind, _ = cast(mixed, o, d)
     t_max = rng.uniform(0.0, 25.0, size=n).astype(np.float32)
     blocked = wp.zeros(n, dtype=int)

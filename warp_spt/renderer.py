@@ -103,9 +103,8 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
     tiles = [(p, min(n, p + tile_pixels)) for p in range(0, n, tile_pixels)]
     nthreads = max(1, min(threads or os.cpu_count() or 1, len(tiles)))
     per_pass = max(PASS_SAMPLES, PASS_WORK // n)
-    common = dict(width=width, sample_offset=sample_offset, spp=spp, max_depth=max_depth,
-                  sky_kind=int(sky.kind), sky_color=wp.vec3(*sky.color), seed=wp.uint32(seed & 0xFFFFFFFF),
-                  bilinear=int(texture_filter == "bilinear"))
+    sky_kind, sky_color = int(sky.kind), wp.vec3(*sky.color)
+    seed32, bilinear = wp.uint32(seed & 0xFFFFFFFF), int(texture_filter == "bilinear")
 
     stop = threading.Event()
     done_q: queue.Queue[int] = queue.Queue()
@@ -117,9 +116,8 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
                 return
             count = min(per_pass, spp - s0)
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
-                dev.arrays, cam, common["width"], lo, common["sample_offset"] + s0, count,
-                common["max_depth"], common["sky_kind"], common["sky_color"], common["seed"],
-                common["bilinear"], film, counters])
+                dev.arrays, cam, width, lo, sample_offset + s0, count, max_depth, sky_kind, sky_color,
+                seed32, bilinear, film, counters])
             done_q.put(count * (hi - lo))
 
     report = _progress_reporter(progress, n * spp)
@@ -165,24 +163,20 @@ def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int
     """A function taking increments (None closes the bar), or a no-op."""
     if progress is False or progress is None:
         return lambda inc: None
+    bar = None
+    if not callable(progress):
+        from .progress import ProgressBar
+        bar = progress = ProgressBar(total, delay=0.0)
     state = {"done": 0}
-    if callable(progress):
 
-        def call(inc: int | None) -> None:
-            if inc:
-                state["done"] += inc
-                progress(state["done"], total)
-        return call
-    from .progress import ProgressBar
-    bar = ProgressBar(total, delay=0.0)
-
-    def update(inc: int | None) -> None:
+    def report(inc: int | None) -> None:
         if inc is None:
-            bar.close()
-        else:
+            if bar is not None:
+                bar.close()
+        elif inc:
             state["done"] += inc
-            bar(state["done"], total)
-    return update
+            progress(state["done"], total)
+    return report
 
 
 def _drain(q: queue.Queue, report: Callable[[int | None], None]) -> None:

@@ -14,17 +14,22 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence, TextIO
+from typing import TYPE_CHECKING, Sequence, TextIO
 
+# Only light modules here (stdlib, no numpy, no Warp): main() installs the SIGINT/SIGTERM handling
+# before anything heavy is imported, so a Ctrl-C during start-up gets the same one-line message.
 from . import __version__
-from .camera import Camera
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
+from .signals import exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
 from .sky import Sky
+
+if TYPE_CHECKING:
+    from .camera import Camera
 
 PROG = "warp-spt"
 OUTPUT_SUFFIXES = (".png", ".npy", ".pfm")
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_TERMINATED = 0, 1, 2, 130, 143
 
 # The seed's defaults (SEMANTICS §1); the output name follows its Readme, not its code (Q14).
 DEFAULT_RES, DEFAULT_SPP, DEFAULT_DEPTH, DEFAULT_SKY, DEFAULT_OUT = (500, 500), 16, 6, 0, "output.png"
@@ -45,7 +50,7 @@ examples:
 (the seed's Java code read fov aperture focus). d is a view direction, not a target; fov is the
 horizontal angle in degrees. -sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink.
 .png is tone-mapped, .npy and .pfm hold linear radiance. Exit status: 0 ok, 1 failure,
-2 bad arguments, 130 interrupted.
+2 bad arguments, 130 interrupted (Ctrl-C, SIGINT), 143 terminated (SIGTERM).
 """
 
 
@@ -64,7 +69,7 @@ class Options:
     action: str = "render"
     objs: tuple[str, ...] = ()
     mtls: tuple[str, ...] = ()
-    camera: Camera = field(default_factory=Camera)
+    camera: Camera = field(default_factory=lambda: _camera(None))
     width: int = DEFAULT_RES[0]
     height: int = DEFAULT_RES[1]
     spp: int = DEFAULT_SPP
@@ -76,6 +81,7 @@ class Options:
     tonemap: str = "seed"
     texture_filter: str = "nearest"
     quiet: bool = False
+    verbose: bool = False
     demo: str | None = None
 
     @property
@@ -157,6 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
                      help="texture lookup (default nearest, as the seed)")
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    new.add_argument("--verbose", action="store_true",
+                     help="also show Warp's own messages (banner, module loads, missing CUDA driver)")
     return p
 
 
@@ -174,6 +182,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         raise UsageError("--demo renders the built-in scene; it cannot be combined with -obj")
     if ns.mtl and not ns.obj:
         raise UsageError("-mtl given without any -obj file to use it")
+    if ns.quiet and ns.verbose:
+        raise UsageError("give either --quiet or --verbose, not both")
     if ns.sky is not None and ns.sky_color is not None:
         raise UsageError("give either -sky or --sky-color, not both")
     preset = PRESETS.get(ns.demo) if ns.demo else None
@@ -189,7 +199,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         depth=ns.depth or (preset.depth if preset else DEFAULT_DEPTH),
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
-        texture_filter=ns.texture_filter, quiet=ns.quiet, demo=ns.demo,
+        texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
     )
 
 
@@ -213,6 +223,8 @@ def _is_number(text: str) -> bool:
 
 
 def _camera(values: list[float] | None) -> Camera:
+    from .camera import Camera
+
     if values is None:
         return Camera()
     cam = Camera(position=tuple(values[0:3]), direction=tuple(values[3:6]),
@@ -286,7 +298,7 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
-    _quiet_warp(opts.quiet)
+    _init_warp(opts)
     from .film import save_image
     from .loader import load_scene
     from .renderer import render
@@ -315,15 +327,12 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     return EXIT_OK
 
 
-def _quiet_warp(quiet: bool) -> None:
-    """Warp logs a banner and kernel-load lines at INFO on stdout; a CLI's stdout should stay clean.
-
-    ``--quiet`` also hides warnings, such as the missing CUDA driver on a CPU-only machine.
-    """
+def _init_warp(opts: Options) -> None:
+    """Warp's banner, module-load lines and missing-CUDA-driver line only with ``--verbose``."""
     try:
-        import warp
-        warp.config.log_level = warp.LOG_ERROR if quiet else warp.LOG_WARNING
-    except Exception:  # Warp missing or changed: the renderer will report the real problem
+        from .warp_runtime import init_warp
+        init_warp(opts.verbose, quiet=opts.quiet)
+    except ImportError:  # Warp missing: the renderer's import will report the real problem
         pass
 
 
@@ -333,12 +342,23 @@ def _fail(message: str, status: int, stderr: TextIO) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status."""
-    from .errors import SceneError
+    """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status.
 
-    stderr = sys.stderr
-    argv = sys.argv[1:] if argv is None else list(argv)
+    ``argv`` None means "the program": SIGINT and SIGTERM handling is installed first and stays
+    (a signal after the status is decided is ignored). With an explicit ``argv`` (tests, scripts)
+    the caller's handlers are restored on return.
+    """
+    previous = install_cli_handlers()
     try:
+        return _main(sys.argv[1:] if argv is None else list(argv), sys.stderr)
+    finally:
+        finish_cli_handlers(previous, program=argv is None)
+
+
+def _main(argv: list[str], stderr: TextIO) -> int:
+    try:
+        from .errors import SceneError
+
         opts = parse_args(argv)
         if opts.action == "help":
             print(build_parser().format_help(), end="")
@@ -347,13 +367,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{PROG} {__version__}")
             return EXIT_OK
         return run(opts, stderr=stderr)
+    except KeyboardInterrupt as err:     # Ctrl-C (SIGINT) or SIGTERM, wherever it arrived
+        print(interruption_line(err, PROG), file=stderr)
+        return exit_status(err)
     except UsageError as err:
         return _fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
     except (RunError, SceneError) as err:
         return _fail(str(err), EXIT_FAILURE, stderr)
-    except KeyboardInterrupt:
-        print(f"\n{PROG}: interrupted", file=stderr)
-        return EXIT_INTERRUPTED
     except MemoryError:
         return _fail("out of memory: try a smaller -res or fewer --threads", EXIT_FAILURE, stderr)
     except OSError as err:

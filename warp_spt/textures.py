@@ -25,6 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from .warp_runtime import init_warp
+
+init_warp()   # every Warp path imports this module: initialise quietly (see warp_runtime)
+
 MAX_ATLAS_TEXELS = 2**31 - 1      # Warp indexes 2-D arrays with int32 strides of texels
 COORD_LIMIT = float(2**30)        # |c * n| is clamped here before converting to int (see above)
 _COORD_LIMIT = wp.constant(COORD_LIMIT)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -97,12 +98,17 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+# Plain ASCII numbers only, as in OBJ files: int() and float() would also take "1_0", "inf", and
+# Arabic-Indic or full-width digits.
+_INT_RE = re.compile(r"[+-]?[0-9]+")
+_FLOAT_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
 def _int_at_least(low: int, high: int | None = None):
     def convert(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if not _INT_RE.fullmatch(text):
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
+        value = int(text)
         if value < low:
             raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
         if high is not None and value > high:
@@ -113,10 +119,9 @@ def _int_at_least(low: int, high: int | None = None):
 
 
 def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not _FLOAT_RE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
+    value = float(text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
@@ -189,6 +194,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
     preset = PRESETS.get(ns.demo) if ns.demo else None
     width, height = ns.res or ((preset.width, preset.height) if preset else DEFAULT_RES)
     check_image_size(width, height, memory_bytes)
+    if ns.out is not None and not ns.out.strip():
+        raise UsageError("-out needs a file name, got an empty one")
     out = ns.out or (preset.output_name(ns.demo) if preset else DEFAULT_OUT)
     if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
         raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
@@ -229,6 +236,12 @@ def _camera(values: list[float] | None) -> Camera:
         return Camera()
     cam = Camera(position=tuple(values[0:3]), direction=tuple(values[3:6]),
                  fov=values[6], focus=values[7], aperture=values[8])
+    from .validate import camera_problem
+
+    # Our float32 bounds first: Camera.validate normalises the direction, which overflows at 1e308.
+    problem = camera_problem(cam.position, cam.direction, cam.fov, cam.focus, cam.aperture)
+    if problem:
+        raise UsageError(f"argument -cam: {problem}")
     try:
         cam.validate()
     except ValueError as err:
@@ -239,6 +252,10 @@ def _camera(values: list[float] | None) -> Camera:
 def _sky(index: int | None, colour: list[float] | None, fallback: int) -> Sky:
     if colour is None:
         return Sky.from_index(fallback if index is None else index)
+    from .validate import sky_colour_problem
+
+    if sky_colour_problem(colour):
+        raise UsageError(f"argument --sky-color: {sky_colour_problem(colour)}")
     try:
         return Sky.constant(*colour)
     except ValueError as err:
@@ -273,23 +290,28 @@ def scene_files(opts: Options) -> tuple[list[str], list[str]]:
 
 
 def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
-    """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place."""
+    """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place.
+
+    Inputs must be regular files (a FIFO or a device is refused without being opened, so nothing
+    blocks); the output must not be an existing non-regular file (a symlink is written through).
+    """
+    from .tokens import file_problem
+
     for flag, paths in (("-obj", objs), ("-mtl", mtls)):
         for path in paths:
-            try:
-                with open(path, "rb"):
-                    pass
-            except OSError as err:
-                raise RunError(f"cannot read {flag} file {path!r}: {err.strerror or err}") from None
-            if Path(path).is_dir():
-                raise RunError(f"cannot read {flag} file {path!r}: it is a directory")
-    parent = Path(out).parent
+            problem = file_problem(path)
+            if problem is None and not os.access(path, os.R_OK):
+                problem = "permission denied"
+            if problem:
+                raise RunError(f"cannot read {flag} file {path!r}: {problem}")
+    target = Path(os.path.realpath(out)) if Path(out).is_symlink() else Path(out)
+    parent = target.parent
     if not parent.is_dir():
         raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK):
         raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} is not writable")
-    if Path(out).is_dir():
-        raise RunError(f"cannot write -out {out!r}: it is a directory")
+    if target.exists() and file_problem(target):
+        raise RunError(f"cannot write -out {out!r}: {file_problem(target)}")
 
 
 def run(opts: Options, *, stderr: TextIO | None = None) -> int:
@@ -321,10 +343,20 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
         if bar is not None:
             bar.close()
     seconds = time.perf_counter() - start
+    dropped = dropped_samples()
+    if dropped:     # shown even with --quiet: the image is wrong somewhere (docs/limits.md)
+        print(f"{PROG}: warning: {dropped} samples were not finite and were dropped; the image is biased "
+              "there (please report this scene)", file=err)
     save_image(opts.out, image, tonemap=opts.tonemap)
     rate = opts.width * opts.height * opts.spp / max(seconds, 1e-9)
     say(f"wrote {opts.out} ({seconds:.1f} s, {rate / 1e6:.2f} M samples/s)")
     return EXIT_OK
+
+
+def dropped_samples() -> int:
+    """Non-finite samples the kernel's guard dropped in the last render (0 when unknown)."""
+    stats = getattr(sys.modules.get("warp_spt.renderer"), "last_stats", None)
+    return int(getattr(stats, "dropped_samples", 0) or 0)
 
 
 def _init_warp(opts: Options) -> None:

@@ -34,6 +34,7 @@ from .mtl import builtin_checker, load_mtl
 from .obj import load_obj
 from .scene import (CHECKER_NAME, SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, TEX_CHECKER,
                     TEX_NONE, Material, MaterialTable, MeshData, ObjData, Scene, TextureRef)
+from .tokens import file_problem
 from .validate import validate_scene
 
 __all__ = ["load_scene", "validate_scene"]
@@ -61,6 +62,7 @@ def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn:
         (warn or _default_warn)(message)
 
     data = [load_obj(p) for p in objs]
+    _require_geometry(data)
     library = _read_materials(data, [str(p) for p in mtls], note)
     table_rows, obj_rows = _assign_rows(data, library, note)
     textures = _TextureCache()
@@ -81,19 +83,41 @@ def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn:
     return scene
 
 
+def _require_geometry(data: list[ObjData]) -> None:
+    """A scene with nothing to draw is an error that names every OBJ file and says why."""
+    if any(len(d.faces) or len(d.spheres) for d in data):
+        return
+    if not data:
+        raise SceneError(None, 0, "the scene has no geometry: no OBJ files were given")
+    reasons = []
+    for d in data:
+        if d.dropped_degenerate:
+            why = f"all {d.dropped_degenerate} triangles have zero area"
+        elif len(d.positions):
+            why = f"{len(d.positions)} 'v' lines but no faces ('f') or spheres ('b')"
+        else:
+            why = "no 'v', 'f' or 'b' lines (the file is empty or holds only comments and ignored statements)"
+        reasons.append(f"{d.path}: {why}")
+    raise SceneError(data[0].path, 0, "the scene has no geometry: " + "; ".join(
+        [reasons[0].split(": ", 1)[1]] + reasons[1:]))
+
+
 def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[str, Material]:
     """{name: Material}: existing mtllib files first, then the explicit files (which win)."""
     library: dict[str, Material] = {}
     seen: set[str] = set()
     for d in data:
-        for lib in d.mtllibs:
+        for lib, line in zip(d.mtllibs, d.mtllib_lines or [0] * len(d.mtllibs)):
             if lib in seen:
                 continue
             seen.add(lib)
-            if Path(lib).is_file():
+            problem = file_problem(lib)
+            if problem is None:
                 library.update(load_mtl(lib))
             else:
-                note(f"{d.path}: mtllib {lib} not found; its materials are not loaded")
+                where = f"{d.path}:{line}" if line else d.path
+                why = "not found" if problem == "no such file or directory" else f"cannot be read ({problem})"
+                note(f"{where}: mtllib {lib} {why}; its materials are not loaded")
     for path in mtls:
         library.update(load_mtl(path))
     if CHECKER_NAME in library:
@@ -184,11 +208,13 @@ def _find_texture(ref: TextureRef) -> str:
     """The first existing candidate: relative to the MTL's folder, then to the working directory."""
     name = ref.path.replace("\\", "/")
     candidates = [Path(name)] if Path(name).is_absolute() else [Path(ref.mtl_file).parent / name, Path.cwd() / name]
+    problems = []
     for c in candidates:
-        if c.is_file():
+        problem = file_problem(c)
+        if problem is None:
             return str(c.resolve())
-    tried = ", ".join(str(c) for c in candidates)
-    raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} not found (tried {tried})")
+        problems.append(f"{c}: {problem}")
+    raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} cannot be read ({'; '.join(problems)})")
 
 
 def _read_image(path: str, ref: TextureRef) -> np.ndarray:

@@ -204,3 +204,61 @@ def test_warps_own_messages_only_with_verbose(tmp_path):
     assert [line.split(":")[0] for line in plain.stderr.splitlines()] == ["warp-spt", "warp-spt"]
     verbose = run_cli(tmp_path, "--verbose")
     assert verbose.returncode == 0 and "Warp 1.19" in verbose.stdout + verbose.stderr
+
+
+# ---------------------------------------------------------------- part 5: memory
+
+def test_the_atlas_stays_close_to_the_sum_of_the_areas():
+    from warp_spt.atlas_layout import shelf_layout
+
+    rng = np.random.default_rng(5)
+    worst = 0.0
+    for _ in range(200):
+        sizes = [(int(rng.integers(1, 300)), int(rng.integers(1, 300))) for _ in range(int(rng.integers(1, 12)))]
+        tiles, w, h = shelf_layout(sizes)
+        lower = max(sum(a * b for a, b in sizes), max(a for a, _ in sizes) * max(b for _, b in sizes))
+        worst = max(worst, w * h / lower)
+        for (x0, y0, tw, th), (sh, sw) in zip(tiles, sizes):
+            assert (tw, th) == (sw, sh) and x0 + tw <= w and y0 + th <= h
+    assert worst < 2.5, worst      # against the best any unrotated packing can do
+
+
+def test_an_atlas_beyond_the_budget_names_the_textures(tmp_path):
+    from PIL import Image
+
+    Image.new("RGB", (1, 20000)).save(tmp_path / "tall.png")
+    Image.new("RGB", (20000, 1)).save(tmp_path / "wide.png")
+    write(tmp_path, "a.mtl", "newmtl a\nmap_Kd tall.png\nnewmtl b\nmap_Kd wide.png\n")
+    err = scene_error([write(tmp_path, "a.obj", "mtllib a.mtl\n" + TRI + "usemtl a\nf 1 2 3\nusemtl b\nf 1 2 3\n")])
+    assert err.line == 4 and "tall.png" in err.message and "wide.png" in err.message and "budget" in err.message
+
+
+def test_a_texture_beyond_the_texel_budget_is_refused_before_decoding(tmp_path, recwarn):
+    from PIL import Image
+
+    Image.new("1", (12000, 12000)).save(tmp_path / "bomb.png")      # 144 Mtexel in a few kilobytes
+    write(tmp_path, "a.mtl", "newmtl a\nmap_Kd bomb.png\n")
+    err = scene_error([write(tmp_path, "a.obj", "mtllib a.mtl\nusemtl a\n" + TRI)])
+    assert err.line == 2 and "12000x12000" in err.message and "budget" in err.message
+    assert not [w for w in recwarn if issubclass(w.category, Image.DecompressionBombWarning)]
+
+
+def test_a_16_bit_grey_texture_keeps_its_values(tmp_path):
+    from PIL import Image
+
+    values = np.array([[0, 16384], [32768, 65535]], np.uint16)
+    Image.fromarray(values).save(tmp_path / "g.png")
+    write(tmp_path, "a.mtl", "newmtl a\nmap_Kd g.png\n")
+    scene = load_scene([str(write(tmp_path, "a.obj", "mtllib a.mtl\nusemtl a\n" + TRI))], warn=lambda m: None)
+    np.testing.assert_allclose(scene.textures[0][..., 1], values / 65535.0, rtol=1e-6)
+
+
+def test_out_of_memory_while_loading_names_the_scene(tmp_path, monkeypatch, capsys):
+    import warp_spt.loader as loader
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(loader, "load_scene", no_memory)
+    assert main(["-obj", str(write(tmp_path, "a.obj", TRI)), "-out", str(tmp_path / "o.png")]) == 1
+    assert "out of memory while loading the scene" in capsys.readouterr().err

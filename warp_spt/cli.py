@@ -321,12 +321,18 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     check_files(objs, mtls, opts.out)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
     _init_warp(opts)
+    import numpy as np
+
     from .film import save_image
     from .loader import load_scene
     from .renderer import render
 
     start = time.perf_counter()
-    scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below
+    try:
+        scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below
+    except MemoryError:
+        raise RunError("out of memory while loading the scene: its files or textures are too large for "
+                       "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
@@ -339,6 +345,11 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
         image = render(scene, opts.camera, width=opts.width, height=opts.height, spp=opts.spp,
                        max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
                        texture_filter=opts.texture_filter, progress=bar or False)
+    except MemoryError:
+        texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
+        raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "
+                       f"{texels:,} texels) at {opts.width}x{opts.height}: try a smaller -res or fewer "
+                       "--threads, or a smaller scene") from None
     finally:
         if bar is not None:
             bar.close()

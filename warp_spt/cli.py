@@ -13,6 +13,7 @@ import os
 import re
 import sys
 import time
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence, TextIO
@@ -319,7 +320,7 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     err = stderr or sys.stderr
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
-    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
+    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
     _init_warp(opts)
     import numpy as np
 
@@ -379,8 +380,15 @@ def _init_warp(opts: Options) -> None:
         pass
 
 
+def one_line(text: str) -> str:
+    """``text`` with control characters and line separators escaped (\\n, \\x85, \\u2028...), so that
+    a message stays one line whatever the file names and file contents it quotes hold."""
+    return "".join(ch.encode("unicode_escape").decode("ascii") if unicodedata.category(ch) in ("Cc", "Zl", "Zp")
+                   else ch for ch in text)
+
+
 def _fail(message: str, status: int, stderr: TextIO) -> int:
-    print(f"{PROG}: error: {message}", file=stderr)
+    print(f"{PROG}: error: {one_line(message)}", file=stderr)
     return status
 
 

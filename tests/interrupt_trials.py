@@ -100,7 +100,10 @@ def classify(trial: Trial, workdir: Path, out: Path, res: int) -> str:
         return "ok_finished" if out.exists() and trial.stderr == "" else "bad_exit"
     if trial.status == 128 + trial.signum and trial.stderr == LINES[trial.signum] + "\n":
         return "ok_interrupted"
-    if "Traceback" in trial.stderr and "warp_spt" not in trial.stderr and not out.exists():
+    if not out.exists() and (("Traceback" in trial.stderr and "warp_spt" not in trial.stderr)
+                             or (trial.status == -trial.signum and trial.stderr == "")):
+        # Python's own handling (a traceback from its start-up modules) or the signal's default
+        # action (killed at once): the signal came before the interpreter ran any warp_spt code.
         return "before_our_code"
     return "bad_exit"
 

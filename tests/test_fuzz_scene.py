@@ -30,7 +30,7 @@ from warp_spt.loader import load_scene
 from warp_spt.sky import Sky
 from warp_spt.validate import MAX_RADIANCE
 
-from .test_parse_fuzz import MTL_SEED, OBJ_SEED, PIECES
+from .test_parse_fuzz import MTL_SEED, OBJ_SEED, PIECES, mutated
 
 # Pieces that push values to the bounds (float32 range, underflow, the coordinate limit) and line ends.
 EXTREME = [b"1e38", b"3e38", b"1e-46", b"1e-40", b"1e15", b"1e16", b"1e30", b"1e31", b"0.999", b"1.0001",
@@ -44,22 +44,6 @@ def dropped_samples() -> int:
     """The render's dropped-sample counter (one line to change when last_stats becomes a result object)."""
     from warp_spt import renderer
     return renderer.last_stats.dropped_samples
-
-
-@st.composite
-def mutated(draw, seed: bytes) -> bytes:
-    data = bytearray(seed)
-    for _ in range(draw(st.integers(0, 6))):
-        at = draw(st.integers(0, len(data)))
-        piece = draw(st.sampled_from(ALL_PIECES) | st.binary(min_size=1, max_size=3))
-        kind = draw(st.sampled_from(["insert", "delete", "replace"]))
-        if kind == "insert":
-            data[at:at] = piece
-        elif kind == "delete":
-            data[at:at + draw(st.integers(1, 8))] = b""
-        else:
-            data[at:at + len(piece)] = piece
-    return bytes(data)
 
 
 @st.composite
@@ -129,14 +113,14 @@ def record(outcome: str) -> None:
 
 @settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
-@given(obj=mutated(OBJ_SEED), sky=SKIES)
+@given(obj=mutated(OBJ_SEED, ALL_PIECES), sky=SKIES)
 def test_fuzzed_obj(obj, sky, capsys):
     record(check_scene(obj, MTL_SEED, _GOOD_PNG, sky, capsys))
 
 
 @settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
-@given(mtl=mutated(MTL_SEED), sky=SKIES)
+@given(mtl=mutated(MTL_SEED, ALL_PIECES), sky=SKIES)
 def test_fuzzed_mtl(mtl, sky, capsys):
     record(check_scene(OBJ_SEED, mtl, _GOOD_PNG, sky, capsys))
 

@@ -125,3 +125,24 @@ def test_real_processes_interrupted_at_random_moments(tmp_path):
     bad = [t for t in trials if t.outcome in T.FAILURES]
     assert not bad, f"seed {seed}: {counts}; first failure: {bad[0]}"
     assert counts["ok_interrupted"] >= 3, f"seed {seed}: {counts}"   # the signals did land during runs
+
+
+def test_an_interruption_that_library_code_wraps_is_still_reported_as_one(tmp_path, monkeypatch, capsys):
+    """numpy turns a KeyboardInterrupt inside its C-extension import into ImportError (found by the soak)."""
+    import sys
+    import types
+
+    from warp_spt.cli import main
+
+    def wrapping_load(objs, mtls, **kw):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1)
+        except KeyboardInterrupt as err:
+            raise ImportError("Importing the numpy C-extensions failed.") from err
+
+    monkeypatch.setitem(sys.modules, "warp_spt.loader", types.SimpleNamespace(load_scene=wrapping_load))
+    obj = tmp_path / "a.obj"
+    obj.write_text("b 0 0 0 1\n")
+    assert main(["-obj", str(obj), "--quiet", "-out", str(tmp_path / "o.png")]) == 143
+    assert capsys.readouterr().err == "warp-spt: terminated\n"

@@ -7,7 +7,7 @@ during a render and exits with 130 (SIGINT) or 143 (SIGTERM).
 
 import sys
 
-from .signals import exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
+from .signals import cli_interruption, exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
 
 
 def main() -> int:
@@ -17,9 +17,12 @@ def main() -> int:
         from .cli import main as cli_main
 
         return cli_main()
-    except KeyboardInterrupt as err:        # interrupted while importing (the CLI reports the rest)
-        print(interruption_line(err), file=sys.stderr)
-        return exit_status(err)
+    except BaseException as err:            # interrupted while importing (the CLI reports the rest)
+        signal_err = err if isinstance(err, KeyboardInterrupt) else cli_interruption()
+        if signal_err is None:
+            raise
+        print(interruption_line(signal_err), file=sys.stderr)
+        return exit_status(signal_err)
     finally:
         finish_cli_handlers({}, program=True)   # the status is decided: ignore signals while exiting
 

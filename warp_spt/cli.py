@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Sequence, TextIO
 from . import __version__
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
-from .signals import exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
+from .signals import cli_interruption, exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
 from .sky import Sky
 
 if TYPE_CHECKING:
@@ -408,8 +408,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(argv: list[str], stderr: TextIO) -> int:
     try:
-        from .errors import SceneError
-
         opts = parse_args(argv)
         if opts.action == "help":
             print(build_parser().format_help(), end="")
@@ -418,20 +416,27 @@ def _main(argv: list[str], stderr: TextIO) -> int:
             print(f"{PROG} {__version__}")
             return EXIT_OK
         return run(opts, stderr=stderr)
-    except KeyboardInterrupt as err:     # Ctrl-C (SIGINT) or SIGTERM, wherever it arrived
-        print(interruption_line(err, PROG), file=stderr)
-        return exit_status(err)
-    except UsageError as err:
+    except BaseException as err:        # every failure ends as one line and an exit status
+        return _report(err, stderr)
+
+
+def _report(err: BaseException, stderr: TextIO) -> int:
+    from .errors import SceneError
+
+    signal_err = err if isinstance(err, KeyboardInterrupt) else cli_interruption()
+    if signal_err is not None:          # Ctrl-C (SIGINT) or SIGTERM, wherever it arrived
+        print(interruption_line(signal_err, PROG), file=stderr)
+        return exit_status(signal_err)
+    if isinstance(err, UsageError):
         return _fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
-    except (RunError, SceneError) as err:
+    if isinstance(err, (RunError, SceneError)):
         return _fail(str(err), EXIT_FAILURE, stderr)
-    except MemoryError:
+    if isinstance(err, MemoryError):
         return _fail("out of memory: try a smaller -res or fewer --threads", EXIT_FAILURE, stderr)
-    except OSError as err:
+    if isinstance(err, OSError):
         where = f" {err.filename!r}" if err.filename else ""
         return _fail(f"{err.strerror or err}{where}", EXIT_FAILURE, stderr)
-    except Exception as err:  # a bug: still one line, with a way to see the traceback
-        if os.environ.get("WARP_SPT_TRACEBACK"):
-            raise
-        return _fail(f"internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
-                     EXIT_FAILURE, stderr)
+    if not isinstance(err, Exception) or os.environ.get("WARP_SPT_TRACEBACK"):
+        raise err                       # SystemExit and the like; or a bug with its traceback asked for
+    return _fail(f"internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
+                 EXIT_FAILURE, stderr)

@@ -136,7 +136,7 @@ def deferred_signals() -> Iterator[None]:
             deliver(pending[0], previous.get(pending[0], signal.SIG_DFL))
 
 
-_cli_state = {"interrupted": False}
+_cli_state: dict[str, object] = {"interrupted": False, "signum": None}
 
 
 def _cli_handler(signum, frame):
@@ -145,7 +145,15 @@ def _cli_handler(signum, frame):
     if _cli_state["interrupted"]:
         return
     _cli_state["interrupted"] = True
+    _cli_state["signum"] = signum
     raise Interrupted(signum)
+
+
+def cli_interruption() -> Interrupted | None:
+    """The interruption the CLI handler raised, if any: library code may have wrapped it in another
+    exception on its way up (numpy turns one that lands in its C-extension import into ImportError)."""
+    signum = _cli_state["signum"]
+    return Interrupted(int(signum)) if signum is not None else None
 
 
 def install_cli_handlers() -> dict[int, object]:
@@ -156,6 +164,7 @@ def install_cli_handlers() -> dict[int, object]:
     if not _on_main_thread():
         return {}
     _cli_state["interrupted"] = False
+    _cli_state["signum"] = None
     return _install(_cli_handler)
 
 

@@ -262,3 +262,19 @@ def test_out_of_memory_while_loading_names_the_scene(tmp_path, monkeypatch, caps
     monkeypatch.setattr(loader, "load_scene", no_memory)
     assert main(["-obj", str(write(tmp_path, "a.obj", TRI)), "-out", str(tmp_path / "o.png")]) == 1
     assert "out of memory while loading the scene" in capsys.readouterr().err
+
+
+def test_an_unwritable_directory_names_the_output_not_the_temp_file(tmp_path, monkeypatch):
+    real_open = os.open
+
+    def denied(path, flags, mode=0o777):
+        if str(path).endswith(".tmp"):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return real_open(path, flags, mode)
+
+    monkeypatch.setattr(os, "open", denied)
+    out = tmp_path / "o.png"
+    with pytest.raises(OSError) as info:
+        save_image(out, np.zeros((2, 2, 3), np.float32))
+    assert str(info.value) == f"[Errno {errno.EACCES}] cannot write {out}: permission denied"
+    assert ".tmp" not in str(info.value)

@@ -146,3 +146,17 @@ def test_an_interruption_that_library_code_wraps_is_still_reported_as_one(tmp_pa
     obj.write_text("b 0 0 0 1\n")
     assert main(["-obj", str(obj), "--quiet", "-out", str(tmp_path / "o.png")]) == 143
     assert capsys.readouterr().err == "warp-spt: terminated\n"
+
+
+def test_the_entry_points_import_nothing_heavy_before_the_handlers():
+    """Ctrl-C during start-up: the handlers go in before numpy or Warp is imported."""
+    import subprocess
+    import sys
+
+    code = ("import sys, signal; import warp_spt.__main__, warp_spt.cli; "
+            "heavy = [m for m in ('numpy', 'warp', 'PIL', 'tqdm') if m in sys.modules]; "
+            "warp_spt.signals.install_cli_handlers(); "
+            "print(heavy, signal.getsignal(signal.SIGTERM).__name__)")
+    env = dict(os.environ, PYTHONPATH=str(T.REPO))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
+    assert out.stdout.strip() == "[] _cli_handler", out.stderr

@@ -278,3 +278,14 @@ def test_an_unwritable_directory_names_the_output_not_the_temp_file(tmp_path, mo
         save_image(out, np.zeros((2, 2, 3), np.float32))
     assert str(info.value) == f"[Errno {errno.EACCES}] cannot write {out}: permission denied"
     assert ".tmp" not in str(info.value)
+
+
+def test_dropped_samples_are_reported_even_with_quiet(tmp_path, monkeypatch, capsys):
+    import types
+
+    stats = types.SimpleNamespace(dropped_samples=3)
+    monkeypatch.setitem(sys.modules, "warp_spt.renderer", types.SimpleNamespace(
+        render=lambda scene, camera, **kw: np.zeros((kw["height"], kw["width"], 3), np.float32), last_stats=stats))
+    obj = write(tmp_path, "a.obj", TRI)
+    assert main(["-obj", str(obj), "--quiet", "-res", "2", "2", "-out", str(tmp_path / "o.npy")]) == 0
+    assert "3 samples were not finite" in capsys.readouterr().err

@@ -31,7 +31,8 @@ if TYPE_CHECKING:
 
 PROG = "warp-spt"
 OUTPUT_SUFFIXES = (".png", ".npy", ".pfm")
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_TERMINATED = 0, 1, 2, 130, 143
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143     # 128 + the signal number (signals.exit_status)
 
 # The seed's defaults (SEMANTICS §1); the output name follows its Readme, not its code (Q14).
 DEFAULT_RES, DEFAULT_SPP, DEFAULT_DEPTH, DEFAULT_SKY, DEFAULT_OUT = (500, 500), 16, 6, 0, "output.png"

@@ -168,11 +168,12 @@ def normalise_text(data: bytes, path: str, kind: str) -> bytes:
         raise SceneError(path, 1, f"UTF-16 text is not supported: save the {kind} file as UTF-8 or ASCII")
     if b"\r" in data:
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if data.startswith(b"\x89PNG"):
+        raise SceneError(path, 1, f"not {kind} text: a PNG image")
     nul = data.find(b"\x00")
     if nul >= 0:
-        what = "a PNG image" if data.startswith(b"\x89PNG") else "binary data (a NUL byte)"
         utf16 = " (UTF-16 text is not supported: save it as UTF-8)" if data[1:2] == b"\x00" or data[:1] == b"\x00" else ""
-        raise SceneError(path, data.count(b"\n", 0, nul) + 1, f"not {kind} text: {what}{utf16}")
+        raise SceneError(path, data.count(b"\n", 0, nul) + 1, f"not {kind} text: binary data (a NUL byte){utf16}")
     _check_line_lengths(data, path)
     return data
 

@@ -1,6 +1,9 @@
 """Soak: interrupt real warp-spt processes at random moments hundreds of times and count failures.
 
-    python benchmarks/soak_interrupt.py [TRIALS] [--res N] [--spp N] [--seed N]
+    python benchmarks/soak_interrupt.py [TRIALS] [--res N] [--spp N] [--seed N] [--delay LO HI]
+
+The issue's reproducer (a 4096x4096 render interrupted 2-9 s in):
+    python benchmarks/soak_interrupt.py 30 --res 4096 --spp 1 --delay 2 9
 
 Each trial starts the command line (``python -m warp_spt`` or the console script's entry), sends
 SIGINT or SIGTERM after a delay drawn uniformly from 0 to 1.1x an uninterrupted run, and checks
@@ -29,6 +32,8 @@ def main() -> int:
     ap.add_argument("--res", type=int, default=256, help="image size (default 256: about a second of render)")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--delay", type=float, nargs=2, metavar=("LO", "HI"),
+                    help="signal delays in seconds (default: 0 to 1.1x an uninterrupted run)")
     args = ap.parse_args()
     start = time.monotonic()
 
@@ -40,8 +45,9 @@ def main() -> int:
             print(f"  {k + 1} trials, {time.monotonic() - start:.0f} s", flush=True)
 
     with tempfile.TemporaryDirectory() as tmp:
+        lo, hi = args.delay or (0.0, None)
         counts, trials = T.run_trials(Path(tmp), args.trials, res=args.res, spp=args.spp, seed=args.seed,
-                                      report=report)
+                                      min_delay=lo, max_delay=hi, report=report)
     late = [t.seconds - t.delay for t in trials if t.outcome == "ok_interrupted"]
     print(f"\n{args.trials} trials (res {args.res}, {args.spp} spp, seed {args.seed}) in {time.monotonic() - start:.0f} s")
     for outcome in ("ok_interrupted", "ok_finished", "before_our_code", *T.FAILURES):

@@ -135,10 +135,11 @@ def timed_full_run(workdir: Path, res: int, spp: int) -> float:
 
 
 def run_trials(workdir: Path, count: int, *, res: int, spp: int, seed: int, min_delay: float = 0.0,
-               report=None) -> tuple[Counter, list[Trial]]:
-    """``count`` trials with delays uniform in [min_delay, 1.1 x an uninterrupted run's time]."""
+               max_delay: float | None = None, report=None) -> tuple[Counter, list[Trial]]:
+    """``count`` trials with delays uniform in [min_delay, max_delay] (default: 1.1 x an uninterrupted
+    run's time, measured first)."""
     workdir.mkdir(parents=True, exist_ok=True)
-    full = timed_full_run(workdir, res, spp)
+    full = max_delay / 1.1 if max_delay is not None else timed_full_run(workdir, res, spp)
     rng = random.Random(seed)
     counts: Counter = Counter()
     trials = []

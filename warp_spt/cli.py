@@ -23,7 +23,8 @@ from typing import TYPE_CHECKING, Sequence, TextIO
 from . import __version__
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
-from .signals import cli_interruption, exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
+from .signals import (cli_interruption, deferred_signals, exit_status, finish_cli_handlers, install_cli_handlers,
+                      interruption_line)
 from .sky import Sky
 
 if TYPE_CHECKING:
@@ -354,7 +355,8 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
                        "--threads, or a smaller scene") from None
     finally:
         if bar is not None:
-            bar.close()
+            with deferred_signals():    # never interrupt tqdm while it holds its lock
+                bar.close()
     seconds = time.perf_counter() - start
     dropped = dropped_samples()
     if dropped:     # shown even with --quiet: the image is wrong somewhere (docs/limits.md)

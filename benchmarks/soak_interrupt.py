@@ -49,7 +49,8 @@ def main() -> int:
         counts, trials = T.run_trials(Path(tmp), args.trials, res=args.res, spp=args.spp, seed=args.seed,
                                       min_delay=lo, max_delay=hi, report=report)
     late = [t.seconds - t.delay for t in trials if t.outcome == "ok_interrupted"]
-    print(f"\n{args.trials} trials (res {args.res}, {args.spp} spp, seed {args.seed}) in {time.monotonic() - start:.0f} s")
+    seconds = time.monotonic() - start
+    print(f"\n{args.trials} trials (res {args.res}, {args.spp} spp, seed {args.seed}) in {seconds:.0f} s")
     for outcome in ("ok_interrupted", "ok_finished", "before_our_code", *T.FAILURES):
         print(f"  {outcome:16s} {counts[outcome]}")
     if late:

@@ -172,7 +172,8 @@ def normalise_text(data: bytes, path: str, kind: str) -> bytes:
         raise SceneError(path, 1, f"not {kind} text: a PNG image")
     nul = data.find(b"\x00")
     if nul >= 0:
-        utf16 = " (UTF-16 text is not supported: save it as UTF-8)" if data[1:2] == b"\x00" or data[:1] == b"\x00" else ""
+        looks_utf16 = b"\x00" in (data[:1], data[1:2])      # UTF-16 without a byte-order mark
+        utf16 = " (UTF-16 text is not supported: save it as UTF-8)" if looks_utf16 else ""
         raise SceneError(path, data.count(b"\n", 0, nul) + 1, f"not {kind} text: binary data (a NUL byte){utf16}")
     _check_line_lengths(data, path)
     return data

@@ -160,3 +160,36 @@ def test_the_entry_points_import_nothing_heavy_before_the_handlers():
     env = dict(os.environ, PYTHONPATH=str(T.REPO))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
     assert out.stdout.strip() == "[] _cli_handler", out.stderr
+
+
+def test_an_interruption_swallowed_by_a_callback_is_raised_again(tmp_path, monkeypatch, capsys):
+    """Found by the soak: a SIGTERM inside importlib's weakref callback was printed and lost."""
+    import gc
+    import sys
+    import types
+    import weakref
+
+    from warp_spt.cli import main
+
+    reached = []
+
+    def load_with_a_swallowing_callback(objs, mtls, **kw):
+        class Thing:
+            pass
+
+        thing = Thing()
+        ref = weakref.ref(thing, lambda r: os.kill(os.getpid(), signal.SIGTERM) or time.sleep(0.5))  # noqa: F841
+        del thing           # the callback runs here; the exception raised in it is swallowed
+        gc.collect()
+        time.sleep(1)       # the re-sent signal lands here
+        reached.append("after the callback")
+
+    fake_loader = types.SimpleNamespace(load_scene=load_with_a_swallowing_callback)
+    monkeypatch.setitem(sys.modules, "warp_spt.loader", fake_loader)
+    obj = tmp_path / "a.obj"
+    obj.write_text("b 0 0 0 1\n")
+    assert main(["-obj", str(obj), "--quiet", "-out", str(tmp_path / "o.png")]) == 143
+    assert capsys.readouterr().err == "warp-spt: terminated\n"
+    assert reached == []                                  # the load itself was interrupted
+    from warp_spt.signals import _cli_unraisable
+    assert sys.unraisablehook is not _cli_unraisable      # the caller's hook is back

@@ -404,7 +404,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     previous = install_cli_handlers()
     try:
-        return _main(sys.argv[1:] if argv is None else list(argv), sys.stderr)
+        status = _main(sys.argv[1:] if argv is None else list(argv), sys.stderr)
+        late = cli_interruption()
+        if late is not None and status not in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+            # a signal whose exception some library swallowed just before the end: still report it
+            status = _report(late, sys.stderr)
+        return status
     finally:
         finish_cli_handlers(previous, program=argv is None)
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -156,6 +157,20 @@ def cli_interruption() -> Interrupted | None:
     return Interrupted(int(signum)) if signum is not None else None
 
 
+def _cli_unraisable(info) -> None:
+    """Where Python swallows exceptions (weakref callbacks, ``__del__``, e.g. inside importlib's module
+    locks: found by the soak), an Interrupted raised there would be printed and lost. Instead it is
+    raised again: the signal is re-sent from another thread a moment later (from this one, the handler
+    would run at once, still inside the swallowing code), and lands on the main thread's next bytecode."""
+    if isinstance(info.exc_value, Interrupted):
+        _cli_state["interrupted"] = False
+        resend = threading.Timer(0.01, os.kill, (os.getpid(), info.exc_value.signum))
+        resend.daemon = True
+        resend.start()
+    else:
+        _cli_state["unraisablehook"](info)
+
+
 def install_cli_handlers() -> dict[int, object]:
     """SIGINT and SIGTERM raise :class:`Interrupted` (once); returns the replaced handlers.
 
@@ -165,6 +180,9 @@ def install_cli_handlers() -> dict[int, object]:
         return {}
     _cli_state["interrupted"] = False
     _cli_state["signum"] = None
+    if sys.unraisablehook is not _cli_unraisable:
+        _cli_state["unraisablehook"] = sys.unraisablehook
+        sys.unraisablehook = _cli_unraisable
     return _install(_cli_handler)
 
 
@@ -182,3 +200,5 @@ def finish_cli_handlers(previous: dict[int, object], *, program: bool) -> None:
             signal.signal(s, signal.SIG_IGN)
     else:
         _restore(previous)
+        if sys.unraisablehook is _cli_unraisable:
+            sys.unraisablehook = _cli_state["unraisablehook"]

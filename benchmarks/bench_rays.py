@@ -1,0 +1,354 @@
+"""Closest-hit rays/s of our intersector against a bare ``wp.mesh_query_ray`` kernel (issue 8, "Raw speed").
+
+The same rays (the camera's sample-0 primary rays, exactly those the path kernel traces, or random
+rays from inside the scene's box) go through a ladder of kernels, each adding one piece of what a
+render does, so the gaps between rungs say where the time goes:
+
+    bare            wp.mesh_query_ray on the mesh id (a kernel argument); the reference
+    bare+struct     the same query, the id read from the SceneArrays struct argument
+    tlas loop       the TLAS traversal of geometry.py, forced even for a single mesh
+    closest_hit     geometry.make_closest_hit as the renderer uses it
+    + surface_at    closest_hit, then the shading-point description (shading.make_shading)
+    + film f32/f64  ... and the result added to a float32 / float64 film
+    path d=0        the integrator's own kernel at depth 0, 1 spp: camera sample, film, no ray
+    path d=1        the same at depth 1: one closest-hit ray per pixel (same rays as the rows above)
+    render d=1      renderer.render() at depth 1, 1 spp: tiles, launches, threads, film read-back
+
+Rates are rays per second (pixel-samples for the path rows: one closest-hit ray each at depth 1),
+best of --repeat, and each row's ratio to the bare kernel of the same run. Scenes with several
+objects have no single mesh to query bare: their reference is one wp.Mesh of all their triangles
+(spheres left out), so there the ratio is only indicative. Threads 2 splits the rays into chunks
+launched from a pool of 2 Python threads (Warp releases the GIL in a launch), as the renderer does.
+
+    python benchmarks/bench_rays.py              # 512x512 rays, 1 and 2 threads, 4 scenes
+    python benchmarks/bench_rays.py --quick      # 128x128, a smoke run
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import warp as wp  # noqa: E402
+
+wp.config.quiet = True
+
+import warp_spt.renderer as R  # noqa: E402
+from warp_spt.camera import Camera  # noqa: E402
+from warp_spt.demo import demo_files  # noqa: E402
+from warp_spt.device_scene import DeviceScene, Features, SceneArrays  # noqa: E402
+from warp_spt.geometry import KIND_MISS, NO_HIT, make_closest_hit  # noqa: E402
+from warp_spt.integrator import CameraParams, camera_params, camera_ray, get_kernel  # noqa: E402
+from warp_spt.loader import load_scene  # noqa: E402
+from warp_spt.sampling import stream_state  # noqa: E402
+from warp_spt.shading import make_shading  # noqa: E402
+from warp_spt.sky import Sky  # noqa: E402
+
+CHUNK = 4096          # rays per launch in the threaded runs (the renderer's TILE_PIXELS)
+SPP = 8               # "render d=1, 8 spp *": samples 0..7 of each pixel, 8 per launch as render() does;
+                      # its rate counts all of them (other rays than the bare kernel's, same distribution)
+
+
+# --------------------------------------------------------------------------------------------
+# Rays
+
+
+@wp.kernel(enable_backward=False)
+def _camera_rays(cam: CameraParams, width: int, seed: wp.uint32,
+                 o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3)):
+    """Sample 0 of every pixel, drawn exactly as the path kernel draws it."""
+    pix = wp.tid()
+    state = stream_state(seed, pix, 0)
+    r1 = wp.randf(state)
+    r2 = wp.randf(state)
+    r3 = wp.randf(state)
+    r4 = wp.randf(state)
+    oo, dd = camera_ray(cam, float(pix % width), float(pix // width), r1, r2, r3, r4)
+    o[pix] = oo
+    d[pix] = dd
+
+
+def camera_rays(cam: Camera, size: int) -> tuple[wp.array, wp.array]:
+    o = wp.zeros(size * size, dtype=wp.vec3)
+    d = wp.zeros(size * size, dtype=wp.vec3)
+    wp.launch(_camera_rays, dim=size * size, inputs=[camera_params(cam, size, size), size, wp.uint32(0), o, d])
+    return o, d
+
+
+def random_rays(bounds: np.ndarray, n: int, seed: int = 1) -> tuple[wp.array, wp.array]:
+    """Origins uniform in the middle 80% of the scene's box, directions uniform on the sphere."""
+    rng = np.random.default_rng(seed)
+    lo, hi = bounds[0], bounds[1]
+    o = lo + (hi - lo) * rng.uniform(0.1, 0.9, size=(n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return wp.array(o.astype(np.float32), dtype=wp.vec3), wp.array(d.astype(np.float32), dtype=wp.vec3)
+
+
+# --------------------------------------------------------------------------------------------
+# The ladder of kernels
+
+
+@wp.kernel(enable_backward=False)
+def _bare(mesh: wp.uint64, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+          t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
+    i = start + wp.tid()
+    q = wp.mesh_query_ray(mesh, o[i], d[i], NO_HIT)
+    t_out[i] = wp.where(q.result, q.t, NO_HIT)
+    face_out[i] = wp.where(q.result, q.face, -1)
+
+
+def make_ladder(features: Features) -> dict[str, wp.Kernel]:
+    """The kernels between the bare query and the renderer, for one feature set."""
+    closest_hit = make_closest_hit(features)
+    surface_at, _emission, _scatter = make_shading(features)
+    tlas_hit = make_closest_hit(features, direct=False) if _has_direct() else closest_hit
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def bare_struct(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+                    t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
+        i = start + wp.tid()
+        q = wp.mesh_query_ray(s.mesh_ids[0], o[i], d[i], NO_HIT)
+        t_out[i] = wp.where(q.result, q.t, NO_HIT)
+        face_out[i] = wp.where(q.result, q.face, -1)
+
+    def hit_kernel(hit_fn):
+        @wp.kernel(enable_backward=False, module="unique")
+        def hit(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+                t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
+            i = start + wp.tid()
+            h = hit_fn(s, o[i], d[i], NO_HIT)
+            t_out[i] = h.t
+            face_out[i] = wp.where(h.kind == KIND_MISS, -1, h.face)
+        return hit
+
+    def shade_kernel(vec, add: bool):
+        """closest_hit, surface_at, then the shading normal stored (add False) or added to a film."""
+        @wp.kernel(enable_backward=False, module="unique")
+        def shade(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+                  t_out: wp.array(dtype=float), face_out: wp.array(dtype=int), film: wp.array(dtype=vec)):
+            i = start + wp.tid()
+            h = closest_hit(s, o[i], d[i], NO_HIT)
+            t_out[i] = h.t
+            face_out[i] = wp.where(h.kind == KIND_MISS, -1, h.face)
+            L = wp.vec3(0.0)
+            if h.kind != KIND_MISS:
+                L = surface_at(s, h, o[i], d[i]).ns
+            if wp.static(add):
+                film[i] = film[i] + vec(L)
+            else:
+                film[i] = vec(L)
+        return shade
+
+    return {"bare+struct": bare_struct, "tlas loop": hit_kernel(tlas_hit), "closest_hit": hit_kernel(closest_hit),
+            "+ surface_at": shade_kernel(wp.vec3, False), "+ film f32": shade_kernel(wp.vec3, True),
+            "+ film f64": shade_kernel(wp.vec3d, True)}
+
+
+def _has_direct() -> bool:
+    """Whether geometry.make_closest_hit has a direct single-mesh path that can be switched off."""
+    import inspect
+    return "direct" in inspect.signature(make_closest_hit).parameters
+
+
+# --------------------------------------------------------------------------------------------
+# Timing
+
+
+def interleaved(runs: dict[str, callable], repeat: int) -> dict[str, float]:
+    """Best time of each run, the runs taken in turn ``repeat`` times: the machine is shared, and
+    taking turns spreads its slow spells over every row instead of one."""
+    for fn in runs.values():
+        fn()                                   # warm-up (and load)
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeat):
+        for label, fn in runs.items():
+            t = time.perf_counter()
+            fn()
+            best[label] = min(best[label], time.perf_counter() - t)
+    return best
+
+
+_pools: dict[int, ThreadPoolExecutor] = {}
+
+
+def launcher(kernel, n: int, args_before: list, args_after: list, threads: int):
+    """A function launching ``kernel`` over n items (the start index goes between the two argument
+    lists): one launch on one thread, or CHUNK-sized launches from a pool of ``threads``."""
+    if threads == 1:
+        return lambda: wp.launch(kernel, dim=n, inputs=[*args_before, 0, *args_after])
+    chunks = [(lo, min(n, lo + CHUNK)) for lo in range(0, n, CHUNK)]
+    pool = _pools.setdefault(threads, ThreadPoolExecutor(max_workers=threads))
+    return lambda: list(pool.map(
+        lambda c: wp.launch(kernel, dim=c[1] - c[0], inputs=[*args_before, c[0], *args_after]), chunks))
+
+
+def ladder_runs(dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp.array, ladder: dict[str, wp.Kernel],
+                threads: int) -> tuple[dict, dict]:
+    """The ray kernels as runs, and the (t, face) arrays each writes."""
+    n = o.shape[0]
+    outs = {label: (wp.zeros(n, dtype=float), wp.zeros(n, dtype=int)) for label in ["bare", *ladder]}
+    extra = {"+ surface_at": wp.vec3, "+ film f32": wp.vec3, "+ film f64": wp.vec3d}
+    runs = {"bare": launcher(_bare, n, [bare_mesh.id, o, d], list(outs["bare"]), threads)}
+    for label, k in ladder.items():
+        if label == "bare+struct" and len(dev.scene.meshes) != 1:
+            continue                           # mesh 0 alone is not the scene
+        after = list(outs[label]) + ([wp.zeros(n, dtype=extra[label])] if label in extra else [])
+        runs[label] = launcher(k, n, [dev.arrays, o, d], after, threads)
+    return runs, outs
+
+
+def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
+    """The integrator's kernel at depth 0 (camera samples, film, no ray) and depth 1 (one closest-hit
+    ray per pixel), 1 spp, and render() at depth 1 with the default tiles and with one tile."""
+    n = size * size
+    kernel = get_kernel(dev.features)
+    film = wp.zeros(n, dtype=wp.vec3d)
+    counters = wp.zeros((n, 2), dtype=wp.int64)
+    before = [dev.arrays, camera_params(cam, size, size), size]
+
+    def after(depth):
+        return [0, 1, depth, 1, wp.vec3(0.0, 0.0, 0.0), wp.uint32(0), 0, film, counters]
+
+    def render(tile, spp=1):
+        return lambda: R.render(dev, cam, width=size, height=size, spp=spp, max_depth=1, sky=Sky.gradient(),
+                                threads=threads, tile_pixels=tile)
+    return {"path d=0 (no ray)": launcher(kernel, n, before, after(0), threads),
+            "path d=1": launcher(kernel, n, before, after(1), threads),
+            f"render d=1, tiles of {R.TILE_PIXELS}": render(R.TILE_PIXELS),
+            "render d=1, one tile": render(n),
+            f"render d=1, {SPP} spp *": render(R.TILE_PIXELS, SPP)}
+
+
+def print_table(title: str, n: int, times: dict[tuple[str, int], float], agree: dict[str, str]) -> None:
+    print(f"\n## {title}: {n} rays")
+    print("| kernel | threads | Mrays/s | ratio to bare | 2-thread scaling | same hits as bare |")
+    print("|---|---|---|---|---|---|")
+    for (label, threads), secs in times.items():
+        bare = times[("bare", threads)] * (SPP if label.endswith("*") else 1)
+        one = times.get((label, 1))
+        scaling = f"{one / secs:.2f}x" if threads > 1 and one else ""
+        rays = n * (SPP if label.endswith("*") else 1)
+        print(f"| {label} | {threads} | {rays / secs / 1e6:.2f} | {bare / secs:.2f} | {scaling} | "
+              f"{agree.get(label, '')} |", flush=True)
+
+
+def _agreement(outs: dict, dev: DeviceScene) -> dict[str, str]:
+    if len(dev.scene.meshes) != 1 or len(dev.scene.spheres):
+        return {}                              # the bare kernel sees other geometry than ours
+    t_ref, f_ref = (a.numpy() for a in outs["bare"])
+    out = {}
+    for label, (t, f) in outs.items():
+        if label != "bare":
+            diff = np.mean((t.numpy() != t_ref) | (f.numpy() != f_ref))
+            out[label] = "bit-identical" if diff == 0 else f"{diff:.2%} differ"
+    return out
+
+
+def measure(title: str, dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp.array, ladder: dict,
+            repeat: int, thread_counts: list[int], cam: Camera | None = None, size: int = 0) -> None:
+    times: dict[tuple[str, int], float] = {}
+    agree: dict[str, str] = {}
+    for threads in thread_counts:
+        runs, outs = ladder_runs(dev, bare_mesh, o, d, ladder, threads)
+        if cam is not None:
+            runs.update(path_runs(dev, cam, size, threads))
+        for label, secs in interleaved(runs, repeat).items():
+            times[(label, threads)] = secs
+        agree = _agreement(outs, dev)
+    print_table(title, o.shape[0], times, agree)
+
+
+# --------------------------------------------------------------------------------------------
+# Scenes
+
+
+def grid_obj(folder: Path, quads: int) -> str:
+    """A wavy height field of 2*quads^2 triangles over [-50, 50]^2, as an OBJ file."""
+    x, y = np.meshgrid(np.linspace(-50, 50, quads + 1), np.linspace(-50, 50, quads + 1))
+    z = 4.0 * np.sin(x / 5.0) * np.cos(y / 7.0)
+    v = np.stack([x, y, z], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(quads), np.arange(quads))
+    a = (i * (quads + 1) + j).reshape(-1) + 1
+    b, c, e = a + 1, a + quads + 2, a + quads + 1
+    f = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, e], 1)])
+    path = folder / "grid.obj"
+    with open(path, "w") as fh:
+        np.savetxt(fh, v, fmt="v %.6f %.6f %.6f")
+        np.savetxt(fh, f, fmt="f %d %d %d")
+    return str(path)
+
+
+def scenes(folder: Path) -> list[tuple[str, DeviceScene, Camera]]:
+    objs, mtls = demo_files()
+    quiet = dict(warn=lambda message: None)
+    out = [
+        ("grid, 1 mesh, 100k tris", DeviceScene(load_scene([grid_obj(folder, 224)], [], **quiet)),
+         Camera(position=(0.0, -45.0, 40.0), direction=(0.0, 1.0, -0.8), fov=80.0, aperture=0.0, focus=1.0)),
+        ("demo sculpture alone, 1 mesh, 25.6k tris", DeviceScene(load_scene([objs[1]], mtls, **quiet)),
+         Camera()),
+        ("built-in demo, 3 meshes + 3 spheres", DeviceScene(load_scene(objs, mtls, **quiet)), Camera()),
+    ]
+    try:
+        sys.path.insert(0, str(REPO))
+        from tests.stability_scenes import cornell_camera, cornell_files
+        out.append(("Cornell box (tests), 1 mesh + 2 spheres",
+                    DeviceScene(load_scene(*cornell_files(folder), **quiet)), cornell_camera()))
+    except ImportError:                      # an installed package without the tests
+        pass
+    return out
+
+
+def merged_mesh(dev: DeviceScene) -> wp.Mesh:
+    """One wp.Mesh of every triangle in the scene: the bare kernel's mesh."""
+    pts, idx, base = [], [], 0
+    for m in dev.scene.meshes:
+        pts.append(m.positions.astype(np.float32))
+        idx.append(m.indices.reshape(-1).astype(np.int32) + base)
+        base += len(m.positions)
+    return wp.Mesh(points=wp.array(np.concatenate(pts), dtype=wp.vec3),
+                   indices=wp.array(np.concatenate(idx), dtype=wp.int32), bvh_constructor="sah")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="128x128 rays, 2 repeats")
+    ap.add_argument("--size", type=int, default=512, help="camera rays: size x size (default 512)")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--scene", default="", help="only scenes whose name contains this")
+    args = ap.parse_args()
+    size, repeat = (128, 2) if args.quick else (args.size, args.repeat)
+    wp.init()
+    print(f"# bench_rays: {size}x{size} rays, best of {repeat}, threads {args.threads}, "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, dev, cam in scenes(Path(tmp)):
+            if args.scene not in name:
+                continue
+            bare_mesh = dev._meshes[0] if len(dev._meshes) == 1 else merged_mesh(dev)
+            ladder = make_ladder(dev.features)
+            for k in ladder.values():
+                wp.load_module(k.module)
+            get_kernel(dev.features)
+            o, d = camera_rays(cam, size)
+            measure(f"{name}, camera rays", dev, bare_mesh, o, d, ladder, repeat, args.threads, cam, size)
+            o, d = random_rays(dev.scene.bounds, size * size)
+            measure(f"{name}, random rays from inside the box", dev, bare_mesh, o, d, ladder, repeat,
+                    args.threads)
+    for pool in _pools.values():
+        pool.shutdown()
+
+
+if __name__ == "__main__":
+    main()

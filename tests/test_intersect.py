@@ -7,10 +7,10 @@ import pytest
 import warp as wp
 
 from warp_spt.device_scene import DeviceScene, Features, SceneArrays
-from warp_spt.geometry import make_closest_hit, make_occluded
+from warp_spt.geometry import _direct, make_closest_hit, make_occluded
 from warp_spt.loader import load_scene
 
-from .scenes import write_scene_files
+from .scenes import box_obj, write_scene_files
 
 
 _closest = make_closest_hit(Features.general())
@@ -138,3 +138,60 @@ def test_any_hit_occlusion_agrees_with_the_closest_hit(mixed):
     got = blocked.numpy().astype(bool)
     assert expected[clear].sum() > 500 and (~expected[clear]).sum() > 500
     assert np.array_equal(got[clear], expected[clear])
+
+
+# --- one mesh, no spheres: the direct path (no TLAS) against the TLAS traversal -----------------
+
+_MESH_ONLY = Features(spheres=False)
+_direct_hit, _tlas_hit = make_closest_hit(_MESH_ONLY), make_closest_hit(_MESH_ONLY, direct=False)
+_direct_occ, _tlas_occ = make_occluded(_MESH_ONLY), make_occluded(_MESH_ONLY, direct=False)
+
+
+def _hit_kernel(closest, occluded):
+    @wp.kernel(enable_backward=False, module="unique")
+    def k(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
+          tuv: wp.array(dtype=wp.vec3), ids: wp.array(dtype=wp.vec4i), normal: wp.array(dtype=wp.vec3)):
+        i = wp.tid()
+        h = closest(s, o[i], d[i], 3.0e38)
+        tuv[i] = wp.vec3(h.t, h.u, h.v)
+        ids[i] = wp.vec4i(h.kind, h.index, h.face, wp.where(occluded(s, o[i], d[i], t_max[i]), 1, 0))
+        normal[i] = h.normal
+    return k
+
+
+def _soup_obj(rng: np.random.Generator, n: int) -> str:
+    """n random triangles in [-3, 3]^3 plus a closed box around them: one OBJ, so one mesh."""
+    p = rng.uniform(-3, 3, size=(n, 1, 3)) + rng.normal(scale=0.6, size=(n, 3, 3))
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in p.reshape(-1, 3)]
+    lines += [f"f {3 * k + 1} {3 * k + 2} {3 * k + 3}" for k in range(n)]
+    box = [ln for ln in box_obj((-5, -5, -5), (5, 5, 5), subdivide=2).splitlines() if ln[:2] in ("v ", "f ")]
+    shift = 3 * n
+    lines += [ln for ln in box if ln.startswith("v ")]
+    lines += ["f " + " ".join(str(int(v) + shift) for v in ln.split()[1:]) for ln in box if ln.startswith("f ")]
+    return "\n".join(lines) + "\n"
+
+
+def test_single_mesh_direct_path_equals_the_tlas_traversal(scene_dir):
+    # A scene of one mesh and no spheres skips the TLAS; every field of every hit, and every
+    # shadow-ray answer, must be what the TLAS traversal gives (bit for bit), inside and outside.
+    rng = np.random.default_rng(21)
+    objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000))
+    scene = DeviceScene(load_scene(objs, [], warn=lambda message: None))
+    assert scene.features.meshes and not scene.features.spheres and len(scene.scene.meshes) == 1
+    assert _direct(_MESH_ONLY, True) and not _direct(_MESH_ONLY, False)    # the two kernels differ
+    n = 40000
+    o, d = _random_rays(rng, n)
+    o[: n // 4] *= 3.0                  # a quarter start outside the box (and its TLAS root box)
+    args = [scene.arrays, wp.array(o.astype(np.float32), dtype=wp.vec3), wp.array(d.astype(np.float32), dtype=wp.vec3),
+            wp.array(rng.uniform(0.0, 12.0, size=n).astype(np.float32), dtype=float)]
+    results = []
+    for closest, occluded in ((_direct_hit, _direct_occ), (_tlas_hit, _tlas_occ)):
+        outs = [wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec4i), wp.zeros(n, dtype=wp.vec3)]
+        wp.launch(_hit_kernel(closest, occluded), dim=n, inputs=args + outs)
+        results.append([a.numpy() for a in outs])
+    (tuv, ids, nrm), (tuv_ref, ids_ref, nrm_ref) = results
+    hits = ids_ref[:, 0] == 0
+    assert hits.sum() > n // 4 and (~hits).sum() > n // 4 and 1000 < ids_ref[:, 3].sum() < n - 1000
+    assert np.array_equal(ids, ids_ref)
+    assert np.array_equal(tuv[hits], tuv_ref[hits]) and np.array_equal(nrm[hits], nrm_ref[hits])
+    assert np.array_equal(tuv[~hits, 0], tuv_ref[~hits, 0])

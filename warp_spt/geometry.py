@@ -89,22 +89,38 @@ def sphere_hit(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_max: float) -> float:
     return NO_HIT
 
 
-def make_closest_hit(features: Features):
-    """The closest-hit function for scenes with these features."""
+def _direct(features: Features, direct: bool) -> bool:
+    """Whether to compile the TLAS-free path for scenes of one mesh and no spheres (see closest_hit)."""
+    return direct and features.meshes and not features.spheres
+
+
+def make_closest_hit(features: Features, direct: bool = True):
+    """The closest-hit function for scenes with these features.
+
+    A scene of one mesh and no spheres skips our top-level BVH and asks the mesh's own BVH directly
+    (``direct``; False forces the TLAS, for tests and benchmarks). The result is bit-identical: the
+    TLAS root box bounds the mesh (rounded outward), so it never rejects a ray that hits the mesh,
+    and the mesh query gets the same t_max.
+    """
+
+    @wp.func
+    def mesh_hit(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
+        q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
+        if q.result:
+            hit.t = q.t
+            hit.kind = KIND_TRIANGLE
+            hit.index = item
+            hit.face = q.face
+            hit.u = q.u
+            hit.v = q.v
+            hit.normal = q.normal
+        return hit
 
     @wp.func
     def visit_item(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
         if item < s.num_meshes:
             if wp.static(features.meshes):
-                q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
-                if q.result:
-                    hit.t = q.t
-                    hit.kind = KIND_TRIANGLE
-                    hit.index = item
-                    hit.face = q.face
-                    hit.u = q.u
-                    hit.v = q.v
-                    hit.normal = q.normal
+                hit = mesh_hit(s, item, o, d, hit)
         else:
             if wp.static(features.spheres):
                 j = item - s.num_meshes
@@ -123,6 +139,9 @@ def make_closest_hit(features: Features):
         hit = Hit()
         hit.t = t_max
         hit.kind = KIND_MISS
+        if wp.static(_direct(features, direct)):
+            if s.num_meshes == 1:
+                return mesh_hit(s, 0, o, d, hit)
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         entries = vec_stack_f()
@@ -169,11 +188,12 @@ def make_closest_hit(features: Features):
     return closest_hit
 
 
-def make_occluded(features: Features):
+def make_occluded(features: Features, direct: bool = True):
     """An any-hit visibility test for shadow rays: True when something lies on the ray before t_max.
 
     Stops at the first blocker found (``wp.mesh_query_ray_anyhit`` inside meshes), so it is cheaper
-    than a closest hit; the traversal order does not matter. Ready for light sampling.
+    than a closest hit; the traversal order does not matter. Ready for light sampling. One mesh and
+    no spheres: the mesh is asked directly, as in make_closest_hit.
     """
 
     @wp.func
@@ -188,6 +208,9 @@ def make_occluded(features: Features):
 
     @wp.func
     def occluded(s: SceneArrays, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        if wp.static(_direct(features, direct)):
+            if s.num_meshes == 1:
+                return wp.mesh_query_ray_anyhit(s.mesh_ids[0], o, d, t_max)
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         sp = int(0)

@@ -5,17 +5,20 @@ rays from inside the scene's box) go through a ladder of kernels, each adding on
 render does, so the gaps between rungs say where the time goes:
 
     bare            wp.mesh_query_ray on the mesh id (a kernel argument); the reference
-    bare+struct     the same query, the id read from the SceneArrays struct argument
+    bare+struct     the same query, the id read from the Geometry struct argument
     tlas loop       the TLAS traversal of geometry.py, forced even for a single mesh
     closest_hit     geometry.make_closest_hit as the renderer uses it
     + surface_at    closest_hit, then the shading-point description (shading.make_shading)
     + film f32/f64  ... and the result added to a float32 / float64 film
-    path d=0        the integrator's own kernel at depth 0, 1 spp: camera sample, film, no ray
-    path d=1        the same at depth 1: one closest-hit ray per pixel (same rays as the rows above)
+    camera samples  the path kernel's start_path alone (sampler, camera ray), stored: no ray traced
+    path d=1        the integrator's own kernel at depth 1, 1 spp: one closest-hit ray per pixel
+                    (the same rays as the rows above), emission, sky, film
     render d=1      renderer.render() at depth 1, 1 spp: tiles, launches, threads, film read-back
 
 Rates are rays per second (pixel-samples for the path rows: one closest-hit ray each at depth 1),
-best of --repeat, and each row's ratio to the bare kernel of the same run. Scenes with several
+best of --repeat, and each row's ratio to the bare kernel of the same run. One-thread times are the
+launching thread's CPU time (the launch is synchronous on the CPU), so another process sharing the
+core does not inflate them; two-thread times are wall time, and need an idle machine. Scenes with several
 objects have no single mesh to query bare: their reference is one wp.Mesh of all their triangles
 (spheres left out), so there the ratio is only indicative. Threads 2 splits the rays into chunks
 launched from a pool of 2 Python threads (Warp releases the GIL in a launch), as the renderer does.
@@ -32,6 +35,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -46,13 +50,13 @@ wp.config.quiet = True
 import warp_spt.renderer as R  # noqa: E402
 from warp_spt.camera import Camera  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
-from warp_spt.device_scene import DeviceScene, Features, SceneArrays  # noqa: E402
+from warp_spt.device_scene import DeviceScene, Features, Geometry  # noqa: E402
 from warp_spt.geometry import KIND_MISS, NO_HIT, make_closest_hit  # noqa: E402
-from warp_spt.integrator import CameraParams, camera_params, camera_ray, get_kernel  # noqa: E402
+from warp_spt.integrators import CameraParams, RenderParams, camera_params, get_kernel, get_step  # noqa: E402
+from warp_spt.lights import light_table, sky_emits  # noqa: E402
 from warp_spt.loader import load_scene  # noqa: E402
-from warp_spt.sampling import stream_state  # noqa: E402
-from warp_spt.shading import make_shading  # noqa: E402
 from warp_spt.sky import Sky  # noqa: E402
+from warp_spt.surface import make_surface  # noqa: E402
 
 CHUNK = 4096          # rays per launch in the threaded runs (the renderer's TILE_PIXELS)
 SPP = 8               # "render d=1, 8 spp *": samples 0..7 of each pixel, 8 per launch as render() does;
@@ -63,25 +67,33 @@ SPP = 8               # "render d=1, 8 spp *": samples 0..7 of each pixel, 8 per
 # Rays
 
 
-@wp.kernel(enable_backward=False)
-def _camera_rays(cam: CameraParams, width: int, seed: wp.uint32,
-                 o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3)):
-    """Sample 0 of every pixel, drawn exactly as the path kernel draws it."""
-    pix = wp.tid()
-    state = stream_state(seed, pix, 0)
-    r1 = wp.randf(state)
-    r2 = wp.randf(state)
-    r3 = wp.randf(state)
-    r4 = wp.randf(state)
-    oo, dd = camera_ray(cam, float(pix % width), float(pix // width), r1, r2, r3, r4)
-    o[pix] = oo
-    d[pix] = dd
+INTEGRATOR, SAMPLER = "seed", "independent"    # the renderer's defaults at the time of writing
+SKY = Sky.gradient()
 
 
-def camera_rays(cam: Camera, size: int) -> tuple[wp.array, wp.array]:
+def path_features(dev: DeviceScene) -> Features:
+    """The feature set render() compiles for this scene and SKY."""
+    return replace(dev.features, sky=sky_emits(SKY))
+
+
+def camera_ray_kernel(dev: DeviceScene) -> wp.Kernel:
+    """Sample 0 of every pixel, drawn by the path kernel's own start_path (so: the same rays)."""
+    _step, start_path = get_step(INTEGRATOR, SAMPLER, path_features(dev))
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def rays(cam: CameraParams, width: int, start: int, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3)):
+        pix = start + wp.tid()
+        p = start_path(cam, pix, width, wp.uint32(0), 0)
+        o[pix] = p.o
+        d[pix] = p.d
+
+    return rays
+
+
+def camera_rays(dev: DeviceScene, cam: Camera, size: int) -> tuple[wp.array, wp.array]:
     o = wp.zeros(size * size, dtype=wp.vec3)
     d = wp.zeros(size * size, dtype=wp.vec3)
-    wp.launch(_camera_rays, dim=size * size, inputs=[camera_params(cam, size, size), size, wp.uint32(0), o, d])
+    wp.launch(camera_ray_kernel(dev), dim=size * size, inputs=[camera_params(cam, size, size), size, 0, o, d])
     return o, d
 
 
@@ -111,11 +123,11 @@ def _bare(mesh: wp.uint64, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3
 def make_ladder(features: Features) -> dict[str, wp.Kernel]:
     """The kernels between the bare query and the renderer, for one feature set."""
     closest_hit = make_closest_hit(features)
-    surface_at, _emission, _scatter = make_shading(features)
+    surface_at = make_surface(features)
     tlas_hit = make_closest_hit(features, direct=False) if _has_direct() else closest_hit
 
     @wp.kernel(enable_backward=False, module="unique")
-    def bare_struct(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+    def bare_struct(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
                     t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
         i = start + wp.tid()
         q = wp.mesh_query_ray(s.mesh_ids[0], o[i], d[i], NO_HIT)
@@ -124,7 +136,7 @@ def make_ladder(features: Features) -> dict[str, wp.Kernel]:
 
     def hit_kernel(hit_fn):
         @wp.kernel(enable_backward=False, module="unique")
-        def hit(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+        def hit(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
                 t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
             i = start + wp.tid()
             h = hit_fn(s, o[i], d[i], NO_HIT)
@@ -135,7 +147,7 @@ def make_ladder(features: Features) -> dict[str, wp.Kernel]:
     def shade_kernel(vec, add: bool):
         """closest_hit, surface_at, then the shading normal stored (add False) or added to a film."""
         @wp.kernel(enable_backward=False, module="unique")
-        def shade(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+        def shade(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
                   t_out: wp.array(dtype=float), face_out: wp.array(dtype=int), film: wp.array(dtype=vec)):
             i = start + wp.tid()
             h = closest_hit(s, o[i], d[i], NO_HIT)
@@ -165,7 +177,7 @@ def _has_direct() -> bool:
 # Timing
 
 
-def interleaved(runs: dict[str, callable], repeat: int) -> dict[str, float]:
+def interleaved(runs: dict[str, callable], repeat: int, clock=time.perf_counter) -> dict[str, float]:
     """Best time of each run, the runs taken in turn ``repeat`` times: the machine is shared, and
     taking turns spreads its slow spells over every row instead of one."""
     for fn in runs.values():
@@ -173,24 +185,23 @@ def interleaved(runs: dict[str, callable], repeat: int) -> dict[str, float]:
     best = dict.fromkeys(runs, float("inf"))
     for _ in range(repeat):
         for label, fn in runs.items():
-            t = time.perf_counter()
+            t = clock()
             fn()
-            best[label] = min(best[label], time.perf_counter() - t)
+            best[label] = min(best[label], clock() - t)
     return best
 
 
 _pools: dict[int, ThreadPoolExecutor] = {}
 
 
-def launcher(kernel, n: int, args_before: list, args_after: list, threads: int):
-    """A function launching ``kernel`` over n items (the start index goes between the two argument
-    lists): one launch on one thread, or CHUNK-sized launches from a pool of ``threads``."""
+def launcher(kernel, n: int, inputs, threads: int):
+    """A function launching ``kernel`` over n items, ``inputs(start)`` its arguments for the items
+    from ``start`` on: one launch on one thread, or CHUNK-sized launches from a pool of ``threads``."""
     if threads == 1:
-        return lambda: wp.launch(kernel, dim=n, inputs=[*args_before, 0, *args_after])
+        return lambda: wp.launch(kernel, dim=n, inputs=inputs(0))
     chunks = [(lo, min(n, lo + CHUNK)) for lo in range(0, n, CHUNK)]
     pool = _pools.setdefault(threads, ThreadPoolExecutor(max_workers=threads))
-    return lambda: list(pool.map(
-        lambda c: wp.launch(kernel, dim=c[1] - c[0], inputs=[*args_before, c[0], *args_after]), chunks))
+    return lambda: list(pool.map(lambda c: wp.launch(kernel, dim=c[1] - c[0], inputs=inputs(c[0])), chunks))
 
 
 def ladder_runs(dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp.array, ladder: dict[str, wp.Kernel],
@@ -199,12 +210,12 @@ def ladder_runs(dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp.array, 
     n = o.shape[0]
     outs = {label: (wp.zeros(n, dtype=float), wp.zeros(n, dtype=int)) for label in ["bare", *ladder]}
     extra = {"+ surface_at": wp.vec3, "+ film f32": wp.vec3, "+ film f64": wp.vec3d}
-    runs = {"bare": launcher(_bare, n, [bare_mesh.id, o, d], list(outs["bare"]), threads)}
+    runs = {"bare": launcher(_bare, n, lambda lo: [bare_mesh.id, o, d, lo, *outs["bare"]], threads)}
     for label, k in ladder.items():
         if label == "bare+struct" and len(dev.scene.meshes) != 1:
             continue                           # mesh 0 alone is not the scene
         after = list(outs[label]) + ([wp.zeros(n, dtype=extra[label])] if label in extra else [])
-        runs[label] = launcher(k, n, [dev.arrays, o, d], after, threads)
+        runs[label] = launcher(k, n, lambda lo, after=after: [dev.geometry, o, d, lo, *after], threads)
     return runs, outs
 
 
@@ -212,19 +223,27 @@ def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
     """The integrator's kernel at depth 0 (camera samples, film, no ray) and depth 1 (one closest-hit
     ray per pixel), 1 spp, and render() at depth 1 with the default tiles and with one tile."""
     n = size * size
-    kernel = get_kernel(dev.features)
+    feats = path_features(dev)
+    kernel = get_kernel(feats, integrator=INTEGRATOR, sampler=SAMPLER)
     film = wp.zeros(n, dtype=wp.vec3d)
     counters = wp.zeros((n, 2), dtype=wp.int64)
-    before = [dev.arrays, camera_params(cam, size, size), size]
+    fixed = [dev.geometry, dev.materials, dev.textures(), light_table(dev, SKY), camera_params(cam, size, size)]
 
-    def after(depth):
-        return [0, 1, depth, 1, wp.vec3(0.0, 0.0, 0.0), wp.uint32(0), 0, film, counters]
+    def inputs(depth):
+        def at(lo):
+            p = RenderParams()
+            p.width, p.pixel_start, p.sample_start, p.sample_count = size, lo, 0, 1
+            p.max_depth, p.roulette_depth, p.seed = depth, 0, wp.uint32(0)
+            return [*fixed, p, film, counters]
+        return at
 
     def render(tile, spp=1):
-        return lambda: R.render(dev, cam, width=size, height=size, spp=spp, max_depth=1, sky=Sky.gradient(),
-                                threads=threads, tile_pixels=tile)
-    return {"path d=0 (no ray)": launcher(kernel, n, before, after(0), threads),
-            "path d=1": launcher(kernel, n, before, after(1), threads),
+        return lambda: R.render(dev, cam, width=size, height=size, spp=spp, max_depth=1, sky=SKY,
+                                threads=threads, tile_pixels=tile, integrator=INTEGRATOR, sampler=SAMPLER)
+    o, d = wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)
+    cam_args = camera_params(cam, size, size)
+    return {"camera samples only": launcher(camera_ray_kernel(dev), n, lambda lo: [cam_args, size, lo, o, d], threads),
+            "path d=1": launcher(kernel, n, inputs(1), threads),
             f"render d=1, tiles of {R.TILE_PIXELS}": render(R.TILE_PIXELS),
             "render d=1, one tile": render(n),
             f"render d=1, {SPP} spp *": render(R.TILE_PIXELS, SPP)}
@@ -263,7 +282,10 @@ def measure(title: str, dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp
         runs, outs = ladder_runs(dev, bare_mesh, o, d, ladder, threads)
         if cam is not None:
             runs.update(path_runs(dev, cam, size, threads))
-        for label, secs in interleaved(runs, repeat).items():
+        # One thread: the launch runs on this thread, so its CPU time is the kernel's time, and
+        # another process on the same core does not inflate it. More threads: wall time.
+        clock = time.thread_time if threads == 1 else time.perf_counter
+        for label, secs in interleaved(runs, repeat, clock).items():
             times[(label, threads)] = secs
         agree = _agreement(outs, dev)
     print_table(title, o.shape[0], times, agree)
@@ -340,8 +362,7 @@ def main() -> None:
             ladder = make_ladder(dev.features)
             for k in ladder.values():
                 wp.load_module(k.module)
-            get_kernel(dev.features)
-            o, d = camera_rays(cam, size)
+            o, d = camera_rays(dev, cam, size)
             measure(f"{name}, camera rays", dev, bare_mesh, o, d, ladder, repeat, args.threads, cam, size)
             o, d = random_rays(dev.scene.bounds, size * size)
             measure(f"{name}, random rays from inside the box", dev, bare_mesh, o, d, ladder, repeat,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .device_scene import Features, SceneArrays
+from .device_scene import Features, Geometry
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
 NO_HIT = wp.constant(3.0e38)
@@ -104,7 +104,7 @@ def make_closest_hit(features: Features, direct: bool = True):
     """
 
     @wp.func
-    def mesh_hit(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
+    def mesh_hit(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
         q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
         if q.result:
             hit.t = q.t
@@ -117,7 +117,7 @@ def make_closest_hit(features: Features, direct: bool = True):
         return hit
 
     @wp.func
-    def visit_item(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
+    def visit_item(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
         if item < s.num_meshes:
             if wp.static(features.meshes):
                 hit = mesh_hit(s, item, o, d, hit)
@@ -134,7 +134,7 @@ def make_closest_hit(features: Features, direct: bool = True):
         return hit
 
     @wp.func
-    def closest_hit(s: SceneArrays, o: wp.vec3, d: wp.vec3, t_max: float) -> Hit:
+    def closest_hit(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> Hit:
         """Front-to-back traversal of our top-level BVH with closest-t pruning."""
         hit = Hit()
         hit.t = t_max
@@ -197,7 +197,7 @@ def make_occluded(features: Features, direct: bool = True):
     """
 
     @wp.func
-    def blocks(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+    def blocks(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
         if item < s.num_meshes:
             if wp.static(features.meshes):
                 return wp.mesh_query_ray_anyhit(s.mesh_ids[item], o, d, t_max)
@@ -207,7 +207,7 @@ def make_occluded(features: Features, direct: bool = True):
         return False
 
     @wp.func
-    def occluded(s: SceneArrays, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+    def occluded(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
         if wp.static(_direct(features, direct)):
             if s.num_meshes == 1:
                 return wp.mesh_query_ray_anyhit(s.mesh_ids[0], o, d, t_max)

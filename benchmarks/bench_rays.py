@@ -6,7 +6,7 @@ render does, so the gaps between rungs say where the time goes:
 
     bare            wp.mesh_query_ray on the mesh id (a kernel argument); the reference
     bare+struct     the same query, the id read from the Geometry struct argument
-    tlas loop       the TLAS traversal of geometry.py, forced even for a single mesh
+    tlas loop       the TLAS traversal of geometry.py, forced even for small scenes (small_scene=0)
     closest_hit     geometry.make_closest_hit as the renderer uses it
     + surface_at    closest_hit, then the shading-point description (shading.make_shading)
     + film f32/f64  ... and the result added to a float32 / float64 film
@@ -124,7 +124,7 @@ def make_ladder(features: Features) -> dict[str, wp.Kernel]:
     """The kernels between the bare query and the renderer, for one feature set."""
     closest_hit = make_closest_hit(features)
     surface_at = make_surface(features)
-    tlas_hit = make_closest_hit(features, direct=False) if _has_direct() else closest_hit
+    tlas_hit = make_closest_hit(features, small_scene=0) if _has_tlas_switch() else closest_hit
 
     @wp.kernel(enable_backward=False, module="unique")
     def bare_struct(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
@@ -167,10 +167,10 @@ def make_ladder(features: Features) -> dict[str, wp.Kernel]:
             "+ film f64": shade_kernel(wp.vec3d, True)}
 
 
-def _has_direct() -> bool:
-    """Whether geometry.make_closest_hit has a direct single-mesh path that can be switched off."""
+def _has_tlas_switch() -> bool:
+    """Whether geometry.make_closest_hit can be told to traverse the TLAS always (small_scene=0)."""
     import inspect
-    return "direct" in inspect.signature(make_closest_hit).parameters
+    return "small_scene" in inspect.signature(make_closest_hit).parameters
 
 
 # --------------------------------------------------------------------------------------------

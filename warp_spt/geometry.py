@@ -11,6 +11,10 @@ import warp as wp
 from .device_scene import Features, Geometry
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
+# Scenes of at most this many items (meshes + spheres) visit them all instead of traversing the TLAS:
+# measured faster for the Cornell box (3 items) and the built-in demo (6) in benchmarks/bench_rays.py
+# ("tlas loop" against "closest_hit"), where the traversal's box tests cost more than they prune.
+SMALL_SCENE = 8
 NO_HIT = wp.constant(3.0e38)
 KIND_MISS = wp.constant(-1)
 KIND_TRIANGLE = wp.constant(0)
@@ -89,18 +93,15 @@ def sphere_hit(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_max: float) -> float:
     return NO_HIT
 
 
-def _direct(features: Features, direct: bool) -> bool:
-    """Whether to compile the TLAS-free path for scenes of one mesh and no spheres (see closest_hit)."""
-    return direct and features.meshes and not features.spheres
-
-
-def make_closest_hit(features: Features, direct: bool = True):
+def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE):
     """The closest-hit function for scenes with these features.
 
-    A scene of one mesh and no spheres skips our top-level BVH and asks the mesh's own BVH directly
-    (``direct``; False forces the TLAS, for tests and benchmarks). The result is bit-identical: the
-    TLAS root box bounds the mesh (rounded outward), so it never rejects a ray that hits the mesh,
-    and the mesh query gets the same t_max.
+    A scene of at most ``small_scene`` items (meshes + spheres) skips our top-level BVH and visits
+    every item in turn (0 forces the TLAS, for tests and benchmarks): one mesh and no spheres is then
+    a bare query of the mesh's own BVH. Same hits: the TLAS only prunes items whose box the ray
+    misses or enters beyond the closest hit so far, which cannot hold the closest hit; only the
+    order of visits differs, which matters just for exact ties in t between two items
+    (tests/test_intersect.py compares the two paths).
     """
 
     @wp.func
@@ -139,9 +140,12 @@ def make_closest_hit(features: Features, direct: bool = True):
         hit = Hit()
         hit.t = t_max
         hit.kind = KIND_MISS
-        if wp.static(_direct(features, direct)):
-            if s.num_meshes == 1:
-                return mesh_hit(s, 0, o, d, hit)
+        if wp.static(small_scene > 0):
+            n_items = s.items.shape[0]
+            if n_items <= wp.static(small_scene):
+                for item in range(n_items):
+                    hit = visit_item(s, item, o, d, hit)
+                return hit
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         entries = vec_stack_f()
@@ -188,12 +192,12 @@ def make_closest_hit(features: Features, direct: bool = True):
     return closest_hit
 
 
-def make_occluded(features: Features, direct: bool = True):
+def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
     """An any-hit visibility test for shadow rays: True when something lies on the ray before t_max.
 
     Stops at the first blocker found (``wp.mesh_query_ray_anyhit`` inside meshes), so it is cheaper
-    than a closest hit; the traversal order does not matter. Ready for light sampling. One mesh and
-    no spheres: the mesh is asked directly, as in make_closest_hit.
+    than a closest hit; the traversal order does not matter. Ready for light sampling. Small scenes
+    skip the TLAS, as in make_closest_hit.
     """
 
     @wp.func
@@ -208,9 +212,13 @@ def make_occluded(features: Features, direct: bool = True):
 
     @wp.func
     def occluded(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
-        if wp.static(_direct(features, direct)):
-            if s.num_meshes == 1:
-                return wp.mesh_query_ray_anyhit(s.mesh_ids[0], o, d, t_max)
+        if wp.static(small_scene > 0):
+            n_items = s.items.shape[0]
+            if n_items <= wp.static(small_scene):
+                for item in range(n_items):
+                    if blocks(s, item, o, d, t_max):
+                        return True
+                return False
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         sp = int(0)

@@ -14,6 +14,7 @@ render does, so the gaps between rungs say where the time goes:
     path d=1        the integrator's own kernel at depth 1, 1 spp: one closest-hit ray per pixel
                     (the same rays as the rows above), emission, sky, film
     render d=1      renderer.render() at depth 1, 1 spp: tiles, launches, threads, film read-back
+    render d=6      a real render: 8 spp, depth 6, closest-hit rays/s from its own ray count
 
 Rates are rays per second (pixel-samples for the path rows: one closest-hit ray each at depth 1),
 best of --repeat, and each row's ratio to the bare kernel of the same run. One-thread times are the
@@ -59,8 +60,9 @@ from warp_spt.sky import Sky  # noqa: E402
 from warp_spt.surface import make_surface  # noqa: E402
 
 CHUNK = 4096          # rays per launch in the threaded runs (the renderer's TILE_PIXELS)
-SPP = 8               # "render d=1, 8 spp *": samples 0..7 of each pixel, 8 per launch as render() does;
-                      # its rate counts all of them (other rays than the bare kernel's, same distribution)
+SPP = 8               # "... 8 spp *" rows: samples 0..7 of each pixel, 8 per launch as render() does; the
+DEPTH = 6             # rate counts every closest-hit ray (other rays than the bare kernel's: the ratio
+                      # compares kernels, not rays; at depth 6 most rays are secondary, incoherent ones)
 
 
 # --------------------------------------------------------------------------------------------
@@ -220,8 +222,9 @@ def ladder_runs(dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp.array, 
 
 
 def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
-    """The integrator's kernel at depth 0 (camera samples, film, no ray) and depth 1 (one closest-hit
-    ray per pixel), 1 spp, and render() at depth 1 with the default tiles and with one tile."""
+    """Camera samples alone, the integrator's kernel at depth 1 (one closest-hit ray per pixel), 1 spp;
+    render() at depth 1 (default tiles, one tile, 8 spp) and at depth 6, 8 spp. Also returns the
+    rays each row traces where that is not one per pixel."""
     n = size * size
     feats = path_features(dev)
     kernel = get_kernel(feats, integrator=INTEGRATOR, sampler=SAMPLER)
@@ -237,28 +240,37 @@ def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
             return [*fixed, p, film, counters]
         return at
 
-    def render(tile, spp=1):
-        return lambda: R.render(dev, cam, width=size, height=size, spp=spp, max_depth=1, sky=SKY,
-                                threads=threads, tile_pixels=tile, integrator=INTEGRATOR, sampler=SAMPLER)
+    rays = {f"render d=1, {SPP} spp *": n * SPP}
+
+    def render(tile, spp=1, depth=1, label=None):
+        def go():
+            result = R.render_scene(dev, cam, R.RenderSettings(
+                width=size, height=size, spp=spp, max_depth=depth, sky=SKY, threads=threads, tile_pixels=tile,
+                integrator=INTEGRATOR, sampler=SAMPLER))
+            if label:
+                rays[label] = result.stats.rays
+        return go
     o, d = wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)
     cam_args = camera_params(cam, size, size)
     return {"camera samples only": launcher(camera_ray_kernel(dev), n, lambda lo: [cam_args, size, lo, o, d], threads),
             "path d=1": launcher(kernel, n, inputs(1), threads),
             f"render d=1, tiles of {R.TILE_PIXELS}": render(R.TILE_PIXELS),
             "render d=1, one tile": render(n),
-            f"render d=1, {SPP} spp *": render(R.TILE_PIXELS, SPP)}
+            f"render d=1, {SPP} spp *": render(R.TILE_PIXELS, SPP),
+            f"render d={DEPTH}, {SPP} spp *": render(R.TILE_PIXELS, SPP, DEPTH, f"render d={DEPTH}, {SPP} spp *")}, rays
 
 
-def print_table(title: str, n: int, times: dict[tuple[str, int], float], agree: dict[str, str]) -> None:
+def print_table(title: str, n: int, times: dict[tuple[str, int], float], agree: dict[str, str],
+                rays: dict[str, int]) -> None:
     print(f"\n## {title}: {n} rays")
     print("| kernel | threads | Mrays/s | ratio to bare | 2-thread scaling | same hits as bare |")
     print("|---|---|---|---|---|---|")
     for (label, threads), secs in times.items():
-        bare = times[("bare", threads)] * (SPP if label.endswith("*") else 1)
+        bare = n / times[("bare", threads)]
         one = times.get((label, 1))
         scaling = f"{one / secs:.2f}x" if threads > 1 and one else ""
-        rays = n * (SPP if label.endswith("*") else 1)
-        print(f"| {label} | {threads} | {rays / secs / 1e6:.2f} | {bare / secs:.2f} | {scaling} | "
+        rate = rays.get(label, n) / secs
+        print(f"| {label} | {threads} | {rate / 1e6:.2f} | {rate / bare:.2f} | {scaling} | "
               f"{agree.get(label, '')} |", flush=True)
 
 
@@ -278,17 +290,19 @@ def measure(title: str, dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp
             repeat: int, thread_counts: list[int], cam: Camera | None = None, size: int = 0) -> None:
     times: dict[tuple[str, int], float] = {}
     agree: dict[str, str] = {}
+    rays: dict[str, int] = {}
     for threads in thread_counts:
         runs, outs = ladder_runs(dev, bare_mesh, o, d, ladder, threads)
         if cam is not None:
-            runs.update(path_runs(dev, cam, size, threads))
+            more, rays = path_runs(dev, cam, size, threads)
+            runs.update(more)
         # One thread: the launch runs on this thread, so its CPU time is the kernel's time, and
         # another process on the same core does not inflate it. More threads: wall time.
         clock = time.thread_time if threads == 1 else time.perf_counter
         for label, secs in interleaved(runs, repeat, clock).items():
             times[(label, threads)] = secs
         agree = _agreement(outs, dev)
-    print_table(title, o.shape[0], times, agree)
+    print_table(title, o.shape[0], times, agree, rays)
 
 
 # --------------------------------------------------------------------------------------------

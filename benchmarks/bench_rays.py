@@ -26,6 +26,7 @@ launched from a pool of 2 Python threads (Warp releases the GIL in a launch), as
 
     python benchmarks/bench_rays.py              # 512x512 rays, 1 and 2 threads, 4 scenes
     python benchmarks/bench_rays.py --quick      # 128x128, a smoke run
+    python benchmarks/bench_rays.py --small-scene --size 256   # where the item loop beats the TLAS
 """
 
 from __future__ import annotations
@@ -356,6 +357,41 @@ def merged_mesh(dev: DeviceScene) -> wp.Mesh:
                    indices=wp.array(np.concatenate(idx), dtype=wp.int32), bvh_constructor="sah")
 
 
+def small_scene_table(folder: Path, size: int, repeat: int) -> None:
+    """Where visiting every item beats the TLAS (geometry.SMALL_SCENE): the tests' Cornell box with
+    0..13 extra spheres, closest hits by the item loop against the TLAS traversal, same rays."""
+    from tests.stability_scenes import cornell_camera, cornell_files
+    objs, mtls = cornell_files(folder)
+    rng = np.random.default_rng(3)
+    loop, tlas = (make_closest_hit(Features.general(), small_scene=k) for k in (64, 0))
+
+    def kernel(hit_fn):
+        @wp.kernel(enable_backward=False, module="unique")
+        def k(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_out: wp.array(dtype=float)):
+            i = wp.tid()
+            t_out[i] = hit_fn(s, o[i], d[i], NO_HIT).t
+        return k
+
+    k_loop, k_tlas = kernel(loop), kernel(tlas)
+    print("\n## Item loop against the TLAS (Cornell box + extra spheres), one thread")
+    print("| items | rays | loop speed / TLAS speed | same t |")
+    print("|---|---|---|---|")
+    for extra in (0, 3, 5, 9, 13):
+        path = folder / f"cornell_plus_{extra}.obj"
+        spheres = rng.uniform(4, 28, size=(extra, 3))
+        path.write_text(Path(objs[0]).read_text() + "".join(f"b {x:.3f} {y:.3f} {z:.3f} 1.5\n" for x, y, z in spheres))
+        dev = DeviceScene(load_scene([str(path)], mtls, warn=lambda message: None))
+        for name, (o, d) in (("camera", camera_rays(dev, cornell_camera(), size)),
+                             ("random", random_rays(dev.scene.bounds, size * size))):
+            n = o.shape[0]
+            a, b = wp.zeros(n, dtype=float), wp.zeros(n, dtype=float)
+            best = interleaved({"loop": lambda: wp.launch(k_loop, dim=n, inputs=[dev.geometry, o, d, a]),
+                                "tlas": lambda: wp.launch(k_tlas, dim=n, inputs=[dev.geometry, o, d, b])},
+                               repeat, time.thread_time)
+            same = np.array_equal(a.numpy(), b.numpy())
+            print(f"| {dev.tlas.items.shape[0]} | {name} | {best['tlas'] / best['loop']:.2f} | {same} |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="128x128 rays, 2 repeats")
@@ -363,12 +399,17 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--scene", default="", help="only scenes whose name contains this")
+    ap.add_argument("--small-scene", action="store_true",
+                    help="only the table of item loop against TLAS by number of items (geometry.SMALL_SCENE)")
     args = ap.parse_args()
     size, repeat = (128, 2) if args.quick else (args.size, args.repeat)
     wp.init()
     print(f"# bench_rays: {size}x{size} rays, best of {repeat}, threads {args.threads}, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory() as tmp:
+        if args.small_scene:
+            small_scene_table(Path(tmp), size, repeat)
+            return
         for name, dev, cam in scenes(Path(tmp)):
             if args.scene not in name:
                 continue

@@ -12,11 +12,11 @@ from .device_scene import Features, Geometry
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
 # Scenes of at most this many items (meshes + spheres) visit them all instead of traversing the TLAS,
-# whose box tests then cost more than they prune. Measured (closest-hit rays/s, loop over TLAS):
-# Cornell box of the tests (1 mesh + 2 spheres) 1.1-1.25x, built-in demo (3 meshes + 3 spheres)
-# 1.0-1.25x (benchmarks/bench_rays.py, "tlas loop" against "closest_hit"); that Cornell box with
-# extra spheres (bench_rays.py --small-scene): 6 items 0.97-1.01x, 8 items 0.93-1.00x, 12 items
-# 0.79-0.88x. Hence 6.
+# whose box tests then cost more than they prune. Measured (closest-hit rays/s, loop over TLAS, best
+# of 25 on a busy machine): the tests' Cornell box (1 mesh + 2 spheres) 1.13-1.15x, the built-in
+# demo (3 meshes + 3 spheres) 1.0-1.05x (benchmarks/bench_rays.py, "tlas loop" against
+# "closest_hit"); that Cornell box with extra spheres (bench_rays.py --small-scene): 6 items
+# 0.99-1.02x, 8 items 0.93-1.03x, 12 items 0.79-0.88x, 16 items 0.69-0.81x. Hence 6.
 SMALL_SCENE = 6
 NO_HIT = wp.constant(3.0e38)
 KIND_MISS = wp.constant(-1)

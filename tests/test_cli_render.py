@@ -13,6 +13,7 @@ from PIL import Image
 from warp_spt.cli import main
 from warp_spt.sky import Sky
 
+from .fakes import fake_renderer
 from .reference import literal_seed_search
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
@@ -130,7 +131,7 @@ class FakeEngine:
         scene = types.SimpleNamespace(warnings=["a warning"], num_triangles=2, spheres=np.zeros((1, 4)))
         fakes = {
             "warp_spt.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),
-            "warp_spt.renderer": types.SimpleNamespace(render=self._render),
+            "warp_spt.renderer": fake_renderer(self._render),
             "warp_spt.film": types.SimpleNamespace(save_image=self._save),
         }
         for name, module in fakes.items():
@@ -228,8 +229,7 @@ def test_real_interrupt_during_save_leaves_no_partial_file(tmp_path, monkeypatch
                         types.SimpleNamespace(load_scene=lambda o, m, **kw: types.SimpleNamespace(
                             warnings=[], num_triangles=0, spheres=np.zeros((0, 4)))))
     monkeypatch.setitem(sys.modules, "warp_spt.renderer",
-                        types.SimpleNamespace(render=lambda scene, camera, **kw: np.full(
-                            (kw["height"], kw["width"], 3), 0.5, np.float32)))
+                        fake_renderer(lambda scene, camera, **kw: np.full((kw["height"], kw["width"], 3), 0.5, np.float32)))
 
     def interrupted_write(*args, **kwargs):
         raise KeyboardInterrupt

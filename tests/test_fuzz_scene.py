@@ -40,10 +40,6 @@ ALL_PIECES = PIECES + EXTREME
 CAMERA = Camera(position=(0.5, 0.5, 6.0), direction=(0.0, 0.0, -1.0), fov=60.0, focus=6.0, aperture=0.0)
 
 
-def dropped_samples() -> int:
-    """The render's dropped-sample counter (one line to change when last_stats becomes a result object)."""
-    from warp_spt import renderer
-    return renderer.last_stats.dropped_samples
 
 
 @st.composite
@@ -94,12 +90,13 @@ def check_scene(obj: bytes, mtl: bytes, png: bytes, sky: float, capsys) -> str:
             assert any(lines[0].startswith(f"warp-spt: error: {f}") for f in files), err
             return "error"
     from warp_spt.device_scene import Features
-    from warp_spt.renderer import render
+    from warp_spt.renderer import RenderSettings, render_scene
 
-    img = render(scene, CAMERA, width=8, height=8, spp=1, max_depth=2, sky=Sky.constant(sky, sky, sky),
-                 threads=1, features=Features.general())
-    assert np.isfinite(img).all()
-    assert dropped_samples() == 0
+    res = render_scene(scene, CAMERA, RenderSettings(width=8, height=8, spp=1, max_depth=2,
+                                                     sky=Sky.constant(sky, sky, sky), threads=1,
+                                                     features=Features.general()))
+    assert np.isfinite(res.image).all()
+    assert res.stats.dropped_samples == 0
     return "rendered"
 
 

@@ -18,6 +18,8 @@ from warp_spt.errors import SceneError
 from warp_spt.film import save_image
 from warp_spt.loader import load_scene
 
+from .fakes import fake_renderer
+
 REPO = Path(__file__).resolve().parents[1]
 TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
 
@@ -283,9 +285,8 @@ def test_an_unwritable_directory_names_the_output_not_the_temp_file(tmp_path, mo
 def test_dropped_samples_are_reported_even_with_quiet(tmp_path, monkeypatch, capsys):
     import types
 
-    stats = types.SimpleNamespace(dropped_samples=3)
-    monkeypatch.setitem(sys.modules, "warp_spt.renderer", types.SimpleNamespace(
-        render=lambda scene, camera, **kw: np.zeros((kw["height"], kw["width"], 3), np.float32), last_stats=stats))
+    monkeypatch.setitem(sys.modules, "warp_spt.renderer", fake_renderer(
+        lambda scene, camera, **kw: np.zeros((kw["height"], kw["width"], 3), np.float32), dropped_samples=3))
     obj = write(tmp_path, "a.obj", TRI)
     assert main(["-obj", str(obj), "--quiet", "-res", "2", "2", "-out", str(tmp_path / "o.npy")]) == 0
     assert "3 samples were not finite" in capsys.readouterr().err

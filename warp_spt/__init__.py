@@ -8,7 +8,9 @@ The public surface, in the order data flows::
 
 :func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
 bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
-separate sample ranges merge exactly; :func:`render_film` returns one.
+separate sample ranges merge exactly; :func:`render_film` returns one. :func:`render_scene` takes a
+:class:`RenderSettings` (integrator and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``)
+and returns a :class:`RenderResult` (film, image, stats).
 
 The names are imported on first use (PEP 562), so ``import warp_spt`` is cheap and the command line
 can install its Ctrl-C handling before numpy and Warp are loaded.
@@ -26,6 +28,11 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Camera": "camera",
     "Film": "film",
+    "INTEGRATORS": "integrators",
+    "RenderResult": "renderer",
+    "RenderSettings": "renderer",
+    "RenderStats": "renderer",
+    "SAMPLERS": "samplers",
     "Material": "scene",
     "ObjData": "scene",
     "Scene": "scene",
@@ -36,6 +43,7 @@ _EXPORTS = {
     "load_scene": "loader",
     "render": "renderer",
     "render_film": "renderer",
+    "render_scene": "renderer",
     "save_image": "film",
     "tonemap_seed": "film",
     "tonemap_srgb": "film",
@@ -50,7 +58,9 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .loader import load_scene
     from .mtl import load_mtl
     from .obj import load_obj
-    from .renderer import render, render_film
+    from .integrators import INTEGRATORS
+    from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
+    from .samplers import SAMPLERS
     from .scene import Material, ObjData, Scene
     from .sky import Sky
 

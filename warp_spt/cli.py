@@ -87,6 +87,8 @@ class Options:
     quiet: bool = False
     verbose: bool = False
     demo: str | None = None
+    integrator: str | None = None     # None: the renderer's default
+    sampler: str | None = None
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -173,6 +175,12 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     new.add_argument("--verbose", action="store_true",
                      help="also show Warp's own messages (banner, module loads, missing CUDA driver)")
+    # Names are checked against the registries in run(): importing them imports Warp, which must
+    # first be initialised as --verbose says (and parsing stays Warp-free).
+    new.add_argument("--integrator", metavar="NAME",
+                     help="light transport: nee (light sampling with MIS, default) or seed (pure path tracing)")
+    new.add_argument("--sampler", metavar="NAME",
+                     help="random numbers: independent (default) or sobol (Owen-scrambled Sobol')")
     return p
 
 
@@ -210,6 +218,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
+        integrator=ns.integrator, sampler=ns.sampler,
     )
 
 
@@ -324,11 +333,12 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     check_files(objs, mtls, opts.out)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
     _init_warp(opts)
+    _check_registry_names(opts)
     import numpy as np
 
     from .film import save_image
     from .loader import load_scene
-    from .renderer import render
+    from .renderer import RenderSettings, render_scene
 
     start = time.perf_counter()
     try:
@@ -345,9 +355,11 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:
-        image = render(scene, opts.camera, width=opts.width, height=opts.height, spp=opts.spp,
-                       max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
-                       texture_filter=opts.texture_filter, progress=bar or False)
+        chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
+        settings = RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth,
+                                  sky=opts.sky, seed=opts.seed, threads=opts.threads,
+                                  texture_filter=opts.texture_filter, **chosen)
+        result = render_scene(scene, opts.camera, settings, progress=bar or False)
     except MemoryError:
         texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
         raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "
@@ -358,7 +370,7 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
             with deferred_signals():    # never interrupt tqdm while it holds its lock
                 bar.close()
     seconds = time.perf_counter() - start
-    dropped = dropped_samples()
+    image, dropped = result.image, result.stats.dropped_samples
     if dropped:     # shown even with --quiet: the image is wrong somewhere (docs/limits.md)
         print(f"{PROG}: warning: {dropped} samples were not finite and were dropped; the image is biased "
               "there (please report this scene)", file=err)
@@ -368,10 +380,14 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     return EXIT_OK
 
 
-def dropped_samples() -> int:
-    """Non-finite samples the kernel's guard dropped in the last render (0 when unknown)."""
-    stats = getattr(sys.modules.get("warp_spt.renderer"), "last_stats", None)
-    return int(getattr(stats, "dropped_samples", 0) or 0)
+def _check_registry_names(opts: Options) -> None:
+    """--integrator and --sampler name entries of the registries (a usage error otherwise)."""
+    from .integrators import INTEGRATORS
+    from .samplers import SAMPLERS
+
+    for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
+        if name is not None and name not in registry:
+            raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
 
 
 def _init_warp(opts: Options) -> None:

@@ -251,8 +251,11 @@ def lens_blur_share(pr: Probe, camera: Camera, width: int, pixels: float = BLUR_
     return float(np.mean(blur > pixels))
 
 
-def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Probe | None = None) -> list[str]:
-    """One-line warnings about a view that will not show the scene (empty when all is well)."""
+def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Probe | None = None,
+                  offset: Sequence[float] = (0.0, 0.0, 0.0)) -> list[str]:
+    """One-line warnings about a view that will not show the scene (empty when all is well).
+
+    ``offset`` is what :func:`recentre` subtracted: bounds are reported in world coordinates."""
     out = []
     inside = enclosing_object(scene, camera.position)
     if inside:
@@ -260,7 +263,7 @@ def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Pro
                    "(use --frame, or -cam/--look-at to place it outside)")
     pr = pr or probe(scene, camera, PROBE_SIZE, max(1, round(PROBE_SIZE * height / width)))
     if pr.coverage == 0.0:
-        b = scene.bounds
+        b = scene.bounds + np.asarray(offset, dtype=np.float64)
         out.append(f"the camera sees no geometry (a {pr.t.shape[1]}x{pr.t.shape[0]} probe hit nothing; "
                    f"the scene spans {_fmt(b[0])}..{_fmt(b[1])}); use --frame or aim the camera at it")
     share = lens_blur_share(pr, camera, width)

@@ -22,8 +22,8 @@ from .sky import Sky
 SKY = (0.35, 0.35, 0.35)          # a neutral grey sky
 GROUND_ALBEDO = 0.5
 GROUND_HALF_SIZE = 40.0           # in units of the model's bounding radius
-LIGHT_DISTANCE, LIGHT_RADIUS = 3.0, 0.8    # in units of the model's bounding radius
-LIGHT_EMISSION = 12.0             # about 3x the sky's irradiance at the model
+LIGHT_DISTANCE, LIGHT_RADIUS = 3.0, 1.5    # in units of the model's bounding radius: a big, soft key
+LIGHT_EMISSION = 4.0              # about 3x the sky's contribution on a surface facing it
 
 
 def studio_sky() -> Sky:

@@ -223,3 +223,34 @@ def test_the_seed_demo_command_is_bit_identical_to_main(seed_demo, tmp_path, mon
 def test_the_builtin_demo_is_bit_identical_to_main(tmp_path):
     img, said = cli(["-res", "48", "48", "-sr", "4"], tmp_path / "demo.npy")
     assert digest(img) == MAIN_BUILTIN_DEMO
+
+
+# --------------------------------------------------------------------------------------------
+# Command line
+
+
+def test_model_flags_parse():
+    from warp_spt.cli import UsageError
+    o = parse_args(["-obj", "m.obj", "--up", "-y", "--look-at", "4", "-52", "20", "--fov", "50", "--aperture", "0"])
+    assert o.up == "-y" and o.camera.up == (0.0, -1.0, 0.0) and o.cam_given
+    assert np.allclose(o.camera.direction, (0, 0.6, 0.8)) and math.isclose(o.camera.focus, 5.0)
+    assert o.camera.fov == 50 and o.camera.aperture == 0 and o.camera.position == Camera().position
+    o = parse_args(["-obj", "m.obj", "--fov", "20", "-out", "x.jpg"])
+    assert o.camera == Camera(fov=20) and not o.cam_given and o.default_material == "auto"
+    assert parse_args([]).camera == Camera()                      # the seed's camera, exactly
+    for bad in (["-obj", "m.obj", "--frame", "-cam", *"0 0 0 0 1 0 38 27 0".split()],
+                ["--studio"], ["-obj", "m.obj", "--up", "w"], ["-obj", "m.obj", "--look-at", "4", "-55", "16"]):
+        with pytest.raises(UsageError):
+            parse_args(bad)
+
+
+def test_a_cold_kernel_cache_is_announced_once(scene_dir, tmp_path):
+    import os
+    import subprocess
+    import sys
+    obj = model(scene_dir, "cold cow", shape="cow")
+    env = {**os.environ, "WARP_CACHE_PATH": str(tmp_path / "cache"), "PYTHONPATH": str(Path(__file__).parents[1])}
+    cmd = [sys.executable, "-m", "warp_spt", "-obj", obj, "-res", "8", "8", "-sr", "1", "-out", str(tmp_path / "c.png")]
+    said = [subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stderr for _ in range(2)]
+    assert said[0].count("compiling kernels for this scene") == 1, said[0]
+    assert "compiling kernels" not in said[1], said[1]

@@ -6,7 +6,9 @@ The public surface, in the order data flows::
     image = warp_spt.render(scene, warp_spt.Camera(), width=512, height=512, spp=16)  # linear float32
     warp_spt.save_image("out.png", image)                                  # tone-mapped PNG, .npy or .pfm
 
-:func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
+:meth:`Camera.frame` fits a camera to a scene (``Camera.frame(scene, up="y")`` for a Y-up model) and
+:meth:`Camera.look_at` aims one at a point. :func:`render` recentres scenes far from the origin
+(:func:`warp_spt.framing.recentre`) before rendering. :func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
 bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
 separate sample ranges merge exactly; :func:`render_film` returns one.
 """
@@ -19,7 +21,7 @@ from .film import Film, save_image, tonemap_seed, tonemap_srgb
 from .loader import load_scene
 from .mtl import load_mtl
 from .obj import load_obj
-from .renderer import render, render_film
+from .framing import render, render_film   # renderer.render/render_film after recentring far-off scenes
 from .scene import Material, ObjData, Scene
 from .sky import Sky
 

@@ -343,6 +343,47 @@ def prepare_view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
     return scene, camera, sky
 
 
+COMPILE_MESSAGE = "compiling kernels for this scene... (first run only)"
+
+
+class CompileNotice:
+    """Says COMPILE_MESSAGE once if a step inside ``with notice:`` takes longer than ``after`` seconds.
+
+    Loading a kernel from Warp's cache takes about 0.02 s, compiling it seconds, so a slow kernel load
+    means a cold cache; the line appears while the compiler runs, before the progress bar.
+    """
+
+    def __init__(self, say, after: float = 0.5) -> None:
+        self.say, self.after, self.said = say, after, False
+        self._timer = None
+
+    def _fire(self) -> None:
+        if not self.said:
+            self.said = True
+            self.say(COMPILE_MESSAGE)
+
+    def __enter__(self) -> "CompileNotice":
+        import threading
+
+        self._timer = threading.Timer(self.after, self._fire)
+        self._timer.daemon = True
+        self._timer.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._timer.cancel()
+
+
+def preload(scene):
+    """The scene uploaded and its kernel loaded (compiled on a cold cache), ready for render()."""
+    from .device_scene import DeviceScene
+    from .integrator import get_kernel
+
+    dev = DeviceScene(scene)
+    get_kernel(dev.features, dev.device)
+    return dev
+
+
 def _cam_numbers(cam: Camera, offset) -> list[float]:
     """A camera as -cam's nine numbers in world coordinates."""
     return [*(p + o for p, o in zip(cam.position, offset)), *cam.direction, cam.fov, cam.focus, cam.aperture]
@@ -417,7 +458,11 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.spp} spp, depth {opts.depth}")
-    scene, camera, sky = prepare_view(opts, scene, say)
+    notice = CompileNotice(say)
+    with notice:
+        scene, camera, sky = prepare_view(opts, scene, say)
+    with notice:
+        scene = preload(scene)
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:

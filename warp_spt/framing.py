@@ -314,7 +314,12 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
 
 
 def render(scene: Any, camera: Camera | None = None, **kwargs: Any) -> np.ndarray:
-    """:func:`warp_spt.renderer.render` after :func:`recentre` (a DeviceScene is passed through)."""
+    """Render ``scene`` (a Scene or DeviceScene) and return float32 (height, width, 3) linear radiance.
+
+    This is :func:`warp_spt.renderer.render` (see it for every keyword) after :func:`recentre`, so a
+    scene far from the origin renders as precisely as the same scene at the origin; scenes near the
+    origin, and DeviceScenes, are passed through unchanged.
+    """
     from .renderer import render as _render
     if isinstance(scene, Scene):
         scene, camera, _ = recentre(scene, camera)

@@ -313,13 +313,25 @@ def _check_exr(out: str) -> None:
 
 
 def prepare_view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
-    """The scene, camera and sky to render: recentred if far from the origin, framed when the rule says
-    so (see :func:`warp_spt.framing.should_frame`), checked for views that show nothing, studio added."""
+    """The scene (uploaded, its kernel loaded), camera and sky to render.
+
+    The scene is recentred if far from the origin, framed when the rule says so (see
+    :func:`warp_spt.framing.should_frame`), checked for views that show nothing, and given the studio
+    preset if asked; a cold kernel cache is announced (:class:`CompileNotice`).
+    """
+    notice = CompileNotice(say)
+    with notice:
+        scene, camera, sky = _view(opts, scene, say)
+    with notice:
+        return preload(scene), camera, sky
+
+
+def _view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
     from . import framing
 
     scene, camera, offset = framing.recentre(scene, opts.camera)
     if offset.any():
-        say(f"recentred the scene by {framing._fmt(-offset)} for precision (far from the origin)")
+        say(f"recentred the scene by {framing.format_point(-offset)} for precision (far from the origin)")
     if opts.uses_demo_scene and opts.quiet:
         return scene, camera, opts.sky
     aspect = opts.width / opts.height
@@ -458,11 +470,7 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.spp} spp, depth {opts.depth}")
-    notice = CompileNotice(say)
-    with notice:
-        scene, camera, sky = prepare_view(opts, scene, say)
-    with notice:
-        scene = preload(scene)
+    scene, camera, sky = prepare_view(opts, scene, say)
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:

@@ -265,7 +265,7 @@ def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Pro
     if pr.coverage == 0.0:
         b = scene.bounds + np.asarray(offset, dtype=np.float64)
         out.append(f"the camera sees no geometry (a {pr.t.shape[1]}x{pr.t.shape[0]} probe hit nothing; "
-                   f"the scene spans {_fmt(b[0])}..{_fmt(b[1])}); use --frame or aim the camera at it")
+                   f"the scene spans {format_point(b[0])}..{format_point(b[1])}); use --frame or aim the camera at it")
     share = lens_blur_share(pr, camera, width)
     if share > BLUR_SHARE:
         out.append(f"the lens blur is wider than {BLUR_PIXELS:g} pixels over {100 * share:.0f}% of the "
@@ -274,14 +274,15 @@ def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Pro
     return out
 
 
-def _fmt(v: Sequence[float]) -> str:
+def format_point(v: Sequence[float]) -> str:
+    """A point as (x, y, z) with 4 significant digits."""
     return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
 
 
 def describe_bounds(scene: Scene) -> str:
     """The scene's bounds for the CLI's 'loaded' line."""
     b = scene.bounds
-    return f"bounds {_fmt(b[0])}..{_fmt(b[1])}"
+    return f"bounds {format_point(b[0])}..{format_point(b[1])}"
 
 
 # ---------------------------------------------------------------------------------------------

@@ -254,3 +254,34 @@ def test_a_cold_kernel_cache_is_announced_once(scene_dir, tmp_path):
     said = [subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stderr for _ in range(2)]
     assert said[0].count("compiling kernels for this scene") == 1, said[0]
     assert "compiling kernels" not in said[1], said[1]
+
+
+# --------------------------------------------------------------------------------------------
+# Studio
+
+
+@pytest.mark.parametrize("up", ["y", "z"])
+def test_studio_adds_a_ground_under_the_model_and_a_key_light_above(scene_dir, up):
+    from warp_spt.studio import add_studio
+    from warp_spt.camera import up_vector
+    scene = load_scene([model(scene_dir, f"studio cow {up}", shape="cow", up=up)], default_material="clay")
+    before = [m.positions.copy() for m in scene.meshes]
+    studio = add_studio(scene, up=up)
+    assert all(np.array_equal(a, m.positions) for a, m in zip(before, scene.meshes)), "the model is untouched"
+    assert len(scene.meshes) == 1 and len(studio.meshes) == 2 and len(studio.spheres) == 1
+    u = up_vector(up)
+    low, high = (scene.bounds @ u).min(), (scene.bounds @ u).max()
+    ground = studio.meshes[1]
+    heights = ground.positions.astype(np.float64) @ u
+    assert np.allclose(heights, heights[0]) and low - 0.01 < heights[0] < low
+    p = ground.positions.astype(np.float64)[ground.indices[0]]
+    assert np.dot(np.cross(p[1] - p[0], p[2] - p[0]), u) > 0, "the ground faces up"
+    light = studio.spheres[0].astype(np.float64)
+    assert light[:3] @ u - light[3] > high, "the key light is entirely above the model"
+    assert studio.materials.emission[studio.sphere_material[0]].min() > 0
+    # Under a black sky the key light is the only source: without it the image is exactly black.
+    from warp_spt.sky import Sky
+    cam, kw = Camera.frame(scene, up=up), dict(width=24, height=24, spp=4, max_depth=3, sky=Sky.constant(0, 0, 0))
+    assert framing.render(scene, cam, **kw).max() == 0.0
+    lit = framing.render(studio, cam, **kw)
+    assert np.isfinite(lit).all() and lit.mean() > 0.01

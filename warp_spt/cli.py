@@ -50,7 +50,8 @@ stand them upright; it sets the camera's up axis and the framing's.
 
 With -obj and no -cam the scene is framed automatically (a three-quarter view from the front,
 the whole model in view, pinhole) when the seed's default camera would stand inside the scene's
-bounds, see almost none of it, or be too close to see it whole; --frame always frames. The seed's
+bounds, see almost none of it, or be too close to see it whole, or when --up is not z;
+--frame always frames. The seed's
 own scenes are seen whole by the default camera and keep it. -sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink.
 .png and .jpg are tone-mapped; .npy, .pfm and .exr hold linear radiance (.exr needs the
 optional openexr package). Exit status: 0 ok, 1 failure,
@@ -339,10 +340,11 @@ def _view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
     pr = None
     if not opts.uses_demo_scene and not opts.cam_given:
         pr = framing.probe(scene, camera, framing.PROBE_SIZE, ph)
-        if opts.frame or framing.should_frame(scene, camera, pr.coverage):
+        if opts.frame or opts.up != "z" or framing.should_frame(scene, camera, pr.coverage):
             camera = framing.frame_camera(scene, up=opts.up, aspect=aspect, template=camera).with_(
                 aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture)
-            why = "--frame" if opts.frame else "the default camera would not show it whole; -cam or --look-at to choose"
+            why = ("--frame" if opts.frame else f"--up {opts.up}: the seed's default camera is a Z-up one" if opts.up != "z"
+                   else "the default camera would not show it whole; -cam or --look-at to choose")
             say(f"framed the scene ({why}): -cam {' '.join(f'{v:.6g}' for v in _cam_numbers(camera, offset))}")
             pr = None
     for warning in framing.view_warnings(scene, camera, opts.width, opts.height, pr, offset):

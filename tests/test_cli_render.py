@@ -125,7 +125,7 @@ def test_the_seeds_demo_command_renders(tmp_path, monkeypatch):
 
 def stub_view(monkeypatch) -> None:
     """No framing, probes or upload for a stubbed engine: the CLI renders its own camera and sky."""
-    monkeypatch.setattr("warp_spt.cli.prepare_view", lambda opts, scene, say: (scene, opts.camera, opts.sky))
+    monkeypatch.setattr("warp_spt.cli.prepare_view", lambda opts, scene, say, **kw: (scene, opts.camera, opts.sky))
 
 
 class FakeEngine:

@@ -313,18 +313,18 @@ def _check_exr(out: str) -> None:
                          "(pip install 'warp-spt[exr]')")
 
 
-def prepare_view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
-    """The scene (uploaded, its kernel loaded), camera and sky to render.
+def prepare_view(opts: Options, scene, say, notice: "CompileNotice | None" = None) -> tuple[object, Camera, Sky]:
+    """The scene (uploaded to the device), camera and sky to render.
 
     The scene is recentred if far from the origin, framed when the rule says so (see
     :func:`warp_spt.framing.should_frame`), checked for views that show nothing, and given the studio
-    preset if asked; a cold kernel cache is announced (:class:`CompileNotice`).
+    preset if asked. The probe's kernel may compile on a first run: ``notice`` announces it.
     """
-    notice = CompileNotice(say)
-    with notice:
+    from .device_scene import DeviceScene
+
+    with notice or CompileNotice(say):
         scene, camera, sky = _view(opts, scene, say)
-    with notice:
-        return preload(scene), camera, sky
+    return DeviceScene(scene), camera, sky
 
 
 def _view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
@@ -388,14 +388,10 @@ class CompileNotice:
         self._timer.cancel()
 
 
-def preload(scene):
-    """The scene uploaded and its kernel loaded (compiled on a cold cache), ready for render()."""
-    from .device_scene import DeviceScene
-    from .integrator import get_kernel
-
-    dev = DeviceScene(scene)
-    get_kernel(dev.features, dev.device)
-    return dev
+def warm_up(render, scene, camera, settings: dict) -> None:
+    """Load (on a cold cache: compile) the exact kernel of ``render(scene, camera, **settings)`` by
+    rendering one pixel with one sample through the same public call."""
+    render(scene, camera, **{**settings, "width": 1, "height": 1, "spp": 1}, progress=False)
 
 
 def _cam_numbers(cam: Camera, offset) -> list[float]:
@@ -472,13 +468,16 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.spp} spp, depth {opts.depth}")
-    scene, camera, sky = prepare_view(opts, scene, say)
+    notice = CompileNotice(say)
+    scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
+    settings = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=sky,
+                    seed=opts.seed, threads=opts.threads, texture_filter=opts.texture_filter)
+    with notice:
+        warm_up(render, scene, camera, settings)
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:
-        image = render(scene, camera, width=opts.width, height=opts.height, spp=opts.spp,
-                       max_depth=opts.depth, sky=sky, seed=opts.seed, threads=opts.threads,
-                       texture_filter=opts.texture_filter, progress=bar or False)
+        image = render(scene, camera, **settings, progress=bar or False)
     finally:
         if bar is not None:
             bar.close()

@@ -131,11 +131,23 @@ def test_camera_inside_a_closed_mesh_warns(blob):
     assert warnings_for(blob, Camera(position=(0.0, -400.0, 60.0), aperture=0.0)) == []
 
 
-def test_open_mesh_is_not_called_closed(scene_dir):
-    # the teapot's parts are closed, but a single open quad around the camera is not
-    open_quad = scene_dir / "quad.obj"
-    open_quad.write_text("v -9 -9 0\nv 9 -9 0\nv 9 9 0\nv -9 9 0\nf 1 2 3 4\n")
-    assert framing.enclosing_object(load_scene([str(open_quad)]), (0, 0, -1)) is None
+def test_an_open_sheet_or_a_room_seen_from_inside_is_not_reported(scene_dir):
+    from .stability_scenes import cornell_camera, cornell_files
+    sheet = scene_dir / "quad.obj"
+    sheet.write_text("v -9 -9 0\nv 9 -9 0\nv 9 9 0\nv -9 9 0\nf 1 2 3 4\n")
+    for below in ((0, 0, -1), (0, 0, 1)):
+        assert framing.enclosing_object(load_scene([str(sheet)]), below) is None
+    # The stability suite's closed room has its faces pointing inwards: a camera inside it is an interior
+    # view, not a camera stuck inside a solid. Turned inside out (faces outwards), it is a solid.
+    objs, mtls = cornell_files(scene_dir)
+    room = load_scene(objs, mtls, warn=lambda m: None)
+    cam = cornell_camera()
+    assert framing.enclosing_object(room, cam.position) is None
+    flipped = room.meshes[0].indices[:, ::-1].copy()
+    from dataclasses import replace
+    solid = replace(room, meshes=[replace(room.meshes[0], indices=flipped)], spheres=room.spheres[:0],
+                    sphere_material=room.sphere_material[:0])
+    assert framing.enclosing_object(solid, cam.position) == room.meshes[0].name
 
 
 def test_camera_seeing_nothing_warns(blob):

@@ -125,8 +125,8 @@ class Probe:
 
 
 @functools.cache
-def _kernel():
-    """The probe kernel, built on first use so that importing this module needs no Warp."""
+def _kernels():
+    """The probe's two kernels, built on first use so that importing this module needs no Warp."""
     import warp as wp
 
     @wp.kernel
@@ -137,7 +137,14 @@ def _kernel():
         if q.result:
             t_best[i] = q.t
 
-    return probe_mesh
+    @wp.kernel
+    def inside_mesh(mesh: wp.uint64, point: wp.vec3, max_dist: float, threshold: float,
+                    inside: wp.array(dtype=wp.int32)):
+        q = wp.mesh_query_point_sign_winding_number(mesh, point, max_dist, 2.0, threshold)
+        if q.result and q.sign < 0.0:
+            inside[0] = 1
+
+    return probe_mesh, inside_mesh
 
 
 def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | None = None,
@@ -162,7 +169,7 @@ def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | N
             mesh = wp.Mesh(points=wp.array(m.positions, dtype=wp.vec3, device=device),
                            indices=wp.array(m.indices.reshape(-1), dtype=wp.int32, device=device))
             t_best = wp.full(len(flat), 1e30, dtype=float, device=device)
-            wp.launch(_kernel(), dim=len(flat), device=device,
+            wp.launch(_kernels()[0], dim=len(flat), device=device,
                       inputs=[mesh.id, wp.vec3(*origin.astype(np.float32).tolist()), d_dirs, t_best])
             tm = t_best.numpy().astype(np.float64)
             t = np.minimum(t, np.where(tm < 1e29, tm, np.inf))
@@ -187,54 +194,42 @@ def _sphere_hits(o: np.ndarray, dirs: np.ndarray, c: np.ndarray, r: float) -> np
 # Warnings
 
 
-_PARITY_DIRECTIONS = np.array([[0.267, 0.534, 0.802], [-0.577, 0.577, -0.577], [0.801, -0.322, 0.505],
-                               [-0.123, -0.908, 0.401], [0.433, 0.250, -0.866], [-0.707, -0.110, 0.698],
-                               [0.050, 0.990, -0.131]])
+INSIDE_WINDING = 0.75   # a closed surface gives 1 inside, an open sheet at most 0.5 on either side
 
 
-def enclosing_object(scene: Scene, point: Sequence[float]) -> str | None:
-    """The name of a closed mesh (or "a sphere") that ``point`` lies inside, or None.
+def enclosing_object(scene: Scene, point: Sequence[float], device: str = "cpu") -> str | None:
+    """The name of a mesh (or "a sphere") that ``point`` lies inside, or None.
 
-    A mesh counts as closed when, after welding its vertices by position, every edge belongs to an
-    even number of triangles. Inside means an odd number of crossings along most of 7 fixed rays.
+    Inside a mesh means a generalized winding number above INSIDE_WINDING (Warp's BVH-accelerated
+    query): inside a closed or nearly closed surface whose faces point outward, as a scanned solid's
+    do. A room modelled with its faces pointing inward, seen from inside, gives -1 and is not
+    reported, nor is an open sheet.
     """
     p = np.asarray(point, dtype=np.float64)
     for c, r in zip(scene.spheres[:, :3].astype(np.float64), scene.spheres[:, 3].astype(np.float64)):
         if np.linalg.norm(p - c) < r:
             return "a sphere"
     for m in scene.meshes:
-        tri = m.positions.astype(np.float64)[m.indices]
-        if not len(tri) or np.any(p < tri.min((0, 1))) or np.any(p > tri.max((0, 1))):
+        if not len(m.indices):
             continue
-        if not _is_closed(m.positions, m.indices):
+        lo, hi = m.positions.min(0).astype(np.float64), m.positions.max(0).astype(np.float64)
+        if np.any(p < lo) or np.any(p > hi):
             continue
-        odd = sum(_crossings(tri, p, d / np.linalg.norm(d)) % 2 for d in _PARITY_DIRECTIONS)
-        if odd > len(_PARITY_DIRECTIONS) // 2:
+        if _winding_inside(m, p, 2.0 * float(np.linalg.norm(hi - lo)) + 1.0, device):
             return m.name
     return None
 
 
-def _is_closed(positions: np.ndarray, indices: np.ndarray) -> bool:
-    _, weld = np.unique(positions, axis=0, return_inverse=True)
-    f = weld.reshape(-1)[indices]
-    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
-    return bool(np.all(counts % 2 == 0))
+def _winding_inside(m, p: np.ndarray, max_dist: float, device: str) -> bool:
+    import warp as wp
 
-
-def _crossings(tri: np.ndarray, o: np.ndarray, d: np.ndarray) -> int:
-    """Number of triangles a ray crosses (Moller-Trumbore, float64, all triangles at once)."""
-    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    pv = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, pv)
-    ok = np.abs(det) > 1e-300
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    tv = o - tri[:, 0]
-    u = np.einsum("ij,ij->i", tv, pv) * inv
-    qv = np.cross(tv, e1)
-    v = (qv @ d) * inv
-    t = np.einsum("ij,ij->i", e2, qv) * inv
-    return int(np.count_nonzero(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)))
+    mesh = wp.Mesh(points=wp.array(m.positions, dtype=wp.vec3, device=device),
+                   indices=wp.array(m.indices.reshape(-1), dtype=wp.int32, device=device),
+                   support_winding_number=True)
+    inside = wp.zeros(1, dtype=wp.int32, device=device)
+    wp.launch(_kernels()[1], dim=1, device=device,
+              inputs=[mesh.id, wp.vec3(*p.astype(np.float32).tolist()), max_dist, INSIDE_WINDING, inside])
+    return bool(inside.numpy()[0])
 
 
 def lens_blur_share(pr: Probe, camera: Camera, width: int, pixels: float = BLUR_PIXELS) -> float:

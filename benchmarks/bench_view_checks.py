@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from bench_parse import best_time as best  # noqa: E402  (this folder is on sys.path when run as a script)
 from tests.models import _sphere_grid  # noqa: E402
 from warp_spt import framing  # noqa: E402
 from warp_spt.camera import Camera  # noqa: E402
@@ -38,15 +38,6 @@ def blob_scene(triangles: int) -> Scene:
                           np.float32([m.emission]), np.full((1, 4), -1, np.int32), np.float32([m.roughness]),
                           np.float32([m.fuzz]), np.float32([m.ior]), np.array([False]))
     return Scene([mesh], np.zeros((0, 4), np.float32), np.zeros(0, np.int32), table, [])
-
-
-def best(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def main() -> None:

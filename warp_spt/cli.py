@@ -40,22 +40,22 @@ examples:
   warp-spt --demo 512p16s                    the seed's quick demo script (512x512, 16 spp)
   warp-spt -mtl scene.mtl -obj room.obj -obj balls.obj -sky 1 -res 512 512 -sr 32 -out room.png
   warp-spt -obj model.obj -cam 4 -55 16 0 1 0 38 27 0.001 --sky-color 0 0 0 -out model.pfm
+  warp-spt -obj bunny.obj --up y --studio -sr 64 -out bunny.exr    a Y-up model, framed, product shot
 
 -cam takes the order of the seed's design document: px py pz dx dy dz fov focus aperture
 (the seed's Java code read fov aperture focus). d is a view direction, not a target; fov is the
 horizontal angle in degrees. --look-at, --fov and --aperture override single fields of -cam.
+-sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink. .png and .jpg are tone-mapped;
+.npy, .pfm and .exr hold linear radiance (.exr needs the optional openexr package).
+Exit status: 0 ok, 1 failure, 2 bad arguments, 130 interrupted.
 
 Z is up, as in the seed. Most exported models are Y-up: add --up y (any of x y z -x -y -z) to
 stand them upright; it sets the camera's up axis and the framing's.
 
 With -obj and no -cam the scene is framed automatically (a three-quarter view from the front,
 the whole model in view, pinhole) when the seed's default camera would stand inside the scene's
-bounds, see almost none of it, or be too close to see it whole, or when --up is not z;
---frame always frames. The seed's
-own scenes are seen whole by the default camera and keep it. -sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink.
-.png and .jpg are tone-mapped; .npy, .pfm and .exr hold linear radiance (.exr needs the
-optional openexr package). Exit status: 0 ok, 1 failure,
-2 bad arguments, 130 interrupted.
+bounds, see almost none of it or be too close to see it whole, and whenever --up is not z;
+--frame always frames. The seed's own scenes are seen whole by the default camera and keep it.
 """
 
 
@@ -335,16 +335,13 @@ def _view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
         say(f"recentred the scene by {framing.format_point(-offset)} for precision (far from the origin)")
     if opts.uses_demo_scene and opts.quiet:
         return scene, camera, opts.sky
-    aspect = opts.width / opts.height
-    ph = max(1, round(framing.PROBE_SIZE / aspect))
     pr = None
     if not opts.uses_demo_scene and not opts.cam_given:
-        pr = framing.probe(scene, camera, framing.PROBE_SIZE, ph)
-        if opts.frame or opts.up != "z" or framing.should_frame(scene, camera, pr.coverage):
-            camera = framing.frame_camera(scene, up=opts.up, aspect=aspect, template=camera).with_(
+        pr = framing.probe(scene, camera, framing.PROBE_SIZE, max(1, round(framing.PROBE_SIZE * opts.height / opts.width)))
+        why = _why_frame(opts, scene, camera, pr.coverage)
+        if why:
+            camera = framing.frame_camera(scene, up=opts.up, aspect=opts.width / opts.height, template=camera).with_(
                 aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture)
-            why = ("--frame" if opts.frame else f"--up {opts.up}: the seed's default camera is a Z-up one" if opts.up != "z"
-                   else "the default camera would not show it whole; -cam or --look-at to choose")
             say(f"framed the scene ({why}): -cam {' '.join(f'{v:.6g}' for v in _cam_numbers(camera, offset))}")
             pr = None
     for warning in framing.view_warnings(scene, camera, opts.width, opts.height, pr, offset):
@@ -355,6 +352,19 @@ def _view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
         scene = add_studio(scene, up=opts.up)
         sky = studio_sky() if opts.sky == Sky.black() else opts.sky
     return scene, camera, sky
+
+
+def _why_frame(opts: Options, scene, camera: Camera, coverage: float) -> str:
+    """Why the scene is framed automatically, or "" to keep the camera (see the help's rule)."""
+    from .framing import should_frame
+
+    if opts.frame:
+        return "--frame"
+    if opts.up != "z":
+        return f"--up {opts.up}: the seed's default camera is a Z-up one"
+    if should_frame(scene, camera, coverage):
+        return "the default camera would not show it whole; -cam or --look-at to choose"
+    return ""
 
 
 COMPILE_MESSAGE = "compiling kernels for this scene... (first run only)"
@@ -455,9 +465,8 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     _quiet_warp(opts.quiet)
     from .film import save_image
     from .loader import load_scene
-    from .renderer import render
-
     from .framing import describe_bounds
+    from .renderer import render
 
     start = time.perf_counter()
     scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below

@@ -250,6 +250,7 @@ def test_model_flags_parse():
     o = parse_args(["-obj", "m.obj", "--fov", "20", "-out", "x.jpg"])
     assert o.camera == Camera(fov=20) and not o.cam_given and o.default_material == "auto"
     assert parse_args([]).camera == Camera()                      # the seed's camera, exactly
+    assert parse_args(["-obj", "m.obj", "--default-material", "checker"]).default_material == "checker"
     for bad in (["-obj", "m.obj", "--frame", "-cam", *"0 0 0 0 1 0 38 27 0".split()],
                 ["--studio"], ["-obj", "m.obj", "--up", "w"], ["-obj", "m.obj", "--look-at", "4", "-55", "16"]):
         with pytest.raises(UsageError):

@@ -1,8 +1,9 @@
 """Host-side view checks for users' own models: framing, probes, warnings and recentring.
 
 Everything here works on the numpy :class:`Scene` and a :class:`Camera`, before the engine sees
-them; only :func:`probe` launches a tiny Warp kernel of its own (one ray per probe pixel against
-each OBJ's ``wp.Mesh``), so the checks cost a fraction of a render.
+them. Two small Warp kernels of this module's own do the geometric queries on a ``wp.Mesh`` per
+OBJ: :func:`probe` (one ray per probe pixel) and :func:`enclosing_object` (a winding number), so the
+checks cost about one scene upload (``benchmarks/bench_view_checks.py``).
 
 * :func:`frame_camera` (also ``Camera.frame(scene, up=...)``): a three-quarter view from the front,
   the whole bounding box in view with a margin, focused at its centre, pinhole lens.

@@ -271,8 +271,8 @@ def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Pro
 
 
 def format_point(v: Sequence[float]) -> str:
-    """A point as (x, y, z) with 4 significant digits."""
-    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+    """A point as (x, y, z) with 6 significant digits."""
+    return "(" + ", ".join(f"{x:.6g}" for x in v) + ")"
 
 
 def describe_bounds(scene: Scene) -> str:

@@ -179,16 +179,16 @@ def test_the_demos_raise_no_warning(seed_demo):
         assert not framing.recentre(scene, Camera())[2].any()
 
 
-def test_mtl_reports_unsupported_tags_and_bright_albedo_once_per_file(scene_dir):
+def test_mtl_reports_unsupported_tags_once_per_file(scene_dir):
     mtl = scene_dir / "exported.mtl"
     mtl.write_text("newmtl a\nKa 1 1 1\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 98\nmap_Bump -bm 0.3 n.png\n"
-                   "newmtl b\nKa 0 0 0\nKd 1.5 1 1\nPr 0.3\nPm 1\nmap_Kd -s 2 2 1 t.png\n")
+                   "newmtl b\nKa 0 0 0\nKd 1 1 1\nPr 0.3\nPm 1\nmap_Kd -s 2 2 1 t.png\n")
     obj = scene_dir / "uses_a.obj"
     obj.write_text("usemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     notes: list[str] = []
     scene = load_scene([str(obj)], [str(mtl)], warn=notes.append)
     assert len(notes) == 1, notes
-    assert "Ka, map_Bump, texture option -s" in notes[0] and "albedo > 1) in b" in notes[0], notes[0]
+    assert notes[0].endswith("read but not supported (ignored): Ka, map_Bump, texture option -s"), notes[0]
     row = scene.materials.names.index("a")
     assert math.isclose(scene.materials.roughness[row], 0.8 / 1.3, rel_tol=1e-6)          # Ks: specular share
     assert math.isclose(scene.materials.fuzz[row], math.sqrt(5 / 100), rel_tol=1e-6)      # Ns 98

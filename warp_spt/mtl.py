@@ -39,12 +39,13 @@ Standard tags mapped onto the same model:
 * Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); they are skipped and
   ignored. Every other tag (``Ka``, ``bump``, ``map_d``...) is ignored, as are lines before the
   first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
-  options it read but does not support, and colours above 1 (an albedo above 1 adds energy).
+  options it read but does not support.
 
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.loader.load_scene`, and only for materials that geometry uses.
-Bad values (a non-number, NaN, a negative colour, a roughness outside [0, 1], an IOR <= 0, an
-opacity outside [0, 1]) raise :class:`SceneError` with the file and line.
+Bad values (a non-number, NaN, a reflectance colour outside [0, 1], an emission above 1e30, a
+roughness outside [0, 1], an IOR outside [0.001, 1000], an opacity outside [0, 1]) raise
+:class:`SceneError` with the file and line.
 """
 
 from __future__ import annotations
@@ -53,9 +54,12 @@ import os
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
+import numpy as np
+
 from .errors import SceneError
 from .scene import CHECKER_NAME, Material, TextureRef
-from .tokens import decode_name, iter_lines, parse_floats, parse_int, read_file
+from .tokens import decode_name, iter_lines, normalise_text, parse_floats, parse_int, read_file
+from .validate import MAX_IOR, MAX_RADIANCE, MIN_IOR
 
 # Texture options and how many values follow them; (1, 3) means one to three numbers.
 _TEX_OPTIONS = {
@@ -132,6 +136,7 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
     out: dict[str, Material] = {}
     draft: _Draft | None = None
     ignored: dict[str, None] = {}        # unsupported tags and texture options, in order of appearance
+    data = normalise_text(data, path, "MTL")
     for lineno, toks in iter_lines(data):
         tag = toks[0].decode("latin-1").lower()
         if tag == "newmtl":
@@ -148,21 +153,17 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
     if draft is not None:
         out[draft.mat.name] = draft.finish()
     if warn is not None:
-        _report(path, list(ignored), out, warn)
+        _report(path, list(ignored), warn)
     return out
 
 
-def _report(path: str, ignored: list[str], materials: dict[str, Material], warn: Callable[[str], None]) -> None:
-    """One line per file: the unsupported tags it uses and the materials with colours above 1."""
-    parts = []
+def _report(path: str, ignored: list[str], warn: Callable[[str], None]) -> None:
+    """One line per file naming the tags and texture options it uses that are not supported.
+
+    (A reflectance colour above 1, which would add energy, is an error: see :func:`_statement`.)
+    """
     if ignored:
-        parts.append("read but not supported (ignored): " + ", ".join(ignored))
-    bright = [m.name for m in materials.values()
-              if max(*m.diffuse, *m.reflect, *m.refract) > 1.0]
-    if bright:
-        parts.append("colours above 1 add energy (albedo > 1) in " + ", ".join(bright))
-    if parts:
-        warn(f"{path}: " + "; ".join(parts))
+        warn(f"{path}: read but not supported (ignored): " + ", ".join(ignored))
 
 
 def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -> bool:
@@ -171,8 +172,11 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     m = d.mat
     if tag in _COLOUR_SLOTS:
         rgb = parse_floats(args, (1, 3), path, lineno, name)
-        if min(rgb) < 0:
-            raise SceneError(path, lineno, f"expected colour values >= 0 after '{name}', got {min(rgb):g}")
+        high = MAX_RADIANCE if _COLOUR_SLOTS[tag] == ("emission",) else 1.0
+        if min(rgb) < 0 or max(rgb) > high:
+            why = "" if high == MAX_RADIANCE else " (a surface cannot reflect more light than it receives)"
+            bad = min(rgb) if min(rgb) < 0 else max(rgb)
+            raise SceneError(path, lineno, f"expected colour values in [0, {high:g}] after '{name}', got {bad:g}{why}")
         colour = (rgb[0],) * 3 if len(rgb) == 1 else tuple(rgb)
         for slot in _COLOUR_SLOTS[tag]:
             setattr(m, slot, colour)
@@ -190,7 +194,7 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         m.fuzz = _number(args, path, lineno, name, lo=0.0)
         d.explicit.add("fuzz")
     elif tag in ("kn", "ni"):
-        m.ior = _number(args, path, lineno, name, lo=0.0, open_lo=True)
+        m.ior = _number(args, path, lineno, name, lo=MIN_IOR, hi=MAX_IOR)
     elif tag == "refractable":
         m.refractable = True
         d.explicit.add("refractable")
@@ -215,7 +219,8 @@ def _number(args: list[bytes], path: str, lineno: int, tag: str, *, lo: float, h
             open_lo: bool = False) -> float:
     """One number in [lo, hi] (or (lo, hi] with ``open_lo``)."""
     value = parse_floats(args, (1,), path, lineno, tag)[0]
-    if value < lo or (open_lo and value == lo) or (hi is not None and value > hi):
+    v32 = float(np.float32(value))      # checked as the kernel will see it: 1e-46 is 0 in float32
+    if v32 < lo or value < lo or (open_lo and v32 == lo) or (hi is not None and v32 > hi):
         low = f"> {lo:g}" if open_lo else f">= {lo:g}"
         want = f"in [{lo:g}, {hi:g}]" if hi is not None else low
         raise SceneError(path, lineno, f"expected a value {want} after '{tag}', got {value:g}")

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared"
+SHARED = Path(os.environ.get("WARP_SPT_SHARED", REPO.parent / "shared"))   # a worktree may point elsewhere
 SEED_DEMO = SHARED / "seed" / "demo"
 
 os.environ.setdefault("WARP_SPT_QUIET", "1")

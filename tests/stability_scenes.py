@@ -57,8 +57,9 @@ def box_quads(lo, hi, mat: str) -> list[tuple[str, list[tuple[float, float, floa
 CORNELL_SIZE = 32.0
 
 
-def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0) -> tuple[list[str], list[str]]:
-    """A closed Cornell-like room (32 units, seed-sized) with a ceiling light 0.25 below the ceiling,
+def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0, light_gap: float = 0.25
+                  ) -> tuple[list[str], list[str]]:
+    """A closed Cornell-like room (32 units, seed-sized) with a ceiling light ``light_gap`` below the ceiling,
     two blocks standing on the floor, a glossy ball and a glass ball; every coordinate is
     ``c * scale + shift``. Unscaled coordinates are multiples of 1/4, so a shift of 1e5 is exact in
     float32 and the shifted room is the same room.
@@ -75,7 +76,7 @@ def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0) -> tuple
         ("white", [(0, 0, 0), (0, 0, s), (s, 0, s), (s, 0, 0)]),          # front wall (behind the camera)
         ("red", [(0, 0, 0), (0, s, 0), (0, s, s), (0, 0, s)]),            # left
         ("green", [(s, 0, 0), (s, 0, s), (s, s, s), (s, s, 0)]),          # right
-        ("light", [(10, 10, s - 0.25), (22, 10, s - 0.25), (22, 22, s - 0.25), (10, 22, s - 0.25)]),
+        ("light", [(10, 10, s - light_gap), (22, 10, s - light_gap), (22, 22, s - light_gap), (10, 22, s - light_gap)]),
     ]
     quads += box_quads((6, 16, 0), (14, 24, 16), "white")                 # tall block on the floor
     quads += box_quads((18, 6, 0), (26, 14, 8), "white")                  # short block on the floor
@@ -88,7 +89,7 @@ def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0) -> tuple
            + material("gloss", Kd=(0.8, 0.6, 0.3), Roughness=0.5, Fuzz=0.2)
            + material("glass", Kd=(0.95, 0.95, 0.95), Kt=(0.95, 0.95, 0.95), Roughness=0, Fuzz=0,
                       Kn=1.5, Refractable=True))
-    name = f"cornell_{scale:g}_{shift:g}".replace(".", "p").replace("-", "m").replace("+", "")
+    name = f"cornell_{scale:g}_{shift:g}_{light_gap:g}".replace(".", "p").replace("-", "m").replace("+", "")
     return write_scene_files(folder, name, quads_obj(quads, spheres), mtl)
 
 

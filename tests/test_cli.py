@@ -72,7 +72,7 @@ def test_a_repeated_flag_keeps_its_last_value_like_the_seed():
     assert (o.spp, o.width, o.height, o.out) == (7, 9, 10, "b.npy")
 
 
-@pytest.mark.parametrize("suffix", [".png", ".npy", ".pfm", ".PNG"])
+@pytest.mark.parametrize("suffix", [".png", ".npy", ".pfm", ".PNG", ".jpg", ".jpeg", ".exr"])
 def test_output_formats(suffix):
     assert parse_args(["-out", "dir/img" + suffix]).out == "dir/img" + suffix
 
@@ -142,7 +142,7 @@ BAD = [
     (["-cam", "0", "0", "0", "0", "1", "0", "180", "27", "0.001"], "fov"),
     (["-cam", "0", "0", "0", "0", "1", "0", "38", "0", "0.001"], "focus"),
     (["-cam", "0", "0", "0", "0", "1", "0", "38", "27", "-1"], "aperture"),
-    (["-out", "picture.jpg"], ".png, .npy or .pfm"), (["-out", "noext"], ".png, .npy or .pfm"),
+    (["-out", "picture.gif"], ".png, .jpg, .npy, .pfm or .exr"), (["-out", "noext"], ".png, .jpg, .npy, .pfm or .exr"),
     (["-mtl", "a.mtl"], "-mtl given without"), (["--demo", "512p16s", "-obj", "a.obj"], "--demo"),
     (["-sky", "1", "--sky-color", "0", "0", "0"], "either -sky or --sky-color"),
     (["-res", "200000", "200000"], "GiB"), (["-sr", str(1 << 30)], "-sr"), (["-depth", "100000"], "-depth"),

@@ -59,7 +59,9 @@ def read_pfm(path: Path) -> np.ndarray:
 def render_sky(tmp_path: Path, out: str, *extra: str) -> Path:
     obj = sky_only_scene(tmp_path)
     path = tmp_path / out
-    status = main(["-obj", str(obj), "-res", "16", "12", "-sr", "2", "-depth", "3", "--quiet",
+    # the seed's default camera, given explicitly: without -cam, a scene it cannot see would be framed
+    status = main(["-obj", str(obj), "-cam", *"4 -55 16 0 1 0 38 27 0.001".split(),
+                   "-res", "16", "12", "-sr", "2", "-depth", "3", "--quiet",
                    "--sky-color", *map(str, SKY), "-out", str(path), *extra])
     assert status == 0
     return path
@@ -122,13 +124,20 @@ def test_the_seeds_demo_command_renders(tmp_path, monkeypatch):
 
 # ---------------------------------------------------------------- atomic output and Ctrl-C (engine stubbed)
 
+def stub_view(monkeypatch) -> None:
+    """No framing, probes or upload for a stubbed engine: the CLI renders its own camera and sky."""
+    monkeypatch.setattr("warp_spt.cli.prepare_view", lambda opts, scene, say, **kw: (scene, opts.camera, opts.sky))
+
+
 class FakeEngine:
     """Stands in for loader, render and film so the CLI's wiring can be checked on its own."""
 
     def __init__(self, monkeypatch, render_effect=None):
         self.calls: dict[str, object] = {}
         self.render_effect = render_effect
-        scene = types.SimpleNamespace(warnings=["a warning"], num_triangles=2, spheres=np.zeros((1, 4)))
+        scene = types.SimpleNamespace(warnings=["a warning"], num_triangles=2, spheres=np.zeros((1, 4)),
+                                      bounds=np.zeros((2, 3)))
+        stub_view(monkeypatch)
         fakes = {
             "warp_spt.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),
             "warp_spt.renderer": fake_renderer(self._render),
@@ -227,7 +236,8 @@ def test_real_interrupt_during_save_leaves_no_partial_file(tmp_path, monkeypatch
     real_save = film.save_image
     monkeypatch.setitem(sys.modules, "warp_spt.loader",
                         types.SimpleNamespace(load_scene=lambda o, m, **kw: types.SimpleNamespace(
-                            warnings=[], num_triangles=0, spheres=np.zeros((0, 4)))))
+                            warnings=[], num_triangles=0, spheres=np.zeros((0, 4)), bounds=np.zeros((2, 3)))))
+    stub_view(monkeypatch)
     monkeypatch.setitem(sys.modules, "warp_spt.renderer",
                         fake_renderer(lambda scene, camera, **kw: np.full((kw["height"], kw["width"], 3), 0.5, np.float32)))
 

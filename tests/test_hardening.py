@@ -203,7 +203,9 @@ def run_cli(tmp_path: Path, *extra: str) -> subprocess.CompletedProcess:
 def test_warps_own_messages_only_with_verbose(tmp_path):
     plain = run_cli(tmp_path)
     assert plain.returncode == 0 and "Warp" not in plain.stderr + plain.stdout
-    assert [line.split(":")[0] for line in plain.stderr.splitlines()] == ["warp-spt", "warp-spt"]
+    # every line is ours (loaded, framed: the sphere is behind the default camera, maybe compiling, wrote)
+    prefixes = [line.split(":")[0] for line in plain.stderr.splitlines()]
+    assert len(prefixes) >= 2 and set(prefixes) == {"warp-spt"}, plain.stderr
     verbose = run_cli(tmp_path, "--verbose")
     assert verbose.returncode == 0 and "Warp 1.19" in verbose.stdout + verbose.stderr
 

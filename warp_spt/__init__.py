@@ -6,11 +6,14 @@ The public surface, in the order data flows::
     image = warp_spt.render(scene, warp_spt.Camera(), width=512, height=512, spp=16)  # linear float32
     warp_spt.save_image("out.png", image)                                  # tone-mapped PNG, .npy or .pfm
 
-:func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
-bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
-separate sample ranges merge exactly; :func:`render_film` returns one. :func:`render_scene` takes a
-:class:`RenderSettings` (integrator and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``)
-and returns a :class:`RenderResult` (film, image, stats).
+:meth:`Camera.frame` fits a camera to a scene (``Camera.frame(scene, up="y")`` for a Y-up model) and
+:meth:`Camera.look_at` aims one at a point. :func:`render` recentres scenes far from the origin
+(:func:`warp_spt.framing.recentre`) before rendering. :func:`load_obj` and :func:`load_mtl` read
+single files; :class:`SceneError` is the one exception for bad scene input (it names the file and
+line); :class:`Film` holds float64 sums so renders of separate sample ranges merge exactly;
+:func:`render_film` returns one. :func:`render_scene` takes a :class:`RenderSettings` (integrator
+and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
+:class:`RenderResult` (film, image, stats).
 
 The names are imported on first use (PEP 562), so ``import warp_spt`` is cheap and the command line
 can install its Ctrl-C handling before numpy and Warp are loaded.

@@ -1,36 +1,106 @@
-"""The seed's camera: Z up, a position and a view direction, horizontal field of view, thin lens."""
+"""The seed's camera: a position and a view direction, horizontal field of view, thin lens; Z up by default.
+
+Besides the seed's form (position + view direction), a camera can be made from a target
+(:meth:`Camera.look_at`) or fitted to a scene's bounds (:meth:`Camera.frame` with a scene, see
+:mod:`warp_spt.framing`). ``up`` is the world's up axis: the seed's scenes are Z-up, most exported
+models are Y-up (``up=(0, 1, 0)``).
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any, Sequence
 
 import numpy as np
+
+Vec3 = tuple[float, float, float]
+
+# The seed's axes: Z up (SEMANTICS §3).
+Z_UP: Vec3 = (0.0, 0.0, 1.0)
+AXES: dict[str, Vec3] = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": Z_UP,
+                         "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
+
+
+def up_vector(up: str | Sequence[float]) -> np.ndarray:
+    """A unit float64 up vector from ``"x"``, ``"-y"``... or three numbers."""
+    if isinstance(up, str):
+        if up.lower() not in AXES:
+            raise ValueError(f"up axis must be one of {', '.join(AXES)}, got {up!r}")
+        return np.asarray(AXES[up.lower()], dtype=np.float64)
+    v = np.asarray(up, dtype=np.float64)
+    n = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
+    if not (math.isfinite(n) and n > 0.0):
+        raise ValueError(f"up must be a non-zero finite 3-vector, got {up!r}")
+    return v / n
+
+
+class _FrameMethod:
+    """``Camera.frame(scene, up=...)`` fits a camera to a scene; ``camera.frame(width, height)`` is the
+    older name of :meth:`Camera.image_plane` (the kernel upload still calls it)."""
+
+    def __get__(self, obj: "Camera | None", owner: type) -> Any:
+        def frame(*args: Any, **kwargs: Any) -> Any:
+            if obj is not None and args and isinstance(args[0], (int, np.integer)):
+                return obj.image_plane(*args, **kwargs)
+            from .framing import frame_camera
+            return frame_camera(*args, template=obj, **kwargs)
+        frame.__doc__ = _FrameMethod.__doc__
+        return frame
 
 
 @dataclass(frozen=True)
 class Camera:
     """A pinhole or thin-lens camera in the seed's conventions (SEMANTICS §3).
 
-    ``direction`` is a view direction, not a look-at target. ``fov`` is the full horizontal angle in
-    degrees. The image plane lies at ``focus`` along the view direction, so it is also the plane in
-    focus; ``aperture`` is the lens radius (0 gives a pinhole). The defaults frame the seed's
-    Cornell box.
+    ``direction`` is a view direction, not a look-at target (see :meth:`look_at` for that). ``fov``
+    is the full horizontal angle in degrees. The image plane lies at ``focus`` along the view
+    direction, so it is also the plane in focus; ``aperture`` is the lens radius (0 gives a pinhole).
+    ``up`` is the world's up direction (the seed's Z by default): the image's vertical axis is the
+    projection of ``up``. The defaults frame the seed's Cornell box.
     """
 
-    position: tuple[float, float, float] = (4.0, -55.0, 16.0)
-    direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    position: Vec3 = (4.0, -55.0, 16.0)
+    direction: Vec3 = (0.0, 1.0, 0.0)
     fov: float = 38.0
     aperture: float = 0.001
     focus: float = 27.0
+    up: Vec3 = Z_UP
+
+    frame = _FrameMethod()
+
+    @classmethod
+    def look_at(cls, position: Sequence[float], target: Sequence[float], *, up: str | Sequence[float] = "z",
+                fov: float = 38.0, aperture: float = 0.0, focus: float | None = None) -> "Camera":
+        """A camera at ``position`` looking at ``target``, focused on it unless ``focus`` is given.
+
+        ``aperture`` defaults to 0 (a pinhole), so everything is sharp.
+        """
+        p = np.asarray(position, dtype=np.float64)
+        d = np.asarray(target, dtype=np.float64) - p
+        dist = float(np.linalg.norm(d))
+        if not (math.isfinite(dist) and dist > 0.0):
+            raise ValueError("camera target must differ from its position")
+        cam = cls(position=_vec(p), direction=_vec(d / dist), fov=float(fov), aperture=float(aperture),
+                  focus=float(focus) if focus is not None else dist, up=_vec(up_vector(up)))
+        cam.validate()
+        return cam
+
+    def with_(self, **changes: Any) -> "Camera":
+        """A copy with some fields replaced (``None`` values are ignored), validated."""
+        cam = replace(self, **{k: v for k, v in changes.items() if v is not None})
+        cam.validate()
+        return cam
 
     def validate(self) -> None:
         """Raise ValueError for a camera no renderer can use."""
-        vals = [*self.position, *self.direction, self.fov, self.aperture, self.focus]
+        vals = [*self.position, *self.direction, *self.up, self.fov, self.aperture, self.focus]
         if not all(math.isfinite(v) for v in vals):
             raise ValueError("camera values must be finite numbers")
         if float(np.linalg.norm(np.asarray(self.direction, dtype=np.float64))) == 0.0:
             raise ValueError("camera view direction must not be zero")
+        if float(np.linalg.norm(np.asarray(self.up, dtype=np.float64))) == 0.0:
+            raise ValueError("camera up vector must not be zero")
         if not 0.0 < self.fov < 180.0:
             raise ValueError(f"camera fov must be in (0, 180) degrees, got {self.fov}")
         if self.aperture < 0.0:
@@ -38,25 +108,36 @@ class Camera:
         if self.focus <= 0.0:
             raise ValueError(f"camera focus distance must be > 0, got {self.focus}")
 
-    def frame(self, width: int, height: int) -> dict[str, np.ndarray]:
+    def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit (view direction, image right, image up), float64.
+
+        Looking straight along ``up`` or against it is well defined (the seed gave NaN looking
+        down, Q12): for Z up, looking down puts +Y at the image's top and looking up puts -Y there
+        (the seed's choice); for another up axis ``u``, ``cross(u, x)`` (or ``cross(u, y)``) plays +Y's role.
+        """
+        d = np.asarray(self.direction, dtype=np.float64)
+        d = d / np.linalg.norm(d)
+        u = up_vector(self.up)
+        along = float(np.dot(d, u))
+        if abs(along) >= 0.99999:
+            top = _reference_top(u)            # image top when looking straight down
+            right = np.cross(top, u)           # for Z up: exactly the seed's (1, 0, 0)
+            up = top if along <= 0.0 else -top
+        else:
+            right = np.cross(d, u)
+            right /= np.linalg.norm(right)
+            up = np.cross(right, d)
+            up /= np.linalg.norm(up)
+        return d, right, up
+
+    def image_plane(self, width: int, height: int) -> dict[str, np.ndarray]:
         """The image plane in world space (float64): origin, upper-left corner and pixel steps.
 
         Row 0 is the top of the image. Pixel (x, y) covers
         ``upper_left + (x + a) * x_step - (y + b) * y_step`` for a, b in [0, 1).
-        Looking straight up or straight down is well defined (the seed gave NaN looking down, Q12).
         """
         self.validate()
-        d = np.asarray(self.direction, dtype=np.float64)
-        d = d / np.linalg.norm(d)
-        if d[2] >= 0.99999:      # straight up: the seed's choice of axes
-            right, up = np.array([1.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.0])
-        elif d[2] <= -0.99999:   # straight down: mirror of the above, so +Y is up in the image
-            right, up = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
-        else:
-            right = np.cross(d, [0.0, 0.0, 1.0])
-            right /= np.linalg.norm(right)
-            up = np.cross(right, d)
-            up /= np.linalg.norm(up)
+        d, right, up = self.axes()
         half = self.focus * math.tan(math.radians(self.fov) / 2.0)
         centre = np.asarray(self.position, dtype=np.float64) + d * self.focus
         upper_left = centre - right * half + up * half * height / width
@@ -70,3 +151,17 @@ class Camera:
             "up": up,
             "lens_radius": np.float64(self.aperture),
         }
+
+
+def _reference_top(u: np.ndarray) -> np.ndarray:
+    """The image's top direction when looking straight down ``-u``: +Y for Z up (the seed's axes)."""
+    if abs(u[2]) == 1.0 and u[0] == 0.0 and u[1] == 0.0:
+        return np.array([0.0, 1.0, 0.0])
+    t = np.cross(u, [1.0, 0.0, 0.0])
+    if np.linalg.norm(t) < 1e-6:
+        t = np.cross(u, [0.0, 1.0, 0.0])
+    return t / np.linalg.norm(t)
+
+
+def _vec(v: Sequence[float] | np.ndarray) -> Vec3:
+    return (float(v[0]), float(v[1]), float(v[2]))

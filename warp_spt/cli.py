@@ -31,9 +31,10 @@ if TYPE_CHECKING:
     from .camera import Camera
 
 PROG = "warp-spt"
-OUTPUT_SUFFIXES = (".png", ".npy", ".pfm")
+OUTPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".npy", ".pfm", ".exr")
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143     # 128 + the signal number (signals.exit_status)
+UP_AXES = ("x", "y", "z", "-x", "-y", "-z")       # camera.AXES, spelled here so the CLI starts without numpy
 
 # The seed's defaults (SEMANTICS §1); the output name follows its Readme, not its code (Q14).
 DEFAULT_RES, DEFAULT_SPP, DEFAULT_DEPTH, DEFAULT_SKY, DEFAULT_OUT = (500, 500), 16, 6, 0, "output.png"
@@ -49,12 +50,23 @@ examples:
   warp-spt --demo 512p16s                    the seed's quick demo script (512x512, 16 spp)
   warp-spt -mtl scene.mtl -obj room.obj -obj balls.obj -sky 1 -res 512 512 -sr 32 -out room.png
   warp-spt -obj model.obj -cam 4 -55 16 0 1 0 38 27 0.001 --sky-color 0 0 0 -out model.pfm
+  warp-spt -obj bunny.obj --up y --studio -sr 64 -out bunny.exr    a Y-up model, framed, product shot
 
 -cam takes the order of the seed's design document: px py pz dx dy dz fov focus aperture
 (the seed's Java code read fov aperture focus). d is a view direction, not a target; fov is the
-horizontal angle in degrees. -sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink.
-.png is tone-mapped, .npy and .pfm hold linear radiance. Exit status: 0 ok, 1 failure,
-2 bad arguments, 130 interrupted (Ctrl-C, SIGINT), 143 terminated (SIGTERM).
+horizontal angle in degrees. --look-at, --fov and --aperture override single fields of -cam.
+-sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink. .png and .jpg are tone-mapped;
+.npy, .pfm and .exr hold linear radiance (.exr needs the optional openexr package).
+Exit status: 0 ok, 1 failure, 2 bad arguments, 130 interrupted (Ctrl-C, SIGINT), 143 terminated
+(SIGTERM).
+
+Z is up, as in the seed. Most exported models are Y-up: add --up y (any of x y z -x -y -z) to
+stand them upright; it sets the camera's up axis and the framing's.
+
+With -obj and no -cam the scene is framed automatically (a three-quarter view from the front,
+the whole model in view, pinhole) when the seed's default camera would stand inside the scene's
+bounds, see almost none of it or be too close to see it whole, and whenever --up is not z;
+--frame always frames. The seed's own scenes are seen whole by the default camera and keep it.
 """
 
 
@@ -89,6 +101,11 @@ class Options:
     demo: str | None = None
     integrator: str | None = None     # None: the renderer's default
     sampler: str | None = None
+    up: str = "z"
+    cam_given: bool = False          # -cam or --look-at placed the camera: never frame automatically
+    frame: bool = False              # --frame: always frame
+    studio: bool = False
+    default_material: str = "auto"
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -157,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="maximum surface hits per path (default 6)")
     seed.add_argument("-sr", type=_int_at_least(1, MAX_SPP), metavar="N", help="samples per pixel (default 16)")
     seed.add_argument("-sky", type=_sky_index, metavar="0|1|2", help="0 BlackSky (default), 1 gradient, 2 pink")
-    seed.add_argument("-out", metavar="PATH", help="output .png, .npy or .pfm (default output.png)")
+    seed.add_argument("-out", metavar="PATH", help="output .png, .jpg, .npy, .pfm or .exr (default output.png)")
     new = p.add_argument_group("further options")
     new.add_argument("-h", "--help", action="store_true", help="show this help and exit")
     new.add_argument("--version", action="store_true", help="print the version and exit")
@@ -181,6 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="light transport: nee (light sampling with MIS, default) or seed (pure path tracing)")
     new.add_argument("--sampler", metavar="NAME",
                      help="random numbers: independent (default) or sobol (Owen-scrambled Sobol')")
+    _add_model_flags(p.add_argument_group("your own models"))
     return p
 
 
@@ -190,6 +208,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
     ``memory_bytes`` is the RAM budget for the image size check (default: half the machine's).
     """
     parser = build_parser()
+    argv = _join_up_operand(argv)
     _reject_unknown_flags(argv, parser)
     ns = parser.parse_args(list(argv))
     if ns.help or ns.version:
@@ -202,6 +221,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         raise UsageError("give either --quiet or --verbose, not both")
     if ns.sky is not None and ns.sky_color is not None:
         raise UsageError("give either -sky or --sky-color, not both")
+    _check_model_flags(ns)
     preset = PRESETS.get(ns.demo) if ns.demo else None
     width, height = ns.res or ((preset.width, preset.height) if preset else DEFAULT_RES)
     check_image_size(width, height, memory_bytes)
@@ -209,9 +229,10 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         raise UsageError("-out needs a file name, got an empty one")
     out = ns.out or (preset.output_name(ns.demo) if preset else DEFAULT_OUT)
     if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
-        raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
+        raise UsageError(f"-out {out!r}: the file name must end in .png, .jpg, .npy, .pfm or .exr")
+    _check_exr(out)
     return Options(
-        objs=tuple(ns.obj), mtls=tuple(ns.mtl), camera=_camera(ns.cam),
+        objs=tuple(ns.obj), mtls=tuple(ns.mtl), camera=_model_camera(ns),
         width=width, height=height,
         spp=ns.sr or (preset.spp if preset else DEFAULT_SPP),
         depth=ns.depth or (preset.depth if preset else DEFAULT_DEPTH),
@@ -219,6 +240,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler,
+        up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, frame=ns.frame,
+        studio=ns.studio, default_material=ns.default_material,
     )
 
 
@@ -272,6 +295,169 @@ def _sky(index: int | None, colour: list[float] | None, fallback: int) -> Sky:
         return Sky.constant(*colour)
     except ValueError as err:
         raise UsageError(f"argument --sky-color: {err}") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Your own models: up axis, look-at, single-field overrides, framing, studio, default material
+
+
+def _add_model_flags(g) -> None:
+    g.add_argument("--up", choices=UP_AXES, default="z", metavar="AXIS",
+                   help="the world's up axis: x, y, z (default, as the seed), -x, -y or -z; "
+                        "most exported models need --up y")
+    g.add_argument("--look-at", nargs=3, type=_finite_float, metavar=("TX", "TY", "TZ"),
+                   help="aim the camera (-cam's or the default position) at this point and focus on it")
+    g.add_argument("--fov", type=_finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
+    g.add_argument("--aperture", type=_finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
+    g.add_argument("--frame", action="store_true",
+                   help="frame the scene: three-quarter view from the front, all of it in view, pinhole")
+    g.add_argument("--studio", action="store_true",
+                   help="neutral sky, a ground plane under the model and a key light (adds geometry, "
+                        "never edits your files)")
+    g.add_argument("--default-material", choices=("auto", "clay", "checker"), default="auto",
+                   help="material of faces with no usemtl: clay (grey) or checker (the seed's); "
+                        "auto (default): checker if any MTL is given or any OBJ names a material, else clay")
+
+
+def _join_up_operand(argv: Sequence[str]) -> list[str]:
+    """``--up -y`` as ``--up=-y``: argparse would take ``-y`` for a flag."""
+    out: list[str] = []
+    for token in argv:
+        if out and out[-1] == "--up" and token in UP_AXES:
+            out[-1] = f"--up={token}"
+        else:
+            out.append(token)
+    return out
+
+
+def _check_model_flags(ns: argparse.Namespace) -> None:
+    if ns.frame and (ns.cam is not None or ns.look_at is not None):
+        raise UsageError("--frame places the camera itself; it cannot be combined with -cam or --look-at")
+    if (ns.frame or ns.studio) and not ns.obj:
+        raise UsageError("--frame and --studio are for your own -obj files, not the built-in demo")
+
+
+def _model_camera(ns: argparse.Namespace) -> Camera:
+    """-cam (or the seed's default) with --up, --look-at, --fov and --aperture applied."""
+    from .camera import AXES, Camera
+    from .validate import camera_problem
+
+    cam = _camera(ns.cam)
+    try:
+        if ns.look_at is not None:
+            cam = Camera.look_at(cam.position, ns.look_at, up=ns.up, fov=cam.fov, aperture=cam.aperture)
+        cam = cam.with_(up=AXES[ns.up], fov=ns.fov, aperture=ns.aperture)
+    except ValueError as err:
+        raise UsageError(f"camera: {err}") from None
+    problem = camera_problem(cam.position, cam.direction, cam.fov, cam.focus, cam.aperture)
+    if problem:
+        raise UsageError(f"camera: {problem}")
+    return cam
+
+
+def _check_exr(out: str) -> None:
+    import importlib.util
+
+    if Path(out).suffix.lower() == ".exr" and importlib.util.find_spec("OpenEXR") is None:
+        raise UsageError(f"-out {out!r}: writing .exr needs the optional openexr package "
+                         "(pip install 'warp-spt[exr]')")
+
+
+def prepare_view(opts: Options, scene, say, notice: "CompileNotice | None" = None) -> tuple[object, Camera, Sky]:
+    """The scene (uploaded to the device), camera and sky to render.
+
+    The scene is recentred if far from the origin, framed when the rule says so (see
+    :func:`warp_spt.framing.should_frame`), checked for views that show nothing, and given the studio
+    preset if asked. The probe's kernel may compile on a first run: ``notice`` announces it.
+    """
+    from .device_scene import DeviceScene
+
+    with notice or CompileNotice(say):
+        scene, camera, sky = _view(opts, scene, say)
+    return DeviceScene(scene), camera, sky
+
+
+def _view(opts: Options, scene, say) -> tuple[object, Camera, Sky]:
+    from . import framing
+    from .camera import Camera
+
+    scene, camera, offset = framing.recentre(scene, opts.camera)
+    if offset.any():
+        say(f"recentred the scene by {framing.format_point(-offset)} for precision (far from the origin)")
+    if opts.uses_demo_scene and opts.quiet:
+        return scene, camera, opts.sky
+    pr = None
+    if not opts.uses_demo_scene and not opts.cam_given:
+        pr = framing.probe(scene, camera, framing.PROBE_SIZE, max(1, round(framing.PROBE_SIZE * opts.height / opts.width)))
+        why = _why_frame(opts, scene, camera, pr.coverage)
+        if why:
+            camera = framing.frame_camera(scene, up=opts.up, aspect=opts.width / opts.height, template=camera).with_(
+                aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture)
+            say(f"framed the scene ({why}): -cam {' '.join(f'{v:.6g}' for v in _cam_numbers(camera, offset))}")
+            pr = None
+    for warning in framing.view_warnings(scene, camera, opts.width, opts.height, pr, offset):
+        say(f"warning: {warning}")
+    sky = opts.sky
+    if opts.studio:
+        from .studio import add_studio, studio_sky
+        scene = add_studio(scene, up=opts.up)
+        sky = studio_sky() if opts.sky == Sky.black() else opts.sky
+    return scene, camera, sky
+
+
+def _why_frame(opts: Options, scene, camera: Camera, coverage: float) -> str:
+    """Why the scene is framed automatically, or "" to keep the camera (see the help's rule)."""
+    from .framing import should_frame
+
+    if opts.frame:
+        return "--frame"
+    if opts.up != "z":
+        return f"--up {opts.up}: the seed's default camera is a Z-up one"
+    if should_frame(scene, camera, coverage):
+        return "the default camera would not show it whole; -cam or --look-at to choose"
+    return ""
+
+
+COMPILE_MESSAGE = "compiling kernels for this scene... (first run only)"
+
+
+class CompileNotice:
+    """Says COMPILE_MESSAGE once if a step inside ``with notice:`` takes longer than ``after`` seconds.
+
+    Loading a kernel from Warp's cache takes about 0.02 s, compiling it seconds, so a slow kernel load
+    means a cold cache; the line appears while the compiler runs, before the progress bar.
+    """
+
+    def __init__(self, say, after: float = 0.5) -> None:
+        self.say, self.after, self.said = say, after, False
+        self._timer = None
+
+    def _fire(self) -> None:
+        if not self.said:
+            self.said = True
+            self.say(COMPILE_MESSAGE)
+
+    def __enter__(self) -> "CompileNotice":
+        import threading
+
+        self._timer = threading.Timer(self.after, self._fire)
+        self._timer.daemon = True
+        self._timer.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._timer.cancel()
+
+
+def warm_up(render, scene, camera, settings: dict) -> None:
+    """Load (on a cold cache: compile) the exact kernel of ``render(scene, camera, **settings)`` by
+    rendering one pixel with one sample through the same public call."""
+    render(scene, camera, **{**settings, "width": 1, "height": 1, "spp": 1}, progress=False)
+
+
+def _cam_numbers(cam: Camera, offset) -> list[float]:
+    """A camera as -cam's nine numbers in world coordinates."""
+    return [*(p + o for p, o in zip(cam.position, offset)), *cam.direction, cam.fov, cam.focus, cam.aperture]
 
 
 def available_memory() -> int:
@@ -338,28 +524,33 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
 
     from .film import save_image
     from .loader import load_scene
-    from .renderer import RenderSettings, render_scene
+    from .framing import describe_bounds
+    from .renderer import RenderSettings, render, render_scene
 
     start = time.perf_counter()
     try:
-        scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below
+        scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below
+                           default_material=opts.default_material)
     except MemoryError:
         raise RunError("out of memory while loading the scene: its files or textures are too large for "
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
-    say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres "
-        f"in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
+    say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
+        f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.spp} spp, depth {opts.depth}")
+    notice = CompileNotice(say)
+    scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
+    chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
+    settings = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=sky,
+                    seed=opts.seed, threads=opts.threads, texture_filter=opts.texture_filter, **chosen)
+    with notice:
+        warm_up(render, scene, camera, settings)
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:
-        chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
-        settings = RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth,
-                                  sky=opts.sky, seed=opts.seed, threads=opts.threads,
-                                  texture_filter=opts.texture_filter, **chosen)
-        result = render_scene(scene, opts.camera, settings, progress=bar or False)
+        result = render_scene(scene, camera, RenderSettings(**settings), progress=bar or False)
     except MemoryError:
         texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
         raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "

@@ -9,7 +9,8 @@ associative, so merge in a fixed order, e.g. by increasing sample offset).
 
 Tone maps: :func:`tonemap_seed` is the seed's curve (SEMANTICS §4) bit for bit, :func:`tonemap_srgb`
 the standard sRGB transfer function. File formats by extension: ``.png`` (8-bit, tone mapped),
-``.npy`` and ``.pfm`` (float32 linear radiance).
+``.jpg`` (8-bit, tone mapped), ``.npy``, ``.pfm`` and ``.exr`` (float32 linear radiance; EXR needs the
+optional ``openexr`` package).
 """
 
 from __future__ import annotations
@@ -241,17 +242,46 @@ def _write_pfm(f: BinaryIO, img: np.ndarray) -> None:
     f.write(np.ascontiguousarray(img[::-1], dtype="<f4").tobytes())   # rows bottom to top
 
 
+def _write_jpeg(f: BinaryIO, img8: np.ndarray) -> None:
+    from PIL import Image
+
+    Image.fromarray(np.ascontiguousarray(img8, dtype=np.uint8)).save(f, format="JPEG", quality=95)
+
+
+def _write_exr(f: BinaryIO, img: np.ndarray) -> None:
+    """Linear float32 RGB OpenEXR (ZIP compressed), through the optional ``openexr`` package.
+
+    OpenEXR writes to a file name only, so the image goes to a private temporary file whose bytes
+    are then copied into ``f`` (which :func:`atomic_write` renames into place).
+    """
+    import tempfile
+
+    try:
+        import OpenEXR
+    except ImportError:
+        raise ValueError("writing .exr needs the optional 'openexr' package: pip install 'warp-spt[exr]'") from None
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with tempfile.TemporaryDirectory() as tmp:
+        name = os.path.join(tmp, "image.exr")
+        OpenEXR.File(header, {"RGB": np.ascontiguousarray(img, dtype=np.float32)}).write(name)
+        with open(name, "rb") as src:
+            f.write(src.read())
+
+
 _WRITERS: dict[str, Callable[[BinaryIO, np.ndarray], None]] = {
-    ".png": _write_png, ".npy": _write_npy, ".pfm": _write_pfm,
+    ".png": _write_png, ".npy": _write_npy, ".pfm": _write_pfm, ".exr": _write_exr,
+    ".jpg": _write_jpeg, ".jpeg": _write_jpeg,
 }
+_TONE_MAPPED = (".png", ".jpg", ".jpeg")
 _TONEMAPS = {"seed": tonemap_seed, "srgb": tonemap_srgb}
 
 
 def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed") -> None:
-    """Save a linear (H, W, 3) image; the format follows the extension (.png, .npy, .pfm).
+    """Save a linear (H, W, 3) image; the format follows the extension (.png, .jpg, .npy, .pfm, .exr).
 
-    ``.png`` is tone mapped with ``tonemap`` ("seed" or "srgb"); ``.npy`` and ``.pfm`` keep float32
-    linear radiance. The write is atomic (see :func:`atomic_write`).
+    ``.png`` and ``.jpg`` are tone mapped with ``tonemap`` ("seed" or "srgb"); ``.npy``, ``.pfm``
+    and ``.exr`` (optional ``openexr`` package) keep float32 linear radiance. The write is atomic
+    (see :func:`atomic_write`).
     """
     ext = Path(path).suffix.lower()
     if ext not in _WRITERS:
@@ -259,7 +289,7 @@ def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed") 
     if tonemap not in _TONEMAPS:
         raise ValueError(f"unknown tone map {tonemap!r}; expected one of {', '.join(_TONEMAPS)}")
     data = _check_rgb(img)
-    if ext == ".png":
+    if ext in _TONE_MAPPED:
         data = _TONEMAPS[tonemap](data)
     atomic_write(path, lambda f: _WRITERS[ext](f, data))
 
@@ -312,9 +342,14 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
         return _check_rgb(np.load(path, allow_pickle=False))
     if ext == ".pfm":
         return read_pfm(path)
-    if ext == ".png":
+    if ext in _TONE_MAPPED:
         from PIL import Image
 
         with Image.open(path) as im:
             return np.asarray(im.convert("RGB"), dtype=np.uint8)
-    raise ValueError(f"{path}: unsupported image extension {ext!r}; supported: .png, .npy, .pfm")
+    if ext == ".exr":
+        import OpenEXR
+
+        with OpenEXR.File(str(path)) as exr:
+            return np.asarray(exr.channels()["RGB"].pixels, dtype=np.float32)
+    raise ValueError(f"{path}: unsupported image extension {ext!r}; supported: .png, .jpg, .npy, .pfm, .exr")

@@ -17,6 +17,12 @@ the image's top row. Every texture, and the atlas they share, must fit the texel
 A texture path is tried relative to its MTL file's folder, then to the working directory;
 ``\\`` is read as ``/``.
 
+The default material (faces and spheres before any ``usemtl``, table row 0) is the seed's
+``Inner_CheckerTexture`` or a neutral grey clay, chosen by ``default_material``: ``"checker"`` (the
+API's default, the seed's), ``"clay"``, or ``"auto"`` (the CLI's default): checker when any MTL file
+is given or any OBJ names a material (``usemtl`` or ``mtllib``), as every seed scene does; clay for a
+bare model. Row 0 keeps its reserved name either way.
+
 Warnings go to ``Scene.warnings`` and to the ``warn`` callback (by default
 ``warnings.warn(message, UserWarning)``; pass ``warn=lambda message: None`` to only collect them).
 """
@@ -33,7 +39,7 @@ from PIL import Image
 
 from .atlas_layout import TEXEL_BUDGET, atlas_problem
 from .errors import SceneError
-from .mtl import builtin_checker, load_mtl
+from .mtl import builtin_checker, builtin_clay, load_mtl
 from .obj import load_obj
 from .scene import (CHECKER_NAME, SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, TEX_CHECKER,
                     TEX_NONE, Material, MaterialTable, MeshData, ObjData, Scene, TextureRef)
@@ -52,7 +58,11 @@ def _default_warn(message: str) -> None:
     _warnings.warn(message, UserWarning, stacklevel=3)
 
 
-def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None) -> Scene:
+DEFAULT_MATERIALS = ("checker", "clay", "auto")
+
+
+def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None,
+               default_material: str = "checker") -> Scene:
     """Read OBJ files (one object each) and MTL files into a validated :class:`Scene`.
 
     Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
@@ -64,10 +74,15 @@ def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn:
         notes.append(message)
         (warn or _default_warn)(message)
 
+    if default_material not in DEFAULT_MATERIALS:
+        raise ValueError(f"default_material must be one of {DEFAULT_MATERIALS}, got {default_material!r}")
+    mtls = [str(p) for p in mtls]
     data = [load_obj(p) for p in objs]
     _require_geometry(data)
-    library = _read_materials(data, [str(p) for p in mtls], note)
+    library = _read_materials(data, mtls, note)
     table_rows, obj_rows = _assign_rows(data, library, note)
+    if _default_is_clay(default_material, data, mtls):
+        table_rows[0] = builtin_clay()
     textures = _TextureCache(note)
     scene = Scene(
         meshes=[_mesh(d, rows, note) for d, rows in zip(data, obj_rows) if len(d.faces)],
@@ -84,6 +99,14 @@ def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn:
             note(f"{d.path}: dropped {d.dropped_degenerate} zero-area triangles")
     validate_scene(scene)
     return scene
+
+
+def _default_is_clay(choice: str, data: list[ObjData], mtls: list[str]) -> bool:
+    """The rule for ``default_material="auto"``: clay only for bare models (see the module docs)."""
+    if choice != "auto":
+        return choice == "clay"
+    names_material = any(len(d.material_names) > 1 or d.mtllibs for d in data)
+    return not mtls and not names_material
 
 
 def _require_geometry(data: list[ObjData]) -> None:
@@ -116,13 +139,13 @@ def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[
             seen.add(lib)
             problem = file_problem(lib)
             if problem is None:
-                library.update(load_mtl(lib))
+                library.update(load_mtl(lib, note))
             else:
                 where = f"{d.path}:{line}" if line else d.path
                 why = "not found" if problem == "no such file or directory" else f"cannot be read ({problem})"
                 note(f"{where}: mtllib {lib} {why}; its materials are not loaded")
     for path in mtls:
-        library.update(load_mtl(path))
+        library.update(load_mtl(path, note))
     if CHECKER_NAME in library:
         m = library.pop(CHECKER_NAME)
         note(f"{m.source}:{m.line}: {CHECKER_NAME} is the built-in material; this definition is ignored")

@@ -29,9 +29,17 @@ Standard tags mapped onto the same model:
   Other illum values change nothing.
 * The values derived from ``d``/``Tr``/``illum`` never override an explicit ``Roughness``,
   ``Fuzz`` or ``Refractable`` of the same material, wherever the lines stand.
+* ``Ks`` with ``Ns`` (Phong): when ``Ks`` is given, the probability of the specular lobe is
+  max(Ks) / (max(Kd) + max(Ks)) (so ``Ks 0`` is a purely diffuse material), and the Phong exponent
+  gives the reflection blur ``Fuzz = min(1, sqrt(5 / (Ns + 2)))`` (a cos^n lobe and the seed's fuzz
+  ball have the same RMS angle, sqrt(2 / (n + 2)) = sqrt(2/5) Fuzz).
+* PBR ``Pm`` (metallic) and ``Pr`` (roughness): specular probability Pm + 0.04 (1 - Pm) (a
+  dielectric's normal-incidence Fresnel is about 4%); ``Fuzz = Pr``. They take precedence over
+  ``Ks``/``Ns``.
 * Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); they are skipped and
-  ignored. Every other tag (``Ka``, ``Ns``, ``bump``, ``map_d``...) is ignored, as are lines
-  before the first ``newmtl``.
+  ignored. Every other tag (``Ka``, ``bump``, ``map_d``...) is ignored, as are lines before the
+  first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
+  options it read but does not support.
 
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.loader.load_scene`, and only for materials that geometry uses.
@@ -44,6 +52,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
@@ -68,6 +77,12 @@ def builtin_checker() -> Material:
     return Material(name=CHECKER_NAME, roughness=0.75, fuzz=0.62, ior=1.0, checker=True)
 
 
+def builtin_clay() -> Material:
+    """The default material of bare models: a neutral grey, purely diffuse clay (row 0's name kept)."""
+    grey = (0.6, 0.6, 0.6)
+    return Material(name=CHECKER_NAME, diffuse=grey, reflect=grey, roughness=1.0, fuzz=0.0, ior=1.0)
+
+
 @dataclass
 class _Draft:
     """A material being read, with what the standard tags ask for until it is finished."""
@@ -76,9 +91,10 @@ class _Draft:
     explicit: set[str] = field(default_factory=set)   # fields set by seed tags
     opacity: float = 1.0
     illum: int = -1
+    phong: dict[str, float] = field(default_factory=dict)   # ks, ns, pr, pm as read
 
     def finish(self) -> Material:
-        derived: dict[str, object] = {}
+        derived = self._phong_and_pbr()
         if self.illum in (3, 5, 4, 6, 7):
             derived.update(roughness=0.0, fuzz=0.0)
         if self.illum in (4, 6, 7) or self.opacity < 1.0:
@@ -87,20 +103,39 @@ class _Draft:
             derived["roughness"] = min(float(derived.get("roughness", self.mat.roughness)), self.opacity)
         return replace(self.mat, **{k: v for k, v in derived.items() if k not in self.explicit})
 
+    def _phong_and_pbr(self) -> dict[str, object]:
+        """Roughness (diffuse probability) and fuzz from Ks/Ns or Pm/Pr; see the module docs."""
+        p, out = self.phong, {}
+        if "pm" in p or "pr" in p:
+            if "pm" in p:
+                out["roughness"] = 1.0 - (p["pm"] + 0.04 * (1.0 - p["pm"]))
+            if "pr" in p:
+                out["fuzz"] = p["pr"]
+            return out
+        if "ks" in p:
+            kd = max(self.mat.diffuse)
+            out["roughness"] = kd / (kd + p["ks"]) if kd + p["ks"] > 0 else 1.0
+        if "ns" in p:
+            out["fuzz"] = min(1.0, (5.0 / (p["ns"] + 2.0)) ** 0.5)
+        return out
 
-def load_mtl(path: str | os.PathLike[str]) -> dict[str, Material]:
+
+def load_mtl(path: str | os.PathLike[str], warn: Callable[[str], None] | None = None) -> dict[str, Material]:
     """Read an MTL file into {name: Material}; the later of two definitions of a name wins.
 
-    Raises :class:`SceneError` for a missing file or bad content, with the file and line.
+    Raises :class:`SceneError` for a missing file or bad content, with the file and line. ``warn``,
+    when given, receives at most one line per file about what was read but not supported.
     """
     path = str(path)
-    return parse_mtl_bytes(read_file(path, "MTL"), path)
+    return parse_mtl_bytes(read_file(path, "MTL"), path, warn)
 
 
-def parse_mtl_bytes(data: bytes, path: str = "<input>") -> dict[str, Material]:
+def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], None] | None = None
+                    ) -> dict[str, Material]:
     """Parse MTL text given as bytes; ``path`` names it in errors and in :class:`TextureRef`."""
     out: dict[str, Material] = {}
     draft: _Draft | None = None
+    ignored: dict[str, None] = {}        # unsupported tags and texture options, in order of appearance
     data = normalise_text(data, path, "MTL")
     for lineno, toks in iter_lines(data):
         tag = toks[0].decode("latin-1").lower()
@@ -111,14 +146,28 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>") -> dict[str, Material]:
                 raise SceneError(path, lineno, "expected a material name after 'newmtl'")
             draft = _Draft(Material(name=decode_name(toks[1:]), source=path, line=lineno))
         elif draft is not None:
-            _statement(draft, tag, toks, path, lineno)
+            if not _statement(draft, tag, toks, path, lineno):
+                ignored[toks[0].decode("latin-1")] = None
+            elif tag in _MAP_SLOTS:
+                ignored.update((f"texture option {o}", None) for o in _texture_options(toks[1:]))
     if draft is not None:
         out[draft.mat.name] = draft.finish()
+    if warn is not None:
+        _report(path, list(ignored), warn)
     return out
 
 
-def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -> None:
-    """Apply one line to the material being read."""
+def _report(path: str, ignored: list[str], warn: Callable[[str], None]) -> None:
+    """One line per file naming the tags and texture options it uses that are not supported.
+
+    (A reflectance colour above 1, which would add energy, is an error: see :func:`_statement`.)
+    """
+    if ignored:
+        warn(f"{path}: read but not supported (ignored): " + ", ".join(ignored))
+
+
+def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -> bool:
+    """Apply one line to the material being read; False for a tag that is not supported."""
     args, name = toks[1:], toks[0].decode("latin-1")
     m = d.mat
     if tag in _COLOUR_SLOTS:
@@ -132,6 +181,8 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         for slot in _COLOUR_SLOTS[tag]:
             setattr(m, slot, colour)
             setattr(m, slot + "_map", None)
+        if tag == "ks":
+            d.phong["ks"] = max(colour)
     elif tag in _MAP_SLOTS:
         ref = TextureRef(path=_texture_path(args, path, lineno, name), mtl_file=path, line=lineno)
         for slot in _MAP_SLOTS[tag]:
@@ -155,6 +206,13 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         if len(args) != 1:
             raise SceneError(path, lineno, f"expected 1 integer after 'illum', got {len(args)}")
         d.illum = parse_int(args[0], path, lineno, "illumination model")
+    elif tag == "ns":
+        d.phong["ns"] = _number(args, path, lineno, name, lo=0.0)
+    elif tag in ("pr", "pm"):
+        d.phong[tag] = _number(args, path, lineno, name, lo=0.0, hi=1.0)
+    else:
+        return False
+    return True
 
 
 def _number(args: list[bytes], path: str, lineno: int, tag: str, *, lo: float, hi: float | None = None,
@@ -181,6 +239,11 @@ def _texture_path(args: list[bytes], path: str, lineno: int, tag: str) -> str:
     if i >= len(args):
         raise SceneError(path, lineno, f"expected a texture file name after '{tag}'")
     return decode_name(args[i:])
+
+
+def _texture_options(args: list[bytes]) -> list[str]:
+    """The options written before a texture's file name (e.g. ``-s``), as they are spelled."""
+    return [a.decode("latin-1") for a in args[:-1] if a.decode("latin-1").lower() in _TEX_OPTIONS]
 
 
 def _is_number(tok: bytes) -> bool:

@@ -18,6 +18,7 @@ import warp as wp
 from .camera import Camera
 from .device_scene import DeviceScene, Features
 from .film import Film
+from .framing import recentre
 from .integrators import DEFAULT_INTEGRATOR, RenderParams, camera_params, check_integrator, get_kernel
 from .lights import light_table, sky_emits
 from .parallel import run_jobs
@@ -127,6 +128,8 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     rs = settings or RenderSettings()
     _check_args(rs)
     width, height, spp = rs.width, rs.height, rs.spp
+    if not isinstance(scene, DeviceScene):      # far from the origin: shift to it in float64 first
+        scene, camera, _ = recentre(scene, camera)
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
     sky = rs.sky or Sky.black()
     feats = rs.features or replace(dev.features, sky=sky_emits(sky))

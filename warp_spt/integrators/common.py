@@ -89,7 +89,7 @@ class PathState:
 
 def camera_params(camera: Camera, width: int, height: int) -> CameraParams:
     """Pack a Camera's frame for the kernel."""
-    f = dict(camera.frame(width, height))
+    f = dict(camera.image_plane(width, height))
     f["to_upper_left"] = f["upper_left"] - f["origin"]     # in float64, before rounding to float32
     c = CameraParams()
     for name in ("origin", "to_upper_left", "x_step", "y_step", "right", "up"):

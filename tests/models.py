@@ -1,0 +1,105 @@
+"""Procedural stand-ins for the public models a new user tries (bunny, teapot, cow), written as OBJ.
+
+Each shape is built Z-up with its front towards -Y (the seed's axes), then optionally turned
+Y-up (x, y, z) -> (x, z, -y), the usual export convention, scaled and moved. The blob is one closed,
+welded mesh (for the "camera inside a closed mesh" case). ``marker=True`` writes the upper half
+(along the model's own up axis) with material ``top`` and the rest with ``bottom``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def _sphere_grid(n_u: int = 48, n_v: int = 24):
+    """A welded UV sphere: (V, 3) unit points, (F, 3) faces; poles are single vertices."""
+    th = np.linspace(0, np.pi, n_v + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, n_u, endpoint=False)
+    t, p = np.meshgrid(th, ph, indexing="ij")
+    ring = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
+    pts = np.concatenate([[[0, 0, 1]], ring, [[0, 0, -1]]])
+    faces = []
+    idx = lambda i, j: 1 + i * n_u + (j % n_u)
+    for j in range(n_u):
+        faces.append((0, idx(0, j), idx(0, j + 1)))
+        faces.append((len(pts) - 1, idx(n_v - 2, j + 1), idx(n_v - 2, j)))
+    for i in range(n_v - 2):
+        for j in range(n_u):
+            a, b, c, d = idx(i, j), idx(i, j + 1), idx(i + 1, j), idx(i + 1, j + 1)
+            faces += [(a, c, b), (b, c, d)]
+    return pts.astype(np.float64), np.array(faces)
+
+
+def _deform(pts, fn):
+    return pts * fn(pts)[:, None]
+
+
+def bunny():
+    """A lumpy closed blob with two ear bumps on top: about 1.1 x 0.9 x 1.6 (Z up)."""
+    p, f = _sphere_grid()
+    r = 1.0 + 0.12 * np.sin(3 * p[:, 0]) * np.cos(2 * p[:, 1]) + 0.5 * np.exp(-((p[:, 0] - 0.3) ** 2 + p[:, 1] ** 2
+                                                                               + (p[:, 2] - 0.9) ** 2) * 20)
+    r += 0.5 * np.exp(-((p[:, 0] + 0.3) ** 2 + p[:, 1] ** 2 + (p[:, 2] - 0.9) ** 2) * 20)
+    q = p * r[:, None] * np.array([0.55, 0.45, 0.6])
+    return [(q - [0, 0, q[:, 2].min()], f)]
+
+
+def teapot():
+    """A body of revolution with a spout and a handle (open parts, like the original teapot)."""
+    body, f = _sphere_grid(40, 20)
+    body = body * np.array([1.0, 1.0, 0.7])
+    spout, fs = _sphere_grid(12, 8)
+    spout = spout * np.array([0.6, 0.12, 0.12]) + np.array([1.2, 0, 0.25])
+    handle, fh = _sphere_grid(12, 8)
+    handle = handle * np.array([0.15, 0.08, 0.45]) + np.array([-1.05, 0, 0.1])
+    parts = [(body, f), (spout, fs), (handle, fh)]
+    low = min(p[:, 2].min() for p, _ in parts)
+    return [(p - [0, 0, low], q) for p, q in parts]
+
+
+def cow():
+    """A long body, four legs and a head: about 2.6 x 0.8 x 1.6 (Z up)."""
+    s, f = _sphere_grid(24, 12)
+    parts = [(s * [1.0, 0.4, 0.4] + [0, 0, 1.0], f), (s * [0.35, 0.25, 0.3] + [1.2, 0, 1.3], f)]
+    for x in (-0.6, 0.6):
+        for y in (-0.22, 0.22):
+            parts.append((s * [0.1, 0.1, 0.4] + [x, y, 0.4], f))
+    low = min(p[:, 2].min() for p, _ in parts)
+    return [(p - [0, 0, low], q) for p, q in parts]
+
+
+SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow}
+
+
+def write_model(path: Path, shape: str, *, up: str = "z", scale: float = 1.0, offset=(0.0, 0.0, 0.0),
+                marker: bool = False) -> Path:
+    """Write one generated model as an OBJ file and return its path."""
+    parts = SHAPES[shape]()
+    top = max(p[:, 2].max() for p, _ in parts)
+    lines, base = [], 1
+    for pts, faces in parts:
+        q = pts * scale
+        if up == "y":
+            q = np.stack([q[:, 0], q[:, 2], -q[:, 1]], -1)
+        q = q + np.asarray(offset, dtype=np.float64)
+        lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in q]
+        height = pts[faces].mean(1)[:, 2]
+        groups = [("top", height > top / 2), ("bottom", height <= top / 2)] if marker else [(None, np.ones(len(faces), bool))]
+        for name, sel in groups:
+            if name:
+                lines.append(f"usemtl {name}")
+            lines += [f"f {a + base} {b + base} {c + base}" for a, b, c in faces[sel]]
+        base += len(pts)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+MARKER_MTL = """newmtl top
+Kd 0 0 0
+Ke 1 0 0
+newmtl bottom
+Kd 0 0 0
+Ke 0 1 0
+"""

@@ -1,0 +1,112 @@
+"""Distributed rendering on a LocalCluster (loopback only, two worker processes, tiny images).
+
+The reference for every cluster image is the single-process renderer with the same seed and
+settings; equality is exact (np.array_equal on the float64 sums), not a tolerance.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import signal
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("distributed")
+
+import warp_spt  # noqa: E402
+from warp_spt import cluster  # noqa: E402
+
+from .scenes import box_obj, material, write_scene_files  # noqa: E402
+
+TIMEOUT = 180.0        # seconds: bounds every cluster render in these tests
+CAMERA = warp_spt.Camera(position=(0.0, -0.9, 0.0), direction=(0.0, 1.0, 0.0), fov=70.0, focus=1.0,
+                         aperture=0.02)
+
+
+@pytest.fixture(scope="module")
+def small_scene(tmp_path_factory):
+    """A room with a light, a glossy box and a glass sphere: meshes, spheres, refraction, emitters."""
+    obj = (box_obj((-1, -1, -1), (1, 1, 1), "wall") + "o light\n"
+           + "\n".join(f"v {x} {y} 0.99" for x, y in ((-0.3, -0.3), (0.3, -0.3), (0.3, 0.3), (-0.3, 0.3)))
+           + "\nusemtl lamp\nf 9 10 11 12\nusemtl glass\nb 0.3 0.2 -0.6 0.3\n")
+    mtl = (material("wall", Kd=(0.7, 0.6, 0.5), Roughness=0.9) + material("lamp", Kl=(8, 8, 8))
+           + material("glass", Kn=1.5, Refractable=True, Roughness=0))
+    objs, mtls = write_scene_files(tmp_path_factory.mktemp("cluster"), "room", obj, mtl)
+    return warp_spt.load_scene(objs, mtls, warn=lambda m: None)
+
+
+@pytest.fixture(scope="module")
+def client():
+    with cluster.local_client(2) as c:
+        yield c
+
+
+def _reference(scene, **kw) -> warp_spt.Film:
+    return warp_spt.render_film(scene, CAMERA, **kw)
+
+
+def test_tasks_cover_every_pass_once_in_order():
+    s = cluster.Settings(width=16, height=16, spp=1000)
+    passes = cluster.pass_ranges(s)
+    assert sum(c for _, c in passes) == 1000
+    assert [a for a, _ in passes] == list(np.cumsum([0] + [c for _, c in passes[:-1]]))
+    for task_spp in (None, 1, 256, 700, 5000):
+        tasks = cluster.tasks_for(s, n_workers=3, task_spp=task_spp)
+        assert [p for t in tasks for p in t] == passes
+
+
+def test_cluster_render_is_bit_identical_to_one_process(client, small_scene):
+    kw = dict(width=20, height=12, spp=700, max_depth=5, seed=7, sky=warp_spt.Sky.gradient())
+    ref = _reference(small_scene, **kw)
+    seen = []
+    film = cluster.render_film(client, small_scene, CAMERA, task_spp=1, timeout=TIMEOUT,
+                               progress=lambda done, total: seen.append((done, total)), **kw)
+    assert len(cluster.pass_ranges(cluster.Settings(20, 12, 700))) >= 3     # really several tasks
+    assert film.spp == ref.spp == 700
+    assert np.array_equal(film.sum, ref.sum)
+    assert seen[-1] == (20 * 12 * 700, 20 * 12 * 700) and [d for d, _ in seen] == sorted(d for d, _ in seen)
+    # each worker uploaded the scene at most once for all its tasks
+    builds = client.run(lambda dask_worker: dask_worker.plugins[cluster.PLUGIN_NAME].builds)
+    assert set(builds.values()) <= {0, 1} and sum(builds.values()) >= 1
+
+
+def test_a_different_seed_gives_a_different_image(client, small_scene):
+    kw = dict(width=8, height=8, spp=64, max_depth=3)
+    a = cluster.render_film(client, small_scene, CAMERA, seed=1, timeout=TIMEOUT, **kw)
+    b = cluster.render_film(client, small_scene, CAMERA, seed=2, timeout=TIMEOUT, **kw)
+    assert not np.array_equal(a.sum, b.sum)
+
+
+def test_killed_worker_costs_only_its_tasks(client, small_scene):
+    """SIGKILL a worker process while it runs a task: Dask reruns its tasks; the image is unchanged."""
+    kw = dict(width=32, height=32, spp=64 * 12, max_depth=6, seed=11)
+    ref = _reference(small_scene, **kw)
+    pids_before = client.run(os.getpid)
+    killed = {}
+
+    def kill_a_busy_worker(done: int, total: int) -> None:
+        if killed or done >= total:
+            return
+        busy = [w for w, keys in client.processing().items() if keys]
+        if busy:
+            pid = pids_before[busy[0]]
+            os.kill(pid, signal.SIGKILL)
+            killed.update(pid=pid, remaining=total - done)
+
+    film = cluster.render_film(client, small_scene, CAMERA, task_spp=64, timeout=TIMEOUT,
+                               progress=kill_a_busy_worker, **kw)
+    assert killed, "no worker was busy after the first task finished"
+    assert killed["remaining"] > 0
+    assert np.array_equal(film.sum, ref.sum)
+    client.wait_for_workers(2, timeout=60)        # the nanny restarted the killed process
+    assert killed["pid"] not in client.run(os.getpid).values()
+
+
+def test_missing_dask_gives_an_install_hint(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    monkeypatch.delitem(sys.modules, "warp_spt.cluster")
+    with pytest.raises(ImportError, match=r"warp-spt\[cluster\]"):
+        importlib.import_module("warp_spt.cluster")

@@ -80,6 +80,24 @@ def test_a_different_seed_gives_a_different_image(client, small_scene):
     assert not np.array_equal(a.sum, b.sum)
 
 
+def test_animation_frames_on_the_cluster_equal_local_frames(client, tmp_path):
+    """Frames x sample ranges as tasks: every frame equals the one rendered here, bit for bit."""
+    from warp_spt.animation import CameraPath, render_animation
+
+    from .scenes import write_ball_sequence
+
+    objs, mtls = write_ball_sequence(tmp_path, range(3))
+    path = CameraPath.from_json({"keyframes": [
+        {"frame": 0, "position": [0, -0.9, 0], "direction": [0, 1, 0], "fov": 70, "focus": 1},
+        {"frame": 2, "position": [0.3, -0.9, 0.2], "direction": [-0.2, 1, -0.1], "fov": 60, "focus": 1}]})
+    kw = dict(width=16, height=12, spp=1000, max_depth=4, seed=9)
+    here = dict(render_animation(objs, mtls, range(3), path, **kw))
+    there = dict(render_animation(objs, mtls, range(3), path, client=client, task_spp=1, timeout=TIMEOUT, **kw))
+    assert sorted(there) == [0, 1, 2]
+    for k in range(3):
+        assert np.array_equal(there[k], here[k])
+
+
 def test_killed_worker_costs_only_its_tasks(client, small_scene):
     """SIGKILL a worker process while it runs a task: Dask reruns its tasks; the image is unchanged."""
     kw = dict(width=32, height=32, spp=64 * 12, max_depth=6, seed=11)

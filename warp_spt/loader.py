@@ -48,8 +48,10 @@ def _default_warn(message: str) -> None:
     _warnings.warn(message, UserWarning, stacklevel=3)
 
 
-def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None) -> Scene:
+def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None) -> Scene:
     """Read OBJ files (one object each) and MTL files into a validated :class:`Scene`.
+
+    An item of ``objs`` may also be an already parsed :class:`ObjData` (animations re-use static files).
 
     Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
     including a scene with no triangles and no spheres. See the module docs for the rules.
@@ -60,7 +62,7 @@ def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn:
         notes.append(message)
         (warn or _default_warn)(message)
 
-    data = [load_obj(p) for p in objs]
+    data = [p if isinstance(p, ObjData) else load_obj(p) for p in objs]   # parsed ones: OBJ sequences
     library = _read_materials(data, [str(p) for p in mtls], note)
     table_rows, obj_rows = _assign_rows(data, library, note)
     textures = _TextureCache()

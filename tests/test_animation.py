@@ -169,3 +169,59 @@ def test_save_gif_writes_every_frame(tmp_path):
     assert not list(tmp_path.glob(".*.tmp"))
     with pytest.raises(ValueError):
         save_gif(tmp_path / "b.gif", [])
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--cluster", "tcp://127.0.0.1:1", "--workers", "2"], "either --cluster or --workers"),
+    (["--frames", "3:1"], "--frames"),
+    (["-obj", "w_{frame}.obj"], "give --frames"),
+    (["-obj", "w_{frame}.obj", "--frames", "0:4", "-out", "one.png"], r"put \{frame\} in the name"),
+    (["--frames", "0:2", "--gif", "a.png"], "must end in .gif"),
+    (["-cam", "0", "0", "0", "0", "1", "0", "40", "1", "0", "--camera-path", "p.json"], "either -cam or --camera-path"),
+    (["-obj", "w_{frame:q}.obj", "--frames", "0:2"], "cannot format"),
+    (["--frames", "0:2", "-out", "f_{frame}.jpg"], r"\.png, \.npy or \.pfm"),
+])
+def test_animation_flags_are_validated(argv, message):
+    from warp_spt.cli import UsageError, parse_args
+    with pytest.raises(UsageError, match=message):
+        parse_args(argv)
+
+
+def test_animation_defaults():
+    from warp_spt.cli import parse_args
+    opts = parse_args(["-obj", "w_{frame:03d}.obj", "--frames", "2:8:2"])
+    assert opts.animated and opts.frames == range(2, 8, 2) and opts.out == "frame_{frame:04d}.png"
+    assert parse_args(["--frames", "0:3", "--gif", "a.gif"]).out == ""          # only the GIF
+    assert parse_args(["--frames", "5", "-out", "single.png"]).out == "single.png"
+    assert not parse_args(["-out", "x.png"]).animated
+
+
+def test_cli_writes_every_frame_and_a_gif(tmp_path, capsys):
+    from warp_spt.cli import main
+    objs, mtls = write_ball_sequence(tmp_path, range(3))
+    path = tmp_path / "path.json"
+    path.write_text(json.dumps(KEYS))
+    argv = ["-mtl", mtls[0], "-obj", objs[0], "-obj", objs[1], "--frames", "0:3", "--camera-path", str(path),
+            "-res", "12", "10", "-sr", "24", "-depth", "4", "--seed", "5", "--quiet",
+            "-out", str(tmp_path / "f_{frame}.npy"), "--gif", str(tmp_path / "a.gif")]
+    assert main(argv) == 0
+    want = dict(render_animation(objs, mtls, range(3), CameraPath.from_json(KEYS), **SETTINGS))
+    for k in range(3):
+        assert np.array_equal(np.load(tmp_path / f"f_{k}.npy"), want[k])
+    with Image.open(tmp_path / "a.gif") as gif:
+        assert gif.n_frames == 3
+    assert capsys.readouterr().err == ""
+
+
+def test_cli_missing_frame_file_is_one_line(tmp_path, capsys):
+    from warp_spt.cli import main
+    objs, mtls = write_ball_sequence(tmp_path, range(2))
+    status = main(["-mtl", mtls[0], "-obj", objs[0], "-obj", objs[1], "--frames", "0:3", "--quiet",
+                   "-out", str(tmp_path / "f_{frame}.png")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(err) == 1 and "ball_02.obj" in err[0]
+    assert not list(tmp_path.glob("f_*.png"))          # checked before anything was rendered

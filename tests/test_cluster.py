@@ -128,3 +128,34 @@ def test_missing_dask_gives_an_install_hint(monkeypatch):
     monkeypatch.delitem(sys.modules, "warp_spt.cluster")
     with pytest.raises(ImportError, match=r"warp-spt\[cluster\]"):
         importlib.import_module("warp_spt.cluster")
+
+
+def test_cli_cluster_and_workers_write_the_single_process_image(client, small_scene, tmp_path, scene_dir):
+    """--cluster ADDRESS (this module's cluster) and --workers 1 give the same .npy as a plain render."""
+    from warp_spt.cli import main
+
+    from .scenes import write_ball_sequence
+
+    objs, mtls = write_ball_sequence(tmp_path, [0])
+    base = ["-mtl", mtls[0], "-obj", objs[0], "-obj", str(tmp_path / "ball_00.obj"), "-res", "10", "8",
+            "-sr", "300", "-depth", "4", "--seed", "3", "--quiet", "-cam", "0", "-0.9", "0", "0", "1", "0",
+            "70", "1", "0"]
+    assert main(base + ["-out", str(tmp_path / "here.npy")]) == 0
+    assert main(base + ["-out", str(tmp_path / "there.npy"), "--cluster", client.scheduler.address]) == 0
+    assert main(base + ["-out", str(tmp_path / "local.npy"), "--workers", "1"]) == 0
+    here = np.load(tmp_path / "here.npy")
+    assert np.array_equal(np.load(tmp_path / "there.npy"), here)
+    assert np.array_equal(np.load(tmp_path / "local.npy"), here)
+
+
+def test_cli_unreachable_cluster_is_one_line(tmp_path, capsys, monkeypatch):
+    from functools import partial
+
+    from warp_spt.cli import main
+
+    monkeypatch.setattr(cluster, "connect", partial(cluster.connect, timeout=2))
+    out = tmp_path / "x.png"
+    assert main(["--cluster", "tcp://127.0.0.1:9", "-res", "4", "4", "-sr", "1", "--quiet", "-out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot connect to the cluster at tcp://127.0.0.1:9" in err[0]
+    assert not out.exists()

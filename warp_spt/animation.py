@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import json
 import math
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -285,7 +287,7 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
     kw = dict(width=width, height=height, spp=spp, max_depth=max_depth, sky=sky or Sky.black(), seed=seed,
               texture_filter=texture_filter)
     if client is not None:
-        yield from _render_on_cluster(client, seq, frames, camera, kw, task_spp, progress, timeout)
+        yield from _render_on_cluster(client, seq, frames, camera, kw, task_spp, threads or 1, progress, timeout)
         return
     yield from _render_here(seq, frames, camera, kw, threads, progress)
 
@@ -327,8 +329,8 @@ def _frames_progress(progress, total: int):
     return report
 
 
-def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, kw: dict, task_spp, progress,
-                       timeout):
+def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, kw: dict, task_spp, threads,
+                       progress, timeout):
     from . import cluster
 
     settings = cluster.Settings(**kw)
@@ -337,14 +339,15 @@ def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, kw: 
     for k in frames:
         key, future = cluster.share_scene(client, seq.scene(k), shared)
         jobs.append(cluster.Job(key, future, camera_at(camera, k), settings))
-    for j, film in cluster.run_jobs(client, jobs, task_spp=task_spp, progress=progress, timeout=timeout):
+    for j, film in cluster.run_jobs(client, jobs, task_spp=task_spp, threads=threads, progress=progress,
+                                    timeout=timeout):
         yield frames[j], film.image()
 
 
 def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.0, tonemap: str = "seed") -> None:
-    """Write linear images as an animated GIF preview (tone mapped, one adaptive palette per frame).
+    """Write images as an animated GIF preview, one adaptive palette per frame, atomically.
 
-    Written atomically, like every image file.
+    Linear float images are tone mapped with ``tonemap``; uint8 ones are taken as they are.
     """
     from PIL import Image
 
@@ -354,8 +357,8 @@ def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.
         raise ValueError("a GIF needs at least one frame")
     if tonemap not in _TONEMAPS:
         raise ValueError(f"unknown tone map {tonemap!r}; expected one of {', '.join(_TONEMAPS)}")
-    pictures = [Image.fromarray(_TONEMAPS[tonemap](np.asarray(im, np.float32))).convert(
-        "P", palette=Image.Palette.ADAPTIVE, colors=256) for im in images]
+    pictures = [Image.fromarray(im if im.dtype == np.uint8 else _TONEMAPS[tonemap](np.asarray(im, np.float32))
+                                ).convert("P", palette=Image.Palette.ADAPTIVE, colors=256) for im in images]
     duration = max(20, round(1000.0 / fps))
 
     def write(f) -> None:
@@ -363,3 +366,122 @@ def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.
                          loop=0, optimize=True)
 
     atomic_write(path, write)
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line: the flags --frames, --camera-path, --gif, --cluster, --workers (see warp_spt.cli)
+
+DEFAULT_FRAME_OUT = "frame_{frame:04d}.png"
+
+
+def with_animation_options(opts, ns, *, explicit_out: bool):
+    """Add the cluster and animation flags of the parsed namespace ``ns`` to ``opts``, validated.
+
+    Without an explicit ``-out`` an animation writes ``frame_{frame:04d}.png``, or only the GIF when
+    ``--gif`` is given (then ``opts.out`` is empty).
+    """
+    from .cli import OUTPUT_SUFFIXES, UsageError
+
+    if ns.cluster and ns.workers:
+        raise UsageError("give either --cluster or --workers, not both")
+    if ns.camera_path and ns.cam:
+        raise UsageError("give either -cam or --camera-path, not both")
+    if ns.gif is not None and Path(ns.gif).suffix.lower() != ".gif":
+        raise UsageError(f"--gif {ns.gif!r}: the file name must end in .gif")
+    try:
+        frames = parse_frames(ns.frames) if ns.frames is not None else None
+    except ValueError as err:
+        raise UsageError(f"argument --frames: {err}") from None
+    opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
+                   gif=ns.gif)
+    if not opts.animated:
+        return opts
+    templates = [p for p in opts.objs if is_template(p)]
+    if templates and frames is None and not opts.camera_path:
+        raise UsageError(f"-obj {templates[0]!r} names one file per frame: give --frames A:B")
+    out = opts.out if explicit_out else ("" if opts.gif else DEFAULT_FRAME_OUT)
+    several = frames is None or len(frames) > 1
+    if out and several and not is_template(out):
+        raise UsageError(f"-out {out!r}: an animation writes one file per frame; "
+                         "put {frame} in the name, e.g. frame_{frame:04d}.png")
+    for name in templates + ([out] if out else []):
+        try:
+            frame_path(name, 0)
+        except ValueError as err:
+            raise UsageError(str(err)) from None
+    if out and Path(frame_path(out, 0)).suffix.lower() not in OUTPUT_SUFFIXES:
+        raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
+    return replace(opts, out=out)
+
+
+@contextmanager
+def cluster_client(opts):
+    """The Dask client that ``--cluster`` or ``--workers`` asks for (closed after), or None."""
+    if not (opts.cluster or opts.workers):
+        yield None
+        return
+    from .cli import RunError
+    try:
+        from . import cluster
+    except ImportError as err:
+        raise RunError(str(err)) from None
+    if opts.workers:
+        with cluster.local_client(opts.workers) as client:
+            yield client
+        return
+    try:
+        context = cluster.connect(opts.cluster)
+        client = context.__enter__()
+    except (OSError, TimeoutError, ValueError) as err:
+        raise RunError(f"cannot connect to the cluster at {opts.cluster}: {err}") from None
+    try:
+        yield client
+    finally:
+        context.__exit__(None, None, None)
+
+
+def run_cli(opts, err) -> int:
+    """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
+    from .cli import EXIT_OK, PROG, _quiet_warp, check_files, scene_files
+    from .film import _TONEMAPS, save_image
+    from .progress import ProgressBar
+
+    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
+    objs, mtls = scene_files(opts)
+    path = CameraPath.load(opts.camera_path) if opts.camera_path else None
+    frames = opts.frames or (path.frames if path is not None else range(0, 1))
+    seq = ObjSequence(objs, mtls)
+    for k in frames:                       # every frame's inputs and outputs, before any rendering
+        check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
+    _quiet_warp(opts.quiet)
+    start = time.perf_counter()
+    first = seq.scene(frames[0])
+    for warning in first.warnings:
+        say(f"warning: {warning}")
+    where = (f"the cluster at {opts.cluster}" if opts.cluster else
+             f"{opts.workers} local worker processes" if opts.workers else "this machine")
+    say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
+        f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
+        f"{opts.spp} spp, depth {opts.depth} on {where}")
+    bar = None if opts.quiet else ProgressBar(len(frames) * opts.width * opts.height * opts.spp, file=err)
+    previews: dict[int, np.ndarray] = {}
+    start = time.perf_counter()
+    try:
+        with cluster_client(opts) as client:
+            for k, image in render_animation(seq, mtls, frames, path or opts.camera, width=opts.width,
+                                             height=opts.height, spp=opts.spp, max_depth=opts.depth,
+                                             sky=opts.sky, seed=opts.seed, texture_filter=opts.texture_filter,
+                                             threads=opts.threads, client=client, progress=bar or False):
+                if opts.out:
+                    save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap)
+                if opts.gif:
+                    previews[k] = _TONEMAPS[opts.tonemap](image)
+    finally:
+        if bar is not None:
+            bar.close()
+    if opts.gif:
+        save_gif(opts.gif, [previews[k] for k in sorted(previews)])
+    seconds = time.perf_counter() - start
+    written = ", ".join(x for x in (opts.out, opts.gif) if x)
+    say(f"wrote {written} ({len(frames)} frame(s), {seconds:.1f} s)")
+    return EXIT_OK

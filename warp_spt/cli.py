@@ -77,6 +77,18 @@ class Options:
     texture_filter: str = "nearest"
     quiet: bool = False
     demo: str | None = None
+    # Distribution and animation (warp_spt.cluster, warp_spt.animation)
+    cluster: str | None = None
+    workers: int | None = None
+    frames: range | None = None
+    camera_path: str | None = None
+    gif: str | None = None
+
+    @property
+    def animated(self) -> bool:
+        """Frames, a camera path, a GIF or an OBJ template were given: render an animation."""
+        from .animation import is_template
+        return bool(self.frames or self.camera_path or self.gif or any(is_template(p) for p in self.objs))
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -157,6 +169,14 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
                      help="texture lookup (default nearest, as the seed)")
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    more = p.add_argument_group("clusters and animation")
+    more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
+    more.add_argument("--workers", type=_int_at_least(1, 1024), metavar="N",
+                      help="render on a local cluster of N worker processes")
+    more.add_argument("--frames", metavar="A:B[:STEP]", help="render frames A..B-1; -obj may name "
+                      "'wave_{frame:04d}.obj' and -out 'frame_{frame:04d}.png'")
+    more.add_argument("--camera-path", metavar="FILE", help="JSON camera keyframes, interpolated per frame")
+    more.add_argument("--gif", metavar="PATH", help="also write the frames as an animated GIF preview")
     return p
 
 
@@ -182,7 +202,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
     out = ns.out or (preset.output_name(ns.demo) if preset else DEFAULT_OUT)
     if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
         raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
-    return Options(
+    opts = Options(
         objs=tuple(ns.obj), mtls=tuple(ns.mtl), camera=_camera(ns.cam),
         width=width, height=height,
         spp=ns.sr or (preset.spp if preset else DEFAULT_SPP),
@@ -191,6 +211,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, demo=ns.demo,
     )
+    from .animation import with_animation_options
+    return with_animation_options(opts, ns, explicit_out=ns.out is not None)
 
 
 def _reject_unknown_flags(argv: Sequence[str], parser: argparse.ArgumentParser) -> None:
@@ -283,6 +305,9 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
 def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     """Load, render and save as ``opts`` says. Errors propagate; :func:`main` reports them."""
     err = stderr or sys.stderr
+    if opts.animated or opts.cluster or opts.workers:
+        from .animation import run_cli
+        return run_cli(opts, err)
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))

@@ -300,7 +300,7 @@ def local_client(n_workers: int = 2, *, threads_per_worker: int = 1, **cluster_k
     if not isinstance(n_workers, int) or n_workers < 1:
         raise ValueError(f"n_workers must be a positive integer, got {n_workers!r}")
     options = dict(n_workers=n_workers, threads_per_worker=threads_per_worker, processes=True,
-                   host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+                   host="127.0.0.1", dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     options.update(cluster_kwargs)
     with distributed.LocalCluster(**options) as cluster, distributed.Client(cluster) as client:
         yield client

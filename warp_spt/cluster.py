@@ -133,6 +133,12 @@ class SceneCache(WorkerPlugin):
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["size"])
 
+    def setup(self, worker) -> None:
+        """Keep Warp's banner and module-load lines off the worker's stdout (a CLI's stdout stays clean)."""
+        import warp as wp
+
+        wp.config.log_level = wp.LOG_WARNING
+
     def device_scene(self, key: str, scene: Scene):
         """The uploaded scene for ``key``, uploading ``scene`` on first use.
 

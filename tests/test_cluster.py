@@ -159,3 +159,16 @@ def test_cli_unreachable_cluster_is_one_line(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot connect to the cluster at tcp://127.0.0.1:9" in err[0]
     assert not out.exists()
+
+
+def test_a_second_render_keeps_the_workers_scene_caches(client, small_scene):
+    """Scenes uploaded by one render stay on the workers for the next (the cache is not replaced)."""
+    def caches(dask_worker):
+        c = dask_worker.plugins[cluster.PLUGIN_NAME]
+        return c.token, c.builds
+    kw = dict(width=6, height=5, spp=16, max_depth=2, timeout=TIMEOUT)
+    cluster.render_film(client, small_scene, CAMERA, **kw)
+    before = client.run(caches)
+    cluster.render_film(client, small_scene, CAMERA, seed=4, **kw)       # same scene, other settings
+    after = client.run(caches)
+    assert {w: t for w, (t, _) in after.items()} == {w: t for w, (t, _) in before.items()}

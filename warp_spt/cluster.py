@@ -34,6 +34,7 @@ import logging
 import math
 import pickle
 import threading
+import uuid
 from collections import OrderedDict
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -118,12 +119,14 @@ def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int 
 class SceneCache(WorkerPlugin):
     """Per-worker cache of uploaded scenes, keyed by content hash (least recently used goes first).
 
-    ``builds`` counts uploads, so tests can check that a worker uploads each scene once.
+    ``builds`` counts uploads, so tests can check that a worker uploads each scene once; ``token``
+    tells one cache from its replacement.
     """
 
     def __init__(self, size: int = 4) -> None:
         self.size = size
         self.builds = 0
+        self.token = uuid.uuid4().hex
         self._scenes: OrderedDict[str, object] = OrderedDict()
         self._lock = threading.Lock()
 
@@ -187,7 +190,11 @@ class Job:
 
 
 def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -> tuple[str, object]:
-    """(content key, future) for ``scene``, scattering it only when ``shared`` does not hold it yet."""
+    """(content key, future) for ``scene``, scattering it only when ``shared`` does not hold it yet.
+
+    A DeviceScene is accepted too: its host-side Scene is what travels.
+    """
+    scene = getattr(scene, "scene", scene)
     key = scene_key(scene)
     if shared is not None and key in shared:
         return key, shared[key]
@@ -213,8 +220,14 @@ def tasks_for(settings: Settings, n_workers: int, task_spp: int | None = None) -
 
 
 def register(client) -> None:
-    """Install the scene cache on every worker (and on workers that join or restart later)."""
-    client.register_plugin(SceneCache(), name=PLUGIN_NAME)
+    """Install the scene cache on every worker (and on workers that join or restart later).
+
+    Skipped when every worker has it already: registering again would empty the caches, and every
+    render would upload its scene anew.
+    """
+    present = client.run(lambda dask_worker: PLUGIN_NAME in dask_worker.plugins)
+    if not present or not all(present.values()):
+        client.register_plugin(SceneCache(), name=PLUGIN_NAME)
 
 
 def run_jobs(client, jobs: Sequence[Job], *, task_spp: int | None = None, threads: int = 1,

@@ -9,7 +9,7 @@ Prints three tables:
 3. the model fitted to them (see docs/cluster.md): expected speed-up for 8..256 workers and the
    smallest task that keeps overhead under 5%.
 
-    python benchmarks/bench_cluster.py                 # 64x64, 256 spp, depth 6 (a few minutes)
+    python benchmarks/bench_cluster.py                 # 64x64, 128 spp, depth 6 (a few minutes)
     python benchmarks/bench_cluster.py --size 128 --spp 512
 
 Compare ratios within one run: the machine is shared and absolute times drift.
@@ -22,7 +22,6 @@ import os
 import pickle
 import sys
 import time
-from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -65,26 +64,22 @@ def timed(fn, repeat: int = 1) -> float:
 
 
 def scaling(scene, camera, kw: dict, workers: list[int], repeat: int) -> dict[int, float]:
-    """Best wall seconds per worker count (0: this process, one thread), runs interleaved.
+    """Best wall seconds of ``repeat`` runs per worker count (0: this process, one thread).
 
-    Every cluster stays up for the whole measurement and the configurations take turns, so a change
-    in the machine's load (it is shared) hits them alike; every image is checked bit for bit.
+    One cluster at a time, warmed first (scene uploaded, kernels loaded); every image is checked
+    bit for bit against the in-process one.
     """
     ref = warp_spt.render_film(scene, camera, threads=1, **kw)      # also warms the kernel
-    times = {n: float("inf") for n in [0, *workers]}
-    with ExitStack() as stack:
-        clients = {n: stack.enter_context(cluster.local_client(n)) for n in workers}
-        for client in clients.values():
-            cluster.render_film(client, scene, camera, **kw)          # warm: scene uploaded, kernels loaded
-        for _ in range(repeat):
-            times[0] = min(times[0], timed(lambda: warp_spt.render_film(scene, camera, threads=1, **kw)))
-            for n, client in clients.items():
-                film = [None]
+    times = {0: min(timed(lambda: warp_spt.render_film(scene, camera, threads=1, **kw)) for _ in range(repeat))}
+    for n in workers:
+        with cluster.local_client(n) as client:
+            cluster.render_film(client, scene, camera, **kw)
+            film = [None]
 
-                def run():
-                    film[0] = cluster.render_film(client, scene, camera, **kw)
-                times[n] = min(times[n], timed(run))
-                assert np.array_equal(film[0].sum, ref.sum), "cluster image differs from the single-process one"
+            def run():
+                film[0] = cluster.render_film(client, scene, camera, **kw)
+            times[n] = min(timed(run) for _ in range(repeat))
+            assert np.array_equal(film[0].sum, ref.sum), "cluster image differs from the single-process one"
     return times
 
 
@@ -143,10 +138,10 @@ def main() -> None:
     """Scaling, overheads, model."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=64)
-    parser.add_argument("--spp", type=int, default=256)
+    parser.add_argument("--spp", type=int, default=128)
     parser.add_argument("--depth", type=int, default=6)
     parser.add_argument("--workers", type=int, nargs="*", default=[1, 2, 4])
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
     scene = warp_spt.load_scene(*demo_files(), warn=lambda m: None)
     camera = warp_spt.Camera()

@@ -26,13 +26,13 @@ PIECES = [b" ", b"\t", b"\n", b"\r\n", b"/", b"//", b"-", b"+", b".", b"e", b"0"
 
 
 @st.composite
-def mutated(draw, seed: bytes) -> bytes:
-    """The seed text with a few insertions, deletions and replacements."""
+def mutated(draw, seed: bytes, pieces: list[bytes] = PIECES) -> bytes:
+    """The seed text with a few insertions, deletions and replacements (of ``pieces`` or random bytes)."""
     data = bytearray(seed)
     for _ in range(draw(st.integers(1, 6))):
         at = draw(st.integers(0, len(data)))
         kind = draw(st.sampled_from(["insert", "delete", "replace"]))
-        piece = draw(st.sampled_from(PIECES) | st.binary(min_size=1, max_size=3))
+        piece = draw(st.sampled_from(pieces) | st.binary(min_size=1, max_size=3))
         if kind == "insert":
             data[at:at] = piece
         elif kind == "delete":

@@ -9,37 +9,60 @@ The public surface, in the order data flows::
 :func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
 bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
 separate sample ranges merge exactly; :func:`render_film` returns one.
+
+The names are imported on first use (PEP 562), so ``import warp_spt`` is cheap and the command line
+can install its Ctrl-C handling before numpy and Warp are loaded.
 """
 
 from __future__ import annotations
 
-from .camera import Camera
-from .errors import SceneError
-from .film import Film, save_image, tonemap_seed, tonemap_srgb
-from .loader import load_scene
-from .mtl import load_mtl
-from .obj import load_obj
-from .renderer import render, render_film
-from .scene import Material, ObjData, Scene
-from .sky import Sky
+import importlib
+
+TYPE_CHECKING = False   # typing.TYPE_CHECKING without importing typing (start-up time)
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "Camera",
-    "Film",
-    "Material",
-    "ObjData",
-    "Scene",
-    "SceneError",
-    "Sky",
-    "load_mtl",
-    "load_obj",
-    "load_scene",
-    "render",
-    "render_film",
-    "save_image",
-    "tonemap_seed",
-    "tonemap_srgb",
-    "__version__",
-]
+# public name -> submodule that defines it
+_EXPORTS = {
+    "Camera": "camera",
+    "Film": "film",
+    "Material": "scene",
+    "ObjData": "scene",
+    "Scene": "scene",
+    "SceneError": "errors",
+    "Sky": "sky",
+    "load_mtl": "mtl",
+    "load_obj": "obj",
+    "load_scene": "loader",
+    "render": "renderer",
+    "render_film": "renderer",
+    "save_image": "film",
+    "tonemap_seed": "film",
+    "tonemap_srgb": "film",
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from .camera import Camera
+    from .errors import SceneError
+    from .film import Film, save_image, tonemap_seed, tonemap_srgb
+    from .loader import load_scene
+    from .mtl import load_mtl
+    from .obj import load_obj
+    from .renderer import render, render_film
+    from .scene import Material, ObjData, Scene
+    from .sky import Sky
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'warp_spt' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

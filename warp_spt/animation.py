@@ -442,18 +442,18 @@ def cluster_client(opts):
 
 def run_cli(opts, err) -> int:
     """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
-    from .cli import EXIT_OK, PROG, _quiet_warp, check_files, scene_files
+    from .cli import EXIT_OK, PROG, _init_warp, check_files, one_line, scene_files
     from .film import _TONEMAPS, save_image
     from .progress import ProgressBar
 
-    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
+    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
     objs, mtls = scene_files(opts)
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
     frames = opts.frames or (path.frames if path is not None else range(0, 1))
     seq = ObjSequence(objs, mtls)
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
-    _quiet_warp(opts.quiet)
+    _init_warp(opts)
     start = time.perf_counter()
     first = seq.scene(frames[0])
     for warning in first.warnings:
@@ -478,7 +478,9 @@ def run_cli(opts, err) -> int:
                     previews[k] = _TONEMAPS[opts.tonemap](image)
     finally:
         if bar is not None:
-            bar.close()
+            from .signals import deferred_signals
+            with deferred_signals():    # never interrupt tqdm while it holds its lock (as cli.run)
+                bar.close()
     if opts.gif:
         save_gif(opts.gif, [previews[k] for k in sorted(previews)])
     seconds = time.perf_counter() - start

@@ -10,21 +10,30 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 import time
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence, TextIO
+from typing import TYPE_CHECKING, Sequence, TextIO
 
+# Only light modules here (stdlib, no numpy, no Warp): main() installs the SIGINT/SIGTERM handling
+# before anything heavy is imported, so a Ctrl-C during start-up gets the same one-line message.
 from . import __version__
-from .camera import Camera
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
+from .signals import (cli_interruption, deferred_signals, exit_status, finish_cli_handlers, install_cli_handlers,
+                      interruption_line)
 from .sky import Sky
+
+if TYPE_CHECKING:
+    from .camera import Camera
 
 PROG = "warp-spt"
 OUTPUT_SUFFIXES = (".png", ".npy", ".pfm")
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143     # 128 + the signal number (signals.exit_status)
 
 # The seed's defaults (SEMANTICS §1); the output name follows its Readme, not its code (Q14).
 DEFAULT_RES, DEFAULT_SPP, DEFAULT_DEPTH, DEFAULT_SKY, DEFAULT_OUT = (500, 500), 16, 6, 0, "output.png"
@@ -45,7 +54,7 @@ examples:
 (the seed's Java code read fov aperture focus). d is a view direction, not a target; fov is the
 horizontal angle in degrees. -sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink.
 .png is tone-mapped, .npy and .pfm hold linear radiance. Exit status: 0 ok, 1 failure,
-2 bad arguments, 130 interrupted.
+2 bad arguments, 130 interrupted (Ctrl-C, SIGINT), 143 terminated (SIGTERM).
 """
 
 
@@ -64,7 +73,7 @@ class Options:
     action: str = "render"
     objs: tuple[str, ...] = ()
     mtls: tuple[str, ...] = ()
-    camera: Camera = field(default_factory=Camera)
+    camera: Camera = field(default_factory=lambda: _camera(None))
     width: int = DEFAULT_RES[0]
     height: int = DEFAULT_RES[1]
     spp: int = DEFAULT_SPP
@@ -76,6 +85,7 @@ class Options:
     tonemap: str = "seed"
     texture_filter: str = "nearest"
     quiet: bool = False
+    verbose: bool = False
     demo: str | None = None
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
     cluster: str | None = None
@@ -103,12 +113,17 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+# Plain ASCII numbers only, as in OBJ files: int() and float() would also take "1_0", "inf", and
+# Arabic-Indic or full-width digits.
+_INT_RE = re.compile(r"[+-]?[0-9]+")
+_FLOAT_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
 def _int_at_least(low: int, high: int | None = None):
     def convert(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if not _INT_RE.fullmatch(text):
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
+        value = int(text)
         if value < low:
             raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
         if high is not None and value > high:
@@ -119,10 +134,9 @@ def _int_at_least(low: int, high: int | None = None):
 
 
 def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not _FLOAT_RE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
+    value = float(text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
@@ -169,6 +183,8 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
                      help="texture lookup (default nearest, as the seed)")
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    new.add_argument("--verbose", action="store_true",
+                     help="also show Warp's own messages (banner, module loads, missing CUDA driver)")
     more = p.add_argument_group("clusters and animation")
     more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
     more.add_argument("--workers", type=_int_at_least(1, 1024), metavar="N",
@@ -194,11 +210,15 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         raise UsageError("--demo renders the built-in scene; it cannot be combined with -obj")
     if ns.mtl and not ns.obj:
         raise UsageError("-mtl given without any -obj file to use it")
+    if ns.quiet and ns.verbose:
+        raise UsageError("give either --quiet or --verbose, not both")
     if ns.sky is not None and ns.sky_color is not None:
         raise UsageError("give either -sky or --sky-color, not both")
     preset = PRESETS.get(ns.demo) if ns.demo else None
     width, height = ns.res or ((preset.width, preset.height) if preset else DEFAULT_RES)
     check_image_size(width, height, memory_bytes)
+    if ns.out is not None and not ns.out.strip():
+        raise UsageError("-out needs a file name, got an empty one")
     out = ns.out or (preset.output_name(ns.demo) if preset else DEFAULT_OUT)
     if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
         raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
@@ -209,7 +229,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         depth=ns.depth or (preset.depth if preset else DEFAULT_DEPTH),
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
-        texture_filter=ns.texture_filter, quiet=ns.quiet, demo=ns.demo,
+        texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
     )
     from .animation import with_animation_options
     return with_animation_options(opts, ns, explicit_out=ns.out is not None)
@@ -235,10 +255,18 @@ def _is_number(text: str) -> bool:
 
 
 def _camera(values: list[float] | None) -> Camera:
+    from .camera import Camera
+
     if values is None:
         return Camera()
     cam = Camera(position=tuple(values[0:3]), direction=tuple(values[3:6]),
                  fov=values[6], focus=values[7], aperture=values[8])
+    from .validate import camera_problem
+
+    # Our float32 bounds first: Camera.validate normalises the direction, which overflows at 1e308.
+    problem = camera_problem(cam.position, cam.direction, cam.fov, cam.focus, cam.aperture)
+    if problem:
+        raise UsageError(f"argument -cam: {problem}")
     try:
         cam.validate()
     except ValueError as err:
@@ -249,6 +277,10 @@ def _camera(values: list[float] | None) -> Camera:
 def _sky(index: int | None, colour: list[float] | None, fallback: int) -> Sky:
     if colour is None:
         return Sky.from_index(fallback if index is None else index)
+    from .validate import sky_colour_problem
+
+    if sky_colour_problem(colour):
+        raise UsageError(f"argument --sky-color: {sky_colour_problem(colour)}")
     try:
         return Sky.constant(*colour)
     except ValueError as err:
@@ -283,23 +315,28 @@ def scene_files(opts: Options) -> tuple[list[str], list[str]]:
 
 
 def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
-    """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place."""
+    """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place.
+
+    Inputs must be regular files (a FIFO or a device is refused without being opened, so nothing
+    blocks); the output must not be an existing non-regular file (a symlink is written through).
+    """
+    from .tokens import file_problem
+
     for flag, paths in (("-obj", objs), ("-mtl", mtls)):
         for path in paths:
-            try:
-                with open(path, "rb"):
-                    pass
-            except OSError as err:
-                raise RunError(f"cannot read {flag} file {path!r}: {err.strerror or err}") from None
-            if Path(path).is_dir():
-                raise RunError(f"cannot read {flag} file {path!r}: it is a directory")
-    parent = Path(out).parent
+            problem = file_problem(path)
+            if problem is None and not os.access(path, os.R_OK):
+                problem = "permission denied"
+            if problem:
+                raise RunError(f"cannot read {flag} file {path!r}: {problem}")
+    target = Path(os.path.realpath(out)) if Path(out).is_symlink() else Path(out)
+    parent = target.parent
     if not parent.is_dir():
         raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK):
         raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} is not writable")
-    if Path(out).is_dir():
-        raise RunError(f"cannot write -out {out!r}: it is a directory")
+    if target.exists() and file_problem(target):
+        raise RunError(f"cannot write -out {out!r}: {file_problem(target)}")
 
 
 def run(opts: Options, *, stderr: TextIO | None = None) -> int:
@@ -310,14 +347,20 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
         return run_cli(opts, err)
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
-    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
-    _quiet_warp(opts.quiet)
+    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
+    _init_warp(opts)
+    import numpy as np
+
     from .film import save_image
     from .loader import load_scene
     from .renderer import render
 
     start = time.perf_counter()
-    scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below
+    try:
+        scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below
+    except MemoryError:
+        raise RunError("out of memory while loading the scene: its files or textures are too large for "
+                       "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
@@ -330,39 +373,73 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
         image = render(scene, opts.camera, width=opts.width, height=opts.height, spp=opts.spp,
                        max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
                        texture_filter=opts.texture_filter, progress=bar or False)
+    except MemoryError:
+        texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
+        raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "
+                       f"{texels:,} texels) at {opts.width}x{opts.height}: try a smaller -res or fewer "
+                       "--threads, or a smaller scene") from None
     finally:
         if bar is not None:
-            bar.close()
+            with deferred_signals():    # never interrupt tqdm while it holds its lock
+                bar.close()
     seconds = time.perf_counter() - start
+    dropped = dropped_samples()
+    if dropped:     # shown even with --quiet: the image is wrong somewhere (docs/limits.md)
+        print(f"{PROG}: warning: {dropped} samples were not finite and were dropped; the image is biased "
+              "there (please report this scene)", file=err)
     save_image(opts.out, image, tonemap=opts.tonemap)
     rate = opts.width * opts.height * opts.spp / max(seconds, 1e-9)
     say(f"wrote {opts.out} ({seconds:.1f} s, {rate / 1e6:.2f} M samples/s)")
     return EXIT_OK
 
 
-def _quiet_warp(quiet: bool) -> None:
-    """Warp logs a banner and kernel-load lines at INFO on stdout; a CLI's stdout should stay clean.
+def dropped_samples() -> int:
+    """Non-finite samples the kernel's guard dropped in the last render (0 when unknown)."""
+    stats = getattr(sys.modules.get("warp_spt.renderer"), "last_stats", None)
+    return int(getattr(stats, "dropped_samples", 0) or 0)
 
-    ``--quiet`` also hides warnings, such as the missing CUDA driver on a CPU-only machine.
-    """
+
+def _init_warp(opts: Options) -> None:
+    """Warp's banner, module-load lines and missing-CUDA-driver line only with ``--verbose``."""
     try:
-        import warp
-        warp.config.log_level = warp.LOG_ERROR if quiet else warp.LOG_WARNING
-    except Exception:  # Warp missing or changed: the renderer will report the real problem
+        from .warp_runtime import init_warp
+        init_warp(opts.verbose, quiet=opts.quiet)
+    except ImportError:  # Warp missing: the renderer's import will report the real problem
         pass
 
 
+def one_line(text: str) -> str:
+    """``text`` with control characters and line separators escaped (\\n, \\x85, \\u2028...), so that
+    a message stays one line whatever the file names and file contents it quotes hold."""
+    return "".join(ch.encode("unicode_escape").decode("ascii") if unicodedata.category(ch) in ("Cc", "Zl", "Zp")
+                   else ch for ch in text)
+
+
 def _fail(message: str, status: int, stderr: TextIO) -> int:
-    print(f"{PROG}: error: {message}", file=stderr)
+    print(f"{PROG}: error: {one_line(message)}", file=stderr)
     return status
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status."""
-    from .errors import SceneError
+    """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status.
 
-    stderr = sys.stderr
-    argv = sys.argv[1:] if argv is None else list(argv)
+    ``argv`` None means "the program": SIGINT and SIGTERM handling is installed first and stays
+    (a signal after the status is decided is ignored). With an explicit ``argv`` (tests, scripts)
+    the caller's handlers are restored on return.
+    """
+    previous = install_cli_handlers()
+    try:
+        status = _main(sys.argv[1:] if argv is None else list(argv), sys.stderr)
+        late = cli_interruption()
+        if late is not None and status not in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+            # a signal whose exception some library swallowed just before the end: still report it
+            status = _report(late, sys.stderr)
+        return status
+    finally:
+        finish_cli_handlers(previous, program=argv is None)
+
+
+def _main(argv: list[str], stderr: TextIO) -> int:
     try:
         opts = parse_args(argv)
         if opts.action == "help":
@@ -372,20 +449,27 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{PROG} {__version__}")
             return EXIT_OK
         return run(opts, stderr=stderr)
-    except UsageError as err:
+    except BaseException as err:        # every failure ends as one line and an exit status
+        return _report(err, stderr)
+
+
+def _report(err: BaseException, stderr: TextIO) -> int:
+    from .errors import SceneError
+
+    signal_err = err if isinstance(err, KeyboardInterrupt) else cli_interruption()
+    if signal_err is not None:          # Ctrl-C (SIGINT) or SIGTERM, wherever it arrived
+        print(interruption_line(signal_err, PROG), file=stderr)
+        return exit_status(signal_err)
+    if isinstance(err, UsageError):
         return _fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
-    except (RunError, SceneError) as err:
+    if isinstance(err, (RunError, SceneError)):
         return _fail(str(err), EXIT_FAILURE, stderr)
-    except KeyboardInterrupt:
-        print(f"\n{PROG}: interrupted", file=stderr)
-        return EXIT_INTERRUPTED
-    except MemoryError:
+    if isinstance(err, MemoryError):
         return _fail("out of memory: try a smaller -res or fewer --threads", EXIT_FAILURE, stderr)
-    except OSError as err:
+    if isinstance(err, OSError):
         where = f" {err.filename!r}" if err.filename else ""
         return _fail(f"{err.strerror or err}{where}", EXIT_FAILURE, stderr)
-    except Exception as err:  # a bug: still one line, with a way to see the traceback
-        if os.environ.get("WARP_SPT_TRACEBACK"):
-            raise
-        return _fail(f"internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
-                     EXIT_FAILURE, stderr)
+    if not isinstance(err, Exception) or os.environ.get("WARP_SPT_TRACEBACK"):
+        raise err                       # SystemExit and the like; or a bug with its traceback asked for
+    return _fail(f"internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
+                 EXIT_FAILURE, stderr)

@@ -137,10 +137,10 @@ class SceneCache(WorkerPlugin):
         self.__init__(state["size"])
 
     def setup(self, worker) -> None:
-        """Keep Warp's banner and module-load lines off the worker's stdout (a CLI's stdout stays clean)."""
-        import warp as wp
+        """Initialise Warp quietly (no banner or module-load lines on the worker's stdout)."""
+        from .warp_runtime import init_warp
 
-        wp.config.log_level = wp.LOG_WARNING
+        init_warp()
 
     def device_scene(self, key: str, scene: Scene):
         """The uploaded scene for ``key``, uploading ``scene`` on first use.

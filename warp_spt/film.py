@@ -14,6 +14,8 @@ the standard sRGB transfer function. File formats by extension: ``.png`` (8-bit,
 
 from __future__ import annotations
 
+import errno
+import io
 import os
 import uuid
 from pathlib import Path
@@ -159,24 +161,61 @@ def tonemap_srgb(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], None]) -> None:
-    """Call ``write(f)`` on a temporary file next to ``path``, then rename it over ``path``.
+    """Call ``write(f)`` on an in-memory buffer, then write it to a temporary file next to ``path``
+    and rename that over ``path``.
 
     On any exception (KeyboardInterrupt included) the temporary file is removed and ``path`` is
-    untouched, so a failed write never leaves a partial file or clobbers an existing one.
+    untouched, so a failed write never leaves a partial file or clobbers an existing one. SIGINT and
+    SIGTERM are held while the file is written and renamed (see :func:`warp_spt.signals.deferred_signals`),
+    so a signal can never land in the middle of the cleanup. A symbolic link at ``path`` is written
+    through (its target is replaced, the link stays); an existing ``path`` that is not a regular
+    file (a device, a FIFO, a directory) is refused. Failures raise OSError whose message names
+    ``path`` and the reason, e.g. "cannot write out.png: no space left on device".
     """
-    target = Path(path)
-    tmp = target.with_name(f".{target.name}.{uuid.uuid4().hex}.tmp")
-    try:
-        # os.open with mode 0o666 lets the umask decide the permissions, as for a plain open()
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    from .signals import deferred_signals
+
+    target = _output_target(Path(path))
+    buffer = io.BytesIO()
+    write(buffer)            # encode first: only OS errors can happen below, and they carry an errno
+    data = buffer.getbuffer()
+    with deferred_signals():
+        tmp = target.with_name(f".{target.name}.{uuid.uuid4().hex}.tmp")
+        try:
+            # os.open with mode 0o666 lets the umask decide the permissions, as for a plain open()
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+            try:
+                _write_all(fd, data)
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            os.replace(tmp, target)
+        except BaseException as err:
+            tmp.unlink(missing_ok=True)
+            if isinstance(err, OSError):
+                raise _cannot_write(path, err) from None
+            raise
+
+
+def _output_target(path: Path) -> Path:
+    """The file to replace: a symlink's target (write-through); anything but a regular file is refused."""
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
+    if path.exists() and not path.is_file():
+        raise OSError(errno.EINVAL, f"cannot write {path}: it exists and is not a regular file")
+    return path
+
+
+def _write_all(fd: int, data: memoryview) -> None:
+    view = memoryview(data).cast("B")
+    while view:
+        n = os.write(fd, view)
+        view = view[n:]
+
+
+def _cannot_write(path, err: OSError) -> OSError:
+    reason = err.strerror or str(err)
+    reason = reason[:1].lower() + reason[1:]
+    return OSError(err.errno, f"cannot write {path}: {reason}")
 
 
 def _check_rgb(img: np.ndarray) -> np.ndarray:

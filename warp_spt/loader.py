@@ -11,7 +11,9 @@ and ONE warning per name.
 The material table holds row 0 (the built-in checker) and the materials that some triangle or
 sphere uses, in order of first use. Textures are read only for those materials (so an MTL whose
 unused materials name absent textures still loads), once per resolved file, as RGB float32 =
-8-bit value / 255 (no sRGB decoding, alpha ignored, as the seed), row 0 = the image's top row.
+8-bit value / 255 or 16-bit value / 65535 (no sRGB decoding, alpha ignored, as the seed), row 0 =
+the image's top row. Every texture, and the atlas they share, must fit the texel budget
+(:data:`warp_spt.atlas_layout.TEXEL_BUDGET`).
 A texture path is tried relative to its MTL file's folder, then to the working directory;
 ``\\`` is read as ``/``.
 
@@ -29,11 +31,13 @@ from typing import Callable, Iterable
 import numpy as np
 from PIL import Image
 
+from .atlas_layout import TEXEL_BUDGET, atlas_problem
 from .errors import SceneError
 from .mtl import builtin_checker, load_mtl
 from .obj import load_obj
 from .scene import (CHECKER_NAME, SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, TEX_CHECKER,
                     TEX_NONE, Material, MaterialTable, MeshData, ObjData, Scene, TextureRef)
+from .tokens import file_problem
 from .validate import validate_scene
 
 __all__ = ["load_scene", "validate_scene"]
@@ -63,9 +67,10 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         (warn or _default_warn)(message)
 
     data = [p if isinstance(p, ObjData) else load_obj(p) for p in objs]   # parsed ones: OBJ sequences
+    _require_geometry(data)
     library = _read_materials(data, [str(p) for p in mtls], note)
     table_rows, obj_rows = _assign_rows(data, library, note)
-    textures = _TextureCache()
+    textures = _TextureCache(note)
     scene = Scene(
         meshes=[_mesh(d, rows, note) for d, rows in zip(data, obj_rows) if len(d.faces)],
         spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float32),
@@ -83,19 +88,41 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     return scene
 
 
+def _require_geometry(data: list[ObjData]) -> None:
+    """A scene with nothing to draw is an error that names every OBJ file and says why."""
+    if any(len(d.faces) or len(d.spheres) for d in data):
+        return
+    if not data:
+        raise SceneError(None, 0, "the scene has no geometry: no OBJ files were given")
+    reasons = []
+    for d in data:
+        if d.dropped_degenerate:
+            why = f"all {d.dropped_degenerate} triangles have zero area"
+        elif len(d.positions):
+            why = f"{len(d.positions)} 'v' lines but no faces ('f') or spheres ('b')"
+        else:
+            why = "no 'v', 'f' or 'b' lines (the file is empty or holds only comments and ignored statements)"
+        reasons.append(f"{d.path}: {why}")
+    raise SceneError(data[0].path, 0, "the scene has no geometry: " + "; ".join(
+        [reasons[0].split(": ", 1)[1]] + reasons[1:]))
+
+
 def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[str, Material]:
     """{name: Material}: existing mtllib files first, then the explicit files (which win)."""
     library: dict[str, Material] = {}
     seen: set[str] = set()
     for d in data:
-        for lib in d.mtllibs:
+        for lib, line in zip(d.mtllibs, d.mtllib_lines or [0] * len(d.mtllibs)):
             if lib in seen:
                 continue
             seen.add(lib)
-            if Path(lib).is_file():
+            problem = file_problem(lib)
+            if problem is None:
                 library.update(load_mtl(lib))
             else:
-                note(f"{d.path}: mtllib {lib} not found; its materials are not loaded")
+                where = f"{d.path}:{line}" if line else d.path
+                why = "not found" if problem == "no such file or directory" else f"cannot be read ({problem})"
+                note(f"{where}: mtllib {lib} {why}; its materials are not loaded")
     for path in mtls:
         library.update(load_mtl(path))
     if CHECKER_NAME in library:
@@ -168,39 +195,79 @@ def _corner_normals(d: ObjData, note: WarnFn) -> np.ndarray | None:
 
 
 class _TextureCache:
-    """Images read once per resolved path, in the order first needed."""
+    """Images read once per resolved path, in the order first needed, within the texel budget."""
 
-    def __init__(self) -> None:
+    def __init__(self, note: WarnFn) -> None:
         self.images: list[np.ndarray] = []
+        self.refs: list[TextureRef] = []
         self._index: dict[str, int] = {}
+        self._note = note
 
     def index(self, ref: TextureRef) -> int:
         path = _find_texture(ref)
         if path not in self._index:
             self._index[path] = len(self.images)
-            self.images.append(_read_image(path, ref))
+            self.images.append(_read_image(path, ref, self._note))
+            self.refs.append(ref)
+            self._check_atlas()
         return self._index[path]
+
+    def _check_atlas(self) -> None:
+        names = [f"{r.path} ({r.mtl_file}:{r.line})" for r in self.refs]
+        problem = atlas_problem([im.shape[:2] for im in self.images], names)
+        if problem:
+            ref = self.refs[-1]
+            raise SceneError(ref.mtl_file, ref.line, problem)
 
 
 def _find_texture(ref: TextureRef) -> str:
     """The first existing candidate: relative to the MTL's folder, then to the working directory."""
     name = ref.path.replace("\\", "/")
     candidates = [Path(name)] if Path(name).is_absolute() else [Path(ref.mtl_file).parent / name, Path.cwd() / name]
+    problems = []
     for c in candidates:
-        if c.is_file():
+        problem = file_problem(c)
+        if problem is None:
             return str(c.resolve())
-    tried = ", ".join(str(c) for c in candidates)
-    raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} not found (tried {tried})")
+        problems.append(f"{c}: {problem}")
+    raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} cannot be read ({'; '.join(problems)})")
 
 
-def _read_image(path: str, ref: TextureRef) -> np.ndarray:
-    """(H, W, 3) float32 in [0, 1], row 0 at the top."""
+def _read_image(path: str, ref: TextureRef, note: WarnFn) -> np.ndarray:
+    """(H, W, 3) float32 in [0, 1], row 0 at the top; 8-bit values / 255, 16-bit values / 65535.
+
+    The size is checked against the texel budget from the header, before anything is decoded.
+    Pillow's own warnings become one-line notes naming the MTL line; its decompression-bomb check is
+    replaced by the budget.
+    """
     try:
-        with Image.open(path) as img:
-            rgb = np.asarray(img.convert("RGB"), dtype=np.float32)
+        with _warnings.catch_warnings(record=True) as caught:
+            _warnings.simplefilter("always")
+            with Image.open(path) as img:
+                w, h = img.size
+                if w * h > TEXEL_BUDGET:
+                    raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "
+                                     f"than the budget of {TEXEL_BUDGET:,} (8192x8192); downsample it")
+                rgb = _to_rgb(img)
     except (OSError, ValueError, Image.DecompressionBombError) as err:
+        if isinstance(err, SceneError):
+            raise
         raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {err}") from None
-    return rgb / np.float32(255.0)
+    for w in caught:
+        if not issubclass(w.category, Image.DecompressionBombWarning):
+            note(f"{ref.mtl_file}:{ref.line}: texture {path}: {w.message}")
+    return rgb
+
+
+def _to_rgb(img: Image.Image) -> np.ndarray:
+    """Float32 RGB in [0, 1]: 16-bit and 32-bit integer grey scaled by 65535, float grey clipped."""
+    if img.mode.startswith("I;16") or img.mode == "I":
+        grey = np.clip(np.asarray(img, dtype=np.float64) / 65535.0, 0.0, 1.0).astype(np.float32)
+        return np.repeat(grey[:, :, None], 3, axis=2)
+    if img.mode == "F":
+        grey = np.clip(np.nan_to_num(np.asarray(img, dtype=np.float32)), 0.0, 1.0)
+        return np.repeat(grey[:, :, None], 3, axis=2)
+    return np.asarray(img.convert("RGB"), dtype=np.float32) / np.float32(255.0)
 
 
 def _table(rows: list[Material], textures: _TextureCache) -> MaterialTable:

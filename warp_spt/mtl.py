@@ -35,8 +35,9 @@ Standard tags mapped onto the same model:
 
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.loader.load_scene`, and only for materials that geometry uses.
-Bad values (a non-number, NaN, a negative colour, a roughness outside [0, 1], an IOR <= 0, an
-opacity outside [0, 1]) raise :class:`SceneError` with the file and line.
+Bad values (a non-number, NaN, a reflectance colour outside [0, 1], an emission above 1e30, a
+roughness outside [0, 1], an IOR outside [0.001, 1000], an opacity outside [0, 1]) raise
+:class:`SceneError` with the file and line.
 """
 
 from __future__ import annotations
@@ -44,9 +45,12 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from .errors import SceneError
 from .scene import CHECKER_NAME, Material, TextureRef
-from .tokens import decode_name, iter_lines, parse_floats, parse_int, read_file
+from .tokens import decode_name, iter_lines, normalise_text, parse_floats, parse_int, read_file
+from .validate import MAX_IOR, MAX_RADIANCE, MIN_IOR
 
 # Texture options and how many values follow them; (1, 3) means one to three numbers.
 _TEX_OPTIONS = {
@@ -97,6 +101,7 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>") -> dict[str, Material]:
     """Parse MTL text given as bytes; ``path`` names it in errors and in :class:`TextureRef`."""
     out: dict[str, Material] = {}
     draft: _Draft | None = None
+    data = normalise_text(data, path, "MTL")
     for lineno, toks in iter_lines(data):
         tag = toks[0].decode("latin-1").lower()
         if tag == "newmtl":
@@ -118,8 +123,11 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     m = d.mat
     if tag in _COLOUR_SLOTS:
         rgb = parse_floats(args, (1, 3), path, lineno, name)
-        if min(rgb) < 0:
-            raise SceneError(path, lineno, f"expected colour values >= 0 after '{name}', got {min(rgb):g}")
+        high = MAX_RADIANCE if _COLOUR_SLOTS[tag] == ("emission",) else 1.0
+        if min(rgb) < 0 or max(rgb) > high:
+            why = "" if high == MAX_RADIANCE else " (a surface cannot reflect more light than it receives)"
+            bad = min(rgb) if min(rgb) < 0 else max(rgb)
+            raise SceneError(path, lineno, f"expected colour values in [0, {high:g}] after '{name}', got {bad:g}{why}")
         colour = (rgb[0],) * 3 if len(rgb) == 1 else tuple(rgb)
         for slot in _COLOUR_SLOTS[tag]:
             setattr(m, slot, colour)
@@ -135,7 +143,7 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         m.fuzz = _number(args, path, lineno, name, lo=0.0)
         d.explicit.add("fuzz")
     elif tag in ("kn", "ni"):
-        m.ior = _number(args, path, lineno, name, lo=0.0, open_lo=True)
+        m.ior = _number(args, path, lineno, name, lo=MIN_IOR, hi=MAX_IOR)
     elif tag == "refractable":
         m.refractable = True
         d.explicit.add("refractable")
@@ -153,7 +161,8 @@ def _number(args: list[bytes], path: str, lineno: int, tag: str, *, lo: float, h
             open_lo: bool = False) -> float:
     """One number in [lo, hi] (or (lo, hi] with ``open_lo``)."""
     value = parse_floats(args, (1,), path, lineno, tag)[0]
-    if value < lo or (open_lo and value == lo) or (hi is not None and value > hi):
+    v32 = float(np.float32(value))      # checked as the kernel will see it: 1e-46 is 0 in float32
+    if v32 < lo or value < lo or (open_lo and v32 == lo) or (hi is not None and v32 > hi):
         low = f"> {lo:g}" if open_lo else f">= {lo:g}"
         want = f"in [{lo:g}, {hi:g}]" if hi is not None else low
         raise SceneError(path, lineno, f"expected a value {want} after '{tag}', got {value:g}")

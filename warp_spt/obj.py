@@ -34,7 +34,11 @@ import numpy as np
 
 from .errors import SceneError
 from .scene import CHECKER_NAME, ObjData
-from .tokens import decode_name, iter_lines, parse_float, parse_floats, parse_int, read_file, show
+# Geometry within +-MAX_COORDINATE: the ray-triangle test forms products of two coordinates in float32
+# (1e30, far below 3.4e38) and a sphere's box must be finite in float32.
+from .validate import MAX_COORDINATE
+from .tokens import (decode_name, is_regular_file, iter_lines, normalise_text, parse_float, parse_floats,
+                     parse_int, read_file, show)
 
 # How many numbers each vertex statement takes (the first 3, or 2 for vt, are kept).
 V_COUNTS = (3, 4, 6)
@@ -66,7 +70,7 @@ class RawObj:
     spheres: np.ndarray     # (S, 4) float32
     sphere_line: np.ndarray
     usemtl: list[tuple[int, str]]
-    mtllib: list[list[bytes]]
+    mtllib: list[tuple[int, list[bytes]]]
 
 
 @dataclass
@@ -86,7 +90,7 @@ class LineReader:
     spheres: list[float] = field(default_factory=list)
     sphere_line: list[int] = field(default_factory=list)
     usemtl: list[tuple[int, str]] = field(default_factory=list)
-    mtllib: list[list[bytes]] = field(default_factory=list)
+    mtllib: list[tuple[int, list[bytes]]] = field(default_factory=list)   # (line, file name tokens)
 
     def statement(self, lineno: int, toks: list[bytes]) -> None:
         """Read one line's tokens (comment already stripped)."""
@@ -110,7 +114,7 @@ class LineReader:
                 raise SceneError(self.path, lineno, "expected a material name after 'usemtl'")
             self.usemtl.append((lineno, decode_name(args)))
         elif tag == b"mtllib" and args:
-            self.mtllib.append(args)
+            self.mtllib.append((lineno, args))
 
     def _face(self, lineno: int, args: list[bytes]) -> None:
         if len(args) < 3:
@@ -191,6 +195,7 @@ def parse_obj_bytes(data: bytes, path: str = "<input>", *, fast: bool = True) ->
     """
     from .obj_fast import scan_bulk  # the vectorised scanner builds on this module's grammar
 
+    data = normalise_text(data, path, "OBJ")
     raw = scan_bulk(data, path) if fast else None
     if raw is None:
         raw = scan_lines(data, path)
@@ -199,6 +204,9 @@ def parse_obj_bytes(data: bytes, path: str = "<input>", *, fast: bool = True) ->
 
 def resolve(raw: RawObj, path: str) -> ObjData:
     """Resolve indices and materials, triangulate polygons and drop zero-area triangles."""
+    _check_extent(raw.positions, raw.v_line, path, "vertex coordinate")
+    sphere_box = np.abs(raw.spheres[:, :3].astype(np.float64)) + raw.spheres[:, 3:4].astype(np.float64)
+    _check_extent(sphere_box, raw.sphere_line, path, "sphere (|centre| + radius)")
     corner_line = np.repeat(raw.poly_line, raw.poly_size)
     cv = _resolve_index(raw.corner_v, raw.v_line, corner_line, "v", path)
     ct = _resolve_index(raw.corner_vt, raw.vt_line, corner_line, "vt", path)
@@ -210,6 +218,7 @@ def resolve(raw: RawObj, path: str) -> ObjData:
     names, lines, event_index = _material_names(raw.usemtl)
     face_mat = _material_at(raw.usemtl, event_index, tri_line[keep])
     sphere_mat = _material_at(raw.usemtl, event_index, raw.sphere_line)
+    libs = _mtllib_paths(raw.mtllib, path)
     return ObjData(
         path=path,
         positions=raw.positions, texcoords=raw.texcoords, normals=raw.normals,
@@ -217,9 +226,20 @@ def resolve(raw: RawObj, path: str) -> ObjData:
         face_material=face_mat,
         spheres=raw.spheres, sphere_material=sphere_mat,
         material_names=names, material_lines=lines,
-        mtllibs=_mtllib_paths(raw.mtllib, path),
+        mtllibs=[p for p, _ in libs], mtllib_lines=[ln for _, ln in libs],
         dropped_degenerate=int(len(keep) - np.count_nonzero(keep)),
     )
+
+
+def _check_extent(values: np.ndarray, lines: np.ndarray, path: str, what: str) -> None:
+    """Every coordinate within +-MAX_COORDINATE (so the kernel's products stay finite in float32)."""
+    if len(values) == 0:
+        return
+    bad = np.abs(values.astype(np.float64)).max(axis=1) > MAX_COORDINATE
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise SceneError(path, int(lines[k]), f"{what} {np.abs(values[k]).max():g} is beyond the supported "
+                                              f"range of +-{MAX_COORDINATE:g}")
 
 
 def _resolve_index(raw: np.ndarray, ref_line: np.ndarray, corner_line: np.ndarray, kind: str, path: str) -> np.ndarray:
@@ -287,18 +307,18 @@ def _material_at(usemtl: list[tuple[int, str]], event_index: np.ndarray, lines: 
     return np.where(k >= 0, event_index[np.maximum(k, 0)], 0).astype(np.int32)
 
 
-def _mtllib_paths(args_list: list[list[bytes]], obj_path: str) -> list[str]:
-    """MTL paths of the ``mtllib`` lines, relative to the OBJ's folder, ``\\`` read as ``/``.
+def _mtllib_paths(args_list: list[tuple[int, list[bytes]]], obj_path: str) -> list[tuple[str, int]]:
+    """(MTL path, line) of the ``mtllib`` lines, relative to the OBJ's folder, ``\\`` read as ``/``.
 
     A line names several files separated by spaces, unless the whole rest of the line names an
     existing file (a file name with spaces).
     """
     base = Path(obj_path).parent
-    out: list[str] = []
-    for args in args_list:
+    out: list[tuple[str, int]] = []
+    for lineno, args in args_list:
         whole = base / decode_name(args).replace("\\", "/")
-        names = [whole] if whole.is_file() else [base / decode_name([a]).replace("\\", "/") for a in args]
-        out += [str(p) for p in names if str(p) not in out]
+        names = [whole] if is_regular_file(whole) else [base / decode_name([a]).replace("\\", "/") for a in args]
+        out += [(str(p), lineno) for p in names if str(p) not in (q for q, _ in out)]
     return out
 
 

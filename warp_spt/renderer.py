@@ -8,9 +8,6 @@ PASS_SAMPLES in sample order), so the image depends only on the seed, never on t
 from __future__ import annotations
 
 import os
-import queue
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable
 
@@ -21,6 +18,7 @@ from .camera import Camera
 from .device_scene import DeviceScene, Features
 from .film import Film
 from .integrator import camera_params, get_kernel
+from .parallel import run_jobs
 from .scene import Scene
 from .sky import Sky
 
@@ -106,10 +104,7 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
     sky_kind, sky_color = int(sky.kind), wp.vec3(*sky.color)
     seed32, bilinear = wp.uint32(seed & 0xFFFFFFFF), int(texture_filter == "bilinear")
 
-    stop = threading.Event()
-    done_q: queue.Queue[int] = queue.Queue()
-
-    def work(tile: tuple[int, int]) -> None:
+    def work(tile: tuple[int, int], stop, done) -> None:
         lo, hi = tile
         for s0 in range(0, spp, per_pass):
             if stop.is_set():
@@ -118,24 +113,11 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
                 dev.arrays, cam, width, lo, sample_offset + s0, count, max_depth, sky_kind, sky_color,
                 seed32, bilinear, film, counters])
-            done_q.put(count * (hi - lo))
+            done(count * (hi - lo))
 
     report = _progress_reporter(progress, n * spp)
     try:
-        if nthreads == 1:
-            for t in tiles:
-                work(t)
-                _drain(done_q, report)
-        else:
-            with ThreadPoolExecutor(max_workers=nthreads) as pool:
-                futures = [pool.submit(work, t) for t in tiles]
-                try:
-                    _wait(futures, done_q, report)
-                except BaseException:
-                    stop.set()      # let running launches finish, start no more
-                    for f in futures:
-                        f.cancel()
-                    raise
+        run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
     finally:
         report(None)
     c = counters.numpy().sum(axis=0)
@@ -177,33 +159,3 @@ def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int
             state["done"] += inc
             progress(state["done"], total)
     return report
-
-
-def _drain(q: queue.Queue, report: Callable[[int | None], None]) -> None:
-    inc = 0
-    while True:
-        try:
-            inc += q.get_nowait()
-        except queue.Empty:
-            break
-    if inc:
-        report(inc)
-
-
-def _wait(futures, q: queue.Queue, report) -> None:
-    """Wait for every tile (unlike the seed, Q7), reporting progress from this thread."""
-    pending = list(futures)
-    while pending:
-        try:
-            report(q.get(timeout=0.1))
-        except queue.Empty:
-            pass
-        _drain(q, report)
-        still = []
-        for f in pending:
-            if f.done():
-                f.result()          # re-raise a worker's exception here
-            else:
-                still.append(f)
-        pending = still
-    _drain(q, report)

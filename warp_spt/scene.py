@@ -74,6 +74,7 @@ class ObjData:
     material_names: list[str]    # names used by usemtl; index 0 is always CHECKER_NAME (the default)
     material_lines: list[int]    # line of the first usemtl naming each entry (0 for the default)
     mtllibs: list[str] = field(default_factory=list)  # mtllib paths resolved relative to the OBJ
+    mtllib_lines: list[int] = field(default_factory=list)  # the line naming each of them
     dropped_degenerate: int = 0  # zero-area triangles dropped while parsing
 
 

@@ -19,11 +19,15 @@ repeat wrap inside the tile, so it never bleeds into a neighbouring tile of the 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
+
+from .atlas_layout import shelf_layout
+from .warp_runtime import init_warp
+
+init_warp()   # every Warp path imports this module: initialise quietly (see warp_runtime)
 
 MAX_ATLAS_TEXELS = 2**31 - 1      # Warp indexes 2-D arrays with int32 strides of texels
 COORD_LIMIT = float(2**30)        # |c * n| is clamped here before converting to int (see above)
@@ -60,35 +64,15 @@ def _check_values(k: int, img: np.ndarray) -> np.ndarray:
     return a
 
 
-def _shelf_layout(sizes: list[tuple[int, int]]) -> tuple[np.ndarray, int, int]:
-    """Place (h, w) rectangles on shelves; return (T, 4) (x0, y0, w, h), atlas width, atlas height.
-
-    Tallest first, left to right; a new shelf opens when the next one does not fit the width, which
-    is about sqrt(total area) but never less than the widest texture.
-    """
-    area = sum(h * w for h, w in sizes)
-    width = max(max(w for _, w in sizes), math.isqrt(area - 1) + 1 if area > 0 else 1)
-    tiles = np.zeros((len(sizes), 4), dtype=np.int64)
-    x = y = shelf_h = 0
-    for k in sorted(range(len(sizes)), key=lambda i: (-sizes[i][0], -sizes[i][1], i)):
-        h, w = sizes[k]
-        if x + w > width:
-            x, y, shelf_h = 0, y + shelf_h, 0
-        tiles[k] = (x, y, w, h)
-        x += w
-        shelf_h = max(shelf_h, h)
-    return tiles, width, y + shelf_h
-
-
 def pack_atlas(textures: list[np.ndarray]) -> Atlas:
-    """Pack (H, W, 3) images into one float32 atlas by shelf packing. See :class:`Atlas`.
+    """Pack (H, W, 3) images into one float32 atlas by shelf packing (:mod:`warp_spt.atlas_layout`).
 
     Raises ValueError for malformed images or an atlas of more than MAX_ATLAS_TEXELS texels.
     """
     if not textures:
         return Atlas(np.zeros((1, 1, 3), dtype=np.float32), np.array([[0, 0, 1, 1]], dtype=np.int32))
     sizes = [_check_shape(k, t) for k, t in enumerate(textures)]
-    tiles, width, height = _shelf_layout(sizes)
+    tiles, width, height = shelf_layout(sizes)
     if width * height > MAX_ATLAS_TEXELS:      # checked before touching any texel or allocating
         listed = ", ".join(f"{w}x{h}" for h, w in sizes)
         raise ValueError(

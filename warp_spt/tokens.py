@@ -1,7 +1,7 @@
 """Lexical rules shared by the OBJ and MTL readers: lines, tokens, numbers and names.
 
-Both formats are read as bytes. A line ends at ``\\n`` (a trailing ``\\r`` is whitespace, so CRLF
-files read the same); tokens are separated by runs of ASCII whitespace (space, tab, CR, VT, FF).
+Both formats are read as bytes. A line ends at ``\\n``, ``\\r\\n`` or a lone ``\\r`` (classic Mac
+OS files); tokens are separated by runs of ASCII whitespace (space, tab, CR, VT, FF).
 A token that starts with ``#`` starts a comment that runs to the end of the line, so
 ``usemtl Mat#1`` keeps its name while ``v 1 2 3 # note`` loses the note. Names are decoded as
 UTF-8, or as Latin-1 when they are not valid UTF-8 (older exporters), the same way in both
@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import re
+import stat
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -93,10 +95,97 @@ def parse_int(tok: bytes, path: str, lineno: int, what: str) -> int:
     return int(tok)
 
 
-def read_file(path: str, kind: str) -> bytes:
-    """The whole file as bytes (read once), or a SceneError naming it."""
+# Bounds on what a scene file may hold before it is refused with a clear error (docs/limits.md).
+MAX_FILE_BYTES = 2 << 30          # 2 GiB: an OBJ of about 20 million triangles
+MAX_LINE_BYTES = 1 << 20          # 1 MiB: a polygon of ~100,000 corners; no real line needs more
+
+_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def describe_special(mode: int) -> str | None:
+    """What a non-regular file is ("a FIFO (named pipe)"...), or None for a regular file."""
+    if stat.S_ISREG(mode):
+        return None
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
+def file_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why ``path`` cannot be read as a scene file ("no such file", "it is a FIFO"...), or None.
+
+    Never raises and never opens the file (so a FIFO cannot block).
+    """
     try:
-        with open(path, "rb") as f:
-            return f.read()
-    except OSError as err:
-        raise SceneError(path, 0, f"cannot read {kind} file: {err.strerror or err}") from None
+        special = describe_special(os.stat(path).st_mode)
+    except (OSError, ValueError) as err:
+        return _reason(err)
+    return f"it is {special}, not a regular file" if special else None
+
+
+def is_regular_file(path: str | os.PathLike[str]) -> bool:
+    """Like Path.is_file, but False (never an exception) for names too long, NUL bytes and the like."""
+    return file_problem(path) is None
+
+
+def read_file(path: str, kind: str) -> bytes:
+    """The whole file as bytes (read once), or a SceneError naming it.
+
+    Only regular files are read (symbolic links are followed): a FIFO, a device such as
+    ``/dev/zero`` or a directory is refused before anything is read, so nothing can block or grow
+    without end. The file may hold at most MAX_FILE_BYTES, and no line more than MAX_LINE_BYTES.
+    """
+    try:
+        # O_NONBLOCK: opening a FIFO must not wait for a writer; regular files ignore the flag
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except (OSError, ValueError) as err:     # ValueError: a NUL byte in the name
+        raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
+    with os.fdopen(fd, "rb") as f:
+        special = describe_special(os.fstat(fd).st_mode)
+        if special:
+            raise SceneError(path, 0, f"cannot read {kind} file: it is {special}, not a regular file")
+        try:
+            data = f.read(MAX_FILE_BYTES + 1)
+        except OSError as err:
+            raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise SceneError(path, 0, f"{kind} file is larger than the {MAX_FILE_BYTES >> 30} GiB limit")
+    return data
+
+
+def _reason(err: BaseException) -> str:
+    text = getattr(err, "strerror", None) or str(err)
+    return text[:1].lower() + text[1:]
+
+
+def normalise_text(data: bytes, path: str, kind: str) -> bytes:
+    """Check that ``data`` is OBJ/MTL text and give every line a ``\\n`` end.
+
+    ``\\r\\n`` and a lone ``\\r`` become ``\\n`` (line numbers are those an editor shows). UTF-16
+    text, NUL bytes (binary data, e.g. an image given as OBJ) and lines longer than MAX_LINE_BYTES
+    are SceneErrors naming the file and line.
+    """
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise SceneError(path, 1, f"UTF-16 text is not supported: save the {kind} file as UTF-8 or ASCII")
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if data.startswith(b"\x89PNG"):
+        raise SceneError(path, 1, f"not {kind} text: a PNG image")
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        looks_utf16 = b"\x00" in (data[:1], data[1:2])      # UTF-16 without a byte-order mark
+        utf16 = " (UTF-16 text is not supported: save it as UTF-8)" if looks_utf16 else ""
+        raise SceneError(path, data.count(b"\n", 0, nul) + 1, f"not {kind} text: binary data (a NUL byte){utf16}")
+    _check_line_lengths(data, path)
+    return data
+
+
+def _check_line_lengths(data: bytes, path: str) -> None:
+    if len(data) <= MAX_LINE_BYTES:
+        return
+    ends = np.flatnonzero(np.frombuffer(data, np.uint8) == 10)
+    bounds = np.concatenate([[-1], ends, [len(data)]])
+    lengths = np.diff(bounds) - 1
+    k = int(np.argmax(lengths))
+    if lengths[k] > MAX_LINE_BYTES:
+        raise SceneError(path, k + 1, f"line of {int(lengths[k]):,} bytes is longer than the "
+                                      f"{MAX_LINE_BYTES >> 20} MiB limit")

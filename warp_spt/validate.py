@@ -14,6 +14,19 @@ from .scene import CHECKER_NAME, TEX_CHECKER, TEX_NONE, MaterialTable, MeshData,
 
 _WHERE = "<scene>"
 
+# Bounds on the values that reach a kernel, chosen so that every product the kernel forms stays
+# finite in float32 (docs/limits.md, "Values"):
+# * reflectance colours (diffuse, reflect, refract) lie in [0, 1], so the path throughput never
+#   grows; a surface cannot return more light than it receives;
+# * emission and sky radiance are at most MAX_RADIANCE, so one sample's radiance, at most
+#   MAX_DEPTH x MAX_RADIANCE x max(1, texture) = 4.1e33, stays far below float32's 3.4e38;
+# * the index of refraction lies in [MIN_IOR, MAX_IOR]: 1/ior and Schlick's terms stay finite;
+# * camera and geometry coordinates stay within +-MAX_COORDINATE (see warp_spt.obj).
+MAX_RADIANCE = 1e30
+MIN_IOR, MAX_IOR = 1e-3, 1e3
+MAX_COORDINATE = 1e15
+MIN_FOCUS = 1e-9
+
 
 def _fail(message: str) -> None:
     raise SceneError(_WHERE, 0, message)
@@ -55,9 +68,10 @@ def _check_materials(t: MaterialTable, n_textures: int) -> None:
     m = len(t.names)
     if m == 0 or t.names[0] != CHECKER_NAME:
         _fail(f"materials row 0 must be {CHECKER_NAME}")
-    for field in ("diffuse", "reflect", "refract", "emission"):
-        if (_check_array(getattr(t, field), f"materials.{field}", np.float32, (m, 3)) < 0).any():
-            _fail(f"materials.{field} holds negative values")
+    for field, high in (("diffuse", 1.0), ("reflect", 1.0), ("refract", 1.0), ("emission", MAX_RADIANCE)):
+        a = _check_array(getattr(t, field), f"materials.{field}", np.float32, (m, 3))
+        if ((a < 0) | (a > high)).any():
+            _fail(f"materials.{field} must lie in [0, {high:g}]")
     tex = _check_array(t.tex, "materials.tex", np.int32, (m, 4))
     if ((tex < 0) & (tex != TEX_NONE) & (tex != TEX_CHECKER)).any() or (tex >= n_textures).any():
         _fail(f"materials.tex holds slots that are neither TEX_NONE, TEX_CHECKER nor a texture in [0, {n_textures})")
@@ -66,8 +80,9 @@ def _check_materials(t: MaterialTable, n_textures: int) -> None:
         _fail("materials.roughness must lie in [0, 1]")
     if (_check_array(t.fuzz, "materials.fuzz", np.float32, (m,)) < 0).any():
         _fail("materials.fuzz must be >= 0")
-    if (_check_array(t.ior, "materials.ior", np.float32, (m,)) <= 0).any():
-        _fail("materials.ior must be > 0")
+    ior = _check_array(t.ior, "materials.ior", np.float32, (m,))
+    if ((ior < MIN_IOR) | (ior > MAX_IOR)).any():
+        _fail(f"materials.ior must lie in [{MIN_IOR:g}, {MAX_IOR:g}]")
     _check_array(t.refractable, "materials.refractable", np.bool_, (m,))
 
 
@@ -94,3 +109,30 @@ def validate_scene(scene: Scene) -> None:
     _check_index(smat, "sphere_material", n_mat)
     if scene.num_triangles == 0 and len(spheres) == 0:
         _fail("the scene has no geometry: no triangles and no spheres")
+
+
+def camera_problem(position, direction, fov: float, focus: float, aperture: float) -> str | None:
+    """Why these camera values cannot be rendered exactly, or None (host-side check of what the
+    kernel's camera frame forms: a unit direction, focus x tan(fov/2), position + aperture offsets)."""
+    vals = [*position, *direction, fov, focus, aperture]
+    if not all(np.isfinite(v) for v in vals):
+        return "camera values must be finite numbers"
+    if max(abs(v) for v in position) > MAX_COORDINATE:
+        return f"camera position must lie within +-{MAX_COORDINATE:g}"
+    big = max(abs(v) for v in direction)
+    if not 1e-30 <= big <= MAX_COORDINATE:
+        return "camera view direction must be a vector with components between 1e-30 and 1e15 in size (not zero)"
+    if not 0.0 < fov < 180.0:
+        return f"camera fov must be in (0, 180) degrees, got {fov:g}"
+    if not MIN_FOCUS <= focus <= MAX_COORDINATE:
+        return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_COORDINATE:g}], got {focus:g}"
+    if not 0.0 <= aperture <= MAX_COORDINATE:
+        return f"camera aperture must lie in [0, {MAX_COORDINATE:g}], got {aperture:g}"
+    return None
+
+
+def sky_colour_problem(colour) -> str | None:
+    """Why a constant sky colour cannot be rendered exactly, or None."""
+    if not all(np.isfinite(v) and 0.0 <= v <= MAX_RADIANCE for v in colour):
+        return f"sky colour values must lie in [0, {MAX_RADIANCE:g}]"
+    return None

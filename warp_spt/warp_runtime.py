@@ -1,0 +1,69 @@
+"""Warp initialised once, quietly: no banner, no module-load lines, no missing-CUDA-driver line.
+
+On a machine without an NVIDIA driver, Warp's native library prints "Warp CUDA warning: Could not
+find or load the NVIDIA CUDA driver..." with C ``fprintf(stderr)`` while ``wp.init()`` runs, and
+Warp logs a banner and one line per loaded module at INFO level. For a CPU renderer that is noise.
+
+:func:`init_warp` runs ``wp.init()`` with file descriptor 2 pointed at a temporary file and then
+writes back to stderr every captured line except that one known warning, so a real native error
+still surfaces. It also lowers Warp's log level to warnings, unless the caller changed it already
+or asked for ``verbose`` (the CLI's ``--verbose``; ``WARP_SPT_VERBOSE=1`` for the API).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+
+# The one native line hidden by default (cuda_util.cpp, init_cuda_driver); matched by its start.
+_NO_DRIVER = b"Warp CUDA warning: Could not find or load the NVIDIA CUDA driver"
+
+_state = {"done": False}
+
+
+def init_warp(verbose: bool | None = None, *, quiet: bool = False) -> None:
+    """Initialise Warp (once per process); see the module docs.
+
+    ``verbose`` None reads ``WARP_SPT_VERBOSE``; ``quiet`` (the CLI's ``--quiet``) also hides
+    Warp's warnings.
+    """
+    if _state["done"] and verbose is None:      # an explicit earlier choice (the CLI's) stands
+        return
+    import warp as wp
+
+    if verbose is None:
+        verbose = os.environ.get("WARP_SPT_VERBOSE", "") not in ("", "0")
+    if not verbose and wp.config.log_level == wp.LOG_INFO:     # still Warp's default
+        wp.config.log_level = wp.LOG_WARNING
+    if quiet and not verbose:
+        wp.config.log_level = max(wp.config.log_level, wp.LOG_ERROR)
+    if _state["done"]:
+        return
+    if verbose:
+        wp.init()
+    else:
+        _init_capturing_stderr(wp)
+    _state["done"] = True
+
+
+def _init_capturing_stderr(wp) -> None:
+    """``wp.init()`` with fd 2 redirected; every captured line but the no-driver one is re-emitted."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):   # no usable fd 2 (embedded interpreters)
+        wp.init()
+        return
+    with tempfile.TemporaryFile() as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            capture.seek(0)
+            text = capture.read()
+            kept = b"".join(line for line in text.splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
+            if kept:
+                print(kept.decode("utf-8", "replace"), end="", file=sys.stderr)

@@ -66,3 +66,17 @@ def write_scene_files(folder: Path, name: str, obj: str, mtl: str | None = None)
         m.write_text(mtl)
         mtls.append(str(m))
     return [str(o)], mtls
+
+
+def write_ball_sequence(folder: Path, frames) -> tuple[list[str], list[str]]:
+    """A static room (``room.obj``) and one sphere file per frame (``ball_NN.obj``, moving along x).
+
+    Returns the OBJ list for an animation (static file, template) and the MTL list.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "room.obj").write_text(box_obj((-1, -1, -1), (1, 1, 1), "wall"))
+    for k in frames:
+        (folder / f"ball_{k:02d}.obj").write_text(f"usemtl lamp\nb {-0.5 + 0.1 * k:.3f} 0.2 -0.3 0.25\n")
+    (folder / "seq.mtl").write_text(material("wall", Kd=(0.7, 0.6, 0.5), Roughness=0.9)
+                                    + material("lamp", Kl=(6, 5, 4)))
+    return [str(folder / "room.obj"), str(folder / "ball_{frame:02d}.obj")], [str(folder / "seq.mtl")]

@@ -106,6 +106,18 @@ class Options:
     frame: bool = False              # --frame: always frame
     studio: bool = False
     default_material: str = "auto"
+    # Distribution and animation (warp_spt.cluster, warp_spt.animation)
+    cluster: str | None = None
+    workers: int | None = None
+    frames: range | None = None
+    camera_path: str | None = None
+    gif: str | None = None
+
+    @property
+    def animated(self) -> bool:
+        """Frames, a camera path, a GIF or an OBJ template were given: render an animation."""
+        from .animation import is_template
+        return bool(self.frames or self.camera_path or self.gif or any(is_template(p) for p in self.objs))
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -199,6 +211,14 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--sampler", metavar="NAME",
                      help="random numbers: independent (default) or sobol (Owen-scrambled Sobol')")
     _add_model_flags(p.add_argument_group("your own models"))
+    more = p.add_argument_group("clusters and animation")
+    more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
+    more.add_argument("--workers", type=_int_at_least(1, 1024), metavar="N",
+                      help="render on a local cluster of N worker processes")
+    more.add_argument("--frames", metavar="A:B[:STEP]", help="render frames A..B-1; -obj may name "
+                      "'wave_{frame:04d}.obj' and -out 'frame_{frame:04d}.png'")
+    more.add_argument("--camera-path", metavar="FILE", help="JSON camera keyframes, interpolated per frame")
+    more.add_argument("--gif", metavar="PATH", help="also write the frames as an animated GIF preview")
     return p
 
 
@@ -231,7 +251,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
     if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
         raise UsageError(f"-out {out!r}: the file name must end in .png, .jpg, .npy, .pfm or .exr")
     _check_exr(out)
-    return Options(
+    opts = Options(
         objs=tuple(ns.obj), mtls=tuple(ns.mtl), camera=_model_camera(ns),
         width=width, height=height,
         spp=ns.sr or (preset.spp if preset else DEFAULT_SPP),
@@ -243,6 +263,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, frame=ns.frame,
         studio=ns.studio, default_material=ns.default_material,
     )
+    from .animation import with_animation_options
+    return with_animation_options(opts, ns, explicit_out=ns.out is not None)
 
 
 def _reject_unknown_flags(argv: Sequence[str], parser: argparse.ArgumentParser) -> None:
@@ -515,6 +537,9 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
 def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     """Load, render and save as ``opts`` says. Errors propagate; :func:`main` reports them."""
     err = stderr or sys.stderr
+    if opts.animated or opts.cluster or opts.workers:
+        from .animation import run_cli
+        return run_cli(opts, err)
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))

@@ -61,9 +61,11 @@ def _default_warn(message: str) -> None:
 DEFAULT_MATERIALS = ("checker", "clay", "auto")
 
 
-def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None,
+def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None,
                default_material: str = "checker") -> Scene:
     """Read OBJ files (one object each) and MTL files into a validated :class:`Scene`.
+
+    An item of ``objs`` may also be an already parsed :class:`ObjData` (animations re-use static files).
 
     Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
     including a scene with no triangles and no spheres. See the module docs for the rules.
@@ -77,7 +79,7 @@ def load_scene(objs: Iterable[PathLike], mtls: Iterable[PathLike] = (), *, warn:
     if default_material not in DEFAULT_MATERIALS:
         raise ValueError(f"default_material must be one of {DEFAULT_MATERIALS}, got {default_material!r}")
     mtls = [str(p) for p in mtls]
-    data = [load_obj(p) for p in objs]
+    data = [p if isinstance(p, ObjData) else load_obj(p) for p in objs]   # parsed ones: OBJ sequences
     _require_geometry(data)
     library = _read_materials(data, mtls, note)
     table_rows, obj_rows = _assign_rows(data, library, note)

@@ -11,6 +11,10 @@ bad scene input (it names the file and line); :class:`Film` holds float64 sums s
 separate sample ranges merge exactly; :func:`render_film` returns one. :func:`render_scene` takes a
 :class:`RenderSettings` (integrator and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``)
 and returns a :class:`RenderResult` (film, image, stats).
+
+Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,
+``"quad.diffuse_map"``, ``"sky.color"``...); :func:`render_gradients` returns the image and the
+gradients of a loss (``warp_spt.losses``) by name, on every core (docs/gradients.md).
 """
 
 from __future__ import annotations
@@ -22,6 +26,9 @@ from .loader import load_scene
 from .mtl import load_mtl
 from .obj import load_obj
 from .integrators import INTEGRATORS
+from . import demo, losses
+from .gradients import GradientResult, render_gradients
+from .params import SceneParameters, parameters
 from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
 from .samplers import SAMPLERS
 from .scene import Material, ObjData, Scene
@@ -37,6 +44,8 @@ __all__ = [
     "RenderStats",
     "SAMPLERS",
     "Film",
+    "GradientResult",
+    "SceneParameters",
     "Material",
     "ObjData",
     "Scene",
@@ -45,8 +54,11 @@ __all__ = [
     "load_mtl",
     "load_obj",
     "load_scene",
+    "losses",
+    "parameters",
     "render",
     "render_film",
+    "render_gradients",
     "render_scene",
     "save_image",
     "tonemap_seed",

@@ -117,11 +117,16 @@ class GradientResult:
 
 def render_gradients(params: SceneParameters, settings: RenderSettings | None = None, *,
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
-                     wrt: list[str] | None = None) -> GradientResult:
+                     wrt: list[str] | None = None, gradient_seed: int | None = None) -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``);
     Russian roulette must be off; ``max_depth`` at most MAX_UNROLLED_DEPTH.
+
+    ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
+    that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
+    with the same seed, the image's noise and its derivative are correlated and the gradient of
+    E[(I - T)^2] is biased (inverse rendering at low spp converges to the wrong value).
     """
     import time
 
@@ -159,7 +164,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
         raise ValueError(f"the adjoint image must be finite with shape {image.shape}, got {adj.shape}")
 
     t0 = time.perf_counter()
-    bw = _Backward(dev, camera, sky, rs, wants_texels=any(p.kind == "texture" for p in infos))
+    brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
+    bw = _Backward(dev, camera, sky, brs, wants_texels=any(p.kind == "texture" for p in infos))
     sums = bw.run(adj.reshape(-1, 3), rs.threads)
     backward_seconds = time.perf_counter() - t0
     grads = {p.name: _pick(p, sums, dev) for p in infos}

@@ -12,6 +12,7 @@ errors are in docs/gradients.md.
 from __future__ import annotations
 
 import tempfile
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -53,8 +54,6 @@ class Recovery:
 
 def _optimise(params, name: str, target_value, start, settings: RenderSettings, iterations: int, lr: float,
               average: int, target_spp: int, decay: float) -> Recovery:
-    import time
-
     params[name] = target_value
     target = warp_spt.render_scene(params.scene, params.camera,
                                    replace(settings, sky=params.sky, spp=target_spp, seed=10_000)).image

@@ -26,6 +26,7 @@ top-level BVH's ``while`` traversal, whose adjoint Warp drops, so hit points car
 from __future__ import annotations
 
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
@@ -128,8 +129,6 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     with the same seed, the image's noise and its derivative are correlated and the gradient of
     E[(I - T)^2] is biased (inverse rendering at low spp converges to the wrong value).
     """
-    import time
-
     rs = settings or RenderSettings(width=64, height=64, spp=4, max_depth=4)
     if (loss is None) == (adjoint is None):
         raise ValueError("give exactly one of loss= and adjoint=")

@@ -15,6 +15,10 @@ line); :class:`Film` holds float64 sums so renders of separate sample ranges mer
 and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
 :class:`RenderResult` (film, image, stats).
 
+Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,
+``"quad.diffuse_map"``, ``"sky.color"``...); :func:`render_gradients` returns the image and the
+gradients of a loss (``warp_spt.losses``) by name, on every core (docs/gradients.md).
+
 The names are imported on first use (PEP 562), so ``import warp_spt`` is cheap and the command line
 can install its Ctrl-C handling before numpy and Warp are loaded.
 """
@@ -31,6 +35,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Camera": "camera",
     "Film": "film",
+    "GradientResult": "gradients",
     "INTEGRATORS": "integrators",
     "RenderResult": "renderer",
     "RenderSettings": "renderer",
@@ -39,29 +44,37 @@ _EXPORTS = {
     "Material": "scene",
     "ObjData": "scene",
     "Scene": "scene",
+    "SceneParameters": "params",
     "SceneError": "errors",
     "Sky": "sky",
     "load_mtl": "mtl",
     "load_obj": "obj",
     "load_scene": "loader",
+    "parameters": "params",
     "render": "renderer",
     "render_film": "renderer",
+    "render_gradients": "gradients",
     "render_scene": "renderer",
     "save_image": "film",
     "tonemap_seed": "film",
     "tonemap_srgb": "film",
 }
 
-__all__ = sorted(_EXPORTS) + ["__version__"]
+_SUBMODULES = ("demo", "losses")    # reached as warp_spt.losses.l2 etc.
+
+__all__ = sorted(_EXPORTS) + list(_SUBMODULES) + ["__version__"]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from . import demo, losses
     from .camera import Camera
     from .errors import SceneError
     from .film import Film, save_image, tonemap_seed, tonemap_srgb
     from .loader import load_scene
     from .mtl import load_mtl
     from .obj import load_obj
+    from .gradients import GradientResult, render_gradients
     from .integrators import INTEGRATORS
+    from .params import SceneParameters, parameters
     from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
     from .samplers import SAMPLERS
     from .scene import Material, ObjData, Scene
@@ -69,6 +82,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
 
 
 def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'warp_spt' has no attribute {name!r}")
@@ -78,4 +93,4 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted(set(globals()) | set(_EXPORTS) | set(_SUBMODULES))

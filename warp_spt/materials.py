@@ -34,6 +34,23 @@ from .surface import INV_PI, Surface
 from .textures import checker, sample_texture
 
 
+@wp.func
+def lobe_weight(p: float) -> float:
+    """1 in value; in the adjoint, d/dp = 1/p (the score of a discrete choice made with probability p).
+
+    Multiplying a lobe's weight by ``lobe_weight(prob of that lobe)`` leaves every image bit-identical
+    and makes the differentiable kernel's derivative in ``Roughness`` correct in expectation: the
+    choice ``u < Roughness`` is a step for common random numbers, so its pathwise derivative is 0,
+    and the score term p'/p restores d E[L] / d Roughness (warp_spt.gradients, tests/test_gradients.py).
+    """
+    return 1.0
+
+
+@wp.func_grad(lobe_weight)
+def _adj_lobe_weight(p: float, adj_ret: float):
+    wp.adjoint[p] += adj_ret / p
+
+
 @wp.struct
 class BsdfSample:
     """One sampled direction. ``weight`` = f cos / pdf (the throughput factor); ``pdf`` is the
@@ -117,11 +134,17 @@ def make_materials(features: Features) -> SimpleNamespace:
                 out.through = 0
                 out.singular = 0
                 out.weight = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf.uv)
+                if wp.static(features.specular):
+                    out.weight = out.weight * lobe_weight(rough)
                 out.dir = cosine_hemisphere(sf.ns, u_dir[0], u_dir[1])
                 out.pdf = rough * wp.max(wp.dot(out.dir, sf.ns), 0.0) * INV_PI
                 if wp.dot(out.dir, sf.ng) <= 0.0:
                     out.alive = 0          # a smooth normal pointed it below the real surface
                 return out
+            if wp.static(features.specular):
+                sp = specular(m, t, sf, d, u_dir, u_fresnel)
+                sp.weight = sp.weight * lobe_weight(1.0 - rough)
+                return sp
         return specular(m, t, sf, d, u_dir, u_fresnel)
 
     @wp.func

@@ -10,7 +10,8 @@ The public surface, in the order data flows::
 bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
 separate sample ranges merge exactly; :func:`render_film` returns one. :func:`render_scene` takes a
 :class:`RenderSettings` (integrator and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``)
-and returns a :class:`RenderResult` (film, image, stats).
+and returns a :class:`RenderResult` (film, image, stats). :func:`texture` registers a procedural
+texture written as a Warp function (:mod:`warp_spt.proctex`), usable as ``map_Kd proc:NAME``.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from .film import Film, save_image, tonemap_seed, tonemap_srgb
 from .loader import load_scene
 from .mtl import load_mtl
 from .obj import load_obj
+from .proctex import ProcParams, proc_texture, register_texture, texture
 from .integrators import INTEGRATORS
 from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
 from .samplers import SAMPLERS
@@ -38,6 +40,7 @@ __all__ = [
     "SAMPLERS",
     "Film",
     "Material",
+    "ProcParams",
     "ObjData",
     "Scene",
     "SceneError",
@@ -45,10 +48,13 @@ __all__ = [
     "load_mtl",
     "load_obj",
     "load_scene",
+    "proc_texture",
+    "register_texture",
     "render",
     "render_film",
     "render_scene",
     "save_image",
+    "texture",
     "tonemap_seed",
     "tonemap_srgb",
     "__version__",

@@ -81,6 +81,7 @@ class Options:
     demo: str | None = None
     integrator: str | None = None     # None: the renderer's default
     sampler: str | None = None
+    texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -165,6 +166,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="light transport: nee (light sampling with MIS) or seed (pure path tracing)")
     new.add_argument("--sampler", choices=sorted(SAMPLERS),
                      help="random numbers: sobol (Owen-scrambled Sobol') or independent")
+    new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
+                     help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     return p
 
 
@@ -198,7 +201,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, demo=ns.demo,
-        integrator=ns.integrator, sampler=ns.sampler,
+        integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
     )
 
 
@@ -300,6 +303,10 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     from .loader import load_scene
     from .renderer import render
 
+    if opts.texture_modules:
+        from .proctex import load_texture_module
+        for module in opts.texture_modules:
+            say(f"textures from {module}: {', '.join(load_texture_module(module)) or 'none registered'}")
     start = time.perf_counter()
     scene = load_scene(objs, mtls, warn=lambda message: None)   # collected in scene.warnings, shown below
     for warning in scene.warnings:

@@ -33,6 +33,9 @@ Standard tags mapped onto the same model:
   ignored. Every other tag (``Ka``, ``Ns``, ``bump``, ``map_d``...) is ignored, as are lines
   before the first ``newmtl``.
 
+``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
+built-ins: :mod:`warp_spt.proctex`); an unknown name or key is a SceneError with file and line.
+
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.loader.load_scene`, and only for materials that geometry uses.
 Bad values (a non-number, NaN, a negative colour, a roughness outside [0, 1], an IOR <= 0, an
@@ -125,7 +128,8 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
             setattr(m, slot, colour)
             setattr(m, slot + "_map", None)
     elif tag in _MAP_SLOTS:
-        ref = TextureRef(path=_texture_path(args, path, lineno, name), mtl_file=path, line=lineno)
+        ref = _proc_map(args, path, lineno, name) or TextureRef(path=_texture_path(args, path, lineno, name),
+                                                                mtl_file=path, line=lineno)
         for slot in _MAP_SLOTS[tag]:
             setattr(m, slot + "_map", ref)
     elif tag == "roughness":
@@ -172,6 +176,14 @@ def _texture_path(args: list[bytes], path: str, lineno: int, tag: str) -> str:
     if i >= len(args):
         raise SceneError(path, lineno, f"expected a texture file name after '{tag}'")
     return decode_name(args[i:])
+
+
+def _proc_map(args: list[bytes], path: str, lineno: int, tag: str):
+    """``map_* proc:NAME key=value...``: a procedural texture (warp_spt.proctex), else None."""
+    if not args or not args[0].startswith(b"proc:"):
+        return None
+    from .proctex import parse_proc_map      # imports Warp: only for scenes that use procedural textures
+    return parse_proc_map(args, path, lineno, tag)
 
 
 def _is_number(tok: bytes) -> bool:

@@ -117,16 +117,24 @@ def register_texture(name: str, fn, **params) -> ProcTexture:
     if nargs not in (3, 4):
         raise ValueError(f"procedural texture {name!r}: expected (uv, p, n) or (uv, p, n, prm), "
                          f"got {nargs} arguments")
-    try:
-        source = inspect.getsource(py)
-    except (OSError, TypeError):
-        source = py.__code__.co_code.hex()
+    source = _source_of(py)
     tex = ProcTexture(name=name, func=user if nargs == 4 else _with_params(user), user_func=user,
                       params=layout, file=inspect.getsourcefile(py) or "<unknown>",
                       line=py.__code__.co_firstlineno,
-                      source_hash=hashlib.sha1((source + repr(layout)).encode()).hexdigest()[:16])
+                      source_hash=hashlib.sha1((source + py.__qualname__ + repr(layout)).encode()).hexdigest()[:16])
     _REGISTRY[name] = tex
     return tex
+
+
+def _source_of(py) -> str:
+    """The text the kernel cache keys on: the whole module of the function where it can be read, so
+    an edited helper in the user's file also changes the key; else the function's own source."""
+    for obj in (inspect.getmodule(py), py):
+        try:
+            return inspect.getsource(obj)
+        except (OSError, TypeError):
+            continue
+    return py.__code__.co_code.hex()
 
 
 def _default(name: str, key: str, value) -> tuple[float, ...]:

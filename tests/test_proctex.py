@@ -267,3 +267,65 @@ def test_parameter_gradients_match_finite_differences(tmp_path):
         fd = (sums[0] - sums[1]) / (2 * h)
         assert abs(grad[k] - fd) <= 0.02 * abs(fd) + 1e-3, (key, grad[k], fd)
     assert abs(grad[layout["color1"][0]]) > 1.0      # the test is not vacuous
+
+
+# ---- numpy transcription of the built-ins' noise (an independent implementation to check against)
+
+def _np_perlin(q: np.ndarray) -> np.ndarray:
+    """Improved Perlin noise with the same lattice hash and gradient set, in float64."""
+    q = np.asarray(q, dtype=np.float64)
+    cell = np.floor(q)
+    f = q - cell
+    i = cell.astype(np.int64)
+
+    def hashed(dx, dy, dz):
+        x, y, z = ((i[:, k] + d).astype(np.uint32) for k, d in enumerate((dx, dy, dz)))
+        with np.errstate(over="ignore"):
+            h = (x * np.uint32(73856093)) ^ (y * np.uint32(19349663)) ^ (z * np.uint32(83492791))
+            h = (h ^ (h >> np.uint32(16))) * np.uint32(0x45D9F3B)
+        return ((h ^ (h >> np.uint32(16))) & np.uint32(15)).astype(np.int64)
+
+    def grad(h, x, y, z):
+        u = np.where(h < 8, x, y)
+        v = np.where(h < 4, y, np.where((h == 12) | (h == 14), x, z))
+        return np.where(h & 1, -u, u) + np.where(h & 2, -v, v)
+
+    fade = f * f * f * (f * (f * 6 - 15) + 10)
+    corner = {}
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                corner[dx, dy, dz] = grad(hashed(dx, dy, dz), f[:, 0] - dx, f[:, 1] - dy, f[:, 2] - dz)
+    lerp = lambda a, b, t: a + (b - a) * t  # noqa: E731
+    x = {(dy, dz): lerp(corner[0, dy, dz], corner[1, dy, dz], fade[:, 0]) for dy in (0, 1) for dz in (0, 1)}
+    return lerp(lerp(x[0, 0], x[1, 0], fade[:, 1]), lerp(x[0, 1], x[1, 1], fade[:, 1]), fade[:, 2])
+
+
+def test_noise_marble_wood_match_a_numpy_transcription():
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-20, 20, (300, 3))
+    refs = [proctex.proc_texture("noise", scale=1.3, color1=(0, 0, 0), color2=(1, 1, 1)),
+            proctex.proc_texture("marble", scale=0.8, turbulence=2.0, color1=(1, 1, 1), color2=(0, 0, 0)),
+            proctex.proc_texture("wood", scale=0.5, rings=3.0, color1=(0, 0, 0), color2=(1, 1, 1))]
+    out = proctex.evaluate(refs, np.zeros((300, 2)), p, np.tile([0.0, 0.0, 1.0], (300, 1)))[..., 0]
+    p32 = p.astype(np.float32).astype(np.float64)
+    np.testing.assert_allclose(out[:, 0], np.clip(0.5 + 0.5 * _np_perlin(p32 * 1.3), 0, 1), atol=2e-5)
+    q = p32 * 0.8
+    turb = sum(np.abs(_np_perlin(q * 2.0**k)) / 2.0**k for k in range(proctex.TURBULENCE_OCTAVES))
+    np.testing.assert_allclose(out[:, 1], 0.5 + 0.5 * np.sin(q[:, 0] + 2.0 * turb), atol=1e-4)
+    q = p32 * 0.5
+    t = (np.hypot(q[:, 0], q[:, 2]) + 0.1 * _np_perlin(q)) * 3.0
+    t -= np.floor(t)
+    near_ring = np.minimum(t, 1 - t) < 1e-4          # float32 may put these on the other side of a ring
+    np.testing.assert_allclose(out[~near_ring, 2], (t * t)[~near_ring], atol=2e-4)
+
+
+def test_reregistering_a_name_with_new_source_changes_the_cache_key():
+    first = proctex.features_key(["t_const"])
+    saved = proctex.get_texture("t_const")
+    try:
+        proctex.register_texture("t_const", t_ramp_u)
+        assert proctex.features_key(["t_const"]) != first
+    finally:
+        proctex._REGISTRY["t_const"] = saved
+    assert proctex.features_key(["t_const"]) == first

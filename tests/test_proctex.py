@@ -21,6 +21,7 @@ from warp_spt.loader import load_scene
 from warp_spt.mtl import parse_mtl_bytes
 from warp_spt.renderer import RenderSettings, render_scene
 from warp_spt.scene import TEX_PROC_BASE
+from warp_spt.sky import Sky
 from warp_spt.textures import checker_np
 
 from .scenes import material, quad_obj, write_scene_files
@@ -329,3 +330,21 @@ def test_reregistering_a_name_with_new_source_changes_the_cache_key():
     finally:
         proctex._REGISTRY["t_const"] = saved
     assert proctex.features_key(["t_const"]) == first
+
+
+def test_procedural_emitter_under_light_sampling_matches_the_constant_emitter(tmp_path):
+    """nee picks procedural emitters by area alone (the host cannot evaluate them); for a texture that
+    is constant this is the same choice as for the constant emission, so the images agree."""
+    floor = quad_obj([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)], material="floor")
+    lamp = "\n".join(["v -1 -1 3", "v 1 -1 3", "v 1 1 3", "v -1 1 3", "usemtl lamp", "f 5 6 7", "f 5 7 8"]) + "\n"
+    camera = Camera(position=(0.0, -6.0, 4.0), direction=(0.0, 1.0, -0.6), fov=60.0, aperture=0.0, focus=6.0)
+    # no sky light: the lamp is the only light, so the light choice itself cannot differ
+    settings = RenderSettings(width=8, height=8, spp=4, max_depth=2, integrator="nee", seed=11,
+                              sky=Sky.constant(0.0, 0.0, 0.0))
+    images = []
+    for name, emission in (("const", "Kl 2 2 2"), ("proc", "map_Kl proc:t_const color=2,2,2")):
+        mtl = material("floor", Kd=(0.5, 0.5, 0.5), Roughness=1) + f"newmtl lamp\nKd 0 0 0\n{emission}\n"
+        objs, mtls = write_scene_files(tmp_path, name, floor + lamp, mtl)
+        images.append(render_scene(load_scene(objs, mtls), camera, settings).image)
+    assert images[0].mean() > 0.01
+    np.testing.assert_allclose(images[1], images[0], rtol=1e-5, atol=1e-7)

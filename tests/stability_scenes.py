@@ -114,8 +114,15 @@ def scene_from_text(folder: Path, name: str, obj: str, mtl: str | None = None) -
 
 
 def render_checked(scene: DeviceScene, camera: Camera, **kw) -> np.ndarray:
-    """render() with the general kernel; asserts a finite image and no dropped (non-finite) samples."""
+    """render() with the general kernel; asserts a finite image and no dropped (non-finite) samples.
+
+    The integrator defaults to the seed's: many checks here are exact identities (every sample of a
+    closed furnace is the same number, a closed room's image is bit-identical under any sky) that
+    hold for pure path tracing only. NEE is checked statistically (the Cornell box at every scale
+    here, furnaces and analytic lighting in tests/test_light_transport.py).
+    """
     kw.setdefault("features", GENERAL)
+    kw.setdefault("integrator", "seed")
     res = R.render_scene(scene, camera, R.RenderSettings(**kw))
     img = res.image
     assert res.stats.dropped_samples == 0, f"{res.stats.dropped_samples} non-finite samples dropped"

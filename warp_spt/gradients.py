@@ -19,9 +19,13 @@ from .camera import Camera
 from .device_scene import DeviceScene, Features, Geometry, Materials, Textures
 from .integrators import CameraParams, RenderParams, camera_params, check_integrator, get_step
 from .lights import Lights, light_table, sky_emits
+from .samplers import DEFAULT_SAMPLER
 from .sky import Sky
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
+# Integrators whose tape gradients tests/test_gradients.py checks against finite differences. NEE's
+# step runs in this kernel too, but its gradients were off by ~10% in that test (not found yet).
+VERIFIED_INTEGRATORS = {"seed"}
 
 
 def _make_kernel(step, start_path, depth: int):
@@ -69,7 +73,7 @@ def enable_material_gradients(scene: DeviceScene) -> None:
 def render_differentiable(scene: DeviceScene, camera: Camera | None = None, *, width: int = 32,
                           height: int = 32, spp: int = 4, max_depth: int = 4, sky: Sky | None = None,
                           seed: int = 0, texture_filter: str = "nearest", integrator: str = "seed",
-                          sampler: str = "independent") -> DiffRender:
+                          sampler: str = DEFAULT_SAMPLER) -> DiffRender:
     """Render on a ``wp.Tape``; call ``result.tape.backward(grads={result.image: adjoint})`` and read
     e.g. ``scene.materials.diffuse.grad`` (call :func:`enable_material_gradients` first).
 
@@ -82,6 +86,9 @@ def render_differentiable(scene: DeviceScene, camera: Camera | None = None, *, w
     if width < 1 or height < 1 or spp < 1:
         raise ValueError("width, height and spp must be positive")
     check_integrator(integrator)
+    if integrator not in VERIFIED_INTEGRATORS:
+        raise ValueError(f"gradients of the {integrator!r} integrator are not verified yet (its tape gradients "
+                         f"disagree with finite differences); use one of {sorted(VERIFIED_INTEGRATORS)}")
     sky = sky or Sky.black()
     feats = replace(scene.features, sky=sky_emits(sky))
     key = (integrator, sampler, feats, max_depth)

@@ -22,10 +22,10 @@ import warp as wp
 from .camera import Camera
 from .device_scene import DeviceScene, Features
 from .film import Film
-from .integrators import RenderParams, camera_params, check_integrator, get_kernel
+from .integrators import DEFAULT_INTEGRATOR, RenderParams, camera_params, check_integrator, get_kernel
 from .lights import light_table, sky_emits
 from .proctex import nonfinite_textures
-from .samplers import SAMPLERS
+from .samplers import DEFAULT_SAMPLER, SAMPLERS
 from .scene import Scene
 from .sky import Sky
 
@@ -38,8 +38,6 @@ PASS_WORK = 1 << 16       # ...but at least this many pixel-samples per launch, 
                           # of tiles and threads.
 TILE_PIXELS = 4096        # pixels per launch
 MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
-DEFAULT_INTEGRATOR = "seed"
-DEFAULT_SAMPLER = "independent"
 
 
 @dataclass(frozen=True)

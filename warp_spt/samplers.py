@@ -103,6 +103,7 @@ SAMPLERS = {"independent": make_independent}
 if _sobol_available():
     SAMPLERS["sobol"] = _make_sobol
 
+DEFAULT_SAMPLER = "independent"
 _built: dict[str, Sampler] = {}
 
 

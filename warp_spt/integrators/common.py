@@ -137,17 +137,28 @@ def make_start_path(sampler: Sampler):
     return start_path
 
 
-def make_bsdf_dims(sampler: Sampler, stride: int):
-    """``bsdf_dims(path) -> (u_lobe, u_dir, u_fresnel, path)``: this bounce's material dimensions."""
+def make_bsdf_dims(sampler: Sampler, stride: int, features: Features):
+    """``bsdf_dims(path) -> (u_lobe, u_dir, u_fresnel, path)``: this bounce's material dimensions.
+
+    The lobe choice is drawn only where materials mix lobes, the Fresnel choice only where some
+    material refracts (a Sobol' request costs a dozen hashes); skipping a dimension shifts no other,
+    and the independent sampler's chain still advances past it, so its numbers do not change.
+    """
+    mixed = features.diffuse and features.specular
 
     @wp.func
     def bsdf_dims(path: PathState):
         base = DIM_BOUNCE + wp.static(stride) * (path.depth - 1)
-        u_lobe, s1 = sampler.next_1d(path.sampler, base + OFF_LOBE)
-        u_dir, s2 = sampler.next_2d(s1, base + OFF_DIR)
-        u_fresnel, s3 = sampler.next_1d(s2, base + OFF_FRESNEL)
+        st = path.sampler
+        u_lobe = float(0.0)
+        if wp.static(mixed):
+            u_lobe, st = sampler.next_1d(st, base + OFF_LOBE)
+        u_dir, st = sampler.next_2d(st, base + OFF_DIR)
+        u_fresnel = float(0.0)
+        if wp.static(features.refraction):
+            u_fresnel, st = sampler.next_1d(st, base + OFF_FRESNEL)
         p = path
-        p.sampler = s3
+        p.sampler = st
         return u_lobe, u_dir, u_fresnel, p
 
     return bsdf_dims

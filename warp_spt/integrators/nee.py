@@ -48,7 +48,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
-    bsdf_dims = make_bsdf_dims(sampler, stride)
+    bsdf_dims = make_bsdf_dims(sampler, stride, features)
     sample_lights = light_sampling and (features.emitters or features.sky) and features.diffuse
     occluded = make_occluded(features)
     light = make_lights(features, surface_at, mat.emission)
@@ -66,10 +66,13 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
                base: int):
         """Light sampling at this vertex: (radiance to add, sampler state)."""
-        u_pick, s1 = sampler.next_1d(p.sampler, base + OFF_LIGHT)
-        u_pos, s2 = sampler.next_2d(s1, base + OFF_LIGHT_POS)
         contrib = wp.vec3(0.0, 0.0, 0.0)
-        if mats.roughness[sf.mat] > 0.0:
+        st = p.sampler
+        if mats.roughness[sf.mat] > 0.0:      # only the diffuse lobe has a density to sample lights for
+            u_pick = float(0.0)
+            if lights.num_entries > 1:
+                u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
+            u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
             x = offset_origin(sf.p, sf.ng, 0, geo.extent)
             ls = light.sample(geo, mats, tex, lights, x, u_pick, u_pos)
             if ls.pdf > 0.0:
@@ -79,7 +82,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
                     if not occluded(geo, x, ls.dir, ls.t_max):
                         w = power_heuristic(ls.pdf, mat.pdf(mats, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
-        return contrib, s2
+        return contrib, st
 
     @wp.func
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,

@@ -7,10 +7,10 @@ import pytest
 import warp as wp
 
 from warp_spt.device_scene import DeviceScene, Features, Geometry
-from warp_spt.geometry import make_closest_hit, make_occluded
+from warp_spt.geometry import SMALL_SCENE, make_closest_hit, make_occluded
 from warp_spt.loader import load_scene
 
-from .scenes import write_scene_files
+from .scenes import box_obj, write_scene_files
 
 
 _closest = make_closest_hit(Features.general())
@@ -138,3 +138,77 @@ def test_any_hit_occlusion_agrees_with_the_closest_hit(mixed):
     got = blocked.numpy().astype(bool)
     assert expected[clear].sum() > 500 and (~expected[clear]).sum() > 500
     assert np.array_equal(got[clear], expected[clear])
+
+
+# --- small scenes: the loop over items (no TLAS) against the TLAS traversal -------------------------
+
+_loop_hit, _tlas_hit = make_closest_hit(Features.general()), make_closest_hit(Features.general(), small_scene=0)
+_loop_occ, _tlas_occ = make_occluded(Features.general()), make_occluded(Features.general(), small_scene=0)
+
+
+def _hit_kernel(closest, occluded):
+    @wp.kernel(enable_backward=False, module="unique")
+    def k(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
+          tuv: wp.array(dtype=wp.vec3), ids: wp.array(dtype=wp.vec4i), normal: wp.array(dtype=wp.vec3)):
+        i = wp.tid()
+        h = closest(s, o[i], d[i], 3.0e38)
+        tuv[i] = wp.vec3(h.t, h.u, h.v)
+        ids[i] = wp.vec4i(h.kind, h.index, h.face, wp.where(occluded(s, o[i], d[i], t_max[i]), 1, 0))
+        normal[i] = h.normal
+    return k
+
+
+_KERNELS = {}
+
+
+def _loop_and_tlas(scene: DeviceScene, o: np.ndarray, d: np.ndarray, t_max: np.ndarray):
+    """(t u v, kind index face occluded, normal) per ray from the item loop and from the TLAS."""
+    n = len(o)
+    args = [scene.geometry, wp.array(o.astype(np.float32), dtype=wp.vec3),
+            wp.array(d.astype(np.float32), dtype=wp.vec3), wp.array(t_max.astype(np.float32), dtype=float)]
+    results = []
+    for fns in ((_loop_hit, _loop_occ), (_tlas_hit, _tlas_occ)):
+        if fns not in _KERNELS:
+            _KERNELS[fns] = _hit_kernel(*fns)
+        outs = [wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec4i), wp.zeros(n, dtype=wp.vec3)]
+        wp.launch(_KERNELS[fns], dim=n, inputs=args + outs)
+        results.append([a.numpy() for a in outs])
+    return results
+
+
+def _soup_obj(rng: np.random.Generator, n: int) -> str:
+    """n random triangles in [-3, 3]^3 plus a closed box around them: one OBJ, so one mesh."""
+    p = rng.uniform(-3, 3, size=(n, 1, 3)) + rng.normal(scale=0.6, size=(n, 3, 3))
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in p.reshape(-1, 3)]
+    lines += [f"f {3 * k + 1} {3 * k + 2} {3 * k + 3}" for k in range(n)]
+    box = [ln for ln in box_obj((-5, -5, -5), (5, 5, 5), subdivide=2).splitlines() if ln[:2] in ("v ", "f ")]
+    shift = 3 * n
+    lines += [ln for ln in box if ln.startswith("v ")]
+    lines += ["f " + " ".join(str(int(v) + shift) for v in ln.split()[1:]) for ln in box if ln.startswith("f ")]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("which", ["one mesh", "mesh and spheres"])
+def test_small_scene_loop_equals_the_tlas_traversal(scene_dir, mixed, which):
+    # Small scenes skip the TLAS; every hit, and every shadow-ray answer, must be what the TLAS
+    # traversal gives, bit for bit, for rays from inside and outside the scene.
+    rng = np.random.default_rng(21)
+    if which == "one mesh":
+        objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000))
+        scene = DeviceScene(load_scene(objs, [], warn=lambda message: None))
+        assert len(scene.scene.meshes) == 1 and len(scene.scene.spheres) == 0
+    else:
+        scene = mixed                  # one mesh of two triangles, three spheres
+    assert 1 <= scene.tlas.items.shape[0] <= SMALL_SCENE       # the loop is what runs
+    n = 40000
+    o, d = _random_rays(rng, n)
+    o[: n // 4] *= 3.0                  # a quarter start far outside (and outside the TLAS root box)
+    (tuv, ids, nrm), (tuv_ref, ids_ref, nrm_ref) = _loop_and_tlas(scene, o, d, rng.uniform(0.0, 12.0, size=n))
+    hits = ids_ref[:, 0] >= 0
+    assert hits.sum() > 1000 and (~hits).sum() > 1000 and 500 < ids_ref[:, 3].sum() < n - 500
+    # kind, index, occluded and t for every ray; the normal for every hit; face and barycentrics
+    # for triangle hits (a sphere hit leaves them as they were: meaningless, and order-dependent)
+    assert np.array_equal(ids[:, [0, 1, 3]], ids_ref[:, [0, 1, 3]]) and np.array_equal(tuv[:, 0], tuv_ref[:, 0])
+    assert np.array_equal(nrm[hits], nrm_ref[hits])
+    tri = ids_ref[:, 0] == 0
+    assert tri.sum() > 500 and np.array_equal(ids[tri, 2], ids_ref[tri, 2]) and np.array_equal(tuv[tri], tuv_ref[tri])

@@ -366,3 +366,20 @@ def test_integrators_and_samplers_converge_to_the_same_image(references, scene, 
     b = seed_batches(dev, cam, BATCHES, SPP, 2000, integrator=integrator, sampler=sampler,
                      roulette_depth=roulette, **kw)
     assert_same_image(ref, b, f"{scene}: {integrator} + {sampler} (roulette {roulette}) vs seed + independent")
+
+
+# --------------------------------------------------------------------------------------------
+# Chosen by name: API and CLI
+
+
+def test_integrator_and_sampler_are_chosen_by_name():
+    from warp_spt.cli import UsageError, parse_args
+    opts = parse_args(["--integrator", "seed", "--sampler", "sobol"])
+    assert (opts.integrator, opts.sampler) == ("seed", "sobol")
+    assert (parse_args([]).integrator, parse_args([]).sampler) == (None, None)     # the renderer's defaults
+    with pytest.raises(UsageError):
+        parse_args(["--integrator", "bidir"])
+    with pytest.raises(ValueError, match="unknown integrator"):
+        R.render_scene(None, None, R.RenderSettings(integrator="bidir"))    # checked before any upload
+    with pytest.raises(ValueError, match="unknown sampler"):
+        R.render_scene(None, None, R.RenderSettings(sampler="halton"))

@@ -11,6 +11,13 @@ import warp as wp
 from .device_scene import Features, Geometry
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
+# Scenes of at most this many items (meshes + spheres) visit them all instead of traversing the TLAS,
+# whose box tests then cost more than they prune. Measured (closest-hit rays/s, loop over TLAS, best
+# of 25 on a busy machine): the tests' Cornell box (1 mesh + 2 spheres) 1.13-1.15x, the built-in
+# demo (3 meshes + 3 spheres) 1.0-1.05x (benchmarks/bench_rays.py, "tlas loop" against
+# "closest_hit"); that Cornell box with extra spheres (bench_rays.py --small-scene): 6 items
+# 0.99-1.02x, 8 items 0.93-1.03x, 12 items 0.79-0.88x, 16 items 0.69-0.81x. Hence 6.
+SMALL_SCENE = 6
 NO_HIT = wp.constant(3.0e38)
 KIND_MISS = wp.constant(-1)
 KIND_TRIANGLE = wp.constant(0)
@@ -89,22 +96,35 @@ def sphere_hit(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_max: float) -> float:
     return NO_HIT
 
 
-def make_closest_hit(features: Features):
-    """The closest-hit function for scenes with these features."""
+def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE):
+    """The closest-hit function for scenes with these features.
+
+    A scene of at most ``small_scene`` items (meshes + spheres) skips our top-level BVH and visits
+    every item in turn (0 forces the TLAS, for tests and benchmarks): one mesh and no spheres is then
+    a bare query of the mesh's own BVH. Same hits: the TLAS only prunes items whose box the ray
+    misses or enters beyond the closest hit so far, which cannot hold the closest hit; only the
+    order of visits differs, which matters just for exact ties in t between two items
+    (tests/test_intersect.py compares the two paths).
+    """
+
+    @wp.func
+    def mesh_hit(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
+        q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
+        if q.result:
+            hit.t = q.t
+            hit.kind = KIND_TRIANGLE
+            hit.index = item
+            hit.face = q.face
+            hit.u = q.u
+            hit.v = q.v
+            hit.normal = q.normal
+        return hit
 
     @wp.func
     def visit_item(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
         if item < s.num_meshes:
             if wp.static(features.meshes):
-                q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
-                if q.result:
-                    hit.t = q.t
-                    hit.kind = KIND_TRIANGLE
-                    hit.index = item
-                    hit.face = q.face
-                    hit.u = q.u
-                    hit.v = q.v
-                    hit.normal = q.normal
+                hit = mesh_hit(s, item, o, d, hit)
         else:
             if wp.static(features.spheres):
                 j = item - s.num_meshes
@@ -123,6 +143,12 @@ def make_closest_hit(features: Features):
         hit = Hit()
         hit.t = t_max
         hit.kind = KIND_MISS
+        if wp.static(small_scene > 0):
+            n_items = s.items.shape[0]
+            if n_items <= wp.static(small_scene):
+                for item in range(n_items):
+                    hit = visit_item(s, item, o, d, hit)
+                return hit
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         entries = vec_stack_f()
@@ -169,11 +195,12 @@ def make_closest_hit(features: Features):
     return closest_hit
 
 
-def make_occluded(features: Features):
+def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
     """An any-hit visibility test for shadow rays: True when something lies on the ray before t_max.
 
     Stops at the first blocker found (``wp.mesh_query_ray_anyhit`` inside meshes), so it is cheaper
-    than a closest hit; the traversal order does not matter. Ready for light sampling.
+    than a closest hit; the traversal order does not matter. Ready for light sampling. Small scenes
+    skip the TLAS, as in make_closest_hit.
     """
 
     @wp.func
@@ -188,6 +215,13 @@ def make_occluded(features: Features):
 
     @wp.func
     def occluded(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        if wp.static(small_scene > 0):
+            n_items = s.items.shape[0]
+            if n_items <= wp.static(small_scene):
+                for item in range(n_items):
+                    if blocks(s, item, o, d, t_max):
+                        return True
+                return False
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         sp = int(0)

@@ -14,7 +14,7 @@ import warp as wp
 
 from ..device_scene import Features
 from ..proctex import explain_compile_failure
-from ..samplers import get_sampler
+from ..samplers import DEFAULT_SAMPLER, get_sampler
 from . import nee, seed
 from .common import CameraParams, PathState, RenderParams, camera_params, camera_ray, make_kernel, make_start_path
 
@@ -42,9 +42,12 @@ def get_step(integrator: str, sampler: str, features: Features):
         return _steps[key]
 
 
-def get_kernel(features: Features, device: str = "cpu", integrator: str = "seed",
-               sampler: str = "independent") -> wp.Kernel:
-    """The fast kernel for (integrator, sampler, features), compiled and loaded on ``device``."""
+def get_kernel(features: Features, device: str = "cpu", integrator: str | None = None,
+               sampler: str | None = None) -> wp.Kernel:
+    """The fast kernel for (integrator, sampler, features), compiled and loaded on ``device``
+    (defaults: DEFAULT_INTEGRATOR, samplers.DEFAULT_SAMPLER)."""
+    integrator = integrator or DEFAULT_INTEGRATOR
+    sampler = sampler or DEFAULT_SAMPLER
     key = (integrator, sampler, features)
     step, start = get_step(integrator, sampler, features)
     with _lock:

@@ -13,7 +13,8 @@ single files; :class:`SceneError` is the one exception for bad scene input (it n
 line); :class:`Film` holds float64 sums so renders of separate sample ranges merge exactly;
 :func:`render_film` returns one. :func:`render_scene` takes a :class:`RenderSettings` (integrator
 and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
-:class:`RenderResult` (film, image, stats).
+:class:`RenderResult` (film, image, stats). :func:`texture` registers a procedural texture written as a Warp function
+(:mod:`warp_spt.proctex`), usable as ``map_Kd proc:NAME``.
 
 Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,
 ``"quad.diffuse_map"``, ``"sky.color"``...); :func:`render_gradients` returns the image and the
@@ -42,6 +43,7 @@ _EXPORTS = {
     "RenderStats": "renderer",
     "SAMPLERS": "samplers",
     "Material": "scene",
+    "ProcParams": "proctex",
     "ObjData": "scene",
     "Scene": "scene",
     "SceneParameters": "params",
@@ -51,11 +53,14 @@ _EXPORTS = {
     "load_obj": "obj",
     "load_scene": "loader",
     "parameters": "params",
+    "proc_texture": "proctex",
+    "register_texture": "proctex",
     "render": "renderer",
     "render_film": "renderer",
     "render_gradients": "gradients",
     "render_scene": "renderer",
     "save_image": "film",
+    "texture": "proctex",
     "tonemap_seed": "film",
     "tonemap_srgb": "film",
 }
@@ -75,6 +80,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .gradients import GradientResult, render_gradients
     from .integrators import INTEGRATORS
     from .params import SceneParameters, parameters
+    from .proctex import ProcParams, proc_texture, register_texture, texture
     from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
     from .samplers import SAMPLERS
     from .scene import Material, ObjData, Scene

@@ -118,6 +118,7 @@ class Options:
         """Frames, a camera path, a GIF or an OBJ template were given: render an animation."""
         from .animation import is_template
         return bool(self.frames or self.camera_path or self.gif or any(is_template(p) for p in self.objs))
+    texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -210,6 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="light transport: nee (light sampling with MIS, default) or seed (pure path tracing)")
     new.add_argument("--sampler", metavar="NAME",
                      help="random numbers: independent (default) or sobol (Owen-scrambled Sobol')")
+    new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
+                     help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     _add_model_flags(p.add_argument_group("your own models"))
     more = p.add_argument_group("clusters and animation")
     more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
@@ -259,7 +262,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
-        integrator=ns.integrator, sampler=ns.sampler,
+        integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, frame=ns.frame,
         studio=ns.studio, default_material=ns.default_material,
     )
@@ -552,6 +555,10 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     from .framing import describe_bounds
     from .renderer import RenderSettings, render, render_scene
 
+    if opts.texture_modules:
+        from .proctex import load_texture_module
+        for module in opts.texture_modules:
+            say(f"textures from {module}: {', '.join(load_texture_module(module)) or 'none registered'}")
     start = time.perf_counter()
     try:
         scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below

@@ -1,7 +1,7 @@
 """Scene upload: numpy Scene -> Warp meshes (one per OBJ), our top-level BVH, texture atlas, material table.
 
 The result, :class:`DeviceScene`, carries one small struct per concept that kernels take
-(:class:`Geometry`, :class:`Materials`, :class:`Textures`; the light table is built by
+(:class:`Geometry`, :class:`Materials`, :class:`Textures` with procedural instances; the light table is built by
 ``warp_spt.lights``), plus the :class:`Features` the scene actually uses, from which the
 integrators specialise their kernels.
 """
@@ -14,7 +14,8 @@ import numpy as np
 import warp as wp
 
 from .bvh import build_tlas
-from .scene import TEX_CHECKER, Scene
+from .proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
+from .scene import TEX_CHECKER, TEX_PROC_BASE, Scene
 from .textures import pack_atlas
 from .validate import validate_scene
 
@@ -71,6 +72,9 @@ class Textures:
     texels: wp.array2d(dtype=wp.vec3)
     tiles: wp.array(dtype=wp.vec4i)
     bilinear: int
+    # procedural instances (warp_spt.proctex): kind = index into Features.procedural, parameters
+    proc_kind: wp.array(dtype=wp.int32)
+    proc_params: wp.array(dtype=ProcParams)
 
 
 @dataclass(frozen=True)
@@ -87,6 +91,8 @@ class Features:
     diffuse: bool = True       # some material has a diffuse lobe (Roughness > 0)
     specular: bool = True      # some material has a mirror/glass lobe (Roughness < 1)
     sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
+    # procedural textures used: sorted (name, source hash); () compiles no procedural code
+    procedural: tuple[tuple[str, str], ...] = ()
 
     @staticmethod
     def general() -> "Features":
@@ -110,6 +116,7 @@ class DeviceScene:
         self.geometry.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
         self.materials = _upload_materials(scene, device)
         self._atlas = _upload_atlas(scene, device)
+        self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
         self._lights: dict = {}          # light tables per sky (warp_spt.lights.light_table)
 
     def textures(self, texture_filter: str = "nearest") -> Textures:
@@ -117,6 +124,7 @@ class DeviceScene:
         t = Textures()
         t.texels, t.tiles = self._atlas
         t.bilinear = int(texture_filter == "bilinear")
+        t.proc_kind, t.proc_params = self.proc_kind, self.proc_params
         return t
 
     def _upload_meshes(self, s: Geometry, scene: Scene, device: str) -> None:
@@ -174,12 +182,19 @@ def _upload_atlas(scene: Scene, device: str) -> tuple[wp.array, wp.array]:
     return texels, _arr(atlas.tiles, wp.vec4i, device, np.int32)
 
 
+def _upload_procedural(scene: Scene, key: tuple, device: str) -> tuple[wp.array, wp.array]:
+    """Per-instance kinds and parameter vectors (``proc_params`` is what parameter gradients flow into)."""
+    kinds, params = instance_arrays(scene.procedural, key)
+    return (_arr(kinds, wp.int32, device, np.int32),
+            wp.array(params if len(params) else np.zeros((1, MAX_PARAMS), np.float32), dtype=ProcParams, device=device))
+
+
 def _features(scene: Scene) -> Features:
     """Which code paths the scene's used materials and geometry need."""
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
     mt = scene.materials
     tex = mt.tex[used]
-    emits = (mt.emission[used] > 0).any() or (tex[:, 3] >= 0).any()
+    emits = (mt.emission[used] > 0).any() or (tex[:, 3] >= 0).any() or (tex[:, 3] <= TEX_PROC_BASE).any()
     return Features(
         meshes=any(len(m.indices) for m in scene.meshes),
         spheres=len(scene.spheres) > 0,
@@ -190,6 +205,7 @@ def _features(scene: Scene) -> Features:
         smooth=any(m.corner_normal is not None for m in scene.meshes),
         diffuse=bool((mt.roughness[used] > 0).any()),
         specular=bool((mt.roughness[used] < 1).any()),
+        procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
     )
 
 

@@ -212,6 +212,7 @@ class _Backward:
         if self.wants_texels:
             t = Textures()
             t.texels, t.tiles, t.bilinear = self._grad_alias(self.tex.texels), self.tex.tiles, self.tex.bilinear
+            t.proc_kind, t.proc_params = self.tex.proc_kind, self.tex.proc_params
         deltas = wp.zeros(NUM_DELTAS, dtype=wp.vec3, device=self.dev.device, requires_grad=True)
         scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
         self.nbytes += scratch.capacity + 2 * deltas.capacity

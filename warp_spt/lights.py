@@ -30,7 +30,7 @@ import warp as wp
 from .device_scene import Features, Geometry, Materials, Textures
 from .geometry import KIND_SPHERE, KIND_TRIANGLE, NO_HIT, Hit, sphere_hit
 from .sampling import TWO_PI, orthonormal_basis
-from .scene import SLOT_EMISSION, TEX_CHECKER, Scene
+from .scene import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from .sky import SKY_GRADIENT, Sky
 from .surface import offset_eps
 from .textures import checker_np, sample_texture_np
@@ -297,6 +297,9 @@ def _mean_emission(scene: Scene, mat: np.ndarray, uv: np.ndarray) -> np.ndarray:
     tex = mt.tex[mat, SLOT_EMISSION]
     for k in np.unique(tex[tex != -1]):
         sel = tex == k
+        if k <= TEX_PROC_BASE:     # procedural: not known on the host; sampled by area (still unbiased)
+            out[sel] = 1.0
+            continue
         pts = uv[sel].reshape(-1, 2)
         vals = checker_np(pts) if k == TEX_CHECKER else sample_texture_np(scene.textures[k], pts)
         out[sel] = vals.reshape(sel.sum(), -1, 3).mean(axis=(1, 2))

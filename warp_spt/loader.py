@@ -42,7 +42,7 @@ from .errors import SceneError
 from .mtl import builtin_checker, builtin_clay, load_mtl
 from .obj import load_obj
 from .scene import (CHECKER_NAME, SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, TEX_CHECKER,
-                    TEX_NONE, Material, MaterialTable, MeshData, ObjData, Scene, TextureRef)
+                    TEX_NONE, TEX_PROC_BASE, Material, MaterialTable, MeshData, ObjData, Scene, TextureRef)
 from .tokens import file_problem
 from .validate import validate_scene
 
@@ -93,6 +93,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
         materials=_table(table_rows, textures),
         textures=textures.images,
+        procedural=textures.procedural,
         warnings=notes,
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
     )
@@ -225,8 +226,13 @@ class _TextureCache:
         self.refs: list[TextureRef] = []
         self._index: dict[str, int] = {}
         self._note = note
+        self.procedural: list = []          # procedural instances (warp_spt.proctex.ProcRef)
 
     def index(self, ref: TextureRef) -> int:
+        if not isinstance(ref, TextureRef):             # a proctex.ProcRef: one instance per (name, params)
+            if ref not in self.procedural:
+                self.procedural.append(ref)
+            return TEX_PROC_BASE - self.procedural.index(ref)
         path = _find_texture(ref)
         if path not in self._index:
             self._index[path] = len(self.images)

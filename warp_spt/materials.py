@@ -18,7 +18,8 @@ cosine-weighted, a fuzzed reflection below the surface is absorbed (Q6), total i
 reflects.
 
 ``make_materials(features)`` compiles only the lobes the scene's materials use (Features.diffuse,
-.specular, .refraction) and the colour sources it needs (textures, the checker).
+.specular, .refraction) and the colour sources it needs (textures, the checker, the procedural textures of
+Features.procedural).
 """
 
 from __future__ import annotations
@@ -29,9 +30,10 @@ import warp as wp
 
 from .device_scene import Features, Materials, Textures
 from .sampling import cosine_hemisphere, uniform_sphere
-from .scene import TEX_CHECKER
+from .proctex import make_dispatch, seed_checker
+from .scene import TEX_CHECKER, TEX_PROC_BASE
 from .surface import INV_PI, Surface
-from .textures import checker, sample_texture
+from .textures import sample_texture
 
 
 @wp.func
@@ -67,21 +69,26 @@ class BsdfSample:
 def make_materials(features: Features) -> SimpleNamespace:
     """``color``, ``emission``, ``sample``, ``eval``, ``pdf`` as Warp functions for these features."""
 
+    proc = make_dispatch(features.procedural)
+
     @wp.func
-    def color(t: Textures, tex: int, const: wp.vec3, uv: wp.vec2) -> wp.vec3:
-        """A material colour: texture slot ``tex`` at ``uv`` if it has one, else ``const``."""
+    def color(t: Textures, tex: int, const: wp.vec3, sf: Surface) -> wp.vec3:
+        """A material colour: texture slot ``tex`` at the surface point if it has one, else ``const``."""
         if wp.static(features.textures):
             if tex >= 0:
-                return sample_texture(t.texels, t.tiles, tex, uv, t.bilinear)
+                return sample_texture(t.texels, t.tiles, tex, sf.uv, t.bilinear)
         if wp.static(features.checker):
             if tex == TEX_CHECKER:
-                return checker(uv)
+                return seed_checker(sf.uv, sf.p, sf.ns)
+        if wp.static(len(features.procedural) > 0):
+            if tex <= TEX_PROC_BASE:
+                return proc(t.proc_kind, t.proc_params, TEX_PROC_BASE - tex, sf.uv, sf.p, sf.ns)
         return const
 
     @wp.func
     def emission(m: Materials, t: Textures, sf: Surface) -> wp.vec3:
         """Emitted radiance, the same on both faces (the seed's emitters are two-sided)."""
-        return color(t, m.tex[sf.mat][3], m.emission[sf.mat], sf.uv)
+        return color(t, m.tex[sf.mat][3], m.emission[sf.mat], sf)
 
     @wp.func
     def specular(m: Materials, t: Textures, sf: Surface, d: wp.vec3, u_dir: wp.vec2, u_fresnel: float) -> BsdfSample:
@@ -107,14 +114,14 @@ def make_materials(features: Features) -> SimpleNamespace:
                     if u_fresnel >= fresnel:
                         tr = d * eta + sf.ns * (eta * cos_i - wp.sqrt(1.0 - sin2_t))
                         out.dir = wp.normalize(tr)
-                        out.weight = color(t, tex[2], m.refract[sf.mat], sf.uv)
+                        out.weight = color(t, tex[2], m.refract[sf.mat], sf)
                         out.through = 1
                         if wp.dot(out.dir, sf.ng) >= 0.0:
                             out.alive = 0
                         return out
         r = d + sf.ns * (2.0 * cos_i)
         out.dir = wp.normalize(r + uniform_sphere(u_dir[0], u_dir[1]) * m.fuzz[sf.mat])
-        out.weight = color(t, tex[1], m.reflect[sf.mat], sf.uv)
+        out.weight = color(t, tex[1], m.reflect[sf.mat], sf)
         if wp.dot(out.dir, sf.ng) <= 0.0:
             out.alive = 0              # fuzz pushed it below the surface: absorbed (seed leaked, Q6)
         return out
@@ -133,7 +140,7 @@ def make_materials(features: Features) -> SimpleNamespace:
                 out.alive = 1
                 out.through = 0
                 out.singular = 0
-                out.weight = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf.uv)
+                out.weight = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf)
                 if wp.static(features.specular):
                     out.weight = out.weight * lobe_weight(rough)
                 out.dir = cosine_hemisphere(sf.ns, u_dir[0], u_dir[1])
@@ -161,7 +168,7 @@ def make_materials(features: Features) -> SimpleNamespace:
         if wp.static(features.diffuse):
             c = wp.dot(wi, sf.ns)
             if c > 0.0 and wp.dot(wi, sf.ng) > 0.0:
-                kd = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf.uv)
+                kd = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf)
                 return kd * (m.roughness[sf.mat] * c * INV_PI)
         return wp.vec3(0.0, 0.0, 0.0)
 

@@ -41,6 +41,9 @@ Standard tags mapped onto the same model:
   first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
   options it read but does not support.
 
+``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
+built-ins: :mod:`warp_spt.proctex`); an unknown name or key is a SceneError with file and line.
+
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.loader.load_scene`, and only for materials that geometry uses.
 Bad values (a non-number, NaN, a reflectance colour outside [0, 1], an emission above 1e30, a
@@ -184,7 +187,8 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         if tag == "ks":
             d.phong["ks"] = max(colour)
     elif tag in _MAP_SLOTS:
-        ref = TextureRef(path=_texture_path(args, path, lineno, name), mtl_file=path, line=lineno)
+        ref = _proc_map(args, path, lineno, name) or TextureRef(path=_texture_path(args, path, lineno, name),
+                                                                mtl_file=path, line=lineno)
         for slot in _MAP_SLOTS[tag]:
             setattr(m, slot + "_map", ref)
     elif tag == "roughness":
@@ -244,6 +248,12 @@ def _texture_path(args: list[bytes], path: str, lineno: int, tag: str) -> str:
 def _texture_options(args: list[bytes]) -> list[str]:
     """The options written before a texture's file name (e.g. ``-s``), as they are spelled."""
     return [a.decode("latin-1") for a in args[:-1] if a.decode("latin-1").lower() in _TEX_OPTIONS]
+def _proc_map(args: list[bytes], path: str, lineno: int, tag: str):
+    """``map_* proc:NAME key=value...``: a procedural texture (warp_spt.proctex), else None."""
+    if not args or not args[0].startswith(b"proc:"):
+        return None
+    from .proctex import parse_proc_map      # imports Warp: only for scenes that use procedural textures
+    return parse_proc_map(args, path, lineno, tag)
 
 
 def _is_number(tok: bytes) -> bool:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import time
+import warnings as _warnings
 from dataclasses import dataclass, field, fields, replace
 from typing import Callable
 
@@ -22,6 +23,7 @@ from .framing import recentre
 from .integrators import DEFAULT_INTEGRATOR, RenderParams, camera_params, check_integrator, get_kernel
 from .lights import light_table, sky_emits
 from .parallel import run_jobs
+from .proctex import nonfinite_textures
 from .samplers import DEFAULT_SAMPLER, SAMPLERS
 from .scene import Scene
 from .sky import Sky
@@ -79,6 +81,7 @@ class RenderStats:
     dropped_samples: int      # non-finite samples discarded (should always be 0)
     tiles: int
     threads: int
+    nonfinite_textures: tuple[str, ...] = ()   # procedural textures found returning NaN/inf (see proctex)
 
 
 @dataclass
@@ -170,6 +173,11 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     seconds = time.perf_counter() - start
     c = counters.numpy().sum(axis=0)
     stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads)
+    if stats.dropped_samples and feats.procedural:
+        stats.nonfinite_textures = tuple(nonfinite_textures(dev.scene, dev.device))
+        _warnings.warn(f"{stats.dropped_samples} non-finite samples dropped; procedural texture(s) returning "
+                       f"NaN or infinity: {', '.join(stats.nonfinite_textures) or 'none found by probing'}",
+                       RuntimeWarning, stacklevel=2)
     sums = film.numpy().reshape(height, width, 3)
     return RenderResult(Film(sums, spp), stats, rs)
 

@@ -15,6 +15,7 @@ import numpy as np
 # Texture slot values in MaterialTable.tex: an index >= 0 names Scene.textures[k].
 TEX_NONE = -1      # use the constant colour
 TEX_CHECKER = -2   # the built-in Inner_CheckerTexture pattern (SEMANTICS §10)
+TEX_PROC_BASE = -3  # -3 - k: procedural texture instance k (Scene.procedural, warp_spt.proctex)
 
 # Column order of MaterialTable.tex
 SLOT_DIFFUSE, SLOT_REFLECT, SLOT_REFRACT, SLOT_EMISSION = 0, 1, 2, 3
@@ -120,6 +121,8 @@ class Scene:
     textures: list[np.ndarray]   # each (H, W, 3) float32 in [0, 1]; row 0 is the image's top row
     warnings: list[str] = field(default_factory=list)
     dropped_degenerate: int = 0
+    # procedural texture instances (warp_spt.proctex.ProcRef); slot value TEX_PROC_BASE - k names k
+    procedural: list = field(default_factory=list)
 
     @property
     def num_triangles(self) -> int:

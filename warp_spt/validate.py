@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import SceneError
-from .scene import CHECKER_NAME, TEX_CHECKER, TEX_NONE, MaterialTable, MeshData, Scene
+from .scene import CHECKER_NAME, TEX_CHECKER, TEX_NONE, TEX_PROC_BASE, MaterialTable, MeshData, Scene
 
 _WHERE = "<scene>"
 
@@ -64,7 +64,7 @@ def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
                  n_materials)
 
 
-def _check_materials(t: MaterialTable, n_textures: int) -> None:
+def _check_materials(t: MaterialTable, n_textures: int, n_procedural: int = 0) -> None:
     m = len(t.names)
     if m == 0 or t.names[0] != CHECKER_NAME:
         _fail(f"materials row 0 must be {CHECKER_NAME}")
@@ -73,8 +73,10 @@ def _check_materials(t: MaterialTable, n_textures: int) -> None:
         if ((a < 0) | (a > high)).any():
             _fail(f"materials.{field} must lie in [0, {high:g}]")
     tex = _check_array(t.tex, "materials.tex", np.int32, (m, 4))
-    if ((tex < 0) & (tex != TEX_NONE) & (tex != TEX_CHECKER)).any() or (tex >= n_textures).any():
-        _fail(f"materials.tex holds slots that are neither TEX_NONE, TEX_CHECKER nor a texture in [0, {n_textures})")
+    proc = (tex <= TEX_PROC_BASE) & (tex > TEX_PROC_BASE - n_procedural)
+    if ((tex < 0) & (tex != TEX_NONE) & (tex != TEX_CHECKER) & ~proc).any() or (tex >= n_textures).any():
+        _fail(f"materials.tex holds slots that are neither TEX_NONE, TEX_CHECKER, a texture in [0, {n_textures}) "
+              f"nor one of the {n_procedural} procedural instances")
     rough = _check_array(t.roughness, "materials.roughness", np.float32, (m,))
     if ((rough < 0) | (rough > 1)).any():
         _fail("materials.roughness must lie in [0, 1]")
@@ -95,7 +97,7 @@ def validate_scene(scene: Scene) -> None:
     ((H, W, 3) float32 in [0, 1], non-empty), and that there is some geometry at all.
     """
     n_mat = len(scene.materials.names)
-    _check_materials(scene.materials, len(scene.textures))
+    _check_materials(scene.materials, len(scene.textures), len(scene.procedural))
     for k, tex in enumerate(scene.textures):
         _check_array(tex, f"textures[{k}]", np.float32, (None, None, 3))
         if tex.shape[0] == 0 or tex.shape[1] == 0 or tex.min(initial=0) < 0 or tex.max(initial=0) > 1:

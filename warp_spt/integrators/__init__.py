@@ -13,6 +13,7 @@ import threading
 import warp as wp
 
 from ..device_scene import Features
+from ..proctex import explain_compile_failure
 from ..samplers import DEFAULT_SAMPLER, get_sampler
 from . import nee, seed
 from .common import CameraParams, PathState, RenderParams, camera_params, camera_ray, make_kernel, make_start_path
@@ -53,7 +54,12 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
         k = _kernels.get(key)
         if k is None:
             k = _kernels[key] = make_kernel(step, start)
-    wp.load_module(k.module, device=device)
+    try:
+        wp.load_module(k.module, device=device)
+    except Exception as err:       # a user's procedural texture is the likely culprit: name it
+        if not features.procedural:
+            raise
+        raise explain_compile_failure(features.procedural, err, device) from None
     return k
 
 

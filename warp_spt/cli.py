@@ -18,6 +18,7 @@ from typing import Sequence, TextIO
 
 from . import __version__
 from .camera import Camera
+from .cli_progressive import BudgetOptions, add_flags, check_outputs, options, process_start, render_and_save
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
 from .sky import Sky
@@ -77,6 +78,7 @@ class Options:
     texture_filter: str = "nearest"
     quiet: bool = False
     demo: str | None = None
+    budget: BudgetOptions = field(default_factory=BudgetOptions)   # cli_progressive's flags
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -157,6 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
                      help="texture lookup (default nearest, as the seed)")
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    add_flags(p, _int_at_least)
     return p
 
 
@@ -190,6 +193,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, demo=ns.demo,
+        budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
 
 
@@ -280,11 +284,16 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
         raise RunError(f"cannot write -out {out!r}: it is a directory")
 
 
-def run(opts: Options, *, stderr: TextIO | None = None) -> int:
-    """Load, render and save as ``opts`` says. Errors propagate; :func:`main` reports them."""
+def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = None) -> int:
+    """Load, render and save as ``opts`` says. Errors propagate; :func:`main` reports them.
+
+    ``started`` (a perf_counter value, default now) is when the command started: --time-budget counts from it.
+    """
+    started = time.perf_counter() if started is None else started
     err = stderr or sys.stderr
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
+    check_outputs(opts.budget, RunError)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
     _quiet_warp(opts.quiet)
     from .film import save_image
@@ -299,6 +308,8 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres "
         f"in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.spp} spp, depth {opts.depth}")
+    if opts.budget.active:
+        return render_and_save(opts, scene, say=say, started=started)
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:
@@ -336,8 +347,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status."""
     from .errors import SceneError
 
+    started = process_start()      # --time-budget covers start-up, load and compile
     stderr = sys.stderr
     argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["convergence"]:
+        from .convergence import main as convergence_main
+        return convergence_main(argv[1:])
     try:
         opts = parse_args(argv)
         if opts.action == "help":
@@ -346,7 +361,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if opts.action == "version":
             print(f"{PROG} {__version__}")
             return EXIT_OK
-        return run(opts, stderr=stderr)
+        return run(opts, stderr=stderr, started=started)
     except UsageError as err:
         return _fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
     except (RunError, SceneError) as err:

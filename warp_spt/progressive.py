@@ -133,7 +133,8 @@ def batch_statistics(sums: np.ndarray, counts: np.ndarray, batches: slice | None
 class ProgressiveStats:
     """What a progressive render did."""
 
-    seconds: float = 0.0            # wall time of render_progressive (upload and compile included)
+    seconds: float = 0.0            # wall time since ``started`` (upload and compile included)
+    render_seconds: float = 0.0     # time spent in passes (launches only)
     passes: int = 0
     rays: int = 0                   # closest-hit queries
     dropped_samples: int = 0        # non-finite samples discarded by the kernel (should be 0)
@@ -294,10 +295,8 @@ class _Driver:
         """Give every active pixel ``inc[b]`` more samples in batch b."""
         items = [(b, lo, hi, int(self.counts[b, lo]), int(inc[b]))
                  for b in range(self.B) if inc[b] > 0 for lo, hi in _runs(active, self.counts[b])]
-        if self.threads == 1 or len(items) == 1:
-            for it in items:
-                self._launch(*it)
-            return
+        # Launches always run on worker threads, even with one thread: a Ctrl-C then lands in this
+        # (waiting) thread, never between a finished launch and its bookkeeping.
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             pending = {pool.submit(self._launch, *it) for it in items}
             try:
@@ -331,6 +330,7 @@ class _Driver:
                 t_start = time.perf_counter()
                 self._run_pass(active, inc)
                 dt = time.perf_counter() - t_start
+                self.stats.render_seconds += dt
                 rate = int(active.sum()) * int(inc.sum()) / max(dt, 1e-6)
                 k += 1
                 self.stats.passes = k

@@ -138,7 +138,8 @@ class ProgressiveStats:
     passes: int = 0
     rays: int = 0                   # closest-hit queries
     dropped_samples: int = 0        # non-finite samples discarded by the kernel (should be 0)
-    stopped_by: str = "spp"         # "spp", "time", "error", "adaptive" (no tile left), "callback", "interrupt"
+    stopped_by: str = "spp"         # "spp", "time", "error", "samples", "adaptive" (no tile left), "callback",
+                                    # "interrupt"
     pixel_samples: int = 0
     threads: int = 1
     pass_errors: list[float] = field(default_factory=list)   # estimated relative error after each pass
@@ -207,6 +208,7 @@ def render_progressive(
     adaptive: bool = False,
     min_spp: int | None = None,
     batches: int = DEFAULT_BATCHES,
+    sample_budget: int | None = None,
     on_pass: PassCallback | None = None,
     keep_partial: bool = False,
     started: float | None = None,
@@ -217,22 +219,26 @@ def render_progressive(
     ``time_budget`` counts from ``started`` (a ``time.perf_counter()`` value; default: this call),
     so it includes the upload and kernel compile done here; the CLI passes its own start time so
     the budget also covers loading the scene. ``target_error`` is the relative error of
-    :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) only on
-    8x8 tiles whose estimated error (from the even batches) exceeds the target, or the image's
-    current error when no target is given. ``on_pass(result)`` is called after every pass; returning
-    True stops the render. With ``keep_partial``, Ctrl-C returns what is accumulated so far
+    :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
+    8x8 tiles with the fewest samples for their noise (estimated from the even batches), so that
+    samples end up proportional to each tile's noise, which minimises the relative error for the
+    work spent (see _Driver._adaptive_pass). ``on_pass(result)`` is called after every pass; returning
+    True stops the render. ``sample_budget`` caps the total pixel-samples (equal-work comparisons
+    of adaptive and uniform sampling). With ``keep_partial``, Ctrl-C returns what is accumulated so far
     (``stats.stopped_by == "interrupt"``) instead of raising KeyboardInterrupt.
     """
     t0 = time.perf_counter() if started is None else started
-    budgeted = time_budget is not None or target_error is not None
+    budgeted = time_budget is not None or target_error is not None or sample_budget is not None
     spp_max = (UNLIMITED_SPP if budgeted else 16) if spp is None else spp
     _check_args(width, height, spp_max, max_depth, seed, 0, texture_filter, TILE_PIXELS)
     _check_budget(time_budget, target_error, batches, min_spp)
+    if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
+        raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=device)
     driver = _Driver(dev, camera or Camera(), sky or Sky.black(), features or dev.features, width, height,
                      max_depth, seed, threads, texture_filter, batches)
     plan = _Plan(spp_max, time_budget, target_error, adaptive,
-                 min(spp_max, 2 * batches if min_spp is None else min_spp), t0)
+                 min(spp_max, 2 * batches if min_spp is None else min_spp), t0, sample_budget)
     return driver.run(plan, on_pass, keep_partial)
 
 
@@ -255,6 +261,7 @@ class _Plan:
     adaptive: bool
     min_spp: int
     t0: float
+    sample_budget: int | None = None
 
     @property
     def deadline(self) -> float:
@@ -365,7 +372,7 @@ class _Driver:
         n_total = self._limit_by_error(plan, result, spp_now, n_total)
         n_total = self._limit_by_time(plan, rate, spp_now, n_total, self.n)
         if n_total <= spp_now:
-            return None, None, "spp" if spp_now >= plan.spp else "time"
+            return None, None, "spp" if spp_now >= plan.spp else self._budget_reason(plan)
         inc = batch_counts(n_total, self.B) - self.counts[:, 0]
         return np.ones(self.n, dtype=bool), inc, None
 
@@ -380,7 +387,11 @@ class _Driver:
         return min(n_total, max(need, spp_now + 1))
 
     def _limit_by_time(self, plan: _Plan, rate, spp_now: int, n_total: int, pixels: int) -> int:
-        """Cut the pass so it ends at the deadline (at the measured pixel-samples per second)."""
+        """Cut the pass so it ends at the deadline (at the measured pixel-samples per second) and
+        within the sample budget."""
+        if plan.sample_budget is not None:
+            left_work = (plan.sample_budget - int(self.counts.sum())) // max(1, pixels)
+            n_total = min(n_total, spp_now + max(0, left_work))
         if plan.time_budget is None:
             return n_total
         left = plan.deadline - time.perf_counter()
@@ -389,27 +400,44 @@ class _Driver:
         affordable = int(left * rate / max(1, pixels))
         return min(n_total, spp_now + max(0, affordable))
 
+    def _budget_reason(self, plan: _Plan) -> str:
+        """Which budget ended the render: the time budget if its deadline has passed, else the samples."""
+        timed_out = plan.time_budget is not None and time.perf_counter() >= plan.deadline
+        return "samples" if plan.sample_budget is not None and not timed_out else "time"
+
     def _adaptive_pass(self, plan: _Plan, k: int, result: ProgressiveResult, rate):
-        """Tiles whose error, estimated from the even batches alone, is above the threshold."""
+        """The half of the tiles with the fewest samples for their noise get the next pass.
+
+        The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p with s_p a pixel's
+        relative standard deviation per sample; for a given time, sum_p n_p c_p with c_p its cost
+        per sample (rays traced, counted by the kernel), it is smallest when n_p is proportional to
+        s_p / sqrt(c_p) (a Lagrange multiplier). So each pass samples the tiles whose
+        n sqrt(c) / s is at or below the median; repeated, that drives n towards that proportion.
+        (Cycles instead equalises the error, n proportional to s^2, which spends more on the
+        noisiest pixels than the RMS error repays.)
+        """
         # The decision uses the even batches only; the odd half of every pixel is therefore an
         # unbiased estimate given the decisions, and the image (all batches) carries only the even
         # half's stopping bias, which the tests measure (docs/error.md).
         mean, se, n_dec = batch_statistics(result.sums, result.counts, slice(0, None, 2))
-        scale = np.sqrt(n_dec / np.maximum(result.spp, 1))[..., None]       # error of the full mean
-        se_full = se * scale
         floor = max(ERROR_FLOOR_FRACTION * float(mean.mean()), 1e-12)
-        rel2 = np.nan_to_num((se_full / np.maximum(mean, floor)) ** 2, nan=np.inf).mean(axis=2)
-        tile_err = np.sqrt(_tile_mean(rel2, ADAPTIVE_TILE))
-        threshold = plan.target_error if plan.target_error is not None else \
-            float(np.sqrt(np.mean(rel2[np.isfinite(rel2)]))) if np.isfinite(rel2).any() else 0.0
+        s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
+        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2), ADAPTIVE_TILE))      # per-sample relative std
+        tile_n = _tile_mean(result.spp.astype(np.float64), ADAPTIVE_TILE)
+        rays = sum(c.numpy()[:, 0] for c in self.counters).reshape(self.height, self.width)
+        tile_cost = _tile_mean(rays / np.maximum(result.spp, 1), ADAPTIVE_TILE)   # rays per sample
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(tile_s > 0, tile_n * np.sqrt(np.maximum(tile_cost, 1.0)) / tile_s, np.inf)
+        finite = np.isfinite(ratio) & (tile_s < np.inf)
+        hot_tiles = ~np.isfinite(tile_s) | (finite & (ratio <= (np.median(ratio[finite]) if finite.any() else 0)))
         s = pass_samples(k, self.n, self.B)
-        hot = np.repeat(np.repeat(tile_err > threshold, ADAPTIVE_TILE, 0), ADAPTIVE_TILE, 1)
+        hot = np.repeat(np.repeat(hot_tiles, ADAPTIVE_TILE, 0), ADAPTIVE_TILE, 1)
         active = hot[: self.height, : self.width].reshape(-1) & (result.spp.reshape(-1) + self.B * s <= plan.spp)
         if not active.any():
-            return None, None, "adaptive" if plan.target_error is not None else "spp"
+            return None, None, "spp"
         per_pixel = self._limit_by_time(plan, rate, 0, self.B * s, int(active.sum()))
         if per_pixel <= 0:
-            return None, None, "time"
+            return None, None, self._budget_reason(plan)
         return active, batch_counts(per_pixel, self.B), None
 
 

@@ -28,7 +28,7 @@ wp.config.quiet = True
 import warp_spt.renderer as R  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.device_scene import DeviceScene, Features  # noqa: E402
-from warp_spt.integrator import get_kernel  # noqa: E402
+from warp_spt.integrators import get_kernel  # noqa: E402
 from warp_spt.loader import load_scene  # noqa: E402
 from warp_spt.sky import Sky  # noqa: E402
 
@@ -49,9 +49,9 @@ def scenes() -> dict[str, DeviceScene]:
 def timed_render(scene: DeviceScene, size: int, spp: int, depth: int, threads: int,
                  features: Features | None = None) -> tuple[float, int]:
     t = time.perf_counter()
-    R.render(scene, width=size, height=size, spp=spp, max_depth=depth, sky=Sky.gradient(),
-             threads=threads, features=features)
-    return time.perf_counter() - t, R.last_stats.rays
+    res = R.render_scene(scene, settings=R.RenderSettings(width=size, height=size, spp=spp, max_depth=depth,
+                                                          sky=Sky.gradient(), threads=threads, features=features))
+    return time.perf_counter() - t, res.stats.rays
 
 
 def speed_table(all_scenes: dict[str, DeviceScene], size: int, spp: int) -> None:
@@ -79,7 +79,8 @@ def specialisation_table(name: str, sc: DeviceScene, size: int, spp: int) -> Non
     print("| kernel | seconds | relative to specialised |")
     print("|---|---|---|")
     variants = {"specialised": own, "general (every feature)": Features.general()}
-    for field in ("meshes", "spheres", "textures", "checker", "refraction", "emitters", "smooth"):
+    for field in ("meshes", "spheres", "textures", "checker", "refraction", "emitters", "smooth", "diffuse",
+                  "specular"):
         if not getattr(own, field):
             variants[f"+ {field} code"] = replace(own, **{field: True})
     base = None
@@ -96,7 +97,7 @@ def compile_times() -> None:
     print("\n## Kernel compile (builtin demo's kernel), fresh processes")
     code = ("import time,warp as wp; wp.config.quiet=True; wp.init(); t=time.perf_counter();"
             "from warp_spt.demo import demo_files; from warp_spt.loader import load_scene;"
-            "from warp_spt.device_scene import DeviceScene; from warp_spt.integrator import get_kernel;"
+            "from warp_spt.device_scene import DeviceScene; from warp_spt.integrators import get_kernel;"
             "o,m=demo_files(); s=DeviceScene(load_scene(o,m)); t=time.perf_counter();"
             "get_kernel(s.features); print(time.perf_counter()-t)")
     with tempfile.TemporaryDirectory() as cache:

@@ -116,8 +116,9 @@ def scene_from_text(folder: Path, name: str, obj: str, mtl: str | None = None) -
 def render_checked(scene: DeviceScene, camera: Camera, **kw) -> np.ndarray:
     """render() with the general kernel; asserts a finite image and no dropped (non-finite) samples."""
     kw.setdefault("features", GENERAL)
-    img = R.render(scene, camera, **kw)
-    assert R.last_stats.dropped_samples == 0, f"{R.last_stats.dropped_samples} non-finite samples dropped"
+    res = R.render_scene(scene, camera, R.RenderSettings(**kw))
+    img = res.image
+    assert res.stats.dropped_samples == 0, f"{res.stats.dropped_samples} non-finite samples dropped"
     assert np.isfinite(img).all(), "non-finite pixel"
     return img
 

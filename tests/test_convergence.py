@@ -10,9 +10,20 @@ import numpy as np
 import pytest
 
 from warp_spt.cli import main
-from warp_spt.convergence import COLUMNS, fit_slope, levels
+from warp_spt.convergence import COLUMNS, fit_slope, levels, parse_config, default_configs
 
 from .test_cli_progressive import lit_files  # noqa: F401  (fixture)
+
+
+def test_config_names():
+    assert parse_config("nee/sobol+adaptive") == ("nee", "sobol", {"adaptive"})
+    assert parse_config("uniform") == ("seed", "independent", set())
+    assert parse_config("denoised") == ("seed", "independent", {"denoised"})
+    assert default_configs() == ["nee/independent", "nee/sobol", "seed/independent", "seed/sobol",
+                                 "seed/independent+adaptive"]
+    for bad in ("nee", "nee/halton", "fancy/sobol", "seed/sobol+blurred"):
+        with pytest.raises(ValueError):
+            parse_config(bad)
 
 
 def test_levels():
@@ -30,18 +41,22 @@ def test_slope_fit_and_warning():
 
 def test_report_writes_the_documented_columns(tmp_path, lit_files, capsys):  # noqa: F811
     prefix = tmp_path / "conv"
+    # Two configurations of one kernel (compiling every integrator x sampler would dominate CI time);
+    # the default set's names are checked in test_config_names.
+    configs = ["seed/independent", "seed/independent+adaptive"]
     args = ["convergence", *lit_files, "-res", "8", "6", "--max-spp", "8", "--reference-spp", "256",
-            "--prefix", str(prefix)]
+            "--configs", ",".join(configs), "--prefix", str(prefix)]
     assert main(args) == 0
     with open(f"{prefix}.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert tuple(rows[0].keys()) == COLUMNS
-    assert [(r["config"], int(r["spp"])) for r in rows] == [(c, s) for s in (1, 2, 4, 8) for c in ("uniform", "adaptive")]
+    assert [(r["config"], int(r["spp"])) for r in rows] == [(c, s) for s in (1, 2, 4, 8) for c in configs]
+    assert {(r["integrator"], r["sampler"]) for r in rows} == {("seed", "independent")}
     for r in rows:
         assert float(r["rmse"]) <= float(r["rmse_raw"]) and float(r["seconds"]) > 0
     doc = json.loads((tmp_path / "conv.json").read_text())
     assert doc["columns"] == list(COLUMNS) and len(doc["rows"]) == 8
-    assert set(doc["fits"]) == {"uniform", "adaptive"} and doc["reference"]["spp"] == 256
+    assert set(doc["fits"]) == set(configs) and doc["reference"]["spp"] == 256
     assert (tmp_path / "conv.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "log-log slope" in capsys.readouterr().err
 

@@ -65,7 +65,7 @@ def test_tape_gradient_matches_finite_differences(room, field, name):
     result = render_differentiable(dev, CAM, **KW)
     result.tape.backward(grads={result.image: wp.array(np.ones((KW["width"] * KW["height"], 3), np.float32),
                                                        dtype=wp.vec3)})
-    grad = getattr(dev.arrays, f"mat_{field}").grad.numpy()
+    grad = getattr(dev.materials, field).grad.numpy()
     row = _row(room, name)
     h = 1e-2
     for c in range(3):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.device_scene import DeviceScene, Features, SceneArrays
+from warp_spt.device_scene import DeviceScene, Features, Geometry
 from warp_spt.geometry import make_closest_hit, make_occluded
 from warp_spt.loader import load_scene
 
@@ -18,7 +18,7 @@ _occluded = make_occluded(Features.general())
 
 
 @wp.kernel(enable_backward=False)
-def _cast(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
+def _cast(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
           t: wp.array(dtype=float), kind: wp.array(dtype=int), index: wp.array(dtype=int)):
     i = wp.tid()
     h = _closest(s, o[i], d[i], 3.0e38)
@@ -28,7 +28,7 @@ def _cast(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3)
 
 
 @wp.kernel(enable_backward=False)
-def _shadow(s: SceneArrays, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
+def _shadow(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
             t_max: wp.array(dtype=float), blocked: wp.array(dtype=int)):
     i = wp.tid()
     blocked[i] = wp.where(_occluded(s, o[i], d[i], t_max[i]), 1, 0)
@@ -39,7 +39,7 @@ def cast(scene: DeviceScene, o: np.ndarray, d: np.ndarray):
     t = wp.zeros(n, dtype=float)
     kind = wp.zeros(n, dtype=int)
     index = wp.zeros(n, dtype=int)
-    wp.launch(_cast, dim=n, inputs=[scene.arrays, wp.array(o.astype(np.float32), dtype=wp.vec3),
+    wp.launch(_cast, dim=n, inputs=[scene.geometry, wp.array(o.astype(np.float32), dtype=wp.vec3),
                                     wp.array(d.astype(np.float32), dtype=wp.vec3), t, kind, index])
     return t.numpy(), kind.numpy(), index.numpy()
 
@@ -130,7 +130,7 @@ def test_any_hit_occlusion_agrees_with_the_closest_hit(mixed):
     t, kind, _ = cast(mixed, o, d)
     t_max = rng.uniform(0.0, 25.0, size=n).astype(np.float32)
     blocked = wp.zeros(n, dtype=int)
-    wp.launch(_shadow, dim=n, inputs=[mixed.arrays, wp.array(o.astype(np.float32), dtype=wp.vec3),
+    wp.launch(_shadow, dim=n, inputs=[mixed.geometry, wp.array(o.astype(np.float32), dtype=wp.vec3),
                                       wp.array(d.astype(np.float32), dtype=wp.vec3),
                                       wp.array(t_max, dtype=float), blocked])
     expected = (kind >= 0) & (t < t_max)

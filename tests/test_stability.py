@@ -383,8 +383,10 @@ def test_million_samples_accumulate_without_drift(scene_dir):
     n = 1 << 20
     dev = scene_from_text(scene_dir, "behind", "b 0 -50 0 1\n")
     cam = Camera(position=(0, 0, 0), direction=(0, 1, 0), fov=20.0, aperture=0.0, focus=1.0)
-    film = R.render_film(dev, cam, width=1, height=1, spp=n, max_depth=1, sky=sky(0.1), features=GENERAL)
-    assert R.last_stats.dropped_samples == 0
+    res = R.render_scene(dev, cam, R.RenderSettings(width=1, height=1, spp=n, max_depth=1, sky=sky(0.1),
+                                                    features=GENERAL))
+    film = res.film
+    assert res.stats.dropped_samples == 0
     v = np.float32(0.1)
     assert film.sum[0, 0, 0] / n == float(v)
     float32_running = float(np.cumsum(np.full(n, v, np.float32), dtype=np.float32)[-1]) / n

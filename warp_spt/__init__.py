@@ -8,7 +8,9 @@ The public surface, in the order data flows::
 
 :func:`load_obj` and :func:`load_mtl` read single files; :class:`SceneError` is the one exception for
 bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
-separate sample ranges merge exactly; :func:`render_film` returns one.
+separate sample ranges merge exactly; :func:`render_film` returns one. :func:`render_scene` takes a
+:class:`RenderSettings` (integrator and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``)
+and returns a :class:`RenderResult` (film, image, stats).
 """
 
 from __future__ import annotations
@@ -19,7 +21,9 @@ from .film import Film, save_image, tonemap_seed, tonemap_srgb
 from .loader import load_scene
 from .mtl import load_mtl
 from .obj import load_obj
-from .renderer import render, render_film
+from .integrators import INTEGRATORS
+from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
+from .samplers import SAMPLERS
 from .scene import Material, ObjData, Scene
 from .sky import Sky
 
@@ -27,6 +31,11 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Camera",
+    "INTEGRATORS",
+    "RenderResult",
+    "RenderSettings",
+    "RenderStats",
+    "SAMPLERS",
     "Film",
     "Material",
     "ObjData",
@@ -38,6 +47,7 @@ __all__ = [
     "load_scene",
     "render",
     "render_film",
+    "render_scene",
     "save_image",
     "tonemap_seed",
     "tonemap_srgb",

@@ -20,7 +20,9 @@ from . import __version__
 from .camera import Camera
 from .cli_progressive import BudgetOptions, add_flags, check_outputs, options, process_start, render_and_save
 from .demo import PRESETS, demo_files
+from .integrators import INTEGRATORS
 from .progress import ProgressBar
+from .samplers import SAMPLERS
 from .sky import Sky
 
 PROG = "warp-spt"
@@ -78,6 +80,8 @@ class Options:
     texture_filter: str = "nearest"
     quiet: bool = False
     demo: str | None = None
+    integrator: str | None = None     # None: the renderer's default
+    sampler: str | None = None
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # cli_progressive's flags
 
     @property
@@ -159,6 +163,10 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
                      help="texture lookup (default nearest, as the seed)")
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    new.add_argument("--integrator", choices=sorted(INTEGRATORS),
+                     help="light transport: nee (light sampling with MIS) or seed (pure path tracing)")
+    new.add_argument("--sampler", choices=sorted(SAMPLERS),
+                     help="random numbers: sobol (Owen-scrambled Sobol') or independent")
     add_flags(p, _int_at_least)
     return p
 
@@ -193,6 +201,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, demo=ns.demo,
+        integrator=ns.integrator, sampler=ns.sampler,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
 
@@ -315,7 +324,8 @@ def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = 
     try:
         image = render(scene, opts.camera, width=opts.width, height=opts.height, spp=opts.spp,
                        max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
-                       texture_filter=opts.texture_filter, progress=bar or False)
+                       texture_filter=opts.texture_filter, progress=bar or False,
+                       **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
     finally:
         if bar is not None:
             bar.close()

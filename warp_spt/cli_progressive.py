@@ -126,7 +126,8 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
                              max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
                              texture_filter=opts.texture_filter, time_budget=b.time_budget,
                              target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
-                             on_pass=on_pass, keep_partial=b.save_partial, started=started)
+                             on_pass=on_pass, keep_partial=b.save_partial, started=started,
+                             **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
     save_image(opts.out, res.image, tonemap=opts.tonemap)
     if b.error_map:
         save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image))

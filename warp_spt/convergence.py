@@ -7,10 +7,12 @@ per configuration: the fitted log-log slope of RMSE against spp, with a warning 
 -0.5 (bias or a bug). It writes CSV and JSON, and a PNG plot when matplotlib is installed
 (``pip install "warp-spt[plot]"``).
 
-Configurations: ``uniform`` (every pixel the same spp), ``adaptive`` (the same total number of
-samples, spent by adaptive sampling after a quarter of them everywhere; equal work, so seconds
-compare fairly), and ``denoised`` (the uniform image through Open Image Denoise, when ``--denoise``
-is given and pyoidn is installed: its RMSE shows the denoiser's error and bias, not a prettier picture).
+Configurations are named ``INTEGRATOR/SAMPLER`` (``nee/sobol``; every pixel the same spp), with
+``+adaptive`` (the same total number of samples, spent by adaptive sampling after a quarter of them
+everywhere: equal work) or ``+denoised`` (the image through Open Image Denoise, when pyoidn is
+installed: its RMSE shows the denoiser's error and bias, not a prettier picture). ``uniform``,
+``adaptive`` and ``denoised`` alone mean the renderer's default integrator and sampler. The default
+set is every integrator with every sampler, plus the default pair with ``+adaptive``.
 
 The reference's own noise is estimated (its batches' standard error) and its mean square is
 subtracted from each row's mean squared error, so the slope is not flattened by the reference
@@ -34,7 +36,7 @@ from typing import Sequence
 import numpy as np
 
 PROG = "warp-spt convergence"
-COLUMNS = ("config", "spp", "mean_spp", "seconds", "rmse", "rmse_raw", "relative_error",
+COLUMNS = ("config", "integrator", "sampler", "spp", "mean_spp", "seconds", "rmse", "rmse_raw", "relative_error",
            "estimated_relative_error", "efficiency")
 SLOPE_TOLERANCE = 0.15      # |slope + 0.5| above this is reported as suspicious
 REF_SUFFIXES = (".npy", ".pfm")
@@ -44,7 +46,9 @@ REF_SUFFIXES = (".npy", ".pfm")
 class Row:
     """One render of one configuration (the CSV/JSON columns, documented in docs/error.md)."""
 
-    config: str
+    config: str                      # INTEGRATOR/SAMPLER, with +adaptive or +denoised
+    integrator: str
+    sampler: str
     spp: int                         # nominal samples per pixel of this level
     mean_spp: float                  # samples actually taken, per pixel, on average
     seconds: float                   # render time (scene uploaded and kernel compiled beforehand)
@@ -83,7 +87,7 @@ def levels(max_spp: int) -> list[int]:
     return out + ([max_spp] if out[-1] != max_spp else [])
 
 
-def measure(config: str, spp: int, image: np.ndarray, reference: np.ndarray, ref_mse: float, seconds: float,
+def measure(config: str, integrator: str, sampler: str, spp: int, image: np.ndarray, reference: np.ndarray, ref_mse: float, seconds: float,
             mean_spp: float, estimated: float) -> Row:
     """The row for one image against the reference."""
     from .progressive import relative_error
@@ -93,18 +97,21 @@ def measure(config: str, spp: int, image: np.ndarray, reference: np.ndarray, ref
     mse = max(raw - ref_mse, 0.0)
     rmse = math.sqrt(mse)
     eff = 1.0 / (mse * seconds) if mse > 0 and seconds > 0 else float("inf")
-    return Row(config, spp, mean_spp, seconds, rmse, math.sqrt(raw), relative_error(diff, reference),
+    return Row(config, integrator, sampler, spp, mean_spp, seconds, rmse, math.sqrt(raw), relative_error(diff, reference),
                estimated, eff)
 
 
 def run_report(scene, camera, *, width: int, height: int, max_spp: int, reference_spp: int,
-               reference: np.ndarray | None = None, configs: Sequence[str] = ("uniform", "adaptive"),
+               reference: np.ndarray | None = None, configs: Sequence[str] | None = None,
                seed: int = 0, say=lambda msg: None, **render_kw) -> tuple[list[Row], dict[str, Fit], dict]:
     """Render the reference (unless given) and every configuration at every level; fit the slopes."""
     from .device_scene import DeviceScene
     from .progressive import render_progressive
 
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
+    configs = list(configs or default_configs())
+    for c in configs:
+        parse_config(c)
     kw = dict(width=width, height=height, **render_kw)
     ref_info: dict = {}
     if reference is None:
@@ -126,29 +133,61 @@ def run_report(scene, camera, *, width: int, height: int, max_spp: int, referenc
         for config in configs:
             rows.append(_render_row(dev, camera, config, spp, seed + 1 + i, reference, ref_mse, kw))
             r = rows[-1]
-            say(f"{config:>9} {spp:>6} spp: RMSE {r.rmse:.4g}, relative error {100 * r.relative_error:.2f}%, "
+            say(f"{config:>26} {spp:>6} spp: RMSE {r.rmse:.4g}, relative error {100 * r.relative_error:.2f}%, "
                 f"{r.seconds:.2f} s")
     fits = {c: fit_slope([r.spp for r in rows if r.config == c], [r.rmse for r in rows if r.config == c])
             for c in configs}
     return rows, fits, ref_info
 
 
+def parse_config(name: str) -> tuple[str, str, set[str]]:
+    """``nee/sobol+adaptive`` -> ("nee", "sobol", {"adaptive"}); raises ValueError for unknown parts."""
+    from .integrators import INTEGRATORS
+    from .renderer import DEFAULT_INTEGRATOR, DEFAULT_SAMPLER
+    from .samplers import SAMPLERS
+
+    base, *mods = name.split("+")
+    if base in MODIFIERS or base == "uniform":
+        mods, base = mods + ([base] if base in MODIFIERS else []), f"{DEFAULT_INTEGRATOR}/{DEFAULT_SAMPLER}"
+    integrator, _, sampler = base.partition("/")
+    if integrator not in INTEGRATORS or sampler not in SAMPLERS or not set(mods) <= set(MODIFIERS):
+        raise ValueError(f"unknown configuration {name!r}: expected INTEGRATOR/SAMPLER[+adaptive|+denoised] with "
+                         f"integrators {', '.join(sorted(INTEGRATORS))} and samplers {', '.join(sorted(SAMPLERS))}")
+    return integrator, sampler, set(mods)
+
+
+def default_configs() -> list[str]:
+    """Every integrator with every sampler, and the renderer's default pair with +adaptive."""
+    from .integrators import INTEGRATORS
+    from .renderer import DEFAULT_INTEGRATOR, DEFAULT_SAMPLER
+    from .samplers import SAMPLERS
+
+    pairs = [f"{i}/{s}" for i in sorted(INTEGRATORS) for s in sorted(SAMPLERS)]
+    return pairs + [f"{DEFAULT_INTEGRATOR}/{DEFAULT_SAMPLER}+adaptive"]
+
+
+MODIFIERS = ("adaptive", "denoised")
+
+
 def _render_row(dev, camera, config: str, spp: int, seed: int, reference, ref_mse: float, kw) -> Row:
     from .progressive import render_progressive
 
+    integrator, sampler, mods = parse_config(config)
+    kw = dict(kw, integrator=integrator, sampler=sampler)
     t = time.perf_counter()
-    if config == "adaptive":
+    if "adaptive" in mods:
         res = render_progressive(dev, camera, spp=16 * spp, sample_budget=spp * kw["width"] * kw["height"],
                                  adaptive=True, min_spp=max(1, spp // 4), seed=seed, **kw)
     else:
         res = render_progressive(dev, camera, spp=spp, seed=seed, **kw)
     image, estimated = res.image, res.relative_error
-    if config == "denoised":
+    if "denoised" in mods:
         from .denoise import denoise
 
         image, estimated = denoise(res.image), float("nan")
     seconds = time.perf_counter() - t
-    return measure(config, spp, image, reference, ref_mse, seconds, float(res.spp.mean()), estimated)
+    return measure(config, integrator, sampler, spp, image, reference, ref_mse, seconds, float(res.spp.mean()),
+                   estimated)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -225,16 +264,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--reference", metavar="PATH", help="reference image (.npy/.pfm, linear) instead of rendering one")
     p.add_argument("--reference-spp", type=_int_at_least(2, 1 << 20), metavar="N",
                    help="samples per pixel of the rendered reference (default 16 x --max-spp)")
-    p.add_argument("--configs", default="uniform,adaptive", metavar="LIST",
-                   help="comma-separated: uniform, adaptive, denoised (default uniform,adaptive)")
-    p.add_argument("--denoise", action="store_true", help="add the 'denoised' configuration (needs pyoidn)")
+    p.add_argument("--configs", metavar="LIST",
+                   help="comma-separated INTEGRATOR/SAMPLER[+adaptive|+denoised] (default: every integrator "
+                        "with every sampler, and the default pair +adaptive)")
+    p.add_argument("--denoise", action="store_true", help="add the default pair +denoised (needs pyoidn)")
     p.add_argument("--prefix", default="convergence", metavar="PATH",
                    help="writes PATH.csv, PATH.json and PATH.png (default ./convergence)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plot")
     return p
-
-
-CONFIGS = ("uniform", "adaptive", "denoised")
 
 
 def main(argv: Sequence[str]) -> int:
@@ -247,11 +284,13 @@ def main(argv: Sequence[str]) -> int:
         if ns.help:
             print(_parser().format_help(), end="")
             return 0
-        configs = [c.strip() for c in ns.configs.split(",") if c.strip()] + (["denoised"] * ns.denoise)
-        configs = list(dict.fromkeys(configs))
-        unknown = [c for c in configs if c not in CONFIGS]
-        if unknown or not configs:
-            raise UsageError(f"--configs: unknown configuration(s) {unknown}; choose from {', '.join(CONFIGS)}")
+        configs = [c.strip() for c in ns.configs.split(",") if c.strip()] if ns.configs else default_configs()
+        configs = list(dict.fromkeys(configs + ["denoised"] * ns.denoise))
+        for c in configs:
+            try:
+                parse_config(c)
+            except ValueError as e:
+                raise UsageError(f"--configs: {e}") from None
         if ns.reference and Path(ns.reference).suffix.lower() not in REF_SUFFIXES:
             raise UsageError(f"--reference {ns.reference!r}: must be .npy or .pfm (linear radiance)")
         opts = parse_args(rest)
@@ -271,7 +310,7 @@ def _run(ns, opts, configs: list[str], err) -> int:
     from .loader import load_scene
 
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))
-    if "denoised" in configs:
+    if any("denoised" in parse_config(c)[2] for c in configs):
         from .denoise import require
 
         require()

@@ -1,7 +1,9 @@
 """Scene upload: numpy Scene -> Warp meshes (one per OBJ), our top-level BVH, texture atlas, material table.
 
-The result, :class:`DeviceScene`, carries one :class:`SceneArrays` struct that every kernel takes,
-plus the :class:`Features` the scene actually uses, from which the integrator specialises its kernel.
+The result, :class:`DeviceScene`, carries one small struct per concept that kernels take
+(:class:`Geometry`, :class:`Materials`, :class:`Textures`; the light table is built by
+``warp_spt.lights``), plus the :class:`Features` the scene actually uses, from which the
+integrators specialise their kernels.
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ from .validate import validate_scene
 
 
 @wp.struct
-class SceneArrays:
-    """Everything a kernel reads about the scene (device arrays; see upload())."""
+class Geometry:
+    """What intersection and surface lookup read: meshes, spheres, the top-level BVH, per-face data."""
 
     # Triangles: one wp.Mesh per OBJ file; per-face data is concatenated across meshes.
     mesh_ids: wp.array(dtype=wp.uint64)
@@ -43,20 +45,32 @@ class SceneArrays:
     node_first: wp.array(dtype=wp.int32)
     node_count: wp.array(dtype=wp.int32)
     items: wp.array(dtype=wp.int32)
-    # Materials (structure of arrays) and the texture atlas
-    mat_diffuse: wp.array(dtype=wp.vec3)
-    mat_reflect: wp.array(dtype=wp.vec3)
-    mat_refract: wp.array(dtype=wp.vec3)
-    mat_emission: wp.array(dtype=wp.vec3)
-    mat_tex: wp.array(dtype=wp.vec4i)
-    mat_roughness: wp.array(dtype=wp.float32)
-    mat_fuzz: wp.array(dtype=wp.float32)
-    mat_ior: wp.array(dtype=wp.float32)
-    mat_refractable: wp.array(dtype=wp.int32)
-    texels: wp.array2d(dtype=wp.vec3)
-    tiles: wp.array(dtype=wp.vec4i)
     # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
     extent: float
+
+
+@wp.struct
+class Materials:
+    """The material table (structure of arrays, one row per material; see scene.MaterialTable)."""
+
+    diffuse: wp.array(dtype=wp.vec3)
+    reflect: wp.array(dtype=wp.vec3)
+    refract: wp.array(dtype=wp.vec3)
+    emission: wp.array(dtype=wp.vec3)
+    tex: wp.array(dtype=wp.vec4i)              # texture slot per colour (scene.SLOT_*)
+    roughness: wp.array(dtype=wp.float32)      # probability of the diffuse lobe
+    fuzz: wp.array(dtype=wp.float32)
+    ior: wp.array(dtype=wp.float32)
+    refractable: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class Textures:
+    """The texture atlas, its tile table and the filter (0 nearest, 1 bilinear)."""
+
+    texels: wp.array2d(dtype=wp.vec3)
+    tiles: wp.array(dtype=wp.vec4i)
+    bilinear: int
 
 
 @dataclass(frozen=True)
@@ -70,6 +84,9 @@ class Features:
     refraction: bool = True
     emitters: bool = True
     smooth: bool = True
+    diffuse: bool = True       # some material has a diffuse lobe (Roughness > 0)
+    specular: bool = True      # some material has a mirror/glass lobe (Roughness < 1)
+    sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
 
     @staticmethod
     def general() -> "Features":
@@ -86,18 +103,23 @@ class DeviceScene:
         self.scene = scene
         self.features = _features(scene)
         self._meshes: list[wp.Mesh] = []
-        self.arrays = self._upload(scene, device)
-
-    def _upload(self, scene: Scene, device: str) -> SceneArrays:
-        s = SceneArrays()
-        self._upload_meshes(s, scene, device)
-        self._upload_spheres_and_tlas(s, scene, device)
-        self._upload_materials(s, scene, device)
+        self.geometry = Geometry()
+        self._upload_meshes(self.geometry, scene, device)
+        self._upload_spheres_and_tlas(self.geometry, scene, device)
         b = scene.bounds
-        s.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
-        return s
+        self.geometry.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
+        self.materials = _upload_materials(scene, device)
+        self._atlas = _upload_atlas(scene, device)
+        self._lights: dict = {}          # light tables per sky (warp_spt.lights.light_table)
 
-    def _upload_meshes(self, s: SceneArrays, scene: Scene, device: str) -> None:
+    def textures(self, texture_filter: str = "nearest") -> Textures:
+        """The atlas with the given filter ("nearest" or "bilinear")."""
+        t = Textures()
+        t.texels, t.tiles = self._atlas
+        t.bilinear = int(texture_filter == "bilinear")
+        return t
+
+    def _upload_meshes(self, s: Geometry, scene: Scene, device: str) -> None:
         offsets, mats, uvs, normals = [], [], [], []
         start = 0
         for m in scene.meshes:
@@ -118,7 +140,7 @@ class DeviceScene:
         s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
         s.has_corner_normals = int(self.features.smooth)
 
-    def _upload_spheres_and_tlas(self, s: SceneArrays, scene: Scene, device: str) -> None:
+    def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
         lowers, uppers = [], []
         for m in scene.meshes:
             p = m.positions[m.indices.reshape(-1)].astype(np.float64)
@@ -135,15 +157,21 @@ class DeviceScene:
                     node_left=(t.left, wp.int32), node_right=(t.right, wp.int32),
                     node_first=(t.first, wp.int32), node_count=(t.count, wp.int32), items=(t.items, wp.int32))
 
-    def _upload_materials(self, s: SceneArrays, scene: Scene, device: str) -> None:
-        mt = scene.materials
-        atlas = pack_atlas(scene.textures)
-        _set_arrays(s, device, mat_diffuse=(mt.diffuse, wp.vec3), mat_reflect=(mt.reflect, wp.vec3),
-                    mat_refract=(mt.refract, wp.vec3), mat_emission=(mt.emission, wp.vec3),
-                    mat_tex=(mt.tex, wp.vec4i), mat_roughness=(mt.roughness, wp.float32),
-                    mat_fuzz=(mt.fuzz, wp.float32), mat_ior=(mt.ior, wp.float32),
-                    mat_refractable=(mt.refractable.astype(np.int32), wp.int32), tiles=(atlas.tiles, wp.vec4i))
-        s.texels = wp.array(np.ascontiguousarray(atlas.texels, dtype=np.float32), dtype=wp.vec3, device=device)
+
+def _upload_materials(scene: Scene, device: str) -> Materials:
+    mt = scene.materials
+    m = Materials()
+    _set_arrays(m, device, diffuse=(mt.diffuse, wp.vec3), reflect=(mt.reflect, wp.vec3),
+                refract=(mt.refract, wp.vec3), emission=(mt.emission, wp.vec3), tex=(mt.tex, wp.vec4i),
+                roughness=(mt.roughness, wp.float32), fuzz=(mt.fuzz, wp.float32), ior=(mt.ior, wp.float32),
+                refractable=(mt.refractable.astype(np.int32), wp.int32))
+    return m
+
+
+def _upload_atlas(scene: Scene, device: str) -> tuple[wp.array, wp.array]:
+    atlas = pack_atlas(scene.textures)
+    texels = wp.array(np.ascontiguousarray(atlas.texels, dtype=np.float32), dtype=wp.vec3, device=device)
+    return texels, _arr(atlas.tiles, wp.vec4i, device, np.int32)
 
 
 def _features(scene: Scene) -> Features:
@@ -160,6 +188,8 @@ def _features(scene: Scene) -> Features:
         refraction=bool(mt.refractable[used].any()),
         emitters=bool(emits),
         smooth=any(m.corner_normal is not None for m in scene.meshes),
+        diffuse=bool((mt.roughness[used] > 0).any()),
+        specular=bool((mt.roughness[used] < 1).any()),
     )
 
 
@@ -177,7 +207,7 @@ def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.nda
     return np.concatenate(parts).astype(dtype) if parts else np.zeros(empty_shape, dtype)
 
 
-def _set_arrays(s: SceneArrays, device: str, **fields: tuple) -> None:
+def _set_arrays(s, device: str, **fields: tuple) -> None:
     """Upload each ``name=(data, warp dtype)`` into the struct field of that name."""
     for name, (data, dtype) in fields.items():
         np_dtype = np.int32 if dtype in (wp.int32, wp.vec4i) else np.float32

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .device_scene import Features, SceneArrays
+from .device_scene import Features, Geometry
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
 NO_HIT = wp.constant(3.0e38)
@@ -93,7 +93,7 @@ def make_closest_hit(features: Features):
     """The closest-hit function for scenes with these features."""
 
     @wp.func
-    def visit_item(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
+    def visit_item(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
         if item < s.num_meshes:
             if wp.static(features.meshes):
                 q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
@@ -118,7 +118,7 @@ def make_closest_hit(features: Features):
         return hit
 
     @wp.func
-    def closest_hit(s: SceneArrays, o: wp.vec3, d: wp.vec3, t_max: float) -> Hit:
+    def closest_hit(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> Hit:
         """Front-to-back traversal of our top-level BVH with closest-t pruning."""
         hit = Hit()
         hit.t = t_max
@@ -177,7 +177,7 @@ def make_occluded(features: Features):
     """
 
     @wp.func
-    def blocks(s: SceneArrays, item: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+    def blocks(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
         if item < s.num_meshes:
             if wp.static(features.meshes):
                 return wp.mesh_query_ray_anyhit(s.mesh_ids[item], o, d, t_max)
@@ -187,7 +187,7 @@ def make_occluded(features: Features):
         return False
 
     @wp.func
-    def occluded(s: SceneArrays, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+    def occluded(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
         inv = safe_inverse(d)
         nodes = vec_stack_i()
         sp = int(0)

@@ -34,17 +34,18 @@ import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
 import warp as wp
 
 from .camera import Camera
-from .device_scene import DeviceScene, Features
+from .device_scene import DeviceScene
 from .film import Film
-from .integrator import camera_params, get_kernel
-from .renderer import TILE_PIXELS, _check_args
+from .integrators import RenderParams, camera_params, get_kernel
+from .lights import light_table, sky_emits
+from .renderer import TILE_PIXELS, RenderSettings, _check_args, _settings
 from .scene import Scene
 from .sky import Sky
 
@@ -142,6 +143,8 @@ class ProgressiveStats:
                                     # "interrupt"
     pixel_samples: int = 0
     threads: int = 1
+    integrator: str = ""
+    sampler: str = ""
     pass_errors: list[float] = field(default_factory=list)   # estimated relative error after each pass
     pass_seconds: list[float] = field(default_factory=list)  # elapsed time at the end of each pass
 
@@ -193,16 +196,6 @@ def render_progressive(
     scene: Scene | DeviceScene,
     camera: Camera | None = None,
     *,
-    width: int = 500,
-    height: int = 500,
-    spp: int | None = None,
-    max_depth: int = 6,
-    sky: Sky | None = None,
-    seed: int = 0,
-    threads: int | None = None,
-    device: str = "cpu",
-    texture_filter: str = "nearest",
-    features: Features | None = None,
     time_budget: float | None = None,
     target_error: float | None = None,
     adaptive: bool = False,
@@ -212,9 +205,13 @@ def render_progressive(
     on_pass: PassCallback | None = None,
     keep_partial: bool = False,
     started: float | None = None,
+    **settings,
 ) -> ProgressiveResult:
     """Render in passes until ``spp``, ``time_budget`` (seconds) or ``target_error`` is reached.
 
+    ``settings`` are the fields of :class:`warp_spt.renderer.RenderSettings` (width, height, spp,
+    max_depth, sky, seed, integrator, sampler, roulette_depth, texture_filter, threads, features,
+    device) except ``sample_offset`` and ``tile_pixels``: the batches own the sample indices.
     ``spp`` is the maximum samples per pixel (default 16 without a budget, unlimited with one).
     ``time_budget`` counts from ``started`` (a ``time.perf_counter()`` value; default: this call),
     so it includes the upload and kernel compile done here; the CLI passes its own start time so
@@ -222,23 +219,27 @@ def render_progressive(
     :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
     8x8 tiles with the fewest samples for their noise (estimated from the even batches), so that
     samples end up proportional to each tile's noise, which minimises the relative error for the
-    work spent (see _Driver._adaptive_pass). ``on_pass(result)`` is called after every pass; returning
-    True stops the render. ``sample_budget`` caps the total pixel-samples (equal-work comparisons
-    of adaptive and uniform sampling). With ``keep_partial``, Ctrl-C returns what is accumulated so far
+    work spent (see _Driver._adaptive_pass). ``sample_budget`` caps the total pixel-samples
+    (equal-work comparisons). ``on_pass(result)`` is called after every pass; returning True stops
+    the render. With ``keep_partial``, Ctrl-C returns what is accumulated so far
     (``stats.stopped_by == "interrupt"``) instead of raising KeyboardInterrupt.
     """
     t0 = time.perf_counter() if started is None else started
+    for name in ("sample_offset", "tile_pixels"):
+        if name in settings:
+            raise TypeError(f"render_progressive does not take {name!r}: its batches own the sample indices")
     budgeted = time_budget is not None or target_error is not None or sample_budget is not None
-    spp_max = (UNLIMITED_SPP if budgeted else 16) if spp is None else spp
-    _check_args(width, height, spp_max, max_depth, seed, 0, texture_filter, TILE_PIXELS)
+    if settings.get("spp") is None:
+        settings["spp"] = UNLIMITED_SPP if budgeted else RenderSettings.spp
+    rs = _settings(settings)
+    _check_args(rs)
     _check_budget(time_budget, target_error, batches, min_spp)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
-    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=device)
-    driver = _Driver(dev, camera or Camera(), sky or Sky.black(), features or dev.features, width, height,
-                     max_depth, seed, threads, texture_filter, batches)
-    plan = _Plan(spp_max, time_budget, target_error, adaptive,
-                 min(spp_max, 2 * batches if min_spp is None else min_spp), t0, sample_budget)
+    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
+    driver = _Driver(dev, camera or Camera(), rs, batches)
+    plan = _Plan(rs.spp, time_budget, target_error, adaptive,
+                 min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget)
     return driver.run(plan, on_pass, keep_partial)
 
 
@@ -271,31 +272,32 @@ class _Plan:
 class _Driver:
     """Owns the batch buffers on the device and launches passes over runs of pixels."""
 
-    def __init__(self, dev, camera, sky, feats, width, height, max_depth, seed, threads, texture_filter,
-                 batches):
-        self.dev, self.width, self.height, self.B = dev, width, height, batches
-        self.n = width * height
-        self.kernel = get_kernel(feats, dev.device)          # compile on this (the calling) thread
-        self.fixed = dict(cam=camera_params(camera, width, height), max_depth=max_depth,
-                          sky_kind=int(sky.kind), sky_color=wp.vec3(*sky.color),
-                          bilinear=int(texture_filter == "bilinear"))
-        self.seeds = [wp.uint32(batch_seed(seed, b)) for b in range(batches)]
+    def __init__(self, dev: DeviceScene, camera: Camera, rs: RenderSettings, batches: int):
+        self.dev, self.rs, self.width, self.height, self.B = dev, rs, rs.width, rs.height, batches
+        self.n = rs.width * rs.height
+        sky = rs.sky or Sky.black()
+        feats = rs.features or replace(dev.features, sky=sky_emits(sky))
+        self.kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)   # compile on this thread
+        self.scene_inputs = [dev.geometry, dev.materials, dev.textures(rs.texture_filter), light_table(dev, sky),
+                             camera_params(camera, rs.width, rs.height)]
+        self.seeds = [wp.uint32(batch_seed(rs.seed, b)) for b in range(batches)]
         self.films = [wp.zeros(self.n, dtype=wp.vec3d, device=dev.device) for _ in range(batches)]
         self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]
         self.counts = np.zeros((batches, self.n), dtype=np.int64)
-        self.threads = max(1, threads or os.cpu_count() or 1)
+        self.threads = max(1, rs.threads or os.cpu_count() or 1)
         self.stop = threading.Event()
-        self.stats = ProgressiveStats(threads=self.threads)
+        self.stats = ProgressiveStats(threads=self.threads, integrator=rs.integrator, sampler=rs.sampler)
 
     # -- launching
 
     def _launch(self, b: int, lo: int, hi: int, start: int, count: int) -> None:
         if self.stop.is_set():
             return
-        f = self.fixed
-        wp.launch(self.kernel, dim=hi - lo, device=self.dev.device, inputs=[
-            self.dev.arrays, f["cam"], self.width, lo, start, count, f["max_depth"], f["sky_kind"],
-            f["sky_color"], self.seeds[b], f["bilinear"], self.films[b], self.counters[b]])
+        p = RenderParams()
+        p.width, p.pixel_start, p.sample_start, p.sample_count = self.width, lo, start, count
+        p.max_depth, p.roulette_depth, p.seed = self.rs.max_depth, self.rs.roulette_depth, self.seeds[b]
+        wp.launch(self.kernel, dim=hi - lo, device=self.dev.device,
+                  inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
         self.counts[b, lo:hi] += count      # disjoint slices per launch: safe across threads
 
     def _run_pass(self, active: np.ndarray, inc: np.ndarray) -> None:

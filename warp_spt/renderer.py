@@ -10,8 +10,9 @@ from __future__ import annotations
 import os
 import queue
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, replace
 from typing import Callable
 
 import numpy as np
@@ -20,7 +21,9 @@ import warp as wp
 from .camera import Camera
 from .device_scene import DeviceScene, Features
 from .film import Film
-from .integrator import camera_params, get_kernel
+from .integrators import RenderParams, camera_params, check_integrator, get_kernel
+from .lights import light_table, sky_emits
+from .samplers import SAMPLERS
 from .scene import Scene
 from .sky import Sky
 
@@ -33,78 +36,121 @@ PASS_WORK = 1 << 16       # ...but at least this many pixel-samples per launch, 
                           # of tiles and threads.
 TILE_PIXELS = 4096        # pixels per launch
 MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
+DEFAULT_INTEGRATOR = "seed"
+DEFAULT_SAMPLER = "independent"
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Everything a render needs besides the scene and the camera.
+
+    ``spp`` samples per pixel starting at global sample index ``sample_offset`` (renders of disjoint
+    sample ranges can be merged, see :class:`warp_spt.film.Film`); ``max_depth`` counts surface hits
+    as in the seed; ``sky`` defaults to the seed's (blue) BlackSky; ``integrator`` and ``sampler`` are
+    names from ``warp_spt.integrators.INTEGRATORS`` and ``warp_spt.samplers.SAMPLERS``;
+    ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
+    ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
+    (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
+    """
+
+    width: int = 500
+    height: int = 500
+    spp: int = 16
+    max_depth: int = 6
+    sky: Sky | None = None
+    seed: int = 0
+    integrator: str = DEFAULT_INTEGRATOR
+    sampler: str = DEFAULT_SAMPLER
+    roulette_depth: int = 0
+    texture_filter: str = "nearest"
+    sample_offset: int = 0
+    threads: int | None = None
+    tile_pixels: int = TILE_PIXELS
+    features: Features | None = None
+    device: str = "cpu"
 
 
 @dataclass
 class RenderStats:
-    """What the last render did, for callers that want more than the image."""
+    """What a render did."""
 
     features: Features
+    integrator: str
+    sampler: str
+    seconds: float            # wall-clock time of the launches (kernel compile excluded)
+    rays: int                 # closest-hit rays traced (shadow rays not counted)
     dropped_samples: int      # non-finite samples discarded (should always be 0)
-    rays: int                 # rays traced (closest-hit queries)
     tiles: int
     threads: int
 
 
-last_stats: RenderStats | None = None
+@dataclass
+class RenderResult:
+    """A render's :class:`Film` (float64 sums, merges exactly), its image and its stats."""
+
+    film: Film
+    stats: RenderStats
+    settings: RenderSettings = field(repr=False, default=None)
+
+    @property
+    def image(self) -> np.ndarray:
+        """Linear radiance, float32 (height, width, 3)."""
+        return self.film.image()
 
 
-def render(
-    scene: Scene | DeviceScene,
-    camera: Camera | None = None,
-    *,
-    width: int = 500,
-    height: int = 500,
-    spp: int = 16,
-    max_depth: int = 6,
-    sky: Sky | None = None,
-    seed: int = 0,
-    threads: int | None = None,
-    device: str = "cpu",
-    texture_filter: str = "nearest",
-    progress: bool | ProgressFn = False,
-    sample_offset: int = 0,
-    features: Features | None = None,
-    tile_pixels: int = TILE_PIXELS,
-) -> np.ndarray:
+_SETTING_NAMES = {f.name for f in fields(RenderSettings)}
+
+
+def render(scene: Scene | DeviceScene, camera: Camera | None = None, *,
+           progress: bool | ProgressFn = False, **settings) -> np.ndarray:
     """Render ``scene`` and return a float32 (height, width, 3) array of linear radiance.
 
-    ``spp`` samples per pixel starting at global sample index ``sample_offset`` (renders of disjoint
-    sample ranges can be merged, see :class:`warp_spt.film.Film`); ``max_depth`` counts surface hits as in
-    the seed; ``sky`` defaults to the seed's (blue) BlackSky; ``threads`` defaults to every core;
-    ``features`` overrides the scene's own feature set (a superset gives the same image, slower).
-    ``progress`` is True for a tqdm bar or a callable ``(done, total)`` in samples x pixels, called on
-    the calling thread. Ctrl-C stops the workers and re-raises KeyboardInterrupt.
+    Keyword arguments are the fields of :class:`RenderSettings`. ``progress`` is True for a tqdm bar
+    or a callable ``(done, total)`` in samples x pixels, called on the calling thread. Ctrl-C stops the
+    workers and re-raises KeyboardInterrupt. :func:`render_scene` returns the film and stats too.
     """
-    film = render_film(scene, camera, width=width, height=height, spp=spp, max_depth=max_depth, sky=sky,
-                       seed=seed, threads=threads, device=device, texture_filter=texture_filter,
-                       progress=progress, sample_offset=sample_offset, features=features,
-                       tile_pixels=tile_pixels)
-    return film.image()
+    return render_scene(scene, camera, _settings(settings), progress=progress).image
 
 
-def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, width: int = 500,
-                height: int = 500, spp: int = 16, max_depth: int = 6, sky: Sky | None = None, seed: int = 0,
-                threads: int | None = None, device: str = "cpu", texture_filter: str = "nearest",
-                progress: bool | ProgressFn = False, sample_offset: int = 0,
-                features: Features | None = None, tile_pixels: int = TILE_PIXELS) -> Film:
+def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *,
+                progress: bool | ProgressFn = False, **settings) -> Film:
     """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count)."""
-    global last_stats
-    _check_args(width, height, spp, max_depth, seed, sample_offset, texture_filter, tile_pixels)
-    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=device)
-    feats = features or dev.features
-    kernel = get_kernel(feats, dev.device)
+    return render_scene(scene, camera, _settings(settings), progress=progress).film
+
+
+def _settings(kw: dict) -> RenderSettings:
+    unknown = set(kw) - _SETTING_NAMES
+    if unknown:
+        raise TypeError(f"unknown render setting(s): {', '.join(sorted(unknown))}")
+    return RenderSettings(**kw)
+
+
+def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
+                 settings: RenderSettings | None = None, *, progress: bool | ProgressFn = False) -> RenderResult:
+    """Render with a :class:`RenderSettings`; returns a :class:`RenderResult` (film, image, stats)."""
+    rs = settings or RenderSettings()
+    _check_args(rs)
+    width, height, spp = rs.width, rs.height, rs.spp
+    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
+    sky = rs.sky or Sky.black()
+    feats = rs.features or replace(dev.features, sky=sky_emits(sky))
+    kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)
     camera = camera or Camera()
-    sky = sky or Sky.black()
     cam = camera_params(camera, width, height)
+    lights = light_table(dev, sky)
+    tex = dev.textures(rs.texture_filter)
     n = width * height
     film = wp.zeros(n, dtype=wp.vec3d, device=dev.device)
     counters = wp.zeros((n, 2), dtype=wp.int64, device=dev.device)   # rays traced, samples dropped
-    tiles = [(p, min(n, p + tile_pixels)) for p in range(0, n, tile_pixels)]
-    nthreads = max(1, min(threads or os.cpu_count() or 1, len(tiles)))
+    tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
+    nthreads = max(1, min(rs.threads or os.cpu_count() or 1, len(tiles)))
     per_pass = max(PASS_SAMPLES, PASS_WORK // n)
-    sky_kind, sky_color = int(sky.kind), wp.vec3(*sky.color)
-    seed32, bilinear = wp.uint32(seed & 0xFFFFFFFF), int(texture_filter == "bilinear")
+
+    def params(lo: int, s0: int, count: int) -> RenderParams:
+        p = RenderParams()
+        p.width, p.pixel_start, p.sample_start, p.sample_count = width, lo, rs.sample_offset + s0, count
+        p.max_depth, p.roulette_depth, p.seed = rs.max_depth, rs.roulette_depth, wp.uint32(rs.seed & 0xFFFFFFFF)
+        return p
 
     stop = threading.Event()
     done_q: queue.Queue[int] = queue.Queue()
@@ -116,11 +162,11 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
                 return
             count = min(per_pass, spp - s0)
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
-                dev.arrays, cam, width, lo, sample_offset + s0, count, max_depth, sky_kind, sky_color,
-                seed32, bilinear, film, counters])
+                dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters])
             done_q.put(count * (hi - lo))
 
     report = _progress_reporter(progress, n * spp)
+    start = time.perf_counter()
     try:
         if nthreads == 1:
             for t in tiles:
@@ -138,25 +184,31 @@ def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *, wid
                     raise
     finally:
         report(None)
+    seconds = time.perf_counter() - start
     c = counters.numpy().sum(axis=0)
-    last_stats = RenderStats(feats, int(c[1]), int(c[0]), len(tiles), nthreads)
+    stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads)
     sums = film.numpy().reshape(height, width, 3)
-    return Film(sums, spp)
+    return RenderResult(Film(sums, spp), stats, rs)
 
 
-def _check_args(width, height, spp, max_depth, seed, sample_offset, texture_filter, tile_pixels) -> None:
-    for name, v in (("width", width), ("height", height), ("spp", spp), ("max_depth", max_depth),
-                    ("tile_pixels", tile_pixels)):
+def _check_args(rs: RenderSettings) -> None:
+    for name in ("width", "height", "spp", "max_depth", "tile_pixels"):
+        v = getattr(rs, name)
         if not isinstance(v, (int, np.integer)) or v < 1:
             raise ValueError(f"{name} must be a positive integer, got {v!r}")
-    if width * height > MAX_PIXELS:
-        raise ValueError(f"image of {width}x{height} pixels is too large (at most {MAX_PIXELS} pixels)")
-    if sample_offset < 0 or sample_offset + spp > 2**31 - 1:
+    if rs.width * rs.height > MAX_PIXELS:
+        raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
+    if rs.sample_offset < 0 or rs.sample_offset + rs.spp > 2**31 - 1:
         raise ValueError("sample indices must lie in [0, 2**31)")
-    if not isinstance(seed, (int, np.integer)):
-        raise ValueError(f"seed must be an integer, got {seed!r}")
-    if texture_filter not in ("nearest", "bilinear"):
-        raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {texture_filter!r}")
+    if not isinstance(rs.seed, (int, np.integer)):
+        raise ValueError(f"seed must be an integer, got {rs.seed!r}")
+    if not isinstance(rs.roulette_depth, (int, np.integer)) or rs.roulette_depth < 0:
+        raise ValueError(f"roulette_depth must be a non-negative integer, got {rs.roulette_depth!r}")
+    if rs.texture_filter not in ("nearest", "bilinear"):
+        raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
+    check_integrator(rs.integrator)
+    if rs.sampler not in SAMPLERS:
+        raise ValueError(f"unknown sampler {rs.sampler!r}; choose from {', '.join(sorted(SAMPLERS))}")
 
 
 def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:

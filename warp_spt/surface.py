@@ -1,22 +1,15 @@
-"""Surface description at a hit and the seed's material model, fixed (SEMANTICS §7-8).
+"""The surface at a hit: position, normals, material, uv; and where new rays start from it.
 
-``Roughness`` is the probability of the diffuse lobe; otherwise the path takes a fuzzy mirror
-reflection or, for refractable materials, Schlick-weighted refraction. Each lobe multiplies the path
-throughput by its colour (the seed's "albedo" style: the lobe probabilities are the mixture weights).
-Fixes over the seed: inside/outside comes from the geometry (Q3), diffuse sampling is truly
-cosine-weighted, a fuzzed reflection below the surface is absorbed (Q6), total internal reflection
-reflects.
+``make_surface(features)`` builds ``surface_at`` for the primitives the scene has. Materials
+(``warp_spt.materials``) and lights (``warp_spt.lights``) read the :class:`Surface` it returns.
 """
 
 from __future__ import annotations
 
 import warp as wp
 
-from .device_scene import Features, SceneArrays
+from .device_scene import Features, Geometry
 from .geometry import KIND_TRIANGLE, Hit
-from .sampling import cosine_hemisphere, uniform_sphere
-from .scene import TEX_CHECKER
-from .textures import checker, sample_texture
 
 INV_PI = wp.constant(0.3183098861837907)
 INV_TWO_PI = wp.constant(0.15915494309189535)
@@ -42,24 +35,6 @@ class Surface:
     front: int         # 1 when the ray arrived from outside (against the outward/winding normal)
     mat: int
     uv: wp.vec2
-
-
-@wp.struct
-class Scatter:
-    """One sampled bounce: new direction, throughput factor, whether it passes through the surface."""
-
-    dir: wp.vec3
-    weight: wp.vec3
-    alive: int
-    through: int
-
-
-@wp.func
-def sky_radiance(kind: int, color: wp.vec3, d: wp.vec3) -> wp.vec3:
-    """The seed's skies: 1 = GradientSky on the Z component, anything else a constant colour."""
-    if kind == 1:
-        return wp.vec3(0.75 - 0.25 * d[2], 0.85 - 0.15 * d[2], 1.0)
-    return color
 
 
 @wp.func
@@ -109,21 +84,11 @@ def triangle_point(mesh: wp.uint64, face: int, u: float, v: float, extent: float
     return p2 + (e0 * (bu / total) + e1 * (bv / total))
 
 
-def make_shading(features: Features):
-    """``surface_at``, ``emission`` and ``sample_scatter`` functions specialised to the scene's features."""
+def make_surface(features: Features):
+    """``surface_at(geo, hit, o, d)``, specialised to the scene's primitives."""
 
     @wp.func
-    def color(s: SceneArrays, tex: int, const: wp.vec3, uv: wp.vec2, bilinear: int) -> wp.vec3:
-        if wp.static(features.textures):
-            if tex >= 0:
-                return sample_texture(s.texels, s.tiles, tex, uv, bilinear)
-        if wp.static(features.checker):
-            if tex == TEX_CHECKER:
-                return checker(uv)
-        return const
-
-    @wp.func
-    def surface_at(s: SceneArrays, h: Hit, o: wp.vec3, d: wp.vec3) -> Surface:
+    def surface_at(s: Geometry, h: Hit, o: wp.vec3, d: wp.vec3) -> Surface:
         sf = Surface()
         n_out = h.normal
         ns = h.normal
@@ -161,60 +126,4 @@ def make_shading(features: Features):
         sf.ns = ns
         return sf
 
-    @wp.func
-    def emission(s: SceneArrays, sf: Surface, bilinear: int) -> wp.vec3:
-        return color(s, s.mat_tex[sf.mat][3], s.mat_emission[sf.mat], sf.uv, bilinear)
-
-    @wp.func
-    def scatter(s: SceneArrays, sf: Surface, d: wp.vec3, u_lobe: float, u1: float, u2: float,
-                u_fresnel: float, bilinear: int) -> Scatter:
-        out = Scatter()
-        out.alive = 1
-        out.through = 0
-        m = sf.mat
-        tex = s.mat_tex[m]
-        if u_lobe < s.mat_roughness[m]:
-            out.weight = color(s, tex[0], s.mat_diffuse[m], sf.uv, bilinear)
-            out.dir = cosine_hemisphere(sf.ns, u1, u2)
-            if wp.dot(out.dir, sf.ng) <= 0.0:
-                out.alive = 0          # a smooth normal pointed it below the real surface
-            return out
-        cos_i = wp.clamp(-wp.dot(d, sf.ns), 0.0, 1.0)
-        if wp.static(features.refraction):
-            if s.mat_refractable[m] != 0:
-                eta = s.mat_ior[m]                 # ratio n_incident / n_transmitted
-                if sf.front != 0:
-                    eta = 1.0 / eta
-                sin2_t = eta * eta * (1.0 - cos_i * cos_i)
-                if sin2_t <= 1.0:                  # otherwise total internal reflection
-                    r0 = (1.0 - eta) / (1.0 + eta)
-                    r0 = r0 * r0
-                    k = 1.0 - cos_i
-                    fresnel = r0 + (1.0 - r0) * k * k * k * k * k
-                    if u_fresnel >= fresnel:
-                        t = d * eta + sf.ns * (eta * cos_i - wp.sqrt(1.0 - sin2_t))
-                        out.dir = wp.normalize(t)
-                        out.weight = color(s, tex[2], s.mat_refract[m], sf.uv, bilinear)
-                        out.through = 1
-                        if wp.dot(out.dir, sf.ng) >= 0.0:
-                            out.alive = 0
-                        return out
-        r = d + sf.ns * (2.0 * cos_i)
-        out.dir = wp.normalize(r + uniform_sphere(u1, u2) * s.mat_fuzz[m])
-        out.weight = color(s, tex[1], s.mat_reflect[m], sf.uv, bilinear)
-        if wp.dot(out.dir, sf.ng) <= 0.0:
-            out.alive = 0              # fuzz pushed it below the surface: absorbed (seed leaked, Q6)
-        return out
-
-    @wp.func
-    def sample_scatter(s: SceneArrays, sf: Surface, d: wp.vec3, bilinear: int, state_in: wp.uint32):
-        """Draw this bounce's four random numbers and scatter; returns the advanced random state
-        (a state passed into a function is not advanced in the caller, so it comes back explicitly)."""
-        state = state_in
-        u_lobe = wp.randf(state)
-        u1 = wp.randf(state)
-        u2 = wp.randf(state)
-        u_fresnel = wp.randf(state)
-        return scatter(s, sf, d, u_lobe, u1, u2, u_fresnel, bilinear), state
-
-    return surface_at, emission, sample_scatter
+    return surface_at

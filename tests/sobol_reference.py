@@ -1,0 +1,111 @@
+"""A numpy reference for warp_spt.sobol, written from the textbook definitions, not from the kernel.
+
+* Sobol' points: a 32x32 generator matrix over GF(2) per dimension, built from the direction numbers
+  m_k of the dimension (dimension 0: m_k = 1; dimension 1: primitive polynomial x + 1, so
+  m_k = 2 m_{k-1} xor m_{k-1}, m_1 = 1, Bratley & Fox's recurrence), multiplied with the index bits.
+* Owen scrambling: bit by bit, bit l (from the top) xor flip(l, prefix of the l bits above it), where
+  flip is the random bit of the flip-tree node (l, prefix); the node's bit is looked up directly from
+  its definition (subtree of 5 levels, one hash per subtree root, bit 2**j - 1 + sub-prefix).
+Only the hash and the seed chain are shared with the module: they are its specification.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from warp_spt import sobol as S
+
+M32 = np.uint64(0xFFFFFFFF)
+
+
+def mix32(x):
+    """lowbias32 on uint32 arrays, computed in uint64 and masked (no reliance on wrap-around)."""
+    x = np.asarray(x, dtype=np.uint64) & M32
+    x ^= x >> np.uint64(16)
+    x = (x * np.uint64(S.LOWBIAS_MUL1)) & M32
+    x ^= x >> np.uint64(15)
+    x = (x * np.uint64(S.LOWBIAS_MUL2)) & M32
+    x ^= x >> np.uint64(16)
+    return x
+
+
+def direction_numbers(dim: int, bits: int = 32) -> list[int]:
+    """m_1..m_bits of Sobol' dimension 0 or 1 (odd integers, m_k < 2**k)."""
+    if dim == 0:
+        return [1] * bits
+    m = [1]
+    for _ in range(bits - 1):
+        m.append((2 * m[-1]) ^ m[-1])
+    return m
+
+
+def generator_matrix(dim: int) -> np.ndarray:
+    """C[r, k]: bit r (r = 0 is the most significant, weight 1/2) of direction number v_{k+1}
+    = m_{k+1} / 2**(k+1), i.e. of the contribution of index bit k."""
+    m = direction_numbers(dim)
+    c = np.zeros((32, 32), dtype=np.uint8)
+    for k, mk in enumerate(m):
+        for r in range(k + 1):                 # m_{k+1} has k+1 binary digits
+            c[r, k] = (mk >> (k - r)) & 1
+    return c
+
+
+def sobol_u32(index, dim: int) -> np.ndarray:
+    """Unscrambled Sobol' dimension ``dim`` of each index, as 0.32 fractions (uint64 holding uint32)."""
+    idx = np.asarray(index, dtype=np.uint64)
+    bits = ((idx[..., None] >> np.arange(32, dtype=np.uint64)) & np.uint64(1)).astype(np.int64)
+    out_bits = (bits @ generator_matrix(dim).T.astype(np.int64)) & 1      # [..., r]
+    weights = np.uint64(1) << (np.uint64(31) - np.arange(32, dtype=np.uint64))
+    return (out_bits.astype(np.uint64) * weights).sum(axis=-1, dtype=np.uint64)
+
+
+def node_flip(seed, level: int, prefix) -> np.ndarray:
+    """The random bit of flip-tree node (level, prefix), prefix being the ``level`` bits above."""
+    chunk_root = level - level % S.CHUNK_LEVELS
+    j = level - chunk_root
+    root_prefix = np.asarray(prefix, dtype=np.uint64) >> np.uint64(j)
+    sub = np.asarray(prefix, dtype=np.uint64) & np.uint64((1 << j) - 1)
+    h = mix32((root_prefix | np.uint64(1 << chunk_root)) ^ np.asarray(seed, dtype=np.uint64))
+    return (h >> (np.uint64((1 << j) - 1) + sub)) & np.uint64(1)
+
+
+def owen(v, seed, levels: int) -> np.ndarray:
+    """Textbook nested uniform scramble of the top ``levels`` bits of 0.32 fractions v."""
+    v = np.asarray(v, dtype=np.uint64)
+    out = np.zeros_like(v)
+    for level in range(levels):
+        shift = np.uint64(31 - level)
+        prefix = v >> np.uint64(32 - level) if level else np.zeros_like(v)
+        bit = (v >> shift) & np.uint64(1)
+        out |= (bit ^ node_flip(seed, level, prefix)) << shift
+    return out
+
+
+def request_seed(seed, pixel, dim) -> np.ndarray:
+    h = mix32(np.asarray(seed, dtype=np.uint64) ^ np.uint64(S.SEED_SALT))
+    h = mix32(h ^ (np.asarray(pixel, dtype=np.uint64) & M32))
+    return mix32(h ^ ((np.asarray(dim, dtype=np.uint64) * np.uint64(S.DIM_MUL)) & M32))
+
+
+def to_unit(v) -> np.ndarray:
+    return ((np.asarray(v, dtype=np.uint64) >> np.uint64(8)).astype(np.float64) / 2.0**24).astype(np.float32)
+
+
+def _request(seed, pixel, index, dim):
+    seed, pixel, index, dim = np.broadcast_arrays(seed, pixel, index, dim)
+    key = request_seed(seed, pixel, dim)
+    return key, owen(index, key, 32)
+
+
+def sobol_2d(seed, pixel, index, dim) -> np.ndarray:
+    """[..., 2] float32 points, as warp_spt.sobol.sobol_2d for broadcast (seed, pixel, index, dim)."""
+    key, i = _request(seed, pixel, index, dim)
+    x = owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)), 24)
+    y = owen(sobol_u32(i, 1), mix32(key ^ np.uint64(S.Y_SALT)), 24)
+    return np.stack([to_unit(x), to_unit(y)], axis=-1)
+
+
+def sobol_1d(seed, pixel, index, dim) -> np.ndarray:
+    """Float32 values, as warp_spt.sobol.sobol_1d: the scrambled van der Corput dimension alone."""
+    key, i = _request(seed, pixel, index, dim)
+    return to_unit(owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)), 24))

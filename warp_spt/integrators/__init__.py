@@ -1,0 +1,57 @@
+"""Integrators, chosen by name, and the cache of their compiled kernels.
+
+``INTEGRATORS`` maps a name to a module-level ``make(features, sampler) -> step`` (see
+``common``); a new integrator is one module plus one line here. Kernels are cached per
+(integrator, sampler, features) and process; Warp's disk cache keeps the compiled code across
+processes.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import warp as wp
+
+from ..device_scene import Features
+from ..samplers import get_sampler
+from . import nee, seed
+from .common import CameraParams, PathState, RenderParams, camera_params, camera_ray, make_kernel, make_start_path
+
+INTEGRATORS = {"seed": seed.make, "nee": nee.make}
+
+_kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
+_steps: dict[tuple[str, str, Features], tuple] = {}
+_lock = threading.Lock()
+
+
+def check_integrator(name: str) -> None:
+    if name not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {name!r}; choose from {', '.join(sorted(INTEGRATORS))}")
+
+
+def get_step(integrator: str, sampler: str, features: Features):
+    """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``."""
+    check_integrator(integrator)
+    key = (integrator, sampler, features)
+    with _lock:
+        if key not in _steps:
+            s = get_sampler(sampler)
+            _steps[key] = (INTEGRATORS[integrator](features, s), make_start_path(s))
+        return _steps[key]
+
+
+def get_kernel(features: Features, device: str = "cpu", integrator: str = "seed",
+               sampler: str = "independent") -> wp.Kernel:
+    """The fast kernel for (integrator, sampler, features), compiled and loaded on ``device``."""
+    key = (integrator, sampler, features)
+    step, start = get_step(integrator, sampler, features)
+    with _lock:
+        k = _kernels.get(key)
+        if k is None:
+            k = _kernels[key] = make_kernel(step, start)
+    wp.load_module(k.module, device=device)
+    return k
+
+
+__all__ = ["INTEGRATORS", "CameraParams", "PathState", "RenderParams", "camera_params", "camera_ray",
+           "get_kernel", "get_step", "check_integrator"]

@@ -1,0 +1,199 @@
+"""What every integrator shares: the camera ray, the path state, the sample dimensions, the kernels.
+
+An integrator is a ``make(features, sampler) -> step`` function; ``step`` is ONE bounce as a
+``wp.func`` taking and returning a :class:`PathState`. The fast kernel runs it in a dynamic loop;
+the differentiable kernel (``warp_spt.gradients``) runs the same function in an unrolled loop,
+because Warp differentiates only unrolled loops with multiplicative carried state.
+
+Sample dimensions are assigned here, explicitly: the pixel offset (dims 0-1), the lens (2-3), then
+per bounce k (from 0) a block of ``stride`` dims starting at ``DIM_BOUNCE + k * stride``, with fixed
+offsets inside it (lobe, direction, Fresnel, light choice, light position, roulette). An integrator
+that uses fewer of them declares a shorter stride (the seed integrator's 4 keep its numbers those
+of the pre-restructure renderer); adding a dimension at the end of a block shifts no other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..camera import Camera
+from ..device_scene import Features, Geometry, Materials, Textures
+from ..lights import Lights
+from ..materials import BsdfSample
+from ..sampling import concentric_disk
+from ..samplers import Sampler, SamplerState
+from ..surface import Surface, offset_origin
+
+DIM_PIXEL = 0          # 2 dims: offset inside the pixel
+DIM_LENS = 2           # 2 dims: point on the lens
+DIM_BOUNCE = 4         # first dim of bounce 0
+# offsets inside a bounce's block
+OFF_LOBE = 0           # which lobe of the material
+OFF_DIR = 1            # 2 dims: direction within the lobe
+OFF_FRESNEL = 3        # reflect or refract
+OFF_LIGHT = 4          # which light (NEE)
+OFF_LIGHT_POS = 5      # 2 dims: point on that light
+OFF_ROULETTE = 7       # survive or not
+SEED_STRIDE = 4        # the seed's four draws per bounce
+FULL_STRIDE = 8
+
+
+@wp.struct
+class CameraParams:
+    """The image plane of camera.Camera.frame(), in float32.
+
+    Primary rays use ``to_upper_left`` (the corner relative to the origin, subtracted in float64):
+    with the absolute corner, a camera at 1e5 rounded every target point to 1/128 unit before the
+    origin was subtracted, which bent primary rays by up to a few percent
+    (tests/test_stability.py, shifted Cornell box).
+    """
+
+    origin: wp.vec3
+    to_upper_left: wp.vec3     # upper_left - origin
+    x_step: wp.vec3
+    y_step: wp.vec3
+    right: wp.vec3
+    up: wp.vec3
+    lens_radius: float
+
+
+@wp.struct
+class RenderParams:
+    """The per-launch settings a kernel reads (the rest of RenderSettings is host-side)."""
+
+    width: int
+    pixel_start: int
+    sample_start: int
+    sample_count: int
+    max_depth: int         # surface hits per path, as in the seed
+    roulette_depth: int    # Russian roulette from this many hits on (0: never)
+    seed: wp.uint32
+
+
+@wp.struct
+class PathState:
+    """One path between bounces."""
+
+    o: wp.vec3
+    d: wp.vec3
+    throughput: wp.vec3
+    radiance: wp.vec3
+    depth: int             # surface hits so far
+    alive: int
+    rays: int              # closest-hit queries traced
+    pdf: float             # solid-angle density of the direction d was sampled with (MIS)
+    singular: int          # 1: d came from the camera or a singular lobe (emitters hit count in full)
+    sampler: SamplerState
+
+
+def camera_params(camera: Camera, width: int, height: int) -> CameraParams:
+    """Pack a Camera's frame for the kernel."""
+    f = dict(camera.frame(width, height))
+    f["to_upper_left"] = f["upper_left"] - f["origin"]     # in float64, before rounding to float32
+    c = CameraParams()
+    for name in ("origin", "to_upper_left", "x_step", "y_step", "right", "up"):
+        setattr(c, name, wp.vec3(*np.asarray(f[name], dtype=np.float32).tolist()))
+    c.lens_radius = float(f["lens_radius"])
+    return c
+
+
+@wp.func
+def camera_ray(cam: CameraParams, x: float, y: float, r1: float, r2: float, r3: float, r4: float):
+    """The primary ray through pixel (x, y) at offset (r1, r2) in the pixel, lens sample (r3, r4).
+
+    The image plane is the focal plane, so every lens point sees the same target: a thin lens.
+    """
+    target = cam.to_upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)   # relative to origin
+    lens = wp.vec3(0.0, 0.0, 0.0)
+    if cam.lens_radius > 0.0:
+        k = concentric_disk(r3, r4)
+        lens = (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
+    return cam.origin + lens, wp.normalize(target - lens)
+
+
+def make_start_path(sampler: Sampler):
+    """``start_path(cam, pixel, width, seed, index) -> PathState``: the camera ray of one sample."""
+
+    @wp.func
+    def start_path(cam: CameraParams, pix: int, width: int, seed: wp.uint32, index: int) -> PathState:
+        st = sampler.start(seed, pix, index)
+        r12, st1 = sampler.next_2d(st, DIM_PIXEL)
+        r34, st2 = sampler.next_2d(st1, DIM_LENS)
+        o, d = camera_ray(cam, float(pix % width), float(pix // width), r12[0], r12[1], r34[0], r34[1])
+        p = PathState()
+        p.o = o
+        p.d = d
+        p.throughput = wp.vec3(1.0, 1.0, 1.0)
+        p.radiance = wp.vec3(0.0, 0.0, 0.0)
+        p.depth = 0
+        p.alive = 1
+        p.rays = 0
+        p.pdf = 0.0
+        p.singular = 1
+        p.sampler = st2
+        return p
+
+    return start_path
+
+
+def make_bsdf_dims(sampler: Sampler, stride: int):
+    """``bsdf_dims(path) -> (u_lobe, u_dir, u_fresnel, path)``: this bounce's material dimensions."""
+
+    @wp.func
+    def bsdf_dims(path: PathState):
+        base = DIM_BOUNCE + wp.static(stride) * (path.depth - 1)
+        u_lobe, s1 = sampler.next_1d(path.sampler, base + OFF_LOBE)
+        u_dir, s2 = sampler.next_2d(s1, base + OFF_DIR)
+        u_fresnel, s3 = sampler.next_1d(s2, base + OFF_FRESNEL)
+        p = path
+        p.sampler = s3
+        return u_lobe, u_dir, u_fresnel, p
+
+    return bsdf_dims
+
+
+@wp.func
+def continue_path(path: PathState, sf: Surface, bs: BsdfSample, extent: float) -> PathState:
+    """Follow a sampled direction: weigh the throughput, move off the surface; absorbed paths end."""
+    p = path
+    if bs.alive == 0:
+        p.alive = 0
+        return p
+    p.throughput = wp.cw_mul(p.throughput, bs.weight)
+    if wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]) <= 0.0:
+        p.alive = 0
+        return p
+    p.o = offset_origin(sf.p, sf.ng, bs.through, extent)
+    p.d = bs.dir
+    p.pdf = bs.pdf
+    p.singular = bs.singular
+    return p
+
+
+def make_kernel(step, start_path):
+    """The fast forward kernel: each thread renders ``sample_count`` samples of one pixel, summed in
+    float64 and added to the film, so a large sample count never drifts."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
+              rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64)):
+        pix = rp.pixel_start + wp.tid()
+        acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
+        bad = int(0)
+        rays = int(0)
+        for j in range(rp.sample_count):
+            path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
+            while path.alive != 0:
+                path = step(geo, mats, tex, lights, rp, path)
+            rays += path.rays
+            L = path.radiance
+            if wp.isfinite(L):
+                acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
+            else:
+                bad += 1           # counted and reported in RenderResult.stats; tests require zero
+        film[pix] = film[pix] + acc
+        counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
+        counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
+
+    return trace

@@ -1,0 +1,123 @@
+"""Next-event estimation with multiple importance sampling (power heuristic), and Russian roulette.
+
+At every vertex whose material has a diffuse lobe (the only lobe with a density), one light is
+sampled from the light table (``warp_spt.lights``) and joined by an any-hit shadow ray; the BSDF
+sample that continues the path may hit an emitter too, and each of the two estimates is weighted by
+the power heuristic, so their sum counts each light path once. Singular lobes (fuzzy mirror, glass)
+continue by sampling only and the emitter they hit counts in full. Camera rays count emitters in
+full. NEE happens only at vertices that may still scatter (hits < max_depth), so the image
+converges to the seed integrator's.
+
+Russian roulette from ``roulette_depth`` hits on: survive with probability min(1, max throughput
+component), and divide by it: unbiased. A scene whose lights (emitters and sky) are all dark
+compiles no light-sampling code and behaves as the seed integrator plus roulette.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ..device_scene import Features, Geometry, Materials, Textures
+from ..geometry import KIND_MISS, NO_HIT, make_closest_hit, make_occluded
+from ..lights import Lights, make_lights, sky_radiance
+from ..materials import make_materials
+from ..samplers import Sampler
+from ..surface import Surface, make_surface, offset_origin
+from .common import (DIM_BOUNCE, FULL_STRIDE, SEED_STRIDE, OFF_LIGHT, OFF_LIGHT_POS, OFF_ROULETTE, PathState,
+                     RenderParams, continue_path, make_bsdf_dims)
+
+STRIDE = FULL_STRIDE
+
+
+@wp.func
+def power_heuristic(pa: float, pb: float) -> float:
+    """Weight of technique a when b could also have produced the sample (beta = 2)."""
+    a2 = pa * pa
+    return a2 / (a2 + pb * pb)
+
+
+def make(features: Features, sampler: Sampler):
+    """The bounce step of NEE + MIS for scenes with these features."""
+    return make_path_step(features, sampler, light_sampling=True)
+
+
+def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
+    """A path-tracing bounce step; ``light_sampling`` False leaves pure BSDF sampling, no roulette,
+    and the seed's four dimensions per bounce (``integrators.seed``)."""
+    closest_hit = make_closest_hit(features)
+    surface_at = make_surface(features)
+    mat = make_materials(features)
+    stride = STRIDE if light_sampling else SEED_STRIDE
+    bsdf_dims = make_bsdf_dims(sampler, stride)
+    sample_lights = light_sampling and (features.emitters or features.sky) and features.diffuse
+    occluded = make_occluded(features)
+    light = make_lights(features, surface_at, mat.emission)
+
+    @wp.func
+    def mis_bsdf(p: PathState, pdf_light: float) -> float:
+        """MIS weight of an emitter reached by BSDF sampling."""
+        if wp.static(not sample_lights):
+            return 1.0
+        if p.singular != 0:
+            return 1.0
+        return power_heuristic(p.pdf, pdf_light)
+
+    @wp.func
+    def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
+               base: int):
+        """Light sampling at this vertex: (radiance to add, sampler state)."""
+        u_pick, s1 = sampler.next_1d(p.sampler, base + OFF_LIGHT)
+        u_pos, s2 = sampler.next_2d(s1, base + OFF_LIGHT_POS)
+        contrib = wp.vec3(0.0, 0.0, 0.0)
+        if mats.roughness[sf.mat] > 0.0:
+            x = offset_origin(sf.p, sf.ng, 0, geo.extent)
+            ls = light.sample(geo, mats, tex, lights, x, u_pick, u_pos)
+            if ls.pdf > 0.0:
+                f = mat.eval(mats, tex, sf, ls.dir)
+                le = wp.cw_mul(f, ls.li)
+                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0:
+                    if not occluded(geo, x, ls.dir, ls.t_max):
+                        w = power_heuristic(ls.pdf, mat.pdf(mats, sf, ls.dir))
+                        contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
+        return contrib, s2
+
+    @wp.func
+    def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+             path: PathState) -> PathState:
+        p = path
+        h = closest_hit(geo, p.o, p.d, NO_HIT)
+        p.rays += 1
+        if h.kind == KIND_MISS:
+            w = mis_bsdf(p, light.pdf_sky(lights, p.d))
+            p.radiance += wp.cw_mul(p.throughput, sky_radiance(lights, p.d)) * w
+            p.alive = 0
+            return p
+        p.depth += 1
+        sf = surface_at(geo, h, p.o, p.d)
+        if wp.static(features.emitters):
+            le = mat.emission(mats, tex, sf)
+            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0:
+                w = mis_bsdf(p, light.pdf_hit(geo, lights, h, p.o, p.d))
+                p.radiance += wp.cw_mul(p.throughput, le) * w
+        if p.depth >= rp.max_depth:     # max_depth counts hits, as in the seed
+            p.alive = 0
+            return p
+        base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
+        u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
+        if wp.static(sample_lights):
+            contrib, st = direct(geo, mats, tex, lights, p, sf, base)
+            p.radiance += contrib
+            p.sampler = st
+        p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
+        if wp.static(light_sampling):
+            if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:
+                u_rr, st = sampler.next_1d(p.sampler, base + OFF_ROULETTE)
+                p.sampler = st
+                q = wp.min(wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]), 1.0)
+                if u_rr >= q:
+                    p.alive = 0
+                else:
+                    p.throughput = p.throughput / q
+        return p
+
+    return step

@@ -1,0 +1,18 @@
+"""The seed's estimator: pure path tracing. A light is found only by bouncing into it.
+
+Emission counts in full wherever a path meets it; the sky counts on a miss. Four dimensions per
+bounce (lobe, direction, Fresnel), exactly the draws of the renderer before the restructure, so
+with the independent sampler its images are bit-identical to it (tests/test_seed_baseline.py).
+It is the NEE step with light sampling (and roulette) compiled out: MIS weights are then exactly 1.
+"""
+
+from __future__ import annotations
+
+from ..device_scene import Features
+from ..samplers import Sampler
+from .nee import make_path_step
+
+
+def make(features: Features, sampler: Sampler):
+    """The bounce step of pure path tracing for scenes with these features."""
+    return make_path_step(features, sampler, light_sampling=False)

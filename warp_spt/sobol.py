@@ -1,0 +1,201 @@
+"""An Owen-scrambled, padded Sobol' sampler as pure Warp functions.
+
+Interface (both are pure functions of their arguments, so an image is bit-identical whatever the
+threads, tiles or split of samples across runs, and renders of disjoint sample ranges merge exactly):
+
+    sobol_1d(seed, pixel, index, dim) -> float     # uses sample dimension ``dim``
+    sobol_2d(seed, pixel, index, dim) -> wp.vec2   # uses sample dimensions ``dim`` and ``dim + 1``
+
+``index`` is the GLOBAL sample index of the pixel (0 .. 2**31 - 1, so a render of samples
+[offset, offset + n) passes ``offset + j``). Values lie in [0, 1 - 2**-24]: every value is a multiple
+of 2**-24, converted exactly to float32, so 1.0 is never returned.
+
+Design: padded 2D pairs (after Burley 2020, "Practical Hash-based Owen Scrambling", and pbrt-v4's
+PaddedSobolSampler; written from their descriptions).
+  * Every 2D request is Sobol' dimensions 0 and 1 (van der Corput and the Pascal-matrix dimension),
+    which together form a (0,2)-sequence in base 2: every aligned block of 2**m consecutive indices is
+    a (0,m,2)-net, i.e. each of the 2**m elementary intervals of any shape 2**-a x 2**-(m-a) holds
+    exactly one point. Only these two dimensions are used because higher Sobol' dimensions have much
+    worse 2D projections, and a path tracer's integrand is dominated by its 2D pieces (pixel area,
+    lens, BSDF direction, light position).
+  * Each component is Owen-scrambled (nested uniform scrambling): bit k of the value, counted from
+    the most significant, is flipped by a random bit chosen by the k bits above it. Scrambling keeps
+    the net property, makes every single point uniformly distributed over the 2**24 grid (so the
+    estimator is unbiased), and gives Owen's variance rates: O(N**-3) for smooth integrands (RMSE
+    slope -1.5), about O(N**-1.5) for integrands with discontinuities along curves (RMSE slope
+    ~-0.75), and for any square-integrable integrand at most (b/(b-1))**(s-1) = 2 times the variance
+    of plain Monte Carlo (Owen 1997, for a (0,m,s)-net in base b = 2, s = 2 dimensions).
+  * The sample index is shuffled per (seed, pixel, dim) by another nested uniform scramble, of the
+    index read as a 32-bit binary fraction (equivalently Burley's "nested uniform scramble" of the
+    index, which bit-reverses, applies a scramble that flips each bit by the bits below it, and
+    reverses back). Bit k of the index is flipped by a random function of the bits above k, so
+    every aligned block of 2**m indices maps onto an aligned block of 2**m Sobol' indices -- a
+    (0,m,2)-net again -- while the order within and between blocks differs per dimension pair. That
+    is the padding: two 2D requests of the same sample are paired by independent random orders,
+    which decorrelates them (with the caveat under Limits), while each pair keeps its own 2D
+    stratification.
+  * A 1D request is the scrambled van der Corput sequence under the same shuffle (so
+    ``sobol_1d(s, p, i, d) == sobol_2d(s, p, i, d).x``); every aligned block of 2**m values holds one
+    value in each interval [j 2**-m, (j+1) 2**-m).
+  * Random bits: the flips of each scramble form a binary tree (one flip per node, keyed by the
+    prefix of bits above it). We cut the tree into subtrees of 5 levels; each subtree takes its 31
+    flips from the 31 low bits of one 32-bit hash of (seed, depth, prefix). That is an exact
+    nested uniform scramble -- every node has its own random bit -- at one hash per 5 bits instead
+    of one per bit, unlike Laine-Karras-style multiply hashes, which only approximate it. The hash is
+    Wellons' "lowbias32" integer finaliser (two multiplies, every output bit near full avalanche by
+    its author's measurements; a bijection, so distinct nodes never share a hash), keyed by
+    hash(seed, pixel, dim).
+
+Limits:
+  * The stratification guarantees hold for aligned power-of-two blocks. With a non-power-of-two spp
+    the first n samples are a union of aligned blocks (the binary digits of n), each a net, so the
+    estimate is still unbiased and better than independent sampling, but the error is that of its
+    worst (smallest) blocks, and convergence as a function of spp is irregular between powers of two.
+    Slices [offset, offset + n) merge bit-exactly with any others, but are best aligned
+    (offset a multiple of n, n a power of two) for the quality of each slice alone.
+  * Stratification is per 2D pair only: there is no joint stratification across pairs (in 4D, 8D...),
+    so high-dimensional integrands gain only from their low-dimensional structure. A dimension pair
+    (d, d+1) must not be requested also as 1D at d+1; callers assign dimensions explicitly.
+  * Two dimension pairs of one sample are paired by independent nested shuffles. Because every
+    aligned pair of samples is stratified in each dimension, the first digits of two dimension pairs
+    are, per aligned pair of samples, either (lo,lo)+(hi,hi) or (lo,hi)+(hi,lo): one coin per sample
+    pair instead of one per sample. An integrand's interaction between two pairs (e.g. a step in x_a
+    times a step in x_b) can therefore get up to twice the variance that independent numbers give
+    it (the correlation between pairs has variance ~1.6/N in place of 1/N; tests/test_sobol.py
+    bounds it by 2/N). A sampler that knows spp (pbrt's PaddedSobol: a uniform random permutation
+    of the spp indices) avoids this but loses progressive stratification and the global index. The
+    2D parts converge at Owen's rates, so it wins whenever they dominate; the benchmark measures both.
+  * Values are quantised to 24 bits (float32's resolution near 1); indices beyond 2**31 - 1 are not
+    supported (the ``int`` argument).
+  * Cost: per 2D request 17 hashes (5 for the keys, 7 for the index shuffle, 5 per component), several
+    times the cost of a PCG draw (benchmarks/bench_sampler.py prints both).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+# Python-int spellings of the constants, shared with the numpy reference in the tests.
+LOWBIAS_MUL1 = 0x7FEB352D
+LOWBIAS_MUL2 = 0x846CA68B
+SEED_SALT = 0x9E3779B9   # 2**32 / golden ratio: keeps seed 0 away from the hash's fixed point 0
+DIM_MUL = 0x85EBCA77     # odd: spreads consecutive dimensions over the 32-bit range
+X_SALT = 0x68E31DA4
+Y_SALT = 0xB5297A4D
+VALUE_BITS = wp.constant(24)  # float32 resolution below 1
+INDEX_BITS = wp.constant(32)
+CHUNK_LEVELS = wp.constant(5)  # levels of the flip tree served by one 32-bit hash (2**5 - 1 = 31 bits)
+
+# Unsigned constants above 2**31 must be typed as such, or the generated C++ narrows them.
+_MUL1 = wp.constant(wp.uint32(LOWBIAS_MUL1))
+_MUL2 = wp.constant(wp.uint32(LOWBIAS_MUL2))
+_SEED_SALT = wp.constant(wp.uint32(SEED_SALT))
+_DIM_MUL = wp.constant(wp.uint32(DIM_MUL))
+_X_SALT = wp.constant(wp.uint32(X_SALT))
+_Y_SALT = wp.constant(wp.uint32(Y_SALT))
+_TOP_BIT = wp.constant(wp.uint32(0x80000000))
+_INV_2_24 = wp.constant(5.9604644775390625e-08)   # 2**-24
+
+
+@wp.func
+def mix32(x: wp.uint32) -> wp.uint32:
+    """Wellons' lowbias32: a bijective 32-bit hash with good avalanche in every output bit."""
+    x = x ^ (x >> wp.uint32(16))
+    x = x * _MUL1
+    x = x ^ (x >> wp.uint32(15))
+    x = x * _MUL2
+    return x ^ (x >> wp.uint32(16))
+
+
+@wp.func
+def reverse_bits(v: wp.uint32) -> wp.uint32:
+    """The 32 bits of v in reverse order (the van der Corput radical inverse, as a 0.32 fraction)."""
+    v = ((v >> wp.uint32(1)) & wp.uint32(0x55555555)) | ((v & wp.uint32(0x55555555)) << wp.uint32(1))
+    v = ((v >> wp.uint32(2)) & wp.uint32(0x33333333)) | ((v & wp.uint32(0x33333333)) << wp.uint32(2))
+    v = ((v >> wp.uint32(4)) & wp.uint32(0x0F0F0F0F)) | ((v & wp.uint32(0x0F0F0F0F)) << wp.uint32(4))
+    v = ((v >> wp.uint32(8)) & wp.uint32(0x00FF00FF)) | ((v & wp.uint32(0x00FF00FF)) << wp.uint32(8))
+    return (v >> wp.uint32(16)) | (v << wp.uint32(16))
+
+
+@wp.func
+def sobol_dim1(i: wp.uint32) -> wp.uint32:
+    """Sobol' dimension 1 of index i as a 0.32 fraction. Its direction numbers (primitive polynomial
+    x + 1) are the rows of Pascal's triangle mod 2, so by Lucas' theorem output bit r (from the top)
+    is the XOR of the index bits k whose binary position number k contains r's (k & r == r): a
+    superset-sum transform over the 5-bit positions, done in 5 bit-parallel butterfly steps."""
+    i = i ^ ((i >> wp.uint32(1)) & wp.uint32(0x55555555))
+    i = i ^ ((i >> wp.uint32(2)) & wp.uint32(0x33333333))
+    i = i ^ ((i >> wp.uint32(4)) & wp.uint32(0x0F0F0F0F))
+    i = i ^ ((i >> wp.uint32(8)) & wp.uint32(0x00FF00FF))
+    i = i ^ (i >> wp.uint32(16))
+    return reverse_bits(i)
+
+
+@wp.func
+def _subtree_flips(w: wp.uint32, h: wp.uint32) -> wp.uint32:
+    """The flips of a 5-level subtree for the input bits at the top of w, placed at the top: level j
+    uses node 2**j - 1 + (the j bits above it) of the 31-node tree stored in h's bits."""
+    f = (h & wp.uint32(1)) << wp.uint32(31)
+    f = f | (((h >> (wp.uint32(1) + (w >> wp.uint32(31)))) & wp.uint32(1)) << wp.uint32(30))
+    f = f | (((h >> (wp.uint32(3) + (w >> wp.uint32(30)))) & wp.uint32(1)) << wp.uint32(29))
+    f = f | (((h >> (wp.uint32(7) + (w >> wp.uint32(29)))) & wp.uint32(1)) << wp.uint32(28))
+    return f | (((h >> (wp.uint32(15) + (w >> wp.uint32(28)))) & wp.uint32(1)) << wp.uint32(27))
+
+
+@wp.func
+def owen_scramble(v: wp.uint32, seed: wp.uint32, levels: int) -> wp.uint32:
+    """Nested uniform scramble of the top ``levels`` bits of v (a 0.32 fraction); lower bits are 0.
+
+    Bit ``level`` (from the top) is flipped by the flip-tree node reached by the bits above it. The
+    tree is cut into subtrees of 5 levels; each draws its 31 node flips from one hash of its root's
+    prefix (with a marker bit above it that encodes the depth) xor seed."""
+    flips = wp.uint32(0)
+    for c in range((levels + CHUNK_LEVELS - 1) // CHUNK_LEVELS):
+        top = c * CHUNK_LEVELS
+        prefix = wp.uint32(wp.uint64(v) >> wp.uint64(32 - top))        # 64-bit: top == 0 is legal
+        h = mix32((prefix | (wp.uint32(1) << wp.uint32(top))) ^ seed)
+        flips = flips | (_subtree_flips(v << wp.uint32(top), h) >> wp.uint32(top))
+    keep = ~wp.uint32(wp.uint64(0xFFFFFFFF) >> wp.uint64(levels))       # the top ``levels`` bits
+    return (v ^ flips) & keep
+
+
+@wp.func
+def request_seed(seed: wp.uint32, pixel: int, dim: int) -> wp.uint32:
+    """The key of one (seed, pixel, dimension) request: it seeds the index shuffle, and, hashed with a
+    salt, each component's value scramble."""
+    h = mix32(seed ^ _SEED_SALT)
+    h = mix32(h ^ wp.uint32(pixel))
+    return mix32(h ^ (wp.uint32(dim) * _DIM_MUL))
+
+
+@wp.func
+def to_unit(v: wp.uint32) -> float:
+    """The top 24 bits of a 0.32 fraction as a float in [0, 1 - 2**-24] (exact, never 1.0)."""
+    return wp.float32(v >> wp.uint32(32 - VALUE_BITS)) * _INV_2_24
+
+
+@wp.func
+def shuffled_index(key: wp.uint32, index: int) -> wp.uint32:
+    """The Sobol' index used for global sample ``index``: aligned power-of-two blocks map to aligned
+    blocks of the same size, in an order private to ``key``."""
+    return owen_scramble(wp.uint32(index), key, INDEX_BITS)
+
+
+@wp.func
+def sobol_1d(seed: wp.uint32, pixel: int, index: int, dim: int) -> float:
+    """Sample dimension ``dim`` of global sample ``index`` of ``pixel``: a shuffled, Owen-scrambled
+    van der Corput value in [0, 1)."""
+    key = request_seed(seed, pixel, dim)
+    i = shuffled_index(key, index)
+    return to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT), VALUE_BITS))
+
+
+@wp.func
+def sobol_2d(seed: wp.uint32, pixel: int, index: int, dim: int) -> wp.vec2:
+    """Sample dimensions ``dim`` and ``dim + 1`` of global sample ``index`` of ``pixel``: a shuffled,
+    Owen-scrambled point of the 2D Sobol' (0,2)-sequence in [0, 1)^2."""
+    key = request_seed(seed, pixel, dim)
+    i = shuffled_index(key, index)
+    x = owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT), VALUE_BITS)
+    y = owen_scramble(sobol_dim1(i), mix32(key ^ _Y_SALT), VALUE_BITS)
+    return wp.vec2(to_unit(x), to_unit(y))

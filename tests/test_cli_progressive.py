@@ -94,3 +94,31 @@ def test_save_partial_leaves_a_valid_image_on_sigint(tmp_path, lit_files):
         im.load()
         assert im.size == (32, 24)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["partial.png", "progress.png"]   # no temp files
+
+
+def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatch):
+    from warp_spt import denoise as dn
+
+    out = tmp_path / "d.npy"
+    args = lit_files + ["-res", "16", "12", "-sr", "8", "--denoise", "-out", str(out)]
+    if dn.available():
+        assert main(args) == 0
+        assert "denoised with Intel Open Image Denoise" in capsys.readouterr().err
+        assert np.load(out).shape == (12, 16, 3)
+    monkeypatch.setattr(dn, "available", lambda: False)
+    assert main(args) == 1
+    assert "warp-spt[denoise]" in capsys.readouterr().err
+
+
+def test_denoiser_reduces_noise_on_a_smooth_image():
+    from warp_spt import denoise as dn
+
+    if not dn.available():
+        pytest.skip("pyoidn is not installed (extra [denoise])")
+    rng = np.random.default_rng(0)
+    clean = np.tile(np.linspace(0.1, 1.0, 48, dtype=np.float32)[None, :, None], (48, 1, 3))
+    noisy = np.clip(clean + rng.normal(0, 0.1, clean.shape), 0, None).astype(np.float32)
+    out = dn.denoise(noisy)
+    assert np.sqrt(np.mean((out - clean) ** 2)) < 0.5 * np.sqrt(np.mean((noisy - clean) ** 2))
+    with pytest.raises(ValueError):
+        dn.denoise(np.full((4, 4, 3), np.nan, np.float32))

@@ -10,7 +10,10 @@ The public surface, in the order data flows::
 bad scene input (it names the file and line); :class:`Film` holds float64 sums so renders of
 separate sample ranges merge exactly; :func:`render_film` returns one. :func:`render_scene` takes a
 :class:`RenderSettings` (integrator and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``)
-and returns a :class:`RenderResult` (film, image, stats).
+and returns a :class:`RenderResult` (film, image, stats). :func:`render_progressive` renders in
+passes until a sample count, a time budget or a target error, optionally adaptively, and returns a
+:class:`ProgressiveResult` (image, per-pixel standard error, per-pixel sample counts, stats);
+:func:`relative_error` is the one definition of an image's relative error (docs/error.md).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from .film import Film, save_image, tonemap_seed, tonemap_srgb
 from .loader import load_scene
 from .mtl import load_mtl
 from .obj import load_obj
+from .progressive import ProgressiveResult, relative_error, render_progressive
 from .integrators import INTEGRATORS
 from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
 from .samplers import SAMPLERS
@@ -39,6 +43,7 @@ __all__ = [
     "Film",
     "Material",
     "ObjData",
+    "ProgressiveResult",
     "Scene",
     "SceneError",
     "Sky",
@@ -46,7 +51,9 @@ __all__ = [
     "load_obj",
     "load_scene",
     "render",
+    "relative_error",
     "render_film",
+    "render_progressive",
     "render_scene",
     "save_image",
     "tonemap_seed",

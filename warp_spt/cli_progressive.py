@@ -34,11 +34,12 @@ class BudgetOptions:
     error_map: str | None = None
     spp_map: str | None = None
     spp_given: bool = False
+    denoise: bool = False
 
     @property
     def active(self) -> bool:
         return any((self.time_budget, self.target_error, self.adaptive, self.save_partial, self.progressive,
-                    self.error_map, self.spp_map, self.min_spp))
+                    self.error_map, self.spp_map, self.min_spp, self.denoise))
 
 
 def _positive_float(text: str) -> float:
@@ -76,6 +77,9 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
                    help="write the per-pixel standard error (.npy/.pfm linear, .png false colour of the "
                         "relative error)")
     g.add_argument("--spp-map", metavar="PATH", help="write the samples per pixel (.npy/.pfm, or .png false colour)")
+    g.add_argument("--denoise", action="store_true",
+                   help="denoise the output with Intel Open Image Denoise (needs pyoidn: warp-spt[denoise]); "
+                        "the error line and maps describe the image before denoising")
 
 
 def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
@@ -86,7 +90,7 @@ def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
         if path is not None and Path(path).suffix.lower() not in allowed:
             raise usage_error(f"{flag} {path!r}: the file name must end in {', '.join(allowed)}")
     return BudgetOptions(ns.time_budget, ns.target_error, ns.adaptive, ns.min_spp, ns.save_partial, ns.progressive,
-                         ns.error_map, ns.spp_map, ns.sr is not None)
+                         ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise)
 
 
 def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
@@ -114,6 +118,10 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
     from .progressive import render_progressive
 
     b: BudgetOptions = opts.budget
+    if b.denoise:
+        from .denoise import require
+
+        require()                         # before rendering, not after minutes of it
     spp = opts.spp if (b.spp_given or not (b.time_budget or b.target_error)) else None
 
     def on_pass(res) -> None:
@@ -128,7 +136,14 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
                              target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
                              on_pass=on_pass, keep_partial=b.save_partial, started=started,
                              **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
-    save_image(opts.out, res.image, tonemap=opts.tonemap)
+    image = res.image
+    if b.denoise:
+        from .denoise import denoise
+
+        image = denoise(res.image)
+        say("denoised with Intel Open Image Denoise (colour only; no albedo/normal buffers yet): the image is "
+            "smoother but biased; the error figures below are those of the image before denoising")
+    save_image(opts.out, image, tonemap=opts.tonemap)
     if b.error_map:
         save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image))
     if b.spp_map:

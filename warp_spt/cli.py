@@ -357,7 +357,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status."""
     from .errors import SceneError
 
-    started = process_start()      # --time-budget covers start-up, load and compile
+    # --time-budget covers start-up, load and compile; called from Python, it counts from this call
+    started = process_start() if argv is None else time.perf_counter()
     stderr = sys.stderr
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["convergence"]:

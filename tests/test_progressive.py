@@ -172,3 +172,13 @@ def test_bad_budgets_are_rejected(open_scene, bad):
 
 def test_stats_type():
     assert ProgressiveStats().stopped_by == "spp"
+
+
+def test_live_view_outside_jupyter_prints_each_pass(open_scene, capsys):
+    from warp_spt.notebook import render_live
+
+    res = render_live(open_scene, CAMERA, spp=26, seed=1, **KW)
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("pass ")]  # Warp logs too
+    assert [line.split(",")[0] for line in lines] == ["pass 1: 2 spp", "pass 2: 10 spp", "pass 3: 26 spp",
+                                                      "pass 3: 26 spp"]      # each pass, then the final state
+    assert res.spp_total == 26 and all("estimated relative error" in line for line in lines)

@@ -284,6 +284,8 @@ class _Driver:
         self.films = [wp.zeros(self.n, dtype=wp.vec3d, device=dev.device) for _ in range(batches)]
         self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]
         self.counts = np.zeros((batches, self.n), dtype=np.int64)
+        self.params_index = len(self.scene_inputs)
+        self.launches = [self._record(b) for b in range(batches)]       # one per batch: one task uses it
         self.threads = max(1, rs.threads or os.cpu_count() or 1)
         self.stop = threading.Event()
         self.stats = ProgressiveStats(threads=self.threads, integrator=rs.integrator, sampler=rs.sampler)
@@ -296,18 +298,30 @@ class _Driver:
         p = RenderParams()
         p.width, p.pixel_start, p.sample_start, p.sample_count = self.width, lo, start, count
         p.max_depth, p.roulette_depth, p.seed = self.rs.max_depth, self.rs.roulette_depth, self.seeds[b]
-        wp.launch(self.kernel, dim=hi - lo, device=self.dev.device,
-                  inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
+        cmd = self.launches[b]
+        cmd.set_dim(hi - lo)
+        cmd.set_param_at_index(self.params_index, p)
+        cmd.launch()
         self.counts[b, lo:hi] += count      # disjoint slices per launch: safe across threads
 
+    def _record(self, b: int):
+        """A recorded launch of batch b's film (replayed with new params: packing the scene's structs
+        afresh cost about 160 us per launch, which dominated adaptive passes of tile-wide runs)."""
+        p = RenderParams()
+        p.width, p.seed = self.width, self.seeds[b]
+        return wp.launch(self.kernel, dim=1, device=self.dev.device, record_cmd=True,
+                         inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
+
     def _run_pass(self, active: np.ndarray, inc: np.ndarray) -> None:
-        """Give every active pixel ``inc[b]`` more samples in batch b."""
-        items = [(b, lo, hi, int(self.counts[b, lo]), int(inc[b]))
-                 for b in range(self.B) if inc[b] > 0 for lo, hi in _runs(active, self.counts[b])]
+        """Give every active pixel ``inc[b]`` more samples in batch b: one task per batch, which
+        launches the batch's runs in turn (a task per run made adaptive passes, whose runs are
+        only a tile wide, pay the thread pool's overhead per launch)."""
+        tasks = [[(b, lo, hi, int(self.counts[b, lo]), int(inc[b])) for lo, hi in _runs(active, self.counts[b])]
+                 for b in range(self.B) if inc[b] > 0]
         # Launches always run on worker threads, even with one thread: a Ctrl-C then lands in this
         # (waiting) thread, never between a finished launch and its bookkeeping.
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            pending = {pool.submit(self._launch, *it) for it in items}
+            pending = {pool.submit(self._launch_all, task) for task in tasks}
             try:
                 while pending:
                     done, pending = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
@@ -316,6 +330,10 @@ class _Driver:
             except BaseException:
                 self.stop.set()           # running launches finish (and are counted); no new ones start
                 raise
+
+    def _launch_all(self, items) -> None:
+        for it in items:
+            self._launch(*it)
 
     # -- the loop
 
@@ -432,7 +450,8 @@ class _Driver:
             ratio = np.where(tile_s > 0, tile_n * np.sqrt(np.maximum(tile_cost, 1.0)) / tile_s, np.inf)
         finite = np.isfinite(ratio) & (tile_s < np.inf)
         hot_tiles = ~np.isfinite(tile_s) | (finite & (ratio <= (np.median(ratio[finite]) if finite.any() else 0)))
-        s = pass_samples(k, self.n, self.B)
+        hot_pixels = int(np.count_nonzero(hot_tiles)) * ADAPTIVE_TILE**2
+        s = pass_samples(k, min(self.n, hot_pixels), self.B)           # a pass's work, not its pixels, is capped
         hot = np.repeat(np.repeat(hot_tiles, ADAPTIVE_TILE, 0), ADAPTIVE_TILE, 1)
         active = hot[: self.height, : self.width].reshape(-1) & (result.spp.reshape(-1) + self.B * s <= plan.spp)
         if not active.any():

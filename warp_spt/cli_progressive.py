@@ -117,11 +117,19 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
     from .film import save_image
     from .progressive import render_progressive
 
+    from .device_scene import DeviceScene
+
     b: BudgetOptions = opts.budget
+    dev = DeviceScene(scene)
+    aux = None
     if b.denoise:
+        from .aux_buffers import feature_buffers
         from .denoise import require
 
         require()                         # before rendering, not after minutes of it
+        # before the render too, so that their kernel's compile counts against --time-budget
+        aux = feature_buffers(dev, opts.camera, opts.width, opts.height, seed=opts.seed,
+                              texture_filter=opts.texture_filter)
     spp = opts.spp if (b.spp_given or not (b.time_budget or b.target_error)) else None
 
     def on_pass(res) -> None:
@@ -130,7 +138,7 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         if b.progressive:
             save_image(b.progressive, res.image, tonemap=opts.tonemap)
 
-    res = render_progressive(scene, opts.camera, width=opts.width, height=opts.height, spp=spp,
+    res = render_progressive(dev, opts.camera, width=opts.width, height=opts.height, spp=spp,
                              max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
                              texture_filter=opts.texture_filter, time_budget=b.time_budget,
                              target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
@@ -140,9 +148,9 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
     if b.denoise:
         from .denoise import denoise
 
-        image = denoise(res.image)
-        say("denoised with Intel Open Image Denoise (colour only; no albedo/normal buffers yet): the image is "
-            "smoother but biased; the error figures below are those of the image before denoising")
+        image = denoise(res.image, *aux)
+        say("denoised with Intel Open Image Denoise (albedo and normal of the first non-specular hit): the image "
+            "is smoother but biased; the error figures below are those of the image before denoising")
     save_image(opts.out, image, tonemap=opts.tonemap)
     if b.error_map:
         save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image))

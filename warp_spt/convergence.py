@@ -182,9 +182,12 @@ def _render_row(dev, camera, config: str, spp: int, seed: int, reference, ref_ms
         res = render_progressive(dev, camera, spp=spp, seed=seed, **kw)
     image, estimated = res.image, res.relative_error
     if "denoised" in mods:
+        from .aux_buffers import feature_buffers
         from .denoise import denoise
 
-        image, estimated = denoise(res.image), float("nan")
+        aux = feature_buffers(dev, camera, kw["width"], kw["height"], seed=seed,
+                              texture_filter=kw.get("texture_filter", "nearest"), features=kw.get("features"))
+        image, estimated = denoise(res.image, *aux), float("nan")
     seconds = time.perf_counter() - t
     return measure(config, integrator, sampler, spp, image, reference, ref_mse, seconds, float(res.spp.mean()),
                    estimated)

@@ -4,9 +4,9 @@ Never the default and never silent: the CLI and the convergence report call it o
 (``--denoise``) and say so. A denoised image is biased (it trades noise for blur); the convergence
 report's "denoised" line measures its error against the reference, so users see that trade.
 
-Feature buffers: OIDN is better with albedo and normal images of the first non-specular hit. Their
-kernel belongs with the integrator (the ``light`` branch restructures it); until it exists,
-:func:`denoise` takes ``albedo``/``normal`` when a caller has them and otherwise denoises colour only.
+Feature buffers: OIDN is better with albedo and normal images of the first non-specular hit;
+:func:`warp_spt.aux_buffers.feature_buffers` renders them, and the CLI and the convergence report
+pass them. :func:`denoise` also works on colour alone.
 """
 
 from __future__ import annotations

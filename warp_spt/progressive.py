@@ -346,11 +346,10 @@ class _Driver:
         return ProgressiveResult.from_batches(sums, self.counts.reshape(shape).copy(), self.stats)
 
     def run(self, plan: _Plan, on_pass: PassCallback | None, keep_partial: bool) -> ProgressiveResult:
-        target = batch_counts(plan.spp, self.B)
         result, k, rate = None, 0, None
         try:
             while True:
-                active, inc, why = self._next_pass(plan, k, target, result, rate)
+                active, inc, why = self._next_pass(plan, k, result, rate)
                 if why is not None:
                     self.stats.stopped_by = why
                     break
@@ -376,7 +375,7 @@ class _Driver:
         self.stats.seconds = time.perf_counter() - plan.t0
         return result
 
-    def _next_pass(self, plan: _Plan, k: int, target: np.ndarray, result, rate):
+    def _next_pass(self, plan: _Plan, k: int, result, rate):
         """(active pixels, samples per batch, None) for pass k, or (.., .., reason to stop)."""
         done = self.counts.sum(axis=0)
         spp_now = int(done.max())

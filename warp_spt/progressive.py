@@ -288,6 +288,7 @@ class _Driver:
         self.launches = [self._record(b) for b in range(batches)]       # one per batch: one task uses it
         self.threads = max(1, rs.threads or os.cpu_count() or 1)
         self.stop = threading.Event()
+        self.ray_rate = 0.0          # rays per second in the last pass (adaptive passes' time estimate)
         self.stats = ProgressiveStats(threads=self.threads, integrator=rs.integrator, sampler=rs.sampler)
 
     # -- launching
@@ -312,12 +313,12 @@ class _Driver:
         return wp.launch(self.kernel, dim=1, device=self.dev.device, record_cmd=True,
                          inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
 
-    def _run_pass(self, active: np.ndarray, inc: np.ndarray) -> None:
-        """Give every active pixel ``inc[b]`` more samples in batch b: one task per batch, which
-        launches the batch's runs in turn (a task per run made adaptive passes, whose runs are
-        only a tile wide, pay the thread pool's overhead per launch)."""
-        tasks = [[(b, lo, hi, int(self.counts[b, lo]), int(inc[b])) for lo, hi in _runs(active, self.counts[b])]
-                 for b in range(self.B) if inc[b] > 0]
+    def _run_pass(self, inc: np.ndarray) -> None:
+        """Give pixel p ``inc[b, p]`` more samples in batch b: one task per batch, which launches
+        the batch's runs in turn (a task per run made adaptive passes, whose runs are only a tile
+        wide, pay the thread pool's overhead per launch)."""
+        tasks = [[(b, lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
+                 for b in range(self.B) if inc[b].any()]
         # Launches always run on worker threads, even with one thread: a Ctrl-C then lands in this
         # (waiting) thread, never between a finished launch and its bookkeeping.
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
@@ -349,18 +350,20 @@ class _Driver:
         result, k, rate = None, 0, None
         try:
             while True:
-                active, inc, why = self._next_pass(plan, k, result, rate)
+                inc, why = self._next_pass(plan, k, result, rate)
                 if why is not None:
                     self.stats.stopped_by = why
                     break
                 t_start = time.perf_counter()
-                self._run_pass(active, inc)
+                self._run_pass(inc)
                 dt = time.perf_counter() - t_start
                 self.stats.render_seconds += dt
-                rate = int(active.sum()) * int(inc.sum()) / max(dt, 1e-6)
+                rate = int(inc.sum()) / max(dt, 1e-6)          # pixel-samples per second
                 k += 1
                 self.stats.passes = k
+                rays_before = self.stats.rays
                 result = self.snapshot()
+                self.ray_rate = (self.stats.rays - rays_before) / max(dt, 1e-6)
                 self.stats.seconds = time.perf_counter() - plan.t0
                 self.stats.pass_errors.append(result.relative_error)
                 self.stats.pass_seconds.append(self.stats.seconds)
@@ -376,11 +379,11 @@ class _Driver:
         return result
 
     def _next_pass(self, plan: _Plan, k: int, result, rate):
-        """(active pixels, samples per batch, None) for pass k, or (.., .., reason to stop)."""
+        """(samples per batch and pixel (B, n), None) for pass k, or (None, reason to stop)."""
         done = self.counts.sum(axis=0)
         spp_now = int(done.max())
         if result is not None and plan.target_error is not None and result.relative_error <= plan.target_error:
-            return None, None, "error"
+            return None, "error"
         if plan.adaptive and spp_now >= plan.min_spp and result is not None:
             return self._adaptive_pass(plan, k, result, rate)
         # Uniform pass: every pixel, towards the target per-batch counts (the same for every pixel).
@@ -391,9 +394,9 @@ class _Driver:
         n_total = self._limit_by_error(plan, result, spp_now, n_total)
         n_total = self._limit_by_time(plan, rate, spp_now, n_total, self.n)
         if n_total <= spp_now:
-            return None, None, "spp" if spp_now >= plan.spp else self._budget_reason(plan)
+            return None, "spp" if spp_now >= plan.spp else self._budget_reason(plan)
         inc = batch_counts(n_total, self.B) - self.counts[:, 0]
-        return np.ones(self.n, dtype=bool), inc, None
+        return np.repeat(inc[:, None], self.n, axis=1), None
 
     def _limit_by_error(self, plan: _Plan, result, spp_now: int, n_total: int) -> int:
         """Aim the final pass at the target error: error falls as 1/sqrt(spp)."""
@@ -425,15 +428,15 @@ class _Driver:
         return "samples" if plan.sample_budget is not None and not timed_out else "time"
 
     def _adaptive_pass(self, plan: _Plan, k: int, result: ProgressiveResult, rate):
-        """The half of the tiles with the fewest samples for their noise get the next pass.
+        """Distribute one pass's work over the 8x8 tiles so that samples approach the best allocation.
 
-        The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p with s_p a pixel's
-        relative standard deviation per sample; for a given time, sum_p n_p c_p with c_p its cost
-        per sample (rays traced, counted by the kernel), it is smallest when n_p is proportional to
-        s_p / sqrt(c_p) (a Lagrange multiplier). So each pass samples the tiles whose
-        n sqrt(c) / s is at or below the median; repeated, that drives n towards that proportion.
-        (Cycles instead equalises the error, n proportional to s^2, which spends more on the
-        noisiest pixels than the RMS error repays.)
+        The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p, with s_p a pixel's
+        relative standard deviation per sample. For a given cost sum_p n_p c_p (c_p: rays per
+        sample, counted by the kernel) it is smallest when n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q)
+        (a Lagrange multiplier). Each pass raises the cost C by what a uniform pass would spend and
+        gives every tile what it lacks of that target. (Cycles instead equalises the per-pixel
+        error, n proportional to s^2, which spends more on the noisiest pixels than the RMS error
+        repays.) Tiles whose samples are all equal (s = 0) get nothing more.
         """
         # The decision uses the even batches only; the odd half of every pixel is therefore an
         # unbiased estimate given the decisions, and the image (all batches) carries only the even
@@ -441,28 +444,43 @@ class _Driver:
         mean, se, n_dec = batch_statistics(result.sums, result.counts, slice(0, None, 2))
         floor = max(ERROR_FLOOR_FRACTION * float(mean.mean()), 1e-12)
         s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
-        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2), ADAPTIVE_TILE))      # per-sample relative std
-        tile_n = _tile_mean(result.spp.astype(np.float64), ADAPTIVE_TILE)
+        t = ADAPTIVE_TILE
+        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2), t))                   # per-sample relative std
+        tile_n = _tile_mean(result.spp.astype(np.float64), t)
+        npix = _tile_mean(np.ones((self.height, self.width)), t, total=True)
         rays = sum(c.numpy()[:, 0] for c in self.counters).reshape(self.height, self.width)
-        tile_cost = _tile_mean(rays / np.maximum(result.spp, 1), ADAPTIVE_TILE)   # rays per sample
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(tile_s > 0, tile_n * np.sqrt(np.maximum(tile_cost, 1.0)) / tile_s, np.inf)
-        finite = np.isfinite(ratio) & (tile_s < np.inf)
-        hot_tiles = ~np.isfinite(tile_s) | (finite & (ratio <= (np.median(ratio[finite]) if finite.any() else 0)))
-        hot_pixels = int(np.count_nonzero(hot_tiles)) * ADAPTIVE_TILE**2
-        s = pass_samples(k, min(self.n, hot_pixels), self.B)           # a pass's work, not its pixels, is capped
-        hot = np.repeat(np.repeat(hot_tiles, ADAPTIVE_TILE, 0), ADAPTIVE_TILE, 1)
-        active = hot[: self.height, : self.width].reshape(-1) & (result.spp.reshape(-1) + self.B * s <= plan.spp)
-        if not active.any():
-            return None, None, "spp"
-        per_pixel = self._limit_by_time(plan, rate, 0, self.B * s, int(active.sum()))
-        if per_pixel <= 0:
-            return None, None, self._budget_reason(plan)
-        return active, batch_counts(per_pixel, self.B), None
+        cost = np.maximum(_tile_mean(rays / np.maximum(result.spp, 1), t), 1.0)   # rays per sample
+        known = np.isfinite(tile_s)
+        spent = float((npix * tile_n * cost).sum())
+        step = self.B * pass_samples(k, self.n, self.B)
+        budget = spent + step * float((npix * cost).sum())                  # cost after a uniform pass
+        weight = np.where(known, tile_s * np.sqrt(cost), 0.0)
+        target = np.where(known, budget * np.where(known, tile_s, 0.0) / np.sqrt(cost)
+                          / max(float((npix * weight).sum()), 1e-300), 0.0)
+        inc = np.where(known, np.floor(target - tile_n), step)             # unknown noise: a uniform step
+        inc = np.clip(inc, 0, plan.spp - tile_n).astype(np.int64)
+        per_pixel = np.repeat(np.repeat(inc, t, 0), t, 1)[: self.height, : self.width].reshape(-1)
+        total = int(per_pixel.sum())
+        if total == 0:
+            return None, "spp"
+        # Cut to the sample budget, and to the deadline at the last pass's rays per second: adaptive
+        # passes go to costly pixels, so pixel-samples per second would over-promise.
+        fraction = self._limit_by_time(plan, None, 0, total, 1) / total
+        if plan.time_budget is not None and self.ray_rate > 0:
+            pixel_cost = np.repeat(np.repeat(cost, t, 0), t, 1)[: self.height, : self.width].reshape(-1)
+            need = float((per_pixel * pixel_cost).sum()) / self.ray_rate
+            fraction = min(fraction, max(0.0, plan.deadline - time.perf_counter()) / need)
+        if fraction < 1.0:
+            per_pixel = (per_pixel * fraction).astype(np.int64)
+            if not per_pixel.any():
+                return None, self._budget_reason(plan)
+        b = np.arange(self.B)[:, None]
+        return per_pixel[None, :] // self.B + (b < per_pixel[None, :] % self.B), None
 
 
-def _tile_mean(a: np.ndarray, t: int) -> np.ndarray:
-    """Mean over t x t tiles (edge tiles average over the pixels they have)."""
+def _tile_mean(a: np.ndarray, t: int, total: bool = False) -> np.ndarray:
+    """Mean (or, with ``total``, sum) over t x t tiles; edge tiles use the pixels they have;
+    a tile with a non-finite value gets inf."""
     h, w = a.shape
     hp, wp_ = -(-h // t) * t, -(-w // t) * t
     pad = np.zeros((hp, wp_))
@@ -475,14 +493,14 @@ def _tile_mean(a: np.ndarray, t: int) -> np.ndarray:
     s = pad.reshape(hp // t, t, wp_ // t, t).sum(axis=(1, 3))
     c = cnt.reshape(hp // t, t, wp_ // t, t).sum(axis=(1, 3))
     anyinf = inf.reshape(hp // t, t, wp_ // t, t).any(axis=(1, 3))
-    return np.where(anyinf, np.inf, s / np.maximum(c, 1.0))
+    return np.where(anyinf, np.inf, s if total else s / np.maximum(c, 1.0))
 
 
-def _runs(active: np.ndarray, done: np.ndarray) -> list[tuple[int, int]]:
-    """Maximal runs of consecutive active pixels with the same sample count, at most TILE_PIXELS long.
-
-    One launch renders a run (the kernel takes a first pixel and one first sample index)."""
-    key = np.where(active, done, -1)
+def _runs(inc: np.ndarray, done: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs of consecutive pixels with the same increment (> 0) and the same sample count, at
+    most TILE_PIXELS long. One launch renders a run (the kernel takes a first pixel, one first
+    sample index and one sample count)."""
+    key = np.where(inc > 0, done * (1 << 31) + inc, -1)
     n = key.size
     edges = np.flatnonzero(np.diff(key)) + 1
     starts = np.concatenate(([0], edges))

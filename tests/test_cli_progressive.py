@@ -77,7 +77,10 @@ def test_save_partial_leaves_a_valid_image_on_sigint(tmp_path, lit_files):
     env = dict(os.environ, PYTHONPATH=str(REPO))
     cmd = [sys.executable, "-m", "warp_spt", *lit_files, "-res", "32", "24", "-sr", "1000000", "--threads", "1",
            "--save-partial", "--progressive", str(prog), "-out", str(out)]
-    proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    # A runner started in the background (nohup, &) ignores SIGINT, and so would the child: give it
+    # the default disposition back, so that Python installs its KeyboardInterrupt handler.
+    proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 120
         while not prog.exists() and proc.poll() is None and time.monotonic() < deadline:

@@ -128,6 +128,7 @@ def run_report(scene, camera, *, width: int, height: int, max_spp: int, referenc
         ref_info = dict(source="file")
     if reference.shape != (height, width, 3):
         raise ValueError(f"reference is {reference.shape[1]}x{reference.shape[0]}, the render {width}x{height}")
+    _warm_up(dev, camera, configs, kw)
     rows: list[Row] = []
     for i, spp in enumerate(levels(max_spp)):
         for config in configs:
@@ -167,6 +168,20 @@ def default_configs() -> list[str]:
 
 
 MODIFIERS = ("adaptive", "denoised")
+
+
+def _warm_up(dev, camera, configs: Sequence[str], kw: dict) -> None:
+    """Compile every configuration's kernels before anything is timed (a 2x2 render each)."""
+    from .progressive import render_progressive
+
+    tiny = dict(kw, width=2, height=2)
+    for config in configs:
+        integrator, sampler, mods = parse_config(config)
+        render_progressive(dev, camera, spp=2, **dict(tiny, integrator=integrator, sampler=sampler))
+        if "denoised" in mods:
+            from .aux_buffers import feature_buffers
+
+            feature_buffers(dev, camera, 2, 2, spp=1, features=kw.get("features"))
 
 
 def _render_row(dev, camera, config: str, spp: int, seed: int, reference, ref_mse: float, kw) -> Row:

@@ -14,10 +14,13 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
+# Only the standard library at import time (cli.py imports this module at its top; on main, cli.py
+# installs its signal handling before numpy and Warp load), so numpy is imported where it is used.
 MAP_SUFFIXES = (".npy", ".pfm", ".png")
 
 
@@ -114,6 +117,8 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
 
     Returns the exit status: 0, or 130 after a Ctrl-C with --save-partial (the partial image written).
     """
+    import numpy as np
+
     from .film import save_image
     from .progressive import render_progressive
 
@@ -199,6 +204,8 @@ def _spp_text(spp: np.ndarray) -> str:
 
 def relative_map(std_error: np.ndarray, image: np.ndarray) -> np.ndarray:
     """Per-pixel relative error (mean over channels), with the floor of progressive.relative_error."""
+    import numpy as np
+
     from .progressive import ERROR_FLOOR_FRACTION
 
     floor = max(ERROR_FLOOR_FRACTION * float(np.mean(image)), 1e-12)
@@ -208,6 +215,8 @@ def relative_map(std_error: np.ndarray, image: np.ndarray) -> np.ndarray:
 
 def false_colour(x: np.ndarray, vmax: float | None = None) -> np.ndarray:
     """A scalar map (H, W) as uint8 RGB: black -> blue -> red -> yellow -> white over [0, vmax]."""
+    import numpy as np
+
     vmax = float(np.max(x)) if vmax is None else vmax
     t = np.clip(np.nan_to_num(x / vmax if vmax > 0 else x * 0.0), 0.0, 1.0)
     stops = np.array([[0, 0, 0], [0, 0, 255], [255, 0, 0], [255, 255, 0], [255, 255, 255]], dtype=np.float64)
@@ -219,6 +228,8 @@ def false_colour(x: np.ndarray, vmax: float | None = None) -> np.ndarray:
 
 def save_map(path: str, linear: np.ndarray, scalar: np.ndarray) -> None:
     """``.npy``/``.pfm``: the linear (H, W, 3) map; ``.png``: false colour of ``scalar`` (0 .. its max)."""
+    import numpy as np
+
     from .film import _write_png, atomic_write, save_image
 
     if Path(path).suffix.lower() == ".png":

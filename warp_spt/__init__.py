@@ -14,7 +14,10 @@ line); :class:`Film` holds float64 sums so renders of separate sample ranges mer
 :func:`render_film` returns one. :func:`render_scene` takes a :class:`RenderSettings` (integrator
 and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
 :class:`RenderResult` (film, image, stats). :func:`texture` registers a procedural texture written as a Warp function
-(:mod:`warp_spt.proctex`), usable as ``map_Kd proc:NAME``.
+(:mod:`warp_spt.proctex`), usable as ``map_Kd proc:NAME``. :func:`render_progressive` renders in
+passes until a sample count, a time budget or a target error, optionally adaptively, and returns a
+:class:`ProgressiveResult` (image, per-pixel standard error, per-pixel sample counts, stats);
+:func:`relative_error` is the one definition of an image's relative error (docs/error.md).
 
 Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,
 ``"quad.diffuse_map"``, ``"sky.color"``...); :func:`render_gradients` returns the image and the
@@ -44,6 +47,7 @@ _EXPORTS = {
     "SAMPLERS": "samplers",
     "Material": "scene",
     "ProcParams": "proctex",
+    "ProgressiveResult": "progressive",
     "ObjData": "scene",
     "Scene": "scene",
     "SceneParameters": "params",
@@ -55,9 +59,11 @@ _EXPORTS = {
     "parameters": "params",
     "proc_texture": "proctex",
     "register_texture": "proctex",
+    "relative_error": "progressive",
     "render": "renderer",
     "render_film": "renderer",
     "render_gradients": "gradients",
+    "render_progressive": "progressive",
     "render_scene": "renderer",
     "save_image": "film",
     "texture": "proctex",
@@ -81,6 +87,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .integrators import INTEGRATORS
     from .params import SceneParameters, parameters
     from .proctex import ProcParams, proc_texture, register_texture, texture
+    from .progressive import ProgressiveResult, relative_error, render_progressive
     from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
     from .samplers import SAMPLERS
     from .scene import Material, ObjData, Scene

@@ -14,13 +14,14 @@ import re
 import sys
 import time
 import unicodedata
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence, TextIO
 
 # Only light modules here (stdlib, no numpy, no Warp): main() installs the SIGINT/SIGTERM handling
 # before anything heavy is imported, so a Ctrl-C during start-up gets the same one-line message.
 from . import __version__
+from .cli_progressive import BudgetOptions, add_flags, check_outputs, options, process_start, render_and_save
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
 from .signals import (cli_interruption, deferred_signals, exit_status, finish_cli_handlers, install_cli_handlers,
@@ -106,6 +107,8 @@ class Options:
     frame: bool = False              # --frame: always frame
     studio: bool = False
     default_material: str = "auto"
+    texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
+    budget: BudgetOptions = field(default_factory=BudgetOptions)   # cli_progressive's flags
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
     cluster: str | None = None
     workers: int | None = None
@@ -118,7 +121,6 @@ class Options:
         """Frames, a camera path, a GIF or an OBJ template were given: render an animation."""
         from .animation import is_template
         return bool(self.frames or self.camera_path or self.gif or any(is_template(p) for p in self.objs))
-    texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
 
     @property
     def uses_demo_scene(self) -> bool:
@@ -213,6 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="random numbers: independent (default) or sobol (Owen-scrambled Sobol')")
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
+    add_flags(p, _int_at_least)
     _add_model_flags(p.add_argument_group("your own models"))
     more = p.add_argument_group("clusters and animation")
     more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
@@ -265,6 +268,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, frame=ns.frame,
         studio=ns.studio, default_material=ns.default_material,
+        budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
     from .animation import with_animation_options
     return with_animation_options(opts, ns, explicit_out=ns.out is not None)
@@ -537,14 +541,19 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
         raise RunError(f"cannot write -out {out!r}: {file_problem(target)}")
 
 
-def run(opts: Options, *, stderr: TextIO | None = None) -> int:
-    """Load, render and save as ``opts`` says. Errors propagate; :func:`main` reports them."""
+def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = None) -> int:
+    """Load, render and save as ``opts`` says. Errors propagate; :func:`main` reports them.
+
+    ``started`` (a perf_counter value, default now) is when the command started: --time-budget counts from it.
+    """
+    started = time.perf_counter() if started is None else started
     err = stderr or sys.stderr
     if opts.animated or opts.cluster or opts.workers:
         from .animation import run_cli
         return run_cli(opts, err)
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
+    check_outputs(opts.budget, RunError)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
     _init_warp(opts)
     _check_registry_names(opts)
@@ -574,6 +583,8 @@ def run(opts: Options, *, stderr: TextIO | None = None) -> int:
         f"{opts.spp} spp, depth {opts.depth}")
     notice = CompileNotice(say)
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
+    if opts.budget.active:      # passes, budgets and error estimates (cli_progressive)
+        return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started)
     chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
     settings = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=sky,
                     seed=opts.seed, threads=opts.threads, texture_filter=opts.texture_filter, **chosen)
@@ -639,11 +650,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     ``argv`` None means "the program": SIGINT and SIGTERM handling is installed first and stays
     (a signal after the status is decided is ignored). With an explicit ``argv`` (tests, scripts)
-    the caller's handlers are restored on return.
+    the caller's handlers are restored on return. ``warp-spt convergence ...`` runs the convergence
+    report (warp_spt.convergence).
     """
+    # --time-budget covers start-up, load and compile; called from Python, it counts from this call
+    started = process_start() if argv is None else time.perf_counter()
     previous = install_cli_handlers()
     try:
-        status = _main(sys.argv[1:] if argv is None else list(argv), sys.stderr)
+        status = _main(sys.argv[1:] if argv is None else list(argv), sys.stderr, started)
         late = cli_interruption()
         if late is not None and status not in (EXIT_INTERRUPTED, EXIT_TERMINATED):
             # a signal whose exception some library swallowed just before the end: still report it
@@ -653,7 +667,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         finish_cli_handlers(previous, program=argv is None)
 
 
-def _main(argv: list[str], stderr: TextIO) -> int:
+def _main(argv: list[str], stderr: TextIO, started: float) -> int:
+    if argv[:1] == ["convergence"]:
+        from .convergence import main as convergence_main
+        return convergence_main(argv[1:])
     try:
         opts = parse_args(argv)
         if opts.action == "help":
@@ -662,7 +679,7 @@ def _main(argv: list[str], stderr: TextIO) -> int:
         if opts.action == "version":
             print(f"{PROG} {__version__}")
             return EXIT_OK
-        return run(opts, stderr=stderr)
+        return run(opts, stderr=stderr, started=started)
     except BaseException as err:        # every failure ends as one line and an exit status
         return _report(err, stderr)
 

@@ -1,0 +1,157 @@
+"""Budgets and adaptive sampling, measured: is the time budget met, does a target error land near
+the target, and what does adaptive sampling gain at equal time?
+
+    python benchmarks/bench_budgets.py             # 64x64, three scenes (about 10 minutes on 2 busy cores)
+    python benchmarks/bench_budgets.py --quick     # 32x32, fewer budgets
+
+1. Time budget (CLI): ``python -m warp_spt ... --time-budget T`` as a subprocess; its whole wall time
+   (interpreter start, Warp import, load, compile, render, save, exit) over T.
+2. Time budget (API): render_progressive(time_budget=T) on an uploaded scene; elapsed over T.
+3. Target error: render_progressive(target_error=E); the measured relative error (docs/error.md)
+   against a reference of many more samples, with the reference's own estimated error removed in
+   quadrature, over E.
+4. Adaptive at equal time: uniform and adaptive renders with the same time budget; RMSE and relative
+   error against the reference (its noise removed); gain = uniform / adaptive. Also at equal work
+   (the adaptive render given the uniform one's pixel-samples), which separates the allocation
+   from the throughput (adaptive passes launch tile-wide runs and go to costly pixels).
+
+Scenes: the built-in demo (gradient sky, depth 8); a closed Cornell room with a small light, a glossy
+and a glass ball (tests/stability_scenes); an open scene (a floor and two balls under a uniform sky,
+where pixels that see only sky are exact: uneven noise).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import warp as wp  # noqa: E402
+
+wp.config.quiet = True
+
+from warp_spt import Camera, Sky, load_scene  # noqa: E402
+from warp_spt.demo import demo_files  # noqa: E402
+from warp_spt.device_scene import DeviceScene  # noqa: E402
+from warp_spt.progressive import relative_error, render_progressive  # noqa: E402
+
+
+def scenes(tmp: Path):
+    from tests.scenes import material
+    from tests.stability_scenes import cornell_camera, cornell_files, quads_obj, write_scene_files
+
+    demo = (demo_files(), None, dict(max_depth=8, sky=Sky.gradient()), [])
+    cornell = (cornell_files(tmp), cornell_camera(), dict(max_depth=6, sky=Sky.constant(0, 0, 0)),
+               ["-cam", "16", "1", "16", "0", "1", "-0.05", "75", "1", "0", "--sky-color", "0", "0", "0", "-depth", "6"])
+    obj = quads_obj([("floor", [(-8, -8, 0), (8, -8, 0), (8, 8, 0), (-8, 8, 0)])],
+                    spheres=[("ball", (-1.2, 0.0, 1.0), 1.0), ("glass", (1.3, 0.5, 0.8), 0.8)])
+    mtl = (material("floor", Kd=(0.6, 0.6, 0.6), Roughness=1) + material("ball", Kd=(0.8, 0.3, 0.2), Roughness=1)
+           + material("glass", Kd=(0.95, 0.95, 0.95), Kt=(0.95, 0.95, 0.95), Roughness=0, Fuzz=0, Kn=1.5,
+                      Refractable=True))
+    open_files = write_scene_files(tmp, "open", obj, mtl)
+    cam = Camera(position=(0.0, -7.0, 2.0), direction=(0.0, 1.0, -0.2), fov=50.0, aperture=0.0, focus=7.0)
+    open_ = (open_files, cam, dict(max_depth=6, sky=Sky.constant(1, 1, 1)),
+             ["-cam", "0", "-7", "2", "0", "1", "-0.2", "50", "7", "0", "--sky-color", "1", "1", "1", "-depth", "6"])
+    return {"demo": demo, "cornell": cornell, "open": open_}
+
+
+def cli_wall_time(files, cli_cam, size: int, budget: float, out: Path) -> tuple[float, int]:
+    objs, mtls = files
+    args = [a for o in objs for a in ("-obj", o)] + [a for m in mtls for a in ("-mtl", m)] if cli_cam else []
+    cmd = [sys.executable, "-m", "warp_spt", *args, *cli_cam, "-res", str(size), str(size), "--time-budget",
+           str(budget), "--quiet", "-out", str(out)]
+    if not cli_cam:
+        cmd += ["-sky", "1", "-depth", "8"]
+    t = time.perf_counter()
+    subprocess.run(cmd, check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    return time.perf_counter() - t, 0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    size = 32 if args.quick else 64
+    budgets = (3.0, 6.0) if args.quick else (4.0, 8.0, 16.0)
+    tmp = Path(tempfile.mkdtemp())
+    print(f"{size}x{size} pixels; {os.cpu_count()} cores\n")
+    rows_t, rows_e, rows_a = [], [], []
+    for name, (files, cam, kw, cli_cam) in scenes(tmp).items():
+        dev = DeviceScene(load_scene(*files, warn=lambda m: None))
+        kw = dict(kw, width=size, height=size)
+        render_progressive(dev, cam, spp=2, **kw)                                  # compile once
+        probe = render_progressive(dev, cam, spp=64, seed=11, **kw)
+        rate = probe.stats.pixel_samples / probe.stats.render_seconds
+        # reference: about 20x the samples of the largest budget
+        ref_spp = int(min(1 << 14, 20 * rate * max(budgets) / (size * size)))
+        t = time.perf_counter()
+        ref = render_progressive(dev, cam, spp=ref_spp, seed=7919, **kw)
+        ref_img = ref.image.astype(np.float64)
+        ref_mse = float(np.nanmean(ref.std_error.astype(np.float64) ** 2))
+        print(f"[{name}] {rate / 1e6:.2f} M samples/s; reference {ref_spp} spp in {time.perf_counter() - t:.0f} s, "
+              f"estimated relative error {ref.relative_error:.2%}", flush=True)
+
+        def measured(res):
+            rel = relative_error(res.image - ref_img, ref_img)
+            rel_c = math.sqrt(max(rel**2 - ref.relative_error**2, 0.0))
+            mse = max(float(np.mean((res.image - ref_img) ** 2)) - ref_mse, 0.0)
+            return rel_c, math.sqrt(mse)
+
+        for budget in budgets:
+            wall, _ = cli_wall_time(files, cli_cam, size, budget, tmp / f"{name}.png")
+            res = render_progressive(dev, cam, time_budget=budget, seed=3, **kw)
+            rows_t.append((name, budget, wall / budget, res.stats.seconds / budget, res.spp_total))
+            print(f"  time budget {budget:>4.0f} s: CLI wall {wall:6.2f} s ({wall / budget:.3f}x), "
+                  f"API {res.stats.seconds:6.2f} s ({res.stats.seconds / budget:.3f}x), {res.spp_total} spp",
+                  flush=True)
+        e_now = probe.relative_error
+        for target in (e_now / 2, e_now / 4):
+            res = render_progressive(dev, cam, target_error=target, seed=5, **kw)
+            rel_c, _ = measured(res)
+            rows_e.append((name, target, rel_c / target, res.relative_error / target, res.spp_total))
+            print(f"  target error {target:.2%}: estimated {res.relative_error:.2%}, measured {rel_c:.2%} "
+                  f"({rel_c / target:.3f}x target), {res.spp_total} spp, {res.stats.seconds:.1f} s", flush=True)
+        budget = budgets[-1]
+        gains = []
+        for seed in (21, 22):
+            u = render_progressive(dev, cam, time_budget=budget, seed=seed, **kw)
+            a = render_progressive(dev, cam, time_budget=budget, adaptive=True, seed=seed, **kw)
+            w = render_progressive(dev, cam, sample_budget=u.stats.pixel_samples, adaptive=True, seed=seed, **kw)
+            (ru, mu), (ra, ma), (rw, mw) = measured(u), measured(a), measured(w)
+            gains.append((mu / ma, ru / ra, mu / mw, ru / rw))
+            print(f"  equal time {budget:.0f} s, seed {seed}: uniform RMSE {mu:.4g} (rel {ru:.2%}, {u.spp_total} spp), "
+                  f"adaptive RMSE {ma:.4g} (rel {ra:.2%}, {a.spp.min()}..{a.spp.max()} spp, mean {a.spp.mean():.0f})",
+                  flush=True)
+        g = np.mean(gains, axis=0)
+        rows_a.append((name, *g))
+        print(f"  adaptive gain at equal time: RMSE x{g[0]:.2f}, relative error x{g[1]:.2f}; at equal work: "
+              f"RMSE x{g[2]:.2f}, relative error x{g[3]:.2f}\n", flush=True)
+
+    print("summary")
+    print("| scene | budget s | CLI wall / budget | API / budget |")
+    print("|---|---|---|---|")
+    for r in rows_t:
+        print(f"| {r[0]} | {r[1]:.0f} | {r[2]:.3f} | {r[3]:.3f} |")
+    print("\n| scene | target | measured / target | estimated / target | spp |")
+    print("|---|---|---|---|---|")
+    for r in rows_e:
+        print(f"| {r[0]} | {r[1]:.2%} | {r[2]:.3f} | {r[3]:.3f} | {r[4]} |")
+    print("\n| scene | equal time: RMSE gain (uniform / adaptive) | relative-error gain | equal work: RMSE gain "
+          "| relative-error gain |")
+    print("|---|---|---|---|---|")
+    for r in rows_a:
+        print(f"| {r[0]} | {r[1]:.2f} | {r[2]:.2f} | {r[3]:.2f} | {r[4]:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

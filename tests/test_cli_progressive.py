@@ -1,0 +1,127 @@
+"""The CLI's error, budget and adaptive flags (issue 9): maps, the error line, --save-partial on SIGINT."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from warp_spt.cli import main, parse_args
+from warp_spt.cli_progressive import false_colour, process_start
+from warp_spt.film import load_image
+
+from .scenes import material
+from .stability_scenes import quads_obj
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def lit_files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli_prog")
+    (d / "s.obj").write_text(quads_obj([("floor", [(-8, -8, 0), (8, -8, 0), (8, 8, 0), (-8, 8, 0)])],
+                                       spheres=[("ball", (0.0, 0.0, 1.0), 1.0)]))
+    (d / "s.mtl").write_text(material("floor", Kd=(0.6, 0.6, 0.6), Roughness=1)
+                             + material("ball", Kd=(0.8, 0.3, 0.2), Roughness=1))
+    return ["-obj", str(d / "s.obj"), "-mtl", str(d / "s.mtl"), "-cam", "0", "-7", "2", "0", "1", "-0.2", "50", "7", "0",
+            "--sky-color", "1", "1", "1", "-depth", "3"]
+
+
+def test_flags_parse_and_validate():
+    o = parse_args(["--time-budget", "2.5", "--target-error", "1%", "--adaptive", "--min-spp", "8",
+                    "--error-map", "e.png", "--spp-map", "s.npy", "--progressive", "p.png", "--save-partial"])
+    b = o.budget
+    assert (b.time_budget, b.target_error, b.adaptive, b.min_spp, b.save_partial) == (2.5, 0.01, True, 8, True)
+    assert b.active and not b.spp_given and not parse_args([]).budget.active
+    for bad in (["--time-budget", "0"], ["--target-error", "-1"], ["--error-map", "e.jpg"], ["--min-spp", "0"],
+                ["--progressive", "p.txt"]):
+        with pytest.raises(Exception):
+            parse_args(bad)
+    assert main(["--time-budget", "nan"]) == 2
+
+
+def test_budgeted_render_writes_image_maps_and_the_error_line(tmp_path, lit_files, capsys):
+    out, err_png, err_npy, spp_png = (tmp_path / n for n in ("o.png", "e.png", "e.npy", "s.png"))
+    args = lit_files + ["-res", "16", "12", "-sr", "40", "--adaptive", "--min-spp", "16", "--target-error", "2%"]
+    assert main(args + ["--error-map", str(err_png), "--spp-map", str(spp_png), "-out", str(out)]) == 0
+    log = capsys.readouterr().err
+    assert "estimated relative error of the image:" in log and "pass 1: 2 spp" in log
+    assert load_image(out).shape == (12, 16, 3) and load_image(err_png).shape == (12, 16, 3)
+    assert load_image(spp_png).shape == (12, 16, 3)
+    assert main(args + ["--error-map", str(err_npy), "--quiet", "-out", str(tmp_path / "o.npy")]) == 0
+    se, img = np.load(err_npy), np.load(tmp_path / "o.npy")
+    assert se.shape == img.shape and np.all(se[np.isfinite(se)] >= 0)
+    assert capsys.readouterr().err == ""
+
+
+def test_false_colour_ends():
+    c = false_colour(np.array([[0.0, 1.0, 2.0]]))
+    assert c[0, 0].tolist() == [0, 0, 0] and c[0, 2].tolist() == [255, 255, 255]
+
+
+def test_process_start_is_in_the_past():
+    assert 0.0 <= time.perf_counter() - process_start() < 24 * 3600
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a child process is POSIX")
+def test_save_partial_leaves_a_valid_image_on_sigint(tmp_path, lit_files):
+    # A render that would take minutes; interrupt it once the first progressive image exists.
+    out, prog = tmp_path / "partial.png", tmp_path / "progress.png"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    cmd = [sys.executable, "-m", "warp_spt", *lit_files, "-res", "32", "24", "-sr", "1000000", "--threads", "1",
+           "--save-partial", "--progressive", str(prog), "-out", str(out)]
+    # A runner started in the background (nohup, &) ignores SIGINT, and so would the child: give it
+    # the default disposition back, so that Python installs its KeyboardInterrupt handler.
+    proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 120
+        while not prog.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert prog.exists(), "no pass finished"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "partial image was saved" in err and "Traceback" not in err
+    with Image.open(out) as im:
+        im.load()
+        assert im.size == (32, 24)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["partial.png", "progress.png"]   # no temp files
+
+
+def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatch):
+    from warp_spt import denoise as dn
+
+    out = tmp_path / "d.npy"
+    args = lit_files + ["-res", "16", "12", "-sr", "8", "--denoise", "-out", str(out)]
+    if dn.available():
+        assert main(args) == 0
+        assert "denoised with Intel Open Image Denoise" in capsys.readouterr().err
+        assert np.load(out).shape == (12, 16, 3)
+    monkeypatch.setattr(dn, "available", lambda: False)
+    assert main(args) == 1
+    assert "warp-spt[denoise]" in capsys.readouterr().err
+
+
+def test_denoiser_reduces_noise_on_a_smooth_image():
+    from warp_spt import denoise as dn
+
+    if not dn.available():
+        pytest.skip("pyoidn is not installed (extra [denoise])")
+    rng = np.random.default_rng(0)
+    clean = np.tile(np.linspace(0.1, 1.0, 48, dtype=np.float32)[None, :, None], (48, 1, 3))
+    noisy = np.clip(clean + rng.normal(0, 0.1, clean.shape), 0, None).astype(np.float32)
+    out = dn.denoise(noisy)
+    assert np.sqrt(np.mean((out - clean) ** 2)) < 0.5 * np.sqrt(np.mean((noisy - clean) ** 2))
+    with pytest.raises(ValueError):
+        dn.denoise(np.full((4, 4, 3), np.nan, np.float32))

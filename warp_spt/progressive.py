@@ -1,0 +1,513 @@
+"""Progressive rendering with error you can see and control: error estimates, budgets, adaptive sampling.
+
+:func:`render_progressive` renders in passes and returns a :class:`ProgressiveResult`: the image, a
+per-pixel standard-error map, the per-pixel sample counts and stats. It stops at a sample count, a
+time budget or a target relative error, whichever comes first, and can spend later passes only where
+the estimated error is high (``adaptive=True``).
+
+How the error is estimated (docs/error.md has the full argument). Each pixel's samples are split
+into ``batches`` (default 8) groups with *independent* random streams: batch b uses seed
+``batch_seed(seed, b)`` and its own sample indices 0, 1, 2, ... The film keeps one float64 sum per
+batch and pixel (the "batch buffers"; two of them would be the classic half-buffers). The
+between-batch spread gives an unbiased estimate of the variance of the pixel mean whatever the
+sampler does *within* a batch: a low-discrepancy sampler makes a batch's samples correlated, but
+batches with independent scrambles are independent, so the estimate stays honest. We chose batch
+buffers over float64 sums of squares because (1) sums of squares over-state the error of correlated
+(stratified, Sobol') samples, (2) they need a kernel change, which batch buffers do not, and (3) the
+two halves of the batches serve adaptive sampling (decide from one half, image from all). The price
+is memory (24 bytes per batch per pixel) and, with a low-discrepancy sampler, B short sequences
+instead of one long one.
+
+Determinism: pass k gives batch b a fixed number of samples (a schedule that depends on k and the
+image size only), each launch adds one float64 sum per pixel, and a render of N spp gives batch b
+``N // B + (b < N % B)`` samples. So a render stopped by a budget after pass k (or inside its
+final, truncated pass) is bit-identical to ``render_progressive(..., spp=result.spp_total)``.
+
+"Relative error of the image" is defined once, in :func:`relative_error`, and used everywhere
+(the CLI's final line, ``target_error``, the convergence report, the benchmarks).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+import time
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+import warp as wp
+
+from .camera import Camera
+from .device_scene import DeviceScene
+from .film import Film
+from .integrators import RenderParams, camera_params, get_kernel
+from .lights import light_table, sky_emits
+from .renderer import TILE_PIXELS, RenderSettings, _check_args, _settings
+from .scene import Scene
+from .sky import Sky
+
+DEFAULT_BATCHES = 8
+ERROR_FLOOR_FRACTION = 0.1   # relative error divides by max(value, 0.1 x mean of the image)
+PASS_WORK = 1 << 20          # pixel-samples per pass once the schedule has grown (about 4 s here)
+ADAPTIVE_TILE = 8            # adaptive decisions are made per 8x8 tile
+UNLIMITED_SPP = 1 << 20
+
+
+# ---------------------------------------------------------------------------------------------
+# The one definition of "relative error of the image"
+
+
+def relative_error(error: np.ndarray, value: np.ndarray, floor_fraction: float = ERROR_FLOOR_FRACTION) -> float:
+    """The relative error of an image: RMS over pixels and channels of ``error / max(value, floor)``.
+
+    ``error`` is a standard-error map (the estimate) or ``image - reference`` (the measurement);
+    ``value`` is the image (estimate) or the reference (measurement). ``floor`` is ``floor_fraction``
+    (0.1) times the mean of ``value`` over all pixels and channels, so black and nearly black pixels
+    count with the error they have relative to a typical pixel instead of dominating the RMS.
+    Non-finite errors (pixels without an estimate) are skipped. Returns NaN when no pixel has one.
+    """
+    err = np.asarray(error, dtype=np.float64)
+    val = np.asarray(value, dtype=np.float64)
+    floor = max(floor_fraction * float(np.mean(val)), 1e-12)
+    rel = err / np.maximum(val, floor)
+    ok = np.isfinite(rel)
+    return float(np.sqrt(np.mean(rel[ok] ** 2))) if ok.any() else float("nan")
+
+
+def batch_seed(seed: int, batch: int) -> int:
+    """The 32-bit seed of batch ``batch``: a bijective integer hash of (seed, batch) (splitmix-style)."""
+    x = (int(seed) * 0x9E3779B97F4A7C15 + (batch + 1) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+    return (x ^ (x >> 31)) & 0xFFFFFFFF
+
+
+def batch_counts(spp: int, batches: int) -> np.ndarray:
+    """Samples per batch for a render of ``spp`` samples per pixel: as equal as possible, first ones first."""
+    b = np.arange(batches)
+    return spp // batches + (b < spp % batches).astype(np.int64)
+
+
+def pass_samples(k: int, pixels: int, batches: int) -> int:
+    """Samples per batch in pass ``k`` >= 1: 1, 2, 4, ... up to about PASS_WORK pixel-samples per pass.
+
+    (Pass 0 renders 2 spp, one sample in each of the first two batches: the first error estimate.)"""
+    cap = max(1, PASS_WORK // max(1, pixels * batches))
+    return int(min(1 << max(0, k - 1), cap))
+
+
+# ---------------------------------------------------------------------------------------------
+# Batch statistics (pure numpy, used by the driver, the tests and the convergence report)
+
+
+def batch_statistics(sums: np.ndarray, counts: np.ndarray, batches: slice | None = None):
+    """Mean image and standard error of the mean from per-batch sums.
+
+    ``sums`` (B, H, W, 3) float64, ``counts`` (B, H, W) samples per batch. The variance estimate is
+    the between-batch mean square ``sum_b n_b (m_b - m)^2 / (k - 1)`` (k batches with samples),
+    which is unbiased for the per-sample variance even with unequal batch sizes; divided by the
+    pixel's sample count it estimates the variance of the mean. Pixels with fewer than two
+    non-empty batches get NaN. Returns (mean, std_error, samples), float64.
+    """
+    if batches is not None:
+        sums, counts = sums[batches], counts[batches]
+    c = counts.astype(np.float64)[..., None]
+    n = c.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = sums.sum(axis=0) / n
+        mb = np.where(c > 0, sums / np.where(c > 0, c, 1.0), 0.0)
+        between = (c * (mb - mean) ** 2).sum(axis=0)
+        k = (c > 0).sum(axis=0)
+        var = between / (k - 1) / n
+        se = np.where(k >= 2, np.sqrt(var), np.nan)
+    return np.nan_to_num(mean, nan=0.0), se, n[..., 0].astype(np.int64)
+
+
+# ---------------------------------------------------------------------------------------------
+# Result
+
+
+@dataclass
+class ProgressiveStats:
+    """What a progressive render did."""
+
+    seconds: float = 0.0            # wall time since ``started`` (upload and compile included)
+    render_seconds: float = 0.0     # time spent in passes (launches only)
+    passes: int = 0
+    rays: int = 0                   # closest-hit queries
+    dropped_samples: int = 0        # non-finite samples discarded by the kernel (should be 0)
+    stopped_by: str = "spp"         # "spp", "time", "error", "samples", "adaptive" (no tile left), "callback",
+                                    # "interrupt"
+    pixel_samples: int = 0
+    threads: int = 1
+    integrator: str = ""
+    sampler: str = ""
+    pass_errors: list[float] = field(default_factory=list)   # estimated relative error after each pass
+    pass_seconds: list[float] = field(default_factory=list)  # elapsed time at the end of each pass
+
+
+@dataclass
+class ProgressiveResult:
+    """A progressive render: image, per-pixel standard error, per-pixel sample counts, stats.
+
+    ``image`` float32 (H, W, 3) linear radiance; ``std_error`` float32 (H, W, 3), the estimated
+    standard error of each pixel's mean (NaN where fewer than two batches have samples); ``spp``
+    int64 (H, W) samples per pixel; ``relative_error`` the estimate of :func:`relative_error`.
+    ``sums``/``counts`` are the batch buffers, (B, H, W, 3) and (B, H, W).
+    """
+
+    image: np.ndarray
+    std_error: np.ndarray
+    spp: np.ndarray
+    relative_error: float
+    stats: ProgressiveStats
+    sums: np.ndarray
+    counts: np.ndarray
+
+    @property
+    def spp_total(self) -> int:
+        """Samples per pixel when every pixel has the same count (a non-adaptive render), else the maximum."""
+        return int(self.spp.max())
+
+    def film(self) -> Film:
+        """The merged sums as a :class:`Film` (non-adaptive renders only: a Film has one spp)."""
+        if self.spp.min() != self.spp.max():
+            raise ValueError("an adaptive render has per-pixel sample counts; a Film holds one spp")
+        return Film(self.sums.sum(axis=0), int(self.spp.flat[0]))
+
+    @classmethod
+    def from_batches(cls, sums: np.ndarray, counts: np.ndarray, stats: ProgressiveStats) -> "ProgressiveResult":
+        mean, se, n = batch_statistics(sums, counts)
+        return cls(mean.astype(np.float32), se.astype(np.float32), n, relative_error(se, mean), stats,
+                   sums, counts)
+
+
+PassCallback = Callable[[ProgressiveResult], "bool | None"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The pass driver
+
+
+def render_progressive(
+    scene: Scene | DeviceScene,
+    camera: Camera | None = None,
+    *,
+    time_budget: float | None = None,
+    target_error: float | None = None,
+    adaptive: bool = False,
+    min_spp: int | None = None,
+    batches: int = DEFAULT_BATCHES,
+    sample_budget: int | None = None,
+    on_pass: PassCallback | None = None,
+    keep_partial: bool = False,
+    started: float | None = None,
+    **settings,
+) -> ProgressiveResult:
+    """Render in passes until ``spp``, ``time_budget`` (seconds) or ``target_error`` is reached.
+
+    ``settings`` are the fields of :class:`warp_spt.renderer.RenderSettings` (width, height, spp,
+    max_depth, sky, seed, integrator, sampler, roulette_depth, texture_filter, threads, features,
+    device) except ``sample_offset`` and ``tile_pixels``: the batches own the sample indices.
+    ``spp`` is the maximum samples per pixel (default 16 without a budget, unlimited with one).
+    ``time_budget`` counts from ``started`` (a ``time.perf_counter()`` value; default: this call),
+    so it includes the upload and kernel compile done here; the CLI passes its own start time so
+    the budget also covers loading the scene. ``target_error`` is the relative error of
+    :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
+    8x8 tiles with the fewest samples for their noise (estimated from the even batches), so that
+    samples end up proportional to each tile's noise, which minimises the relative error for the
+    work spent (see _Driver._adaptive_pass). ``sample_budget`` caps the total pixel-samples
+    (equal-work comparisons). ``on_pass(result)`` is called after every pass; returning True stops
+    the render. With ``keep_partial``, Ctrl-C returns what is accumulated so far
+    (``stats.stopped_by == "interrupt"``) instead of raising KeyboardInterrupt.
+    """
+    t0 = time.perf_counter() if started is None else started
+    for name in ("sample_offset", "tile_pixels"):
+        if name in settings:
+            raise TypeError(f"render_progressive does not take {name!r}: its batches own the sample indices")
+    budgeted = time_budget is not None or target_error is not None or sample_budget is not None
+    if settings.get("spp") is None:
+        settings["spp"] = UNLIMITED_SPP if budgeted else RenderSettings.spp
+    rs = _settings(settings)
+    _check_args(rs)
+    _check_budget(time_budget, target_error, batches, min_spp)
+    if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
+        raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
+    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
+    driver = _Driver(dev, camera or Camera(), rs, batches)
+    plan = _Plan(rs.spp, time_budget, target_error, adaptive,
+                 min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget)
+    return driver.run(plan, on_pass, keep_partial)
+
+
+def _check_budget(time_budget, target_error, batches, min_spp) -> None:
+    if time_budget is not None and not (math.isfinite(time_budget) and time_budget > 0):
+        raise ValueError(f"time_budget must be a positive number of seconds, got {time_budget!r}")
+    if target_error is not None and not (math.isfinite(target_error) and target_error > 0):
+        raise ValueError(f"target_error must be a positive number, got {target_error!r}")
+    if not isinstance(batches, (int, np.integer)) or batches < 2:
+        raise ValueError(f"batches must be an integer >= 2 (the error estimate needs two), got {batches!r}")
+    if min_spp is not None and (not isinstance(min_spp, (int, np.integer)) or min_spp < 1):
+        raise ValueError(f"min_spp must be a positive integer, got {min_spp!r}")
+
+
+@dataclass
+class _Plan:
+    spp: int
+    time_budget: float | None
+    target_error: float | None
+    adaptive: bool
+    min_spp: int
+    t0: float
+    sample_budget: int | None = None
+
+    @property
+    def deadline(self) -> float:
+        return math.inf if self.time_budget is None else self.t0 + self.time_budget
+
+
+class _Driver:
+    """Owns the batch buffers on the device and launches passes over runs of pixels."""
+
+    def __init__(self, dev: DeviceScene, camera: Camera, rs: RenderSettings, batches: int):
+        self.dev, self.rs, self.width, self.height, self.B = dev, rs, rs.width, rs.height, batches
+        self.n = rs.width * rs.height
+        sky = rs.sky or Sky.black()
+        feats = rs.features or replace(dev.features, sky=sky_emits(sky))
+        self.kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)   # compile on this thread
+        self.scene_inputs = [dev.geometry, dev.materials, dev.textures(rs.texture_filter), light_table(dev, sky),
+                             camera_params(camera, rs.width, rs.height)]
+        self.seeds = [wp.uint32(batch_seed(rs.seed, b)) for b in range(batches)]
+        self.films = [wp.zeros(self.n, dtype=wp.vec3d, device=dev.device) for _ in range(batches)]
+        self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]
+        self.counts = np.zeros((batches, self.n), dtype=np.int64)
+        self.params_index = len(self.scene_inputs)
+        self.launches = [self._record(b) for b in range(batches)]       # one per batch: one task uses it
+        self.threads = max(1, rs.threads or os.cpu_count() or 1)
+        self.stop = threading.Event()
+        self.ray_rate = 0.0          # rays per second in the last pass (adaptive passes' time estimate)
+        self.stats = ProgressiveStats(threads=self.threads, integrator=rs.integrator, sampler=rs.sampler)
+
+    # -- launching
+
+    def _launch(self, b: int, lo: int, hi: int, start: int, count: int) -> None:
+        if self.stop.is_set():
+            return
+        p = RenderParams()
+        p.width, p.pixel_start, p.sample_start, p.sample_count = self.width, lo, start, count
+        p.max_depth, p.roulette_depth, p.seed = self.rs.max_depth, self.rs.roulette_depth, self.seeds[b]
+        cmd = self.launches[b]
+        cmd.set_dim(hi - lo)
+        cmd.set_param_at_index(self.params_index, p)
+        cmd.launch()
+        self.counts[b, lo:hi] += count      # disjoint slices per launch: safe across threads
+
+    def _record(self, b: int):
+        """A recorded launch of batch b's film (replayed with new params: packing the scene's structs
+        afresh cost about 160 us per launch, which dominated adaptive passes of tile-wide runs)."""
+        p = RenderParams()
+        p.width, p.seed = self.width, self.seeds[b]
+        return wp.launch(self.kernel, dim=1, device=self.dev.device, record_cmd=True,
+                         inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
+
+    def _run_pass(self, inc: np.ndarray) -> None:
+        """Give pixel p ``inc[b, p]`` more samples in batch b: one task per batch, which launches
+        the batch's runs in turn (a task per run made adaptive passes, whose runs are only a tile
+        wide, pay the thread pool's overhead per launch)."""
+        tasks = [[(b, lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
+                 for b in range(self.B) if inc[b].any()]
+        # Launches always run on worker threads, even with one thread: a Ctrl-C then lands in this
+        # (waiting) thread, never between a finished launch and its bookkeeping.
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            pending = {pool.submit(self._launch_all, task) for task in tasks}
+            try:
+                while pending:
+                    done, pending = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
+                    for fut in done:
+                        fut.result()
+            except BaseException:
+                self.stop.set()           # running launches finish (and are counted); no new ones start
+                raise
+
+    def _launch_all(self, items) -> None:
+        for it in items:
+            self._launch(*it)
+
+    # -- the loop
+
+    def snapshot(self) -> ProgressiveResult:
+        shape = (self.B, self.height, self.width)
+        sums = np.stack([f.numpy() for f in self.films]).reshape(*shape, 3)
+        c = np.stack([c.numpy().sum(axis=0) for c in self.counters]).sum(axis=0)
+        self.stats.rays, self.stats.dropped_samples = int(c[0]), int(c[1])
+        self.stats.pixel_samples = int(self.counts.sum())
+        return ProgressiveResult.from_batches(sums, self.counts.reshape(shape).copy(), self.stats)
+
+    def run(self, plan: _Plan, on_pass: PassCallback | None, keep_partial: bool) -> ProgressiveResult:
+        result, k, rate = None, 0, None
+        try:
+            while True:
+                inc, why = self._next_pass(plan, k, result, rate)
+                if why is not None:
+                    self.stats.stopped_by = why
+                    break
+                t_start = time.perf_counter()
+                self._run_pass(inc)
+                dt = time.perf_counter() - t_start
+                self.stats.render_seconds += dt
+                rate = int(inc.sum()) / max(dt, 1e-6)          # pixel-samples per second
+                k += 1
+                self.stats.passes = k
+                rays_before = self.stats.rays
+                result = self.snapshot()
+                self.ray_rate = (self.stats.rays - rays_before) / max(dt, 1e-6)
+                self.stats.seconds = time.perf_counter() - plan.t0
+                self.stats.pass_errors.append(result.relative_error)
+                self.stats.pass_seconds.append(self.stats.seconds)
+                if on_pass is not None and on_pass(result):
+                    self.stats.stopped_by = "callback"
+                    break
+        except KeyboardInterrupt:
+            if not keep_partial or not self.counts.any():
+                raise
+            self.stats.stopped_by = "interrupt"
+        result = self.snapshot()
+        self.stats.seconds = time.perf_counter() - plan.t0
+        return result
+
+    def _next_pass(self, plan: _Plan, k: int, result, rate):
+        """(samples per batch and pixel (B, n), None) for pass k, or (None, reason to stop)."""
+        done = self.counts.sum(axis=0)
+        spp_now = int(done.max())
+        if result is not None and plan.target_error is not None and result.relative_error <= plan.target_error:
+            return None, "error"
+        if plan.adaptive and spp_now >= plan.min_spp and result is not None:
+            return self._adaptive_pass(plan, k, result, rate)
+        # Uniform pass: every pixel, towards the target per-batch counts (the same for every pixel).
+        step = 2 if k == 0 else self.B * pass_samples(k, self.n, self.B)   # pass 0: the first estimate
+        n_total = min(plan.spp, spp_now + step)
+        if plan.adaptive:
+            n_total = min(n_total, max(plan.min_spp, spp_now + 1))
+        n_total = self._limit_by_error(plan, result, spp_now, n_total)
+        n_total = self._limit_by_time(plan, rate, spp_now, n_total, self.n)
+        if n_total <= spp_now:
+            return None, "spp" if spp_now >= plan.spp else self._budget_reason(plan)
+        inc = batch_counts(n_total, self.B) - self.counts[:, 0]
+        return np.repeat(inc[:, None], self.n, axis=1), None
+
+    def _limit_by_error(self, plan: _Plan, result, spp_now: int, n_total: int) -> int:
+        """Aim the final pass at the target error: error falls as 1/sqrt(spp)."""
+        if plan.target_error is None or result is None or spp_now < 2 * self.B:
+            return n_total
+        e = result.relative_error
+        if not math.isfinite(e):
+            return n_total
+        need = math.ceil(spp_now * (e / plan.target_error) ** 2)
+        return min(n_total, max(need, spp_now + 1))
+
+    def _limit_by_time(self, plan: _Plan, rate, spp_now: int, n_total: int, pixels: int) -> int:
+        """Cut the pass so it ends at the deadline (at the measured pixel-samples per second) and
+        within the sample budget."""
+        if plan.sample_budget is not None:
+            left_work = (plan.sample_budget - int(self.counts.sum())) // max(1, pixels)
+            n_total = min(n_total, spp_now + max(0, left_work))
+        if plan.time_budget is None:
+            return n_total
+        left = plan.deadline - time.perf_counter()
+        if rate is None:          # first pass (2 spp): no rate yet, and an image needs samples
+            return n_total
+        affordable = int(left * rate / max(1, pixels))
+        return min(n_total, spp_now + max(0, affordable))
+
+    def _budget_reason(self, plan: _Plan) -> str:
+        """Which budget ended the render: the time budget if its deadline has passed, else the samples."""
+        timed_out = plan.time_budget is not None and time.perf_counter() >= plan.deadline
+        return "samples" if plan.sample_budget is not None and not timed_out else "time"
+
+    def _adaptive_pass(self, plan: _Plan, k: int, result: ProgressiveResult, rate):
+        """Distribute one pass's work over the 8x8 tiles so that samples approach the best allocation.
+
+        The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p, with s_p a pixel's
+        relative standard deviation per sample. For a given cost sum_p n_p c_p (c_p: rays per
+        sample, counted by the kernel) it is smallest when n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q)
+        (a Lagrange multiplier). Each pass raises the cost C by what a uniform pass would spend and
+        gives every tile what it lacks of that target. (Cycles instead equalises the per-pixel
+        error, n proportional to s^2, which spends more on the noisiest pixels than the RMS error
+        repays.) Tiles whose samples are all equal (s = 0) get nothing more.
+        """
+        # The decision uses the even batches only; the odd half of every pixel is therefore an
+        # unbiased estimate given the decisions, and the image (all batches) carries only the even
+        # half's stopping bias, which the tests measure (docs/error.md).
+        mean, se, n_dec = batch_statistics(result.sums, result.counts, slice(0, None, 2))
+        floor = max(ERROR_FLOOR_FRACTION * float(mean.mean()), 1e-12)
+        s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
+        t = ADAPTIVE_TILE
+        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2), t))                   # per-sample relative std
+        tile_n = _tile_mean(result.spp.astype(np.float64), t)
+        npix = _tile_mean(np.ones((self.height, self.width)), t, total=True)
+        rays = sum(c.numpy()[:, 0] for c in self.counters).reshape(self.height, self.width)
+        cost = np.maximum(_tile_mean(rays / np.maximum(result.spp, 1), t), 1.0)   # rays per sample
+        known = np.isfinite(tile_s)
+        spent = float((npix * tile_n * cost).sum())
+        step = self.B * pass_samples(k, self.n, self.B)
+        budget = spent + step * float((npix * cost).sum())                  # cost after a uniform pass
+        weight = np.where(known, tile_s * np.sqrt(cost), 0.0)
+        target = np.where(known, budget * np.where(known, tile_s, 0.0) / np.sqrt(cost)
+                          / max(float((npix * weight).sum()), 1e-300), 0.0)
+        inc = np.where(known, np.floor(target - tile_n), step)             # unknown noise: a uniform step
+        inc = np.clip(inc, 0, plan.spp - tile_n).astype(np.int64)
+        per_pixel = np.repeat(np.repeat(inc, t, 0), t, 1)[: self.height, : self.width].reshape(-1)
+        total = int(per_pixel.sum())
+        if total == 0:
+            return None, "spp"
+        # Cut to the sample budget, and to the deadline at the last pass's rays per second: adaptive
+        # passes go to costly pixels, so pixel-samples per second would over-promise.
+        fraction = self._limit_by_time(plan, None, 0, total, 1) / total
+        if plan.time_budget is not None and self.ray_rate > 0:
+            pixel_cost = np.repeat(np.repeat(cost, t, 0), t, 1)[: self.height, : self.width].reshape(-1)
+            need = float((per_pixel * pixel_cost).sum()) / self.ray_rate
+            fraction = min(fraction, max(0.0, plan.deadline - time.perf_counter()) / need)
+        if fraction < 1.0:
+            per_pixel = (per_pixel * fraction).astype(np.int64)
+            if not per_pixel.any():
+                return None, self._budget_reason(plan)
+        b = np.arange(self.B)[:, None]
+        return per_pixel[None, :] // self.B + (b < per_pixel[None, :] % self.B), None
+
+
+def _tile_mean(a: np.ndarray, t: int, total: bool = False) -> np.ndarray:
+    """Mean (or, with ``total``, sum) over t x t tiles; edge tiles use the pixels they have;
+    a tile with a non-finite value gets inf."""
+    h, w = a.shape
+    hp, wp_ = -(-h // t) * t, -(-w // t) * t
+    pad = np.zeros((hp, wp_))
+    cnt = np.zeros((hp, wp_))
+    finite = np.isfinite(a)
+    pad[:h, :w] = np.where(finite, a, 0.0)
+    cnt[:h, :w] = 1.0
+    inf = np.zeros((hp, wp_), dtype=bool)
+    inf[:h, :w] = ~finite
+    s = pad.reshape(hp // t, t, wp_ // t, t).sum(axis=(1, 3))
+    c = cnt.reshape(hp // t, t, wp_ // t, t).sum(axis=(1, 3))
+    anyinf = inf.reshape(hp // t, t, wp_ // t, t).any(axis=(1, 3))
+    return np.where(anyinf, np.inf, s if total else s / np.maximum(c, 1.0))
+
+
+def _runs(inc: np.ndarray, done: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs of consecutive pixels with the same increment (> 0) and the same sample count, at
+    most TILE_PIXELS long. One launch renders a run (the kernel takes a first pixel, one first
+    sample index and one sample count)."""
+    key = np.where(inc > 0, done * (1 << 31) + inc, -1)
+    n = key.size
+    edges = np.flatnonzero(np.diff(key)) + 1
+    starts = np.concatenate(([0], edges))
+    ends = np.concatenate((edges, [n]))
+    runs = []
+    for lo, hi in zip(starts.tolist(), ends.tolist()):
+        if key[lo] < 0:
+            continue
+        runs += [(p, min(hi, p + TILE_PIXELS)) for p in range(lo, hi, TILE_PIXELS)]
+    return runs

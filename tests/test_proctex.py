@@ -348,3 +348,16 @@ def test_procedural_emitter_under_light_sampling_matches_the_constant_emitter(tm
         images.append(render_scene(load_scene(objs, mtls), camera, settings).image)
     assert images[0].mean() > 0.01
     np.testing.assert_allclose(images[1], images[0], rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.parametrize("integrator", ["seed", "nee"])
+def test_nan_emission_texture_is_dropped_and_named(tmp_path, integrator):
+    """A NaN *emission* value reaches the film guard (nee used to skip it as 'max(Le) > 0' is false)."""
+    obj = quad_obj(_quad(-10, 10), material="e")
+    mtl = material("e", Kd=(0, 0, 0), Roughness=1) + "map_Kl proc:t_nan\n"
+    objs, mtls = write_scene_files(tmp_path, "nan_emitter", obj, mtl)
+    with pytest.warns(RuntimeWarning, match="t_nan"):
+        result = render_scene(load_scene(objs, mtls), CAMERA,
+                              RenderSettings(width=4, height=2, spp=4, max_depth=2, integrator=integrator))
+    assert result.stats.dropped_samples == 4 * 2 * 4
+    assert result.stats.nonfinite_textures == ("t_nan",)

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
 # Only the standard library at import time (cli.py imports this module at its top; on main, cli.py
 # installs its signal handling before numpy and Warp load), so numpy is imported where it is used.
-MAP_SUFFIXES = (".npy", ".pfm", ".png")
+MAP_SUFFIXES = (".npy", ".pfm", ".exr", ".png")
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,11 @@ def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
                                 ("--error-map", ns.error_map, MAP_SUFFIXES), ("--spp-map", ns.spp_map, MAP_SUFFIXES)):
         if path is not None and Path(path).suffix.lower() not in allowed:
             raise usage_error(f"{flag} {path!r}: the file name must end in {', '.join(allowed)}")
+        if path is not None and Path(path).suffix.lower() == ".exr":
+            import importlib.util
+            if importlib.util.find_spec("OpenEXR") is None:
+                raise usage_error(f"{flag} {path!r}: writing .exr needs the optional openexr package "
+                                  "(pip install 'warp-spt[exr]')")
     return BudgetOptions(ns.time_budget, ns.target_error, ns.adaptive, ns.min_spp, ns.save_partial, ns.progressive,
                          ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise)
 
@@ -227,7 +232,7 @@ def false_colour(x: np.ndarray, vmax: float | None = None) -> np.ndarray:
 
 
 def save_map(path: str, linear: np.ndarray, scalar: np.ndarray) -> None:
-    """``.npy``/``.pfm``: the linear (H, W, 3) map; ``.png``: false colour of ``scalar`` (0 .. its max)."""
+    """``.npy``/``.pfm``/``.exr``: the linear (H, W, 3) map; ``.png``: false colour of ``scalar`` (0 .. its max)."""
     import numpy as np
 
     from .film import _write_png, atomic_write, save_image

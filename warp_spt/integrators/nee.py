@@ -78,7 +78,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
             if ls.pdf > 0.0:
                 f = mat.eval(mats, tex, sf, ls.dir)
                 le = wp.cw_mul(f, ls.li)
-                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0:
+                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
                     if not occluded(geo, x, ls.dir, ls.t_max):
                         w = power_heuristic(ls.pdf, mat.pdf(mats, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
@@ -99,7 +99,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
         sf = surface_at(geo, h, p.o, p.d)
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
-            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0:
+            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):       # NaN: the guard reports it
                 w = mis_bsdf(p, light.pdf_hit(geo, lights, h, p.o, p.d))
                 p.radiance += wp.cw_mul(p.throughput, le) * w
         if p.depth >= rp.max_depth:     # max_depth counts hits, as in the seed

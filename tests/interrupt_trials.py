@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -100,12 +101,24 @@ def classify(trial: Trial, workdir: Path, out: Path, res: int) -> str:
         return "ok_finished" if out.exists() and trial.stderr == "" else "bad_exit"
     if trial.status == 128 + trial.signum and trial.stderr == LINES[trial.signum] + "\n":
         return "ok_interrupted"
-    if not out.exists() and (("Traceback" in trial.stderr and "warp_spt" not in trial.stderr)
+    if not out.exists() and (("Traceback" in trial.stderr and not _ran_our_code(trial.stderr))
                              or (trial.status == -trial.signum and trial.stderr == "")):
         # Python's own handling (a traceback from its start-up modules) or the signal's default
         # action (killed at once): the signal came before the interpreter ran any warp_spt code.
         return "before_our_code"
     return "bad_exit"
+
+
+# The modules Python must import (and, in a fresh checkout, compile) before the entry point can
+# install its handlers: a traceback whose warp_spt frames are only their module-level code came
+# before any of our code could run.
+_ENTRY_MODULES = ("warp_spt/__init__.py", "warp_spt/__main__.py", "warp_spt/signals.py")
+
+
+def _ran_our_code(stderr: str) -> bool:
+    frames = re.findall(r'File "([^"]*)", line \d+, in (\S+)', stderr)
+    ours = [(f.replace("\\", "/"), fn) for f, fn in frames if "warp_spt" in f]
+    return any(not (fn == "<module>" and f.endswith(_ENTRY_MODULES)) for f, fn in ours)
 
 
 def output_is_complete(out: Path, res: int) -> bool:

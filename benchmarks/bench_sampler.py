@@ -8,7 +8,8 @@ sequence, as a renderer's pixel would draw them); the RMSE over pixels against t
 the estimator's error. Sobol' draws dimension pairs (0,1), (2,3), ... with sobol_2d; the independent
 sampler draws each dimension with wp.randf from stream_state(seed, pixel, sample), as the renderer
 does today. Slopes are least-squares fits of log RMSE against log N over N >= 4 (independent
-sampling: -0.5; scrambled nets: -1.5 for smooth 2D integrands, about -0.75 for a 2D discontinuity).
+sampling: -0.5; scrambled nets: -1.5 for smooth 2D integrands, about -0.75 for a 2D discontinuity),
+at powers of two; a second table shows the gain at N = 3 * 2**k, between powers of two.
 The timing kernel only draws the numbers and sums them (single-threaded CPU launch; minimum of 3).
 """
 
@@ -86,16 +87,17 @@ def make_kernels(sampler: str):
     draw = make_draw(sampler)
 
     @wp.kernel(enable_backward=False, module="unique")
-    def estimate(seed: wp.uint32, kind: int, dims: int, n_max: int, sums: wp.array2d(dtype=wp.float64)):
-        """sums[p, k] = sum of the first 2**k samples' integrand values of pixel p."""
+    def estimate(seed: wp.uint32, kind: int, dims: int, checkpoints: wp.array(dtype=int),
+                 sums: wp.array2d(dtype=wp.float64)):
+        """sums[p, c] = sum of the first checkpoints[c] samples' integrand values of pixel p."""
         p = wp.tid()
         acc = wp.float64(0.0)
-        k = int(0)
-        for j in range(n_max):
+        c = int(0)
+        for j in range(checkpoints[checkpoints.shape[0] - 1]):
             acc += wp.float64(integrand(kind, draw(seed, p, j, dims)))
-            if ((j + 1) & j) == 0:        # j + 1 is a power of two
-                sums[p, k] = acc
-                k += 1
+            if j + 1 == checkpoints[c]:
+                sums[p, c] = acc
+                c += 1
 
     @wp.kernel(enable_backward=False, module="unique")
     def draw_only(seed: wp.uint32, dims: int, n: int, out: wp.array(dtype=float)):
@@ -111,14 +113,16 @@ def make_kernels(sampler: str):
 
 
 def rmse_table(kernels, pixels: int, n_max: int, seed: int):
-    levels = int(math.log2(n_max)) + 1
-    ns = 2 ** np.arange(levels)
+    """RMSE per integrand and sampler at N = every power of two and every 3 * 2**k up to n_max."""
+    ns = np.array(sorted({2**k for k in range(int(math.log2(n_max)) + 1)}
+                         | {3 * 2**k for k in range(int(math.log2(n_max))) if 3 * 2**k <= n_max}))
+    checkpoints = wp.array(ns.astype(np.int32), dtype=int)
     result = {}
     for kind, (name, dims, exact) in enumerate(INTEGRANDS):
         result[name] = {}
         for sampler, (estimate, _) in kernels.items():
-            sums = wp.zeros((pixels, levels), dtype=wp.float64)
-            wp.launch(estimate, pixels, inputs=[wp.uint32(seed), kind, dims, n_max, sums])
+            sums = wp.zeros((pixels, ns.size), dtype=wp.float64)
+            wp.launch(estimate, pixels, inputs=[wp.uint32(seed), kind, dims, checkpoints, sums])
             est = sums.numpy() / ns
             result[name][sampler] = np.sqrt(np.mean((est - exact) ** 2, axis=0))
     return ns, result
@@ -142,7 +146,7 @@ def main() -> None:
     pixels, n_max = (512, 1024) if args.quick else (2048, 4096)
     kernels = {s: make_kernels(s) for s in ("independent", "sobol")}
     for estimate, draw_only in kernels.values():       # compile outside the timings
-        wp.launch(estimate, 1, inputs=[wp.uint32(0), 0, 2, 1, wp.zeros((1, 1), dtype=wp.float64)])
+        wp.launch(estimate, 1, inputs=[wp.uint32(0), 0, 2, wp.array([1], dtype=int), wp.zeros((1, 1), dtype=wp.float64)])
         wp.launch(draw_only, 1, inputs=[wp.uint32(0), 2, 1, wp.zeros(1, dtype=float)])
 
     ns, table = rmse_table(kernels, pixels, n_max, seed=12345)
@@ -150,13 +154,22 @@ def main() -> None:
     shown = [n for n in ns if n in (1, 4, 16, 64, 256, 1024, 4096)]
     print("| integrand | sampler | " + " | ".join(f"N={n}" for n in shown) + " | slope | RMSE ratio at N=max |")
     print("|---|---|" + "---|" * (len(shown) + 2))
-    fit = ns >= 4
+    powers = (ns & (ns - 1)) == 0
+    fit = powers & (ns >= 4)
     for name, rows in table.items():
         for sampler, err in rows.items():
             slope = np.polyfit(np.log(ns[fit]), np.log(err[fit]), 1)[0]
             ratio = rows["independent"][-1] / err[-1]
             cells = " | ".join(f"{err[list(ns).index(n)]:.2e}" for n in shown)
             print(f"| {name} | {sampler} | {cells} | {slope:.2f} | {ratio:.1f}x |")
+
+    around = [n for n in (32, 48, 64, 96, 128, 192, 256) if n <= n_max]
+    print("\nNon-power-of-two N: RMSE(independent) / RMSE(sobol) (a power of two is a whole net)")
+    print("| integrand | " + " | ".join(f"N={n}" for n in around) + " |")
+    print("|---|" + "---|" * len(around))
+    for name, rows in table.items():
+        gain = rows["independent"] / rows["sobol"]
+        print(f"| {name} | " + " | ".join(f"{gain[list(ns).index(n)]:.1f}" for n in around) + " |")
 
     n_time = 256 if args.quick else 1024
     print(f"\nns per sample (draws only, {pixels} x {n_time} samples, one thread, min of 3)")

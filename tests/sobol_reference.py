@@ -4,8 +4,9 @@
   m_k of the dimension (dimension 0: m_k = 1; dimension 1: primitive polynomial x + 1, so
   m_k = 2 m_{k-1} xor m_{k-1}, m_1 = 1, Bratley & Fox's recurrence), multiplied with the index bits.
 * Owen scrambling: bit by bit, bit l (from the top) xor flip(l, prefix of the l bits above it), where
-  flip is the random bit of the flip-tree node (l, prefix); the node's bit is looked up directly from
-  its definition (subtree of 5 levels, one hash per subtree root, bit 2**j - 1 + sub-prefix).
+  flip is the random bit of the flip-tree node (l, prefix), looked up directly from its definition
+  (levels < 15: subtree of 5 levels, one hash per subtree root, bit 2**j - 1 + sub-prefix; levels
+  15..23: bits of one hash of the 15-bit prefix). The index shuffle likewise, bit by bit.
 Only the hash and the seed chain are shared with the module: they are its specification.
 """
 
@@ -60,7 +61,8 @@ def sobol_u32(index, dim: int) -> np.ndarray:
 
 
 def node_flip(seed, level: int, prefix) -> np.ndarray:
-    """The random bit of flip-tree node (level, prefix), prefix being the ``level`` bits above."""
+    """The random bit of flip-tree node (level, prefix) for level < 15, prefix being the ``level``
+    bits above it: subtree of 5 levels, one hash per subtree root, bit 2**j - 1 + sub-prefix."""
     chunk_root = level - level % S.CHUNK_LEVELS
     j = level - chunk_root
     root_prefix = np.asarray(prefix, dtype=np.uint64) >> np.uint64(j)
@@ -69,15 +71,45 @@ def node_flip(seed, level: int, prefix) -> np.ndarray:
     return (h >> (np.uint64((1 << j) - 1) + sub)) & np.uint64(1)
 
 
-def owen(v, seed, levels: int) -> np.ndarray:
-    """Textbook nested uniform scramble of the top ``levels`` bits of 0.32 fractions v."""
+def value_flip(seed, level: int, prefix) -> np.ndarray:
+    """The flip of level 0..23 of a value scramble: a tree node above level 15, below it bit
+    (46 - level) of one hash of the 15-bit prefix with marker 2**15."""
+    if level < S.EXACT_LEVELS:
+        return node_flip(seed, level, prefix)
+    p15 = np.asarray(prefix, dtype=np.uint64) >> np.uint64(level - 15)
+    tail = mix32((p15 | np.uint64(1 << 15)) ^ np.asarray(seed, dtype=np.uint64))
+    return (tail >> np.uint64(46 - level)) & np.uint64(1)
+
+
+def owen(v, seed, levels: int = 24) -> np.ndarray:
+    """Textbook nested scramble of the top ``levels`` bits of 0.32 fractions v: bit by bit from the
+    top, each bit xor the flip of the node its prefix leads to."""
     v = np.asarray(v, dtype=np.uint64)
     out = np.zeros_like(v)
     for level in range(levels):
         shift = np.uint64(31 - level)
         prefix = v >> np.uint64(32 - level) if level else np.zeros_like(v)
         bit = (v >> shift) & np.uint64(1)
-        out |= (bit ^ node_flip(seed, level, prefix)) << shift
+        out |= (bit ^ value_flip(seed, level, prefix)) << shift
+    return out
+
+
+def shuffle(index, key) -> np.ndarray:
+    """The index shuffle, bit by bit from bit 31 down: bits 31..15 xor the key's same bits; bit b < 15
+    xor the node flip of level 14 - b of the tree keyed by the index's block of 2**15."""
+    index = np.asarray(index, dtype=np.uint64)
+    key = np.asarray(key, dtype=np.uint64)
+    block_seed = mix32(key ^ np.uint64(S.BLOCK_SALT) ^ (index >> np.uint64(15)))
+    out = np.zeros_like(index)
+    for b in range(31, -1, -1):
+        bit = (index >> np.uint64(b)) & np.uint64(1)
+        if b >= 15:
+            flip = (key >> np.uint64(b)) & np.uint64(1)
+        else:
+            level = 14 - b
+            low_prefix = (index >> np.uint64(b + 1)) & np.uint64((1 << level) - 1)
+            flip = node_flip(block_seed, level, low_prefix)
+        out |= (bit ^ flip) << np.uint64(b)
     return out
 
 
@@ -94,18 +126,18 @@ def to_unit(v) -> np.ndarray:
 def _request(seed, pixel, index, dim):
     seed, pixel, index, dim = np.broadcast_arrays(seed, pixel, index, dim)
     key = request_seed(seed, pixel, dim)
-    return key, owen(index, key, 32)
+    return key, shuffle(index, key)
 
 
 def sobol_2d(seed, pixel, index, dim) -> np.ndarray:
     """[..., 2] float32 points, as warp_spt.sobol.sobol_2d for broadcast (seed, pixel, index, dim)."""
     key, i = _request(seed, pixel, index, dim)
-    x = owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)), 24)
-    y = owen(sobol_u32(i, 1), mix32(key ^ np.uint64(S.Y_SALT)), 24)
+    x = owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)))
+    y = owen(sobol_u32(i, 1), mix32(key ^ np.uint64(S.Y_SALT)))
     return np.stack([to_unit(x), to_unit(y)], axis=-1)
 
 
 def sobol_1d(seed, pixel, index, dim) -> np.ndarray:
     """Float32 values, as warp_spt.sobol.sobol_1d: the scrambled van der Corput dimension alone."""
     key, i = _request(seed, pixel, index, dim)
-    return to_unit(owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)), 24))
+    return to_unit(owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT))))

@@ -41,14 +41,15 @@ def _range_kernel(seed: wp.uint32, pixel: int, offset: int, dim: int, out: wp.ar
 
 @wp.kernel
 def _parts_kernel(values: wp.array(dtype=wp.uint32), seeds: wp.array(dtype=wp.uint32),
-                  levels: int, out: wp.array2d(dtype=wp.uint32), unit: wp.array(dtype=float)):
+                  out: wp.array2d(dtype=wp.uint32), unit: wp.array(dtype=float)):
     """The building blocks: Sobol' dims 0 and 1, the Owen scramble and the index shuffle."""
     t = wp.tid()
     v = values[t]
     out[t, 0] = S.reverse_bits(v)
     out[t, 1] = S.sobol_dim1(v)
-    out[t, 2] = S.owen_scramble(v, seeds[t], levels)
-    out[t, 3] = S.shuffled_index(seeds[t], int(v & wp.uint32(0x7FFFFFFF)))
+    out[t, 2] = S.owen_scramble(v, seeds[t])
+    out[t, 3] = S.exact_flips(v, seeds[t])
+    out[t, 4] = S.shuffled_index(seeds[t], int(v & wp.uint32(0x7FFFFFFF)))
     unit[t] = S.to_unit(v)
 
 
@@ -66,13 +67,14 @@ def evaluate(seed, pixel, index, dim):
     return out2.numpy(), out1.numpy()
 
 
-def parts(values, seeds, levels):
+def parts(values, seeds):
+    """Columns: reverse_bits, sobol_dim1, owen_scramble, exact_flips, shuffled_index."""
     n = len(values)
-    out = wp.empty((n, 4), dtype=wp.uint32, device=DEVICE)
+    out = wp.empty((n, 5), dtype=wp.uint32, device=DEVICE)
     unit = wp.empty(n, dtype=float, device=DEVICE)
     wp.launch(_parts_kernel, n, inputs=[wp.array(np.asarray(values, dtype=np.uint32), dtype=wp.uint32, device=DEVICE),
                                         wp.array(np.asarray(seeds, dtype=np.uint32), dtype=wp.uint32, device=DEVICE),
-                                        levels, out, unit], device=DEVICE)
+                                        out, unit], device=DEVICE)
     return out.numpy().astype(np.uint64), unit.numpy()
 
 
@@ -83,8 +85,9 @@ def sequence(seed, pixel, dim, n, offset=0):
     return out.numpy()
 
 
-# The first 16 points of the 2D Sobol' sequence in Gray-code order, as published (e.g. the output of
-# scipy.stats.qmc.Sobol(d=2, scramble=False) in SciPy's documentation; Joe & Kuo's direction numbers).
+# The first 16 points of the standard 2D Sobol' sequence (Joe & Kuo's direction numbers; dimension 2 has
+# s = 1, m_1 = 1) in the Gray-code order that common libraries emit, e.g.
+# scipy.stats.qmc.Sobol(d=2, scramble=False). Written out by hand, not produced by the code under test.
 PUBLISHED_GRAY_ORDER = np.array([
     [0, 0], [0.5, 0.5], [0.75, 0.25], [0.25, 0.75], [0.375, 0.375], [0.875, 0.875],
     [0.625, 0.125], [0.125, 0.625], [0.1875, 0.3125], [0.6875, 0.8125], [0.9375, 0.0625],
@@ -94,7 +97,7 @@ PUBLISHED_GRAY_ORDER = np.array([
 def test_unscrambled_points_are_the_published_sobol_points():
     n = np.arange(16, dtype=np.uint64)
     gray = n ^ (n >> np.uint64(1))            # Gray-code order visits index gray(n) at step n
-    out, _ = parts(gray, np.zeros(16), 24)
+    out, _ = parts(gray, np.zeros(16))
     warp_pts = out[:, :2].astype(np.float64) / 2.0**32
     ref_pts = np.stack([R.sobol_u32(gray, 0), R.sobol_u32(gray, 1)], axis=1).astype(np.float64) / 2.0**32
     np.testing.assert_array_equal(warp_pts, PUBLISHED_GRAY_ORDER)
@@ -106,12 +109,13 @@ def test_building_blocks_equal_the_reference_bit_for_bit():
     v = rng.integers(0, 2**32, 4000, dtype=np.uint64)
     v[:4] = [0, 1, 2**31, 2**32 - 1]
     seeds = rng.integers(0, 2**32, 4000, dtype=np.uint64)
-    for levels in (24, 32):
-        out, unit = parts(v, seeds, levels)
-        np.testing.assert_array_equal(out[:, 0], R.sobol_u32(v, 0))
-        np.testing.assert_array_equal(out[:, 1], R.sobol_u32(v, 1))
-        np.testing.assert_array_equal(out[:, 2], R.owen(v, seeds, levels))
-        np.testing.assert_array_equal(out[:, 3], R.owen(v & np.uint64(0x7FFFFFFF), seeds, 32))
+    out, unit = parts(v, seeds)
+    np.testing.assert_array_equal(out[:, 0], R.sobol_u32(v, 0))
+    np.testing.assert_array_equal(out[:, 1], R.sobol_u32(v, 1))
+    np.testing.assert_array_equal(out[:, 2], R.owen(v, seeds))
+    top15 = np.uint64(0xFFFE0000)
+    np.testing.assert_array_equal(out[:, 3], (R.owen(v, seeds, 15) ^ v) & top15)
+    np.testing.assert_array_equal(out[:, 4], R.shuffle(v & np.uint64(0x7FFFFFFF), seeds))
     np.testing.assert_array_equal(unit, R.to_unit(v))
     assert unit.max() < 1.0 and unit[3] == np.float32(1 - 2.0**-24)   # 0xFFFFFFFF -> 1 - 2**-24
 
@@ -122,7 +126,7 @@ def test_samples_equal_the_reference_bit_for_bit():
     n = 30000
     seed = rng.integers(0, 2**32, n, dtype=np.uint64)
     pixel = rng.integers(0, 2**31, n)
-    index = rng.integers(0, 2**31, n)
+    index = np.where(rng.random(n) < 0.5, rng.integers(0, 2**16, n), rng.integers(0, 2**31, n))
     dim = rng.integers(0, 1000, n)
     seed[:6], pixel[:6], index[:6], dim[:6] = 0, 0, [0, 1, 2, 3, 2**31 - 2, 2**31 - 1], 0
     got2, got1 = evaluate(seed, pixel, index, dim)
@@ -138,8 +142,8 @@ def test_index_shuffle_maps_aligned_blocks_onto_aligned_blocks():
         for j in (0, 1, int(rng.integers(0, 2**(31 - m)))):
             block = np.arange(j << m, (j + 1) << m, dtype=np.uint64)
             seed = int(rng.integers(0, 2**32))
-            out, _ = parts(block, np.full(block.size, seed), 32)
-            shuffled = out[:, 3]
+            out, _ = parts(block, np.full(block.size, seed))
+            shuffled = out[:, 4]
             assert np.unique(shuffled >> np.uint64(m)).size == 1, (m, j)
             np.testing.assert_array_equal(np.sort(shuffled & np.uint64((1 << m) - 1)), np.arange(1 << m))
 
@@ -162,6 +166,12 @@ def test_every_aligned_power_of_two_block_is_a_net(seed, pixel, dim):
         pts = sequence(seed, pixel, dim, n, offset)
         for k in range(13):
             _assert_nets(pts, k, f"seed {seed} pixel {pixel} dim {dim} offset {offset}")
+
+
+def test_blocks_larger_than_the_exact_scramble_are_nets_too():
+    """Beyond 2**15 samples the scrambles use their shortcuts (shared tail flips, digitally shifted
+    index blocks); they are still nested scrambles, so a 2**17 block is a (0,17,2)-net."""
+    _assert_nets(sequence(5, 77, 6, 1 << 17, 1 << 17), 17, "2**17 samples")
 
 
 def test_1d_is_stratified_in_every_aligned_block():

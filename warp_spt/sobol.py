@@ -37,14 +37,20 @@ PaddedSobolSampler; written from their descriptions).
   * A 1D request is the scrambled van der Corput sequence under the same shuffle (so
     ``sobol_1d(s, p, i, d) == sobol_2d(s, p, i, d).x``); every aligned block of 2**m values holds one
     value in each interval [j 2**-m, (j+1) 2**-m).
-  * Random bits: the flips of each scramble form a binary tree (one flip per node, keyed by the
-    prefix of bits above it). We cut the tree into subtrees of 5 levels; each subtree takes its 31
-    flips from the 31 low bits of one 32-bit hash of (seed, depth, prefix). That is an exact
-    nested uniform scramble -- every node has its own random bit -- at one hash per 5 bits instead
-    of one per bit, unlike Laine-Karras-style multiply hashes, which only approximate it. The hash is
-    Wellons' "lowbias32" integer finaliser (two multiplies, every output bit near full avalanche by
-    its author's measurements; a bijection, so distinct nodes never share a hash), keyed by
-    hash(seed, pixel, dim).
+  * Random bits: the flips of a scramble form a binary tree (one flip per node, chosen by the prefix
+    of bits above it). The top 15 levels are cut into three subtrees of 5 levels; each subtree takes
+    its 31 flips from the 31 low bits of one 32-bit hash of (seed, depth, prefix), so every node has
+    its own random bit, at one hash per 5 levels instead of one per level (Laine-Karras-style
+    multiply hashes are cheaper still but only approximate independent node flips). Below level 15
+    a value's 9 remaining flips come from one hash of its 15-bit prefix, and the index's bits above
+    its low 15 are XORed with key bits (a digital shift), its low 15 bits getting exact flips keyed
+    by their block of 2**15. Both shortcuts are still nested scrambles (a flip depends only on bits
+    above it), so nets and aligned blocks are kept at every size, and for any aligned block of up to
+    2**15 samples the joint distribution is exactly that of full Owen scrambling: such a block's
+    points have distinct 15-bit prefixes in each coordinate and share one index block, so no two
+    points share a tail hash. The hash is Wellons' "lowbias32" integer finaliser (two multiplies;
+    near-full avalanche in every output bit by its author's measurements; a bijection, so distinct
+    nodes of one tree never share a hash), keyed by hash(seed, pixel, dim).
 
 Limits:
   * The stratification guarantees hold for aligned power-of-two blocks. With a non-power-of-two spp
@@ -54,8 +60,9 @@ Limits:
     Slices [offset, offset + n) merge bit-exactly with any others, but are best aligned
     (offset a multiple of n, n a power of two) for the quality of each slice alone.
   * Stratification is per 2D pair only: there is no joint stratification across pairs (in 4D, 8D...),
-    so high-dimensional integrands gain only from their low-dimensional structure. A dimension pair
-    (d, d+1) must not be requested also as 1D at d+1; callers assign dimensions explicitly.
+    so high-dimensional integrands gain only from their low-dimensional structure. A 2D request at
+    d uses dimensions d and d+1: no other request of the same sample may use either (sobol_1d at d
+    would repeat its x); callers assign dimensions explicitly.
   * Two dimension pairs of one sample are paired by independent nested shuffles. Because every
     aligned pair of samples is stratified in each dimension, the first digits of two dimension pairs
     are, per aligned pair of samples, either (lo,lo)+(hi,hi) or (lo,hi)+(hi,lo): one coin per sample
@@ -67,8 +74,10 @@ Limits:
     2D parts converge at Owen's rates, so it wins whenever they dominate; the benchmark measures both.
   * Values are quantised to 24 bits (float32's resolution near 1); indices beyond 2**31 - 1 are not
     supported (the ``int`` argument).
-  * Cost: per 2D request 17 hashes (5 for the keys, 7 for the index shuffle, 5 per component), several
-    times the cost of a PCG draw (benchmarks/bench_sampler.py prints both).
+  * Beyond 2**15 samples per pixel, the fine digits (below 2**-15) of points sharing a 15-bit prefix
+    share their flips: still unbiased and stratified, slightly less random than Owen's scrambling.
+  * Cost: per 2D request 17 hashes (3 for the key, 2 for the component seeds, 4 for the index
+    shuffle, 4 per component), several times a PCG draw; benchmarks/bench_sampler.py prints both.
 """
 
 from __future__ import annotations
@@ -82,8 +91,9 @@ SEED_SALT = 0x9E3779B9   # 2**32 / golden ratio: keeps seed 0 away from the hash
 DIM_MUL = 0x85EBCA77     # odd: spreads consecutive dimensions over the 32-bit range
 X_SALT = 0x68E31DA4
 Y_SALT = 0xB5297A4D
+BLOCK_SALT = 0x27D4EB2F  # differs from X_SALT and Y_SALT above bit 16, so no block key equals theirs
 VALUE_BITS = wp.constant(24)  # float32 resolution below 1
-INDEX_BITS = wp.constant(32)
+EXACT_LEVELS = wp.constant(15)  # levels with one independent flip per node (3 subtrees)
 CHUNK_LEVELS = wp.constant(5)  # levels of the flip tree served by one 32-bit hash (2**5 - 1 = 31 bits)
 
 # Unsigned constants above 2**31 must be typed as such, or the generated C++ narrows them.
@@ -93,7 +103,9 @@ _SEED_SALT = wp.constant(wp.uint32(SEED_SALT))
 _DIM_MUL = wp.constant(wp.uint32(DIM_MUL))
 _X_SALT = wp.constant(wp.uint32(X_SALT))
 _Y_SALT = wp.constant(wp.uint32(Y_SALT))
-_TOP_BIT = wp.constant(wp.uint32(0x80000000))
+_BLOCK_SALT = wp.constant(wp.uint32(BLOCK_SALT))
+_HIGH_17 = wp.constant(wp.uint32(0xFFFF8000))     # index bits above the exactly scrambled 15
+_TOP_24 = wp.constant(wp.uint32(0xFFFFFF00))      # a value's bits that reach the float
 _INV_2_24 = wp.constant(5.9604644775390625e-08)   # 2**-24
 
 
@@ -143,20 +155,30 @@ def _subtree_flips(w: wp.uint32, h: wp.uint32) -> wp.uint32:
 
 
 @wp.func
-def owen_scramble(v: wp.uint32, seed: wp.uint32, levels: int) -> wp.uint32:
-    """Nested uniform scramble of the top ``levels`` bits of v (a 0.32 fraction); lower bits are 0.
+def exact_flips(v: wp.uint32, seed: wp.uint32) -> wp.uint32:
+    """The nested uniform flips of the top 15 levels of v (a 0.32 fraction), at their bit positions.
 
     Bit ``level`` (from the top) is flipped by the flip-tree node reached by the bits above it. The
-    tree is cut into subtrees of 5 levels; each draws its 31 node flips from one hash of its root's
-    prefix (with a marker bit above it that encodes the depth) xor seed."""
+    tree is cut into three subtrees of 5 levels; each draws its 31 node flips from one hash of its
+    root's prefix (with a marker bit above it that encodes the depth) xor seed. The subtrees are
+    independent, so their hashes run in parallel (the loop is unrolled)."""
     flips = wp.uint32(0)
-    for c in range((levels + CHUNK_LEVELS - 1) // CHUNK_LEVELS):
+    for c in range(wp.static(EXACT_LEVELS // CHUNK_LEVELS)):
         top = c * CHUNK_LEVELS
-        prefix = wp.uint32(wp.uint64(v) >> wp.uint64(32 - top))        # 64-bit: top == 0 is legal
+        prefix = wp.uint32(wp.uint64(v) >> wp.uint64(32 - top))       # 64-bit: top == 0 is legal
         h = mix32((prefix | (wp.uint32(1) << wp.uint32(top))) ^ seed)
         flips = flips | (_subtree_flips(v << wp.uint32(top), h) >> wp.uint32(top))
-    keep = ~wp.uint32(wp.uint64(0xFFFFFFFF) >> wp.uint64(levels))       # the top ``levels`` bits
-    return (v ^ flips) & keep
+    return flips
+
+
+@wp.func
+def owen_scramble(v: wp.uint32, seed: wp.uint32) -> wp.uint32:
+    """Owen scrambling of the top 24 bits of v (a 0.32 fraction; the lower 8 bits become 0): exact
+    flips for the top 15 levels, then, for levels 15..23, nine random bits drawn from one hash of the
+    15-bit prefix (whose marker bit 2**15 sets it apart from the subtree roots)."""
+    tail = mix32(((v >> wp.uint32(17)) | wp.uint32(0x8000)) ^ seed)
+    flips = exact_flips(v, seed) | ((tail >> wp.uint32(23)) << wp.uint32(8))
+    return (v ^ flips) & _TOP_24
 
 
 @wp.func
@@ -176,9 +198,15 @@ def to_unit(v: wp.uint32) -> float:
 
 @wp.func
 def shuffled_index(key: wp.uint32, index: int) -> wp.uint32:
-    """The Sobol' index used for global sample ``index``: aligned power-of-two blocks map to aligned
-    blocks of the same size, in an order private to ``key``."""
-    return owen_scramble(wp.uint32(index), key, INDEX_BITS)
+    """The Sobol' index used for global sample ``index``: a nested scramble of the index read as a
+    binary fraction (bit k flipped by a function of the bits above k), so aligned power-of-two blocks
+    map onto aligned blocks of the same size, in an order private to ``key``. The low 15 bits get
+    exact nested uniform flips keyed by the block of 2**15 they lie in; the high bits are XORed with
+    the key's (a digital shift: a nested scramble whose flips do not depend on the bits above)."""
+    i = wp.uint32(index)
+    block_seed = mix32(key ^ _BLOCK_SALT ^ (i >> wp.uint32(EXACT_LEVELS)))
+    low = exact_flips(i << wp.uint32(32 - EXACT_LEVELS), block_seed) >> wp.uint32(32 - EXACT_LEVELS)
+    return i ^ (key & _HIGH_17) ^ low
 
 
 @wp.func
@@ -187,7 +215,7 @@ def sobol_1d(seed: wp.uint32, pixel: int, index: int, dim: int) -> float:
     van der Corput value in [0, 1)."""
     key = request_seed(seed, pixel, dim)
     i = shuffled_index(key, index)
-    return to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT), VALUE_BITS))
+    return to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT)))
 
 
 @wp.func
@@ -196,6 +224,6 @@ def sobol_2d(seed: wp.uint32, pixel: int, index: int, dim: int) -> wp.vec2:
     Owen-scrambled point of the 2D Sobol' (0,2)-sequence in [0, 1)^2."""
     key = request_seed(seed, pixel, dim)
     i = shuffled_index(key, index)
-    x = owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT), VALUE_BITS)
-    y = owen_scramble(sobol_dim1(i), mix32(key ^ _Y_SALT), VALUE_BITS)
+    x = owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT))
+    y = owen_scramble(sobol_dim1(i), mix32(key ^ _Y_SALT))
     return wp.vec2(to_unit(x), to_unit(y))

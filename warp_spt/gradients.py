@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -38,6 +37,7 @@ from .device_scene import DeviceScene, Features, Geometry, Materials, Textures
 from .integrators import CameraParams, RenderParams, camera_params, check_integrator, get_step
 from .lights import Lights, light_table, sky_emits
 from .losses import Loss
+from .parallel import run_jobs
 from .params import COLOR_FIELDS, MATERIAL_FIELDS, SceneParameters
 from .renderer import RenderSettings, render_scene
 from .samplers import DEFAULT_SAMPLER
@@ -234,12 +234,8 @@ class _Backward:
                       adj_inputs=adj_structs + [deltas.grad, adj_image[lo:hi]], adjoint=True)
 
         self.threads = max(1, min(threads or os.cpu_count() or 1, len(self.tiles)))
-        if self.threads == 1:
-            for k in range(len(self.tiles)):
-                work(k)
-        else:
-            with ThreadPoolExecutor(max_workers=self.threads) as pool:
-                list(pool.map(work, range(len(self.tiles))))
+        # the renderer's tile runner: Ctrl-C stops the workers safely (no concurrent.futures, see parallel)
+        run_jobs(list(range(len(self.tiles))), lambda k, stop, done: work(k), self.threads, lambda units: None)
         # reduce in tile order, in float64: independent of threads
         sums: dict = {}
         for m, t, deltas, _ in inputs:

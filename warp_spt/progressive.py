@@ -33,7 +33,6 @@ import math
 import os
 import threading
 import time
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -45,6 +44,7 @@ from .device_scene import DeviceScene
 from .film import Film
 from .integrators import RenderParams, camera_params, get_kernel
 from .lights import light_table, sky_emits
+from .parallel import run_jobs
 from .renderer import TILE_PIXELS, RenderSettings, _check_args, _settings
 from .scene import Scene
 from .sky import Sky
@@ -319,22 +319,19 @@ class _Driver:
         wide, pay the thread pool's overhead per launch)."""
         tasks = [[(b, lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
                  for b in range(self.B) if inc[b].any()]
-        # Launches always run on worker threads, even with one thread: a Ctrl-C then lands in this
-        # (waiting) thread, never between a finished launch and its bookkeeping.
-        with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            pending = {pool.submit(self._launch_all, task) for task in tasks}
-            try:
-                while pending:
-                    done, pending = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
-                    for fut in done:
-                        fut.result()
-            except BaseException:
-                self.stop.set()           # running launches finish (and are counted); no new ones start
-                raise
+        # The renderer's tile runner (parallel.run_jobs): a Ctrl-C only sets its stop flag, so it never
+        # lands between a finished launch and its bookkeeping, nor inside a thread pool's locks.
+        def work(task, stop, done) -> None:
+            for it in task:
+                if stop.is_set():
+                    return
+                self._launch(*it)
 
-    def _launch_all(self, items) -> None:
-        for it in items:
-            self._launch(*it)
+        try:
+            run_jobs(tasks, work, self.threads, lambda units: None)
+        except BaseException:
+            self.stop.set()               # no launches after an interruption
+            raise
 
     # -- the loop
 

@@ -42,6 +42,7 @@ from .params import COLOR_FIELDS, MATERIAL_FIELDS, SceneParameters
 from .renderer import RenderSettings, render_scene
 from .samplers import DEFAULT_SAMPLER
 from .sky import Sky
+from .textures import tile_view
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
 # deltas[k] shift values passed by value in structs (the sky colour); zero, they exist for their gradients
@@ -255,8 +256,7 @@ def _pick(p, sums: dict, dev: DeviceScene) -> np.ndarray:
         g = sums[p.field][p.index]
         return np.asarray(g, dtype=np.float64).reshape(p.shape)
     if p.kind == "texture":
-        x0, y0, w, h = (int(c) for c in dev._atlas[1].numpy()[p.index])
-        return sums["texels"][y0:y0 + h, x0:x0 + w].copy()
+        return tile_view(sums["texels"], dev._atlas[1].numpy()[p.index]).copy()
     return sums["deltas"][D_SKY].copy()       # the sky colour
 
 

@@ -7,6 +7,7 @@ import errno
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,8 @@ from warp_spt.cli import UsageError, main, parse_args
 from warp_spt.errors import SceneError
 from warp_spt.film import save_image
 from warp_spt.loader import load_scene
+from warp_spt.sky import SKY_CONSTANT, Sky
+from warp_spt.validate import MAX_RADIANCE
 
 from .fakes import fake_renderer
 
@@ -153,6 +156,65 @@ def test_a_read_only_directory_names_the_output(tmp_path):
 def test_camera_and_sky_values_beyond_float32_products_are_refused(argv, message):
     with pytest.raises(UsageError, match=message):
         parse_args(argv)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["-cam", "0", "0", "0", "0", "1", "0", "179.99999999", "1e15", "0"], "image plane"),
+    (["-obj", "x.obj", "--look-at", "1e300", "0", "0"], "target"),
+    (["-obj", "x.obj", "--fov", "180"], "fov"),
+])
+def test_camera_overrides_beyond_float32_are_refused_in_one_line(argv, message, capsys):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")            # numpy's overflow warnings would print with --quiet
+        with pytest.raises(UsageError, match=message):
+            parse_args(argv)
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(position=(1e39, 0, 0)), "position"), (dict(position=(0, 0, 1e16)), "position"),
+    (dict(direction=(1e308, 1e308, 1e308)), "direction"), (dict(direction=(1e-320, 0, 0)), "direction"),
+    (dict(direction=(0, float("nan"), 1)), "finite"), (dict(up=(0, 0, 1e300)), "up"),
+    (dict(focus=1e-320), "focus"), (dict(focus=1e16), "focus"), (dict(aperture=1e300), "aperture"),
+    (dict(aperture=-1e-3), "aperture"), (dict(fov=180.0), "fov"), (dict(fov=0.0), "fov"),
+    (dict(fov=179.99999999, focus=1e15), "image plane"), (dict(position="abc"), "numbers"),
+])
+def test_the_api_camera_refuses_what_the_cli_refuses(tmp_path, changes, message):
+    from dataclasses import replace
+
+    from warp_spt.camera import Camera
+    from warp_spt.renderer import render
+
+    cam = replace(Camera(), **changes)            # a frozen dataclass: construction itself does not check
+    ball = load_scene([str(write(tmp_path, "b.obj", "b 0 0 0 1\n"))], warn=lambda m: None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=message):
+            cam.validate()
+        with pytest.raises(ValueError, match=message):
+            render(ball, cam, width=2, height=2, spp=1)     # refused before the scene is uploaded
+        with pytest.raises(ValueError, match=message):
+            Camera().with_(**changes)
+
+
+def test_a_tall_image_bounds_the_image_plane_too():
+    from warp_spt.camera import Camera
+
+    cam = Camera(fov=179.99999, focus=1e10)     # half-width 1.1e17: fine for a wide image
+    cam.image_plane(100, 10)
+    with pytest.raises(ValueError, match="image plane"):
+        cam.image_plane(10, 1000)                  # 100x taller than wide: 1.1e19
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: Sky.constant(1e39, 0, 0), "colour"), (lambda: Sky.constant(0, float("inf"), 0), "colour"),
+    (lambda: Sky.constant(-1e-9, 0, 0), "colour"), (lambda: Sky(SKY_CONSTANT, (float("nan"), 0, 0)), "colour"),
+    (lambda: Sky(SKY_CONSTANT, (1, 2)), "colour"), (lambda: Sky(7, (0, 0, 0)), "kind"),
+    (lambda: Sky.gradient(up=(0, 0, 0)), "up"), (lambda: Sky.gradient(up=(float("nan"), 0, 1)), "up"),
+])
+def test_the_api_sky_refuses_what_the_cli_refuses(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+    assert Sky.constant(MAX_RADIANCE, 0, 0).color == (MAX_RADIANCE, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("line, message", [("Kd 1e38", "[0, 1]"), ("Kl 1e31 0 0", "[0, 1e+30]"),

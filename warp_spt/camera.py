@@ -171,8 +171,8 @@ def camera_problem(cam: Camera, width: int = 1, height: int = 1) -> str | None:
         return f"camera position must lie within +-{MAX_COORDINATE:g}"
     for name, vec in (("view direction", d), ("up vector", u)):
         if not MIN_DIRECTION <= max(abs(v) for v in vec) <= MAX_COORDINATE:
-            return (f"camera {name} must be a vector with components between {MIN_DIRECTION:g} and "
-                    f"{MAX_COORDINATE:g} in size (not zero)")
+            return (f"camera {name} must not be zero or huge: its largest component must lie in "
+                    f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}] in size")
     if not 0.0 < fov < 180.0:
         return f"camera fov must be in (0, 180) degrees, got {fov:g}"
     if not MIN_FOCUS <= focus <= MAX_COORDINATE:
@@ -181,8 +181,8 @@ def camera_problem(cam: Camera, width: int = 1, height: int = 1) -> str | None:
         return f"camera aperture must lie in [0, {MAX_COORDINATE:g}], got {aperture:g}"
     half = focus * math.tan(math.radians(fov) / 2.0) * max(1.0, height / width)
     if half > MAX_IMAGE_PLANE:
-        return (f"camera image plane is too large for float32: focus x tan(fov/2) = {half:.3g} "
-                f"(at most {MAX_IMAGE_PLANE:g}; a smaller focus distance or fov)")
+        return (f"camera image plane is too large for float32: focus x tan(fov/2) x max(1, height/width) "
+                f"= {half:.3g}, at most {MAX_IMAGE_PLANE:g} (a smaller focus distance or fov)")
     return None
 
 

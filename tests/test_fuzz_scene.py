@@ -44,10 +44,14 @@ CAMERA = Camera(position=(0.5, 0.5, 6.0), direction=(0.0, 0.0, -1.0), fov=60.0, 
 
 @st.composite
 def png_bytes(draw) -> bytes:
-    """A small PNG in one of Pillow's modes, sometimes truncated or with bytes flipped."""
+    """A small or a thin (1 x n, n x 1) PNG in one of Pillow's modes, sometimes truncated or with
+    bytes flipped. Thin ones exercise the flat atlas's addressing at extreme aspect ratios."""
     from PIL import Image
 
     w, h = draw(st.integers(1, 6)), draw(st.integers(1, 6))
+    if draw(st.integers(0, 3)) == 0:
+        n = draw(st.integers(7, 4000))
+        w, h = (1, n) if draw(st.booleans()) else (n, 1)
     mode = draw(st.sampled_from(["L", "RGB", "RGBA", "LA", "P", "1", "I;16"]))
     seed = draw(st.integers(0, 2**32 - 1))
     rng = np.random.default_rng(seed)

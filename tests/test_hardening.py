@@ -7,6 +7,7 @@ import errno
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,8 @@ from warp_spt.cli import UsageError, main, parse_args
 from warp_spt.errors import SceneError
 from warp_spt.film import save_image
 from warp_spt.loader import load_scene
+from warp_spt.sky import SKY_CONSTANT, Sky
+from warp_spt.validate import MAX_RADIANCE
 
 from .fakes import fake_renderer
 
@@ -155,6 +158,65 @@ def test_camera_and_sky_values_beyond_float32_products_are_refused(argv, message
         parse_args(argv)
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["-cam", "0", "0", "0", "0", "1", "0", "179.99999999", "1e15", "0"], "image plane"),
+    (["-obj", "x.obj", "--look-at", "1e300", "0", "0"], "target"),
+    (["-obj", "x.obj", "--fov", "180"], "fov"),
+])
+def test_camera_overrides_beyond_float32_are_refused_in_one_line(argv, message, capsys):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")            # numpy's overflow warnings would print with --quiet
+        with pytest.raises(UsageError, match=message):
+            parse_args(argv)
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(position=(1e39, 0, 0)), "position"), (dict(position=(0, 0, 1e16)), "position"),
+    (dict(direction=(1e308, 1e308, 1e308)), "direction"), (dict(direction=(1e-320, 0, 0)), "direction"),
+    (dict(direction=(0, float("nan"), 1)), "finite"), (dict(up=(0, 0, 1e300)), "up"),
+    (dict(focus=1e-320), "focus"), (dict(focus=1e16), "focus"), (dict(aperture=1e300), "aperture"),
+    (dict(aperture=-1e-3), "aperture"), (dict(fov=180.0), "fov"), (dict(fov=0.0), "fov"),
+    (dict(fov=179.99999999, focus=1e15), "image plane"), (dict(position="abc"), "numbers"),
+])
+def test_the_api_camera_refuses_what_the_cli_refuses(tmp_path, changes, message):
+    from dataclasses import replace
+
+    from warp_spt.camera import Camera
+    from warp_spt.renderer import render
+
+    cam = replace(Camera(), **changes)            # a frozen dataclass: construction itself does not check
+    ball = load_scene([str(write(tmp_path, "b.obj", "b 0 0 0 1\n"))], warn=lambda m: None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=message):
+            cam.validate()
+        with pytest.raises(ValueError, match=message):
+            render(ball, cam, width=2, height=2, spp=1)     # refused before the scene is uploaded
+        with pytest.raises(ValueError, match=message):
+            Camera().with_(**changes)
+
+
+def test_a_tall_image_bounds_the_image_plane_too():
+    from warp_spt.camera import Camera
+
+    cam = Camera(fov=179.99999, focus=1e10)     # half-width 1.1e17: fine for a wide image
+    cam.image_plane(100, 10)
+    with pytest.raises(ValueError, match="image plane"):
+        cam.image_plane(10, 1000)                  # 100x taller than wide: 1.1e19
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: Sky.constant(1e39, 0, 0), "colour"), (lambda: Sky.constant(0, float("inf"), 0), "colour"),
+    (lambda: Sky.constant(-1e-9, 0, 0), "colour"), (lambda: Sky(SKY_CONSTANT, (float("nan"), 0, 0)), "colour"),
+    (lambda: Sky(SKY_CONSTANT, (1, 2)), "colour"), (lambda: Sky(7, (0, 0, 0)), "kind"),
+    (lambda: Sky.gradient(up=(0, 0, 0)), "up"), (lambda: Sky.gradient(up=(float("nan"), 0, 1)), "up"),
+])
+def test_the_api_sky_refuses_what_the_cli_refuses(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+    assert Sky.constant(MAX_RADIANCE, 0, 0).color == (MAX_RADIANCE, 0.0, 0.0)
+
+
 @pytest.mark.parametrize("line, message", [("Kd 1e38", "[0, 1]"), ("Kl 1e31 0 0", "[0, 1e+30]"),
                                            ("Kn 1e-40", "[0.001, 1000]")])
 def test_material_values_beyond_float32_products_name_the_line(tmp_path, line, message):
@@ -212,29 +274,49 @@ def test_warps_own_messages_only_with_verbose(tmp_path):
 
 # ---------------------------------------------------------------- part 5: memory
 
-def test_the_atlas_stays_close_to_the_sum_of_the_areas():
-    from warp_spt.atlas_layout import shelf_layout
-
-    rng = np.random.default_rng(5)
-    worst = 0.0
-    for _ in range(200):
-        sizes = [(int(rng.integers(1, 300)), int(rng.integers(1, 300))) for _ in range(int(rng.integers(1, 12)))]
-        tiles, w, h = shelf_layout(sizes)
-        lower = max(sum(a * b for a, b in sizes), max(a for a, _ in sizes) * max(b for _, b in sizes))
-        worst = max(worst, w * h / lower)
-        for (x0, y0, tw, th), (sh, sw) in zip(tiles, sizes):
-            assert (tw, th) == (sw, sh) and x0 + tw <= w and y0 + th <= h
-    assert worst < 2.5, worst      # against the best any unrotated packing can do
-
-
-def test_an_atlas_beyond_the_budget_names_the_textures(tmp_path):
+def thin_texture_scene(tmp_path: Path, n: int) -> Path:
+    """An OBJ whose two materials use a 1 x n and an n x 1 texture of random colours."""
     from PIL import Image
 
-    Image.new("RGB", (1, 20000)).save(tmp_path / "tall.png")
-    Image.new("RGB", (20000, 1)).save(tmp_path / "wide.png")
+    rng = np.random.default_rng(n)
+    for name, shape in (("tall.png", (n, 1, 3)), ("wide.png", (1, n, 3))):
+        Image.fromarray(rng.integers(0, 256, shape, dtype=np.uint8)).save(tmp_path / name)
     write(tmp_path, "a.mtl", "newmtl a\nmap_Kd tall.png\nnewmtl b\nmap_Kd wide.png\n")
-    err = scene_error([write(tmp_path, "a.obj", "mtllib a.mtl\n" + TRI + "usemtl a\nf 1 2 3\nusemtl b\nf 1 2 3\n")])
+    return write(tmp_path, "a.obj", "mtllib a.mtl\n" + TRI + "usemtl a\nf 1 2 3\nusemtl b\nf 1 2 3\n")
+
+
+@pytest.mark.parametrize("n", [20000, 40000])
+def test_thin_textures_take_the_sum_of_their_areas_and_sample_right(tmp_path, n):
+    from warp_spt.device_scene import DeviceScene
+    from warp_spt.textures import Atlas, sample_texture_np
+
+    from .test_textures import run_sample
+
+    scene = load_scene([str(thin_texture_scene(tmp_path, n))], warn=lambda m: None)
+    dev = DeviceScene(scene)
+    texels, tiles = dev._atlas
+    # memory: the device atlas holds 2n texels (it used to be n x n: 4.5 GiB at n = 20000)
+    assert texels.shape == (2 * n,) and texels.capacity == 2 * n * 12 and tiles.shape == (2,)
+    atlas = Atlas(texels.numpy(), tiles.numpy())
+    rng = np.random.default_rng(3)
+    uv = np.concatenate([rng.uniform(-2, 2, (3000, 2)), [[0, 0], [1, 1], [-1e-7, 1 - 1e-7], [0.5, np.nan]],
+                         np.stack([np.arange(-2, n + 2) / n, np.arange(-2, n + 2)[::-1] / n], 1)]).astype(np.float32)
+    for k, img in enumerate(scene.textures):
+        assert np.array_equal(run_sample(atlas, k, uv, bilinear=False), sample_texture_np(img, uv))
+        np.testing.assert_allclose(run_sample(atlas, k, uv, bilinear=True), sample_texture_np(img, uv, True),
+                                   rtol=0, atol=1e-6)
+
+
+def test_textures_beyond_the_budget_are_refused_from_the_header_naming_them(tmp_path, monkeypatch):
+    import warp_spt.loader as loader
+
+    monkeypatch.setattr(loader, "TEXEL_BUDGET", 30000)      # 1x20000 + 20000x1 fit 2**26, not this
+    read = []
+    real = loader._to_rgb
+    monkeypatch.setattr(loader, "_to_rgb", lambda img: read.append(img.size) or real(img))
+    err = scene_error([thin_texture_scene(tmp_path, 20000)])
     assert err.line == 4 and "tall.png" in err.message and "wide.png" in err.message and "budget" in err.message
+    assert "40,000 texels" in err.message and read == [(1, 20000)]      # the second was never decoded
 
 
 def test_a_texture_beyond_the_texel_budget_is_refused_before_decoding(tmp_path, recwarn):

@@ -248,7 +248,7 @@ def light_scene(scene_dir):
     return scene_from_text(scene_dir, "lights_only", obj, mtl)
 
 
-@pytest.mark.parametrize("sky_", [Sky.gradient(), Sky.constant(0.0, 0.0, 0.0)])
+@pytest.mark.parametrize("sky_", [Sky.gradient(), Sky.constant(0.0, 0.0, 0.0), Sky.gradient(up=(1, -2, 3))])
 def test_light_pdfs_integrate_to_one_and_match_sampling(light_scene, sky_):
     k = _pdf_kernels()
     dev, x = light_scene, wp.vec3(0.1, 0.2, -0.1)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.textures import checker, checker_np, pack_atlas, sample_texture, sample_texture_np
+from warp_spt.textures import checker, checker_np, pack_atlas, sample_texture, sample_texture_np, tile_view
 
 DEVICE = "cpu"
 GREEN = (0.25, 0.75, 0.25)
@@ -17,7 +17,7 @@ WHITE = (1.0, 1.0, 1.0)
 
 @wp.kernel(enable_backward=False)
 def sample_kernel(
-    texels: wp.array2d(dtype=wp.vec3),
+    texels: wp.array(dtype=wp.vec3),
     tiles: wp.array(dtype=wp.vec4i),
     tex: int,
     uv: wp.array(dtype=wp.vec2),
@@ -75,23 +75,31 @@ def test_packing_no_overlap_and_exact_copies():
     imgs = [rng.random((int(rng.integers(1, 40)), int(rng.integers(1, 40)), 3)).astype(np.float32)
             for _ in range(25)]
     atlas = pack_atlas(imgs)
-    ah, aw = atlas.texels.shape[:2]
     assert atlas.texels.dtype == np.float32 and atlas.tiles.dtype == np.int32
-    assert aw >= max(im.shape[1] for im in imgs)
-    cover = np.zeros((ah, aw), dtype=int)
-    for (x0, y0, w, h), im in zip(atlas.tiles, imgs):
-        assert (w, h) == (im.shape[1], im.shape[0])
-        assert 0 <= x0 and x0 + w <= aw and 0 <= y0 and y0 + h <= ah
-        cover[y0:y0 + h, x0:x0 + w] += 1
-        assert np.array_equal(atlas.texels[y0:y0 + h, x0:x0 + w], im)
-    assert cover.max() == 1
-    # shelf packing wastes something, but not absurdly much
-    assert ah * aw <= 3 * sum(im.shape[0] * im.shape[1] for im in imgs)
+    # exactly the sum of the areas: every texel belongs to exactly one texture
+    assert atlas.texels.shape == (sum(im.shape[0] * im.shape[1] for im in imgs), 3)
+    cover = np.zeros(len(atlas.texels), dtype=int)
+    for k, ((offset, w, h, stride), im) in enumerate(zip(atlas.tiles, imgs)):
+        assert (w, h, stride) == (im.shape[1], im.shape[0], im.shape[1])
+        assert 0 <= offset and offset + h * stride <= len(atlas.texels)
+        cover[offset:offset + h * stride] += 1
+        # independent of tile_view: row r of the image is texels[offset + r*w : offset + (r+1)*w]
+        rows = np.stack([atlas.texels[offset + r * w:offset + (r + 1) * w] for r in range(h)])
+        assert np.array_equal(rows, im) and np.array_equal(atlas.texture(k), im)
+    assert (cover == 1).all()
+
+
+def test_tile_view_writes_through_and_fits_gradients():
+    atlas = pack_atlas([np.zeros((2, 3, 3), np.float32), np.zeros((3, 2, 3), np.float32)])
+    tile_view(atlas.texels, atlas.tiles[1])[0, 1] = 7.0          # row 0 (top), column 1 of texture 1
+    assert np.flatnonzero(atlas.texels[:, 0]).tolist() == [6 + 1]
+    grad = np.arange(len(atlas.texels) * 3, dtype=np.float64).reshape(-1, 3)
+    assert tile_view(grad, atlas.tiles[0]).shape == (2, 3, 3)
 
 
 def test_packing_empty_and_limits():
     empty = pack_atlas([])
-    assert empty.texels.shape == (1, 1, 3) and empty.tiles.tolist() == [[0, 0, 1, 1]]
+    assert empty.texels.shape == (1, 3) and empty.tiles.tolist() == [[0, 1, 1, 1]]
     # zero-copy views of absurd size: rejected from the shapes alone, naming the sizes
     huge = np.broadcast_to(np.float32(0.0), (50_000, 50_000, 3))
     with pytest.raises(ValueError, match="50000x50000"):

@@ -14,6 +14,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .limits import MAX_COORDINATE, MAX_IMAGE_PLANE, MIN_DIRECTION, MIN_FOCUS
+
 Vec3 = tuple[float, float, float]
 
 # The seed's axes: Z up (SEMANTICS §3).
@@ -29,10 +31,11 @@ def up_vector(up: str | Sequence[float]) -> np.ndarray:
             raise ValueError(f"up axis must be one of {', '.join(AXES)}, got {up!r}")
         return np.asarray(AXES[up.lower()], dtype=np.float64)
     v = np.asarray(up, dtype=np.float64)
-    n = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
-    if not (math.isfinite(n) and n > 0.0):
+    big = float(np.abs(v).max()) if v.shape == (3,) else 0.0
+    if not (math.isfinite(big) and big > 0.0):
         raise ValueError(f"up must be a non-zero finite 3-vector, got {up!r}")
-    return v / n
+    v = v / big                  # scaled first: the norm of (1e300, 1e300, 0) would overflow
+    return v / np.linalg.norm(v)
 
 
 class _FrameMethod:
@@ -77,7 +80,10 @@ class Camera:
         ``aperture`` defaults to 0 (a pinhole), so everything is sharp.
         """
         p = np.asarray(position, dtype=np.float64)
-        d = np.asarray(target, dtype=np.float64) - p
+        t = np.asarray(target, dtype=np.float64)
+        if not (np.abs(p).max() <= MAX_COORDINATE and np.abs(t).max() <= MAX_COORDINATE):   # NaN too
+            raise ValueError(f"camera position and target must be finite and lie within +-{MAX_COORDINATE:g}")
+        d = t - p
         dist = float(np.linalg.norm(d))
         if not (math.isfinite(dist) and dist > 0.0):
             raise ValueError("camera target must differ from its position")
@@ -92,21 +98,15 @@ class Camera:
         cam.validate()
         return cam
 
-    def validate(self) -> None:
-        """Raise ValueError for a camera no renderer can use."""
-        vals = [*self.position, *self.direction, *self.up, self.fov, self.aperture, self.focus]
-        if not all(math.isfinite(v) for v in vals):
-            raise ValueError("camera values must be finite numbers")
-        if float(np.linalg.norm(np.asarray(self.direction, dtype=np.float64))) == 0.0:
-            raise ValueError("camera view direction must not be zero")
-        if float(np.linalg.norm(np.asarray(self.up, dtype=np.float64))) == 0.0:
-            raise ValueError("camera up vector must not be zero")
-        if not 0.0 < self.fov < 180.0:
-            raise ValueError(f"camera fov must be in (0, 180) degrees, got {self.fov}")
-        if self.aperture < 0.0:
-            raise ValueError(f"camera aperture must be >= 0, got {self.aperture}")
-        if self.focus <= 0.0:
-            raise ValueError(f"camera focus distance must be > 0, got {self.focus}")
+    def validate(self, width: int = 1, height: int = 1) -> None:
+        """Raise ValueError for a camera no renderer can use, or one whose frame would overflow float32.
+
+        Called by :meth:`image_plane`, so every render checks it; ``width`` x ``height`` (pixels)
+        also bounds the image plane of a tall image. The bounds are in :mod:`warp_spt.limits`.
+        """
+        problem = camera_problem(self, width, height)
+        if problem:
+            raise ValueError(problem)
 
     def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unit (view direction, image right, image up), float64.
@@ -136,7 +136,7 @@ class Camera:
         Row 0 is the top of the image. Pixel (x, y) covers
         ``upper_left + (x + a) * x_step - (y + b) * y_step`` for a, b in [0, 1).
         """
-        self.validate()
+        self.validate(width, height)
         d, right, up = self.axes()
         half = self.focus * math.tan(math.radians(self.fov) / 2.0)
         centre = np.asarray(self.position, dtype=np.float64) + d * self.focus
@@ -151,6 +151,39 @@ class Camera:
             "up": up,
             "lens_radius": np.float64(self.aperture),
         }
+
+
+def camera_problem(cam: Camera, width: int = 1, height: int = 1) -> str | None:
+    """Why ``cam`` cannot be rendered exactly at ``width`` x ``height``, or None: the checks of
+    :meth:`Camera.validate`, against float32 and the products the kernel's camera frame forms (a
+    unit direction, focus x tan(fov/2), position + aperture offsets). Bounds checked before any
+    vector is normalised, so nothing overflows on the host either."""
+    try:
+        pos, d, u = (tuple(float(v) for v in x) for x in (cam.position, cam.direction, cam.up))
+        fov, focus, aperture = float(cam.fov), float(cam.focus), float(cam.aperture)
+    except (TypeError, ValueError):
+        return "camera values must be numbers (position, direction and up: three each)"
+    if len(pos) != 3 or len(d) != 3 or len(u) != 3:
+        return "camera position, direction and up must have three components each"
+    if not all(math.isfinite(v) for v in (*pos, *d, *u, fov, focus, aperture)):
+        return "camera values must be finite numbers"
+    if max(abs(v) for v in pos) > MAX_COORDINATE:
+        return f"camera position must lie within +-{MAX_COORDINATE:g}"
+    for name, vec in (("view direction", d), ("up vector", u)):
+        if not MIN_DIRECTION <= max(abs(v) for v in vec) <= MAX_COORDINATE:
+            return (f"camera {name} must not be zero or huge: its largest component must lie in "
+                    f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}] in size")
+    if not 0.0 < fov < 180.0:
+        return f"camera fov must be in (0, 180) degrees, got {fov:g}"
+    if not MIN_FOCUS <= focus <= MAX_COORDINATE:
+        return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_COORDINATE:g}], got {focus:g}"
+    if not 0.0 <= aperture <= MAX_COORDINATE:
+        return f"camera aperture must lie in [0, {MAX_COORDINATE:g}], got {aperture:g}"
+    half = focus * math.tan(math.radians(fov) / 2.0) * max(1.0, height / width)
+    if half > MAX_IMAGE_PLANE:
+        return (f"camera image plane is too large for float32: focus x tan(fov/2) x max(1, height/width) "
+                f"= {half:.3g}, at most {MAX_IMAGE_PLANE:g} (a smaller focus distance or fov)")
+    return None
 
 
 def _reference_top(u: np.ndarray) -> np.ndarray:

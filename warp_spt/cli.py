@@ -300,14 +300,8 @@ def _camera(values: list[float] | None) -> Camera:
         return Camera()
     cam = Camera(position=tuple(values[0:3]), direction=tuple(values[3:6]),
                  fov=values[6], focus=values[7], aperture=values[8])
-    from .validate import camera_problem
-
-    # Our float32 bounds first: Camera.validate normalises the direction, which overflows at 1e308.
-    problem = camera_problem(cam.position, cam.direction, cam.fov, cam.focus, cam.aperture)
-    if problem:
-        raise UsageError(f"argument -cam: {problem}")
     try:
-        cam.validate()
+        cam.validate()           # the API's checks (float32 bounds included): one source of truth
     except ValueError as err:
         raise UsageError(f"argument -cam: {err}") from None
     return cam
@@ -316,10 +310,6 @@ def _camera(values: list[float] | None) -> Camera:
 def _sky(index: int | None, colour: list[float] | None, fallback: int) -> Sky:
     if colour is None:
         return Sky.from_index(fallback if index is None else index)
-    from .validate import sky_colour_problem
-
-    if sky_colour_problem(colour):
-        raise UsageError(f"argument --sky-color: {sky_colour_problem(colour)}")
     try:
         return Sky.constant(*colour)
     except ValueError as err:
@@ -369,19 +359,14 @@ def _check_model_flags(ns: argparse.Namespace) -> None:
 def _model_camera(ns: argparse.Namespace) -> Camera:
     """-cam (or the seed's default) with --up, --look-at, --fov and --aperture applied."""
     from .camera import AXES, Camera
-    from .validate import camera_problem
 
     cam = _camera(ns.cam)
-    try:
+    try:     # look_at and with_ validate the camera they return
         if ns.look_at is not None:
             cam = Camera.look_at(cam.position, ns.look_at, up=ns.up, fov=cam.fov, aperture=cam.aperture)
-        cam = cam.with_(up=AXES[ns.up], fov=ns.fov, aperture=ns.aperture)
+        return cam.with_(up=AXES[ns.up], fov=ns.fov, aperture=ns.aperture)
     except ValueError as err:
         raise UsageError(f"camera: {err}") from None
-    problem = camera_problem(cam.position, cam.direction, cam.fov, cam.focus, cam.aperture)
-    if problem:
-        raise UsageError(f"camera: {problem}")
-    return cam
 
 
 def _check_exr(out: str) -> None:

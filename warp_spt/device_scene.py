@@ -67,9 +67,9 @@ class Materials:
 
 @wp.struct
 class Textures:
-    """The texture atlas, its tile table and the filter (0 nearest, 1 bilinear)."""
+    """The texture atlas (flat), its tile table (offset, w, h, stride) and the filter (0 nearest, 1 bilinear)."""
 
-    texels: wp.array2d(dtype=wp.vec3)
+    texels: wp.array(dtype=wp.vec3)
     tiles: wp.array(dtype=wp.vec4i)
     bilinear: int
     # procedural instances (warp_spt.proctex): kind = index into Features.procedural, parameters

@@ -42,6 +42,7 @@ from .params import COLOR_FIELDS, MATERIAL_FIELDS, SceneParameters
 from .renderer import RenderSettings, render_scene
 from .samplers import DEFAULT_SAMPLER
 from .sky import Sky
+from .textures import tile_view
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
 # deltas[k] shift values passed by value in structs (the sky colour); zero, they exist for their gradients
@@ -189,7 +190,7 @@ class _Backward:
         feats = replace(dev.features, sky=sky_emits(sky))
         self.kernel = get_diff_kernel(feats, rs.max_depth, rs.integrator, rs.sampler, dev.device)
         self.cam = camera_params(camera, rs.width, rs.height)
-        self.lights = light_table(dev, sky)
+        self.lights = light_table(dev, sky, camera.up)
         self.tex = dev.textures(rs.texture_filter)
         self.wants_texels = wants_texels
         n = rs.width * rs.height
@@ -255,8 +256,7 @@ def _pick(p, sums: dict, dev: DeviceScene) -> np.ndarray:
         g = sums[p.field][p.index]
         return np.asarray(g, dtype=np.float64).reshape(p.shape)
     if p.kind == "texture":
-        x0, y0, w, h = (int(c) for c in dev._atlas[1].numpy()[p.index])
-        return sums["texels"][y0:y0 + h, x0:x0 + w].copy()
+        return tile_view(sums["texels"], dev._atlas[1].numpy()[p.index]).copy()
     return sums["deltas"][D_SKY].copy()       # the sky colour
 
 
@@ -303,6 +303,7 @@ def render_differentiable(scene: DeviceScene, camera: Camera | None = None, *, w
         raise ValueError("width, height and spp must be positive")
     _check_estimator(integrator, sampler)
     sky = sky or Sky.black()
+    camera = camera or Camera()
     feats = replace(scene.features, sky=sky_emits(sky))
     kernel = get_diff_kernel(feats, max_depth, integrator, sampler, scene.device)
     rp = _render_params(width, 0, 0, spp, max_depth, seed)
@@ -311,6 +312,6 @@ def render_differentiable(scene: DeviceScene, camera: Camera | None = None, *, w
     tape = wp.Tape()
     with tape:
         wp.launch(kernel, dim=width * height, device=scene.device, inputs=[
-            scene.geometry, scene.materials, scene.textures(texture_filter), light_table(scene, sky),
-            camera_params(camera or Camera(), width, height), rp, deltas, image])
+            scene.geometry, scene.materials, scene.textures(texture_filter), light_table(scene, sky, camera.up),
+            camera_params(camera, width, height), rp, deltas, image])
     return DiffRender(image, tape, width, height)

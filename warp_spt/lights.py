@@ -31,7 +31,7 @@ from .device_scene import Features, Geometry, Materials, Textures
 from .geometry import KIND_SPHERE, KIND_TRIANGLE, NO_HIT, Hit, sphere_hit
 from .sampling import TWO_PI, orthonormal_basis
 from .scene import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
-from .sky import SKY_GRADIENT, Sky
+from .sky import SKY_GRADIENT, Z_UP, Sky
 from .surface import offset_eps
 from .textures import checker_np, sample_texture_np
 
@@ -59,6 +59,9 @@ class Lights:
     sky_color: wp.vec3
     sky_a: float                               # sky sampling density is (a + b z) / (4 pi a)
     sky_b: float
+    sky_up: wp.vec3                            # z above is the direction's component along sky_up;
+    sky_t: wp.vec3                             # (sky_t, sky_b_axis, sky_up) is a right-handed frame,
+    sky_b_axis: wp.vec3                        # (1,0,0), (0,1,0), (0,0,1) for the seed's Z up
 
 
 @wp.struct
@@ -74,21 +77,22 @@ class LightSample:
 
 @wp.func
 def sky_radiance(lights: Lights, d: wp.vec3) -> wp.vec3:
-    """The seed's skies: SKY_GRADIENT on the Z component, anything else a constant colour."""
+    """The seed's skies: SKY_GRADIENT on the component along the up axis, anything else a constant colour."""
     if lights.sky_kind == 1:
-        return wp.vec3(0.75 - 0.25 * d[2], 0.85 - 0.15 * d[2], 1.0)
+        z = wp.dot(d, lights.sky_up)             # exactly d[2] for Z up: the seed's images do not change
+        return wp.vec3(0.75 - 0.25 * z, 0.85 - 0.15 * z, 1.0)
     return lights.sky_color
 
 
 @wp.func
 def sky_pdf(lights: Lights, d: wp.vec3) -> float:
     """Density of ``sample_sky`` (before the choice probability): proportional to the RGB sum."""
-    return (lights.sky_a + lights.sky_b * d[2]) * INV_FOUR_PI / lights.sky_a
+    return (lights.sky_a + lights.sky_b * wp.dot(d, lights.sky_up)) * INV_FOUR_PI / lights.sky_a
 
 
 @wp.func
 def sample_sky(lights: Lights, u: wp.vec2) -> wp.vec3:
-    """Invert the CDF of z for the density (a + b z) on [-1, 1]; uniform in azimuth."""
+    """Invert the CDF of z for the density (a + b z) on [-1, 1]; uniform in azimuth around the up axis."""
     a = lights.sky_a
     b = lights.sky_b
     z = 2.0 * u[0] - 1.0
@@ -97,7 +101,7 @@ def sample_sky(lights: Lights, u: wp.vec2) -> wp.vec3:
         z = wp.clamp((wp.sqrt(wp.max(disc, 0.0)) - a) / b, -1.0, 1.0)
     r = wp.sqrt(wp.max(0.0, 1.0 - z * z))
     phi = TWO_PI * u[1]
-    return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), z)
+    return lights.sky_t * (r * wp.cos(phi)) + lights.sky_b_axis * (r * wp.sin(phi)) + lights.sky_up * z
 
 
 @wp.func
@@ -280,14 +284,25 @@ def sky_density(sky: Sky) -> tuple[float, float]:
     return float(sum(sky.color)), 0.0
 
 
-def light_table(dev, sky: Sky) -> Lights:
-    """The device light table of a DeviceScene under ``sky`` (built once per scene and sky)."""
-    key = (sky.kind, tuple(sky.color))
+def light_table(dev, sky: Sky, camera_up=Z_UP) -> Lights:
+    """The device light table of a DeviceScene under ``sky`` (built once per scene and sky); the
+    gradient sky follows ``sky.up``, else ``camera_up`` (pass the camera's ``up``)."""
+    up = sky.up_axis(camera_up)
+    key = (sky.kind, tuple(sky.color), up)
     if key not in dev._lights:
         if "weights" not in dev._lights:
             dev._lights["weights"] = _emitter_weights(dev.scene)
-        dev._lights[key] = _upload(dev._lights["weights"], dev.scene, sky, dev.device)
+        dev._lights[key] = _upload(dev._lights["weights"], dev.scene, sky, up, dev.device)
     return dev._lights[key]
+
+
+def sky_frame(up: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A right-handed orthonormal (t, b, up) around the unit ``up``: the identity for Z up."""
+    u = np.asarray(up, dtype=np.float64)
+    helper = np.array([0.0, 1.0, 0.0]) if abs(u[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    t = np.cross(helper, u)
+    t /= np.linalg.norm(t)
+    return t, np.cross(u, t), u
 
 
 def _mean_emission(scene: Scene, mat: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -333,7 +348,7 @@ def _emitter_weights(scene: Scene) -> _Weights:
                     cat(tw, np.float64), si.astype(np.int32), sw[si], start)
 
 
-def _upload(w: _Weights, scene: Scene, sky: Sky, device: str) -> Lights:
+def _upload(w: _Weights, scene: Scene, sky: Sky, up: tuple[float, float, float], device: str) -> Lights:
     weights = [w.tri_weight, w.sph_weight]
     if sky_emits(sky):
         b = scene.bounds
@@ -365,4 +380,5 @@ def _upload(w: _Weights, scene: Scene, sky: Sky, device: str) -> Lights:
     L.sky_prob = float(prob[-1]) if sky_emits(sky) else 0.0
     L.sky_kind, L.sky_color = int(sky.kind), wp.vec3(*sky.color)
     L.sky_a, L.sky_b = sky_density(sky) if sky_emits(sky) else (1.0, 0.0)
+    L.sky_t, L.sky_b_axis, L.sky_up = (wp.vec3(*v.astype(np.float32).tolist()) for v in sky_frame(up))
     return L

@@ -235,17 +235,17 @@ class _TextureCache:
             return TEX_PROC_BASE - self.procedural.index(ref)
         path = _find_texture(ref)
         if path not in self._index:
+            image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h))
             self._index[path] = len(self.images)
-            self.images.append(_read_image(path, ref, self._note))
+            self.images.append(image)
             self.refs.append(ref)
-            self._check_atlas()
         return self._index[path]
 
-    def _check_atlas(self) -> None:
-        names = [f"{r.path} ({r.mtl_file}:{r.line})" for r in self.refs]
-        problem = atlas_problem([im.shape[:2] for im in self.images], names)
+    def _check_atlas(self, ref: TextureRef, w: int, h: int) -> None:
+        """All textures so far plus a new w x h one (from its header) must fit the texel budget."""
+        names = [f"{r.path} ({r.mtl_file}:{r.line})" for r in [*self.refs, ref]]
+        problem = atlas_problem([im.shape[:2] for im in self.images] + [(h, w)], names, TEXEL_BUDGET)
         if problem:
-            ref = self.refs[-1]
             raise SceneError(ref.mtl_file, ref.line, problem)
 
 
@@ -262,10 +262,11 @@ def _find_texture(ref: TextureRef) -> str:
     raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} cannot be read ({'; '.join(problems)})")
 
 
-def _read_image(path: str, ref: TextureRef, note: WarnFn) -> np.ndarray:
+def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[[int, int], None]) -> np.ndarray:
     """(H, W, 3) float32 in [0, 1], row 0 at the top; 8-bit values / 255, 16-bit values / 65535.
 
-    The size is checked against the texel budget from the header, before anything is decoded.
+    The size is checked against the texel budget from the header, before anything is decoded: alone,
+    then with the textures read before it (``check_atlas(w, h)`` raises if they do not fit).
     Pillow's own warnings become one-line notes naming the MTL line; its decompression-bomb check is
     replaced by the budget.
     """
@@ -277,6 +278,7 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn) -> np.ndarray:
                 if w * h > TEXEL_BUDGET:
                     raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "
                                      f"than the budget of {TEXEL_BUDGET:,} (8192x8192); downsample it")
+                check_atlas(w, h)
                 rgb = _to_rgb(img)
     except (OSError, ValueError, Image.DecompressionBombError) as err:
         if isinstance(err, SceneError):

@@ -26,6 +26,7 @@ from .camera import Camera
 from .device_scene import DeviceScene, _features
 from .scene import SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, Scene
 from .sky import SKY_CONSTANT, Sky
+from .textures import tile_view
 
 COLOR_FIELDS = ("diffuse", "reflect", "refract", "emission")
 SCALAR_FIELDS = ("roughness", "fuzz")
@@ -126,9 +127,8 @@ class SceneParameters:
         dev = self.scene
         dev.scene.textures[p.index] = v.astype(np.float32)
         texels, tiles = dev._atlas
-        x0, y0, w, h = (int(c) for c in tiles.numpy()[p.index])
         host = texels.numpy()
-        host[y0:y0 + h, x0:x0 + w] = v
+        tile_view(host, tiles.numpy()[p.index])[...] = v
         texels.assign(host)
         self._refresh()
 

@@ -278,8 +278,8 @@ class _Driver:
         sky = rs.sky or Sky.black()
         feats = rs.features or replace(dev.features, sky=sky_emits(sky))
         self.kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)   # compile on this thread
-        self.scene_inputs = [dev.geometry, dev.materials, dev.textures(rs.texture_filter), light_table(dev, sky),
-                             camera_params(camera, rs.width, rs.height)]
+        self.scene_inputs = [dev.geometry, dev.materials, dev.textures(rs.texture_filter),
+                             light_table(dev, sky, camera.up), camera_params(camera, rs.width, rs.height)]
         self.seeds = [wp.uint32(batch_seed(rs.seed, b)) for b in range(batches)]
         self.films = [wp.zeros(self.n, dtype=wp.vec3d, device=dev.device) for _ in range(batches)]
         self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]

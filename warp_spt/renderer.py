@@ -130,6 +130,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     """Render with a :class:`RenderSettings`; returns a :class:`RenderResult` (film, image, stats)."""
     rs = settings or RenderSettings()
     _check_args(rs)
+    (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
     width, height, spp = rs.width, rs.height, rs.spp
     if not isinstance(scene, DeviceScene):      # far from the origin: shift to it in float64 first
         scene, camera, _ = recentre(scene, camera)
@@ -139,7 +140,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)
     camera = camera or Camera()
     cam = camera_params(camera, width, height)
-    lights = light_table(dev, sky)
+    lights = light_table(dev, sky, camera.up)
     tex = dev.textures(rs.texture_filter)
     n = width * height
     film = wp.zeros(n, dtype=wp.vec3d, device=dev.device)

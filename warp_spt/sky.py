@@ -1,20 +1,44 @@
-"""The seed's three skies (SEMANTICS §9) plus any constant colour: the radiance of a missed ray."""
+"""The seed's three skies (SEMANTICS §9) plus any constant colour: the radiance of a missed ray.
+
+A Sky is checked when it is made (ValueError, as for :class:`warp_spt.camera.Camera`): its colour
+must lie in [0, MAX_RADIANCE] (:mod:`warp_spt.limits`), so no sky can overflow a sample. The
+gradient sky varies with the height of a direction along an up axis: the sky's own ``up`` if given,
+else the camera's (the seed's Z by default), so a Y-up scene seen by a Y-up camera gets the same
+sky as the equivalent Z-up scene.
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
+from .limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
+
 SKY_CONSTANT = 0
 SKY_GRADIENT = 1
+Z_UP = (0.0, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
 class Sky:
-    """``kind`` SKY_CONSTANT returns ``color``; SKY_GRADIENT is (0.75-0.25z, 0.85-0.15z, 1) for direction z."""
+    """``kind`` SKY_CONSTANT returns ``color``; SKY_GRADIENT is (0.75-0.25z, 0.85-0.15z, 1) where z
+    is the direction's component along the up axis.
+
+    ``up`` is that axis (any non-zero 3-vector, stored normalised), or None to follow the camera's
+    ``up`` (see :func:`warp_spt.lights.light_table`). A constant sky does not depend on it.
+    """
 
     kind: int = SKY_CONSTANT
     color: tuple[float, float, float] = (0.3, 0.6, 0.8)
+    up: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        problem = sky_problem(self.kind, self.color, self.up)
+        if problem:
+            raise ValueError(problem)
+        object.__setattr__(self, "color", tuple(float(c) for c in self.color))
+        if self.up is not None:
+            object.__setattr__(self, "up", _unit(self.up))
 
     @staticmethod
     def black() -> "Sky":
@@ -22,9 +46,10 @@ class Sky:
         return Sky(SKY_CONSTANT, (0.3, 0.6, 0.8))
 
     @staticmethod
-    def gradient() -> "Sky":
-        """The seed's GradientSky: white at the nadir to (0.5, 0.7, 1) at the zenith."""
-        return Sky(SKY_GRADIENT, (0.0, 0.0, 0.0))
+    def gradient(up=None) -> "Sky":
+        """The seed's GradientSky: white at the nadir to (0.5, 0.7, 1) at the zenith of ``up``
+        (default: the camera's up axis)."""
+        return Sky(SKY_GRADIENT, (0.0, 0.0, 0.0), None if up is None else tuple(up))
 
     @staticmethod
     def pink() -> "Sky":
@@ -33,19 +58,49 @@ class Sky:
 
     @staticmethod
     def constant(r: float, g: float, b: float) -> "Sky":
-        """Any constant radiance; ``Sky.constant(0, 0, 0)`` is a truly black sky."""
-        c = (float(r), float(g), float(b))
-        if not all(math.isfinite(v) and v >= 0.0 for v in c):
-            raise ValueError(f"sky colour must be finite and non-negative, got {c}")
-        return Sky(SKY_CONSTANT, c)
+        """Any constant radiance in [0, MAX_RADIANCE]; ``Sky.constant(0, 0, 0)`` is a truly black sky."""
+        return Sky(SKY_CONSTANT, (r, g, b))
 
     @staticmethod
     def from_index(k: int) -> "Sky":
         """The seed's ``-sky K``: 1 gradient, 2 pink, anything else the (blue) BlackSky."""
         return {1: Sky.gradient(), 2: Sky.pink()}.get(int(k), Sky.black())
 
+    def up_axis(self, camera_up=Z_UP) -> tuple[float, float, float]:
+        """The unit up axis the gradient follows: ``up``, else ``camera_up`` (normalised)."""
+        return self.up if self.up is not None else _unit(camera_up)
+
     def radiance(self, z: float) -> tuple[float, float, float]:
-        """Reference value in Python for a unit direction with Z component ``z`` (used by tests)."""
+        """Reference value in Python for a unit direction whose component along the up axis is ``z``."""
         if self.kind == SKY_GRADIENT:
             return (0.75 - 0.25 * z, 0.85 - 0.15 * z, 1.0)
         return self.color
+
+
+def sky_problem(kind, color, up=None) -> str | None:
+    """Why these sky values cannot be rendered exactly, or None."""
+    if kind not in (SKY_CONSTANT, SKY_GRADIENT):
+        return f"sky kind must be SKY_CONSTANT (0) or SKY_GRADIENT (1), got {kind!r}"
+    if not _numbers(color, 3) or not all(0.0 <= float(c) <= MAX_RADIANCE for c in color):   # NaN fails too
+        return f"sky colour values must be three numbers in [0, {MAX_RADIANCE:g}], got {color!r}"
+    if up is not None and not (_numbers(up, 3) and all(math.isfinite(float(v)) for v in up)
+                               and MIN_DIRECTION <= max(abs(float(v)) for v in up) <= MAX_COORDINATE):
+        return (f"sky up must be a vector with components between {MIN_DIRECTION:g} and {MAX_COORDINATE:g} "
+                f"in size (not zero), got {up!r}")
+    return None
+
+
+def _numbers(values, n: int) -> bool:
+    """``values`` is a sequence of ``n`` real numbers (strings are not numbers here)."""
+    try:
+        return len(values) == n and not any(isinstance(v, (str, bytes)) or float(v) != float(v) for v in values)
+    except (TypeError, ValueError):
+        return False
+
+
+def _unit(v) -> tuple[float, float, float]:
+    """``v`` normalised in float64, scaled first so that no square overflows; axes stay exact."""
+    big = max(abs(float(x)) for x in v)
+    s = [float(x) / big for x in v]
+    n = math.sqrt(sum(x * x for x in s))
+    return (s[0] / n, s[1] / n, s[2] / n)

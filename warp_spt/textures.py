@@ -1,8 +1,11 @@
 """Texture atlas packing (numpy) and texture sampling (Warp functions, with numpy references).
 
-All image textures of a scene are packed into ONE float32 atlas (AH, AW, 3) so that a kernel takes a
-single ``wp.array2d(dtype=wp.vec3)`` plus a tile table of (x0, y0, w, h) per texture. Stored row 0
-is the top row of an image; texture coordinate v = 0 is its bottom row, as in the seed.
+All image textures of a scene are stored in ONE flat float32 atlas (N, 3), one texture after
+another (see :mod:`warp_spt.atlas_layout`), so that a kernel takes a single
+``wp.array(dtype=wp.vec3)`` plus a tile table of (offset, w, h, stride) per texture: texel (row, col)
+is ``offset + row * stride + col``. The atlas holds the sum of the textures' areas, whatever their
+shapes. Stored row 0 is the top row of an image; texture coordinate v = 0 is its bottom row, as in
+the seed.
 
 Addressing (both filters), per axis with n texels (w for u, the REAL height h for v):
 
@@ -15,6 +18,8 @@ Addressing (both filters), per axis with n texels (w for u, the REAL height h fo
 
 Bilinear filtering puts texel centres at (i + 0.5) / n and takes the four neighbours with the same
 repeat wrap inside the tile, so it never bleeds into a neighbouring tile of the atlas.
+
+:func:`tile_view` gives a texture's (h, w, 3) view into the flat atlas, or into a gradient of it.
 """
 
 from __future__ import annotations
@@ -24,12 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .atlas_layout import shelf_layout
+from .atlas_layout import flat_layout
 from .warp_runtime import init_warp
 
 init_warp()   # every Warp path imports this module: initialise quietly (see warp_runtime)
 
-MAX_ATLAS_TEXELS = 2**31 - 1      # Warp indexes 2-D arrays with int32 strides of texels
+MAX_ATLAS_TEXELS = 2**31 - 1      # the kernel forms texel indices in int32
 COORD_LIMIT = float(2**30)        # |c * n| is clamped here before converting to int (see above)
 _COORD_LIMIT = wp.constant(COORD_LIMIT)
 CHECKER_WHITE = (1.0, 1.0, 1.0)
@@ -40,14 +45,26 @@ _INT32_LIMIT = wp.constant(INT32_LIMIT)
 
 @dataclass
 class Atlas:
-    """``texels`` (AH, AW, 3) float32; ``tiles`` (T, 4) int32 rows (x0, y0, w, h).
+    """``texels`` (N, 3) float32, the textures one after another; ``tiles`` (T, 4) int32 rows
+    (offset, w, h, stride).
 
-    With no textures the atlas is 1x1 black and ``tiles`` holds one dummy tile (0, 0, 1, 1), so the
-    Warp arrays are never empty; no material refers to it.
+    With no textures the atlas is one black texel and ``tiles`` holds one dummy tile (0, 1, 1, 1), so
+    the Warp arrays are never empty; no material refers to it.
     """
 
     texels: np.ndarray
     tiles: np.ndarray
+
+    def texture(self, k: int) -> np.ndarray:
+        """Texture ``k`` as an (h, w, 3) view into ``texels``."""
+        return tile_view(self.texels, self.tiles[k])
+
+
+def tile_view(flat: np.ndarray, tile) -> np.ndarray:
+    """The (h, w, 3) view of one tile (a row of the tile table) into a flat (N, 3) atlas array or
+    an array shaped like it (the texels' gradient); row 0 is the image's top row."""
+    offset, w, h, stride = (int(c) for c in tile)
+    return flat[offset:offset + h * stride].reshape(h, stride, *flat.shape[1:])[:, :w]
 
 
 def _check_shape(k: int, img: np.ndarray) -> tuple[int, int]:
@@ -65,23 +82,21 @@ def _check_values(k: int, img: np.ndarray) -> np.ndarray:
 
 
 def pack_atlas(textures: list[np.ndarray]) -> Atlas:
-    """Pack (H, W, 3) images into one float32 atlas by shelf packing (:mod:`warp_spt.atlas_layout`).
+    """Store (H, W, 3) images one after another in one flat float32 atlas (:mod:`warp_spt.atlas_layout`).
 
     Raises ValueError for malformed images or an atlas of more than MAX_ATLAS_TEXELS texels.
     """
     if not textures:
-        return Atlas(np.zeros((1, 1, 3), dtype=np.float32), np.array([[0, 0, 1, 1]], dtype=np.int32))
+        return Atlas(np.zeros((1, 3), dtype=np.float32), np.array([[0, 1, 1, 1]], dtype=np.int32))
     sizes = [_check_shape(k, t) for k, t in enumerate(textures)]
-    tiles, width, height = shelf_layout(sizes)
-    if width * height > MAX_ATLAS_TEXELS:      # checked before touching any texel or allocating
+    tiles, total = flat_layout(sizes)
+    if total > MAX_ATLAS_TEXELS:      # checked before touching any texel or allocating
         listed = ", ".join(f"{w}x{h}" for h, w in sizes)
-        raise ValueError(
-            f"texture atlas would be {width}x{height} = {width * height} texels "
-            f"(limit {MAX_ATLAS_TEXELS}); texture sizes (WxH): {listed}"
-        )
-    texels = np.zeros((height, width, 3), dtype=np.float32)
-    for k, ((x0, y0, w, h), img) in enumerate(zip(tiles, textures)):
-        texels[y0:y0 + h, x0:x0 + w] = _check_values(k, img)
+        raise ValueError(f"texture atlas would hold {total} texels (limit {MAX_ATLAS_TEXELS}); "
+                         f"texture sizes (WxH): {listed}")
+    texels = np.zeros((total, 3), dtype=np.float32)
+    for k, (tile, img) in enumerate(zip(tiles, textures)):
+        tile_view(texels, tile)[...] = _check_values(k, img)
     return Atlas(texels, tiles.astype(np.int32))
 
 
@@ -108,14 +123,14 @@ def _wrap(i: int, n: int) -> int:
 
 
 @wp.func
-def _texel(texels: wp.array2d(dtype=wp.vec3), tile: wp.vec4i, col: int, row_from_bottom: int) -> wp.vec3:
-    """Texel at wrapped (col, row counted from the bottom) inside ``tile``."""
-    return texels[tile[1] + tile[3] - 1 - row_from_bottom, tile[0] + col]
+def _texel(texels: wp.array(dtype=wp.vec3), tile: wp.vec4i, col: int, row_from_bottom: int) -> wp.vec3:
+    """Texel at wrapped (col, row counted from the bottom) of ``tile`` = (offset, w, h, stride)."""
+    return texels[tile[0] + (tile[2] - 1 - row_from_bottom) * tile[3] + col]
 
 
 @wp.func
 def sample_texture(
-    texels: wp.array2d(dtype=wp.vec3),
+    texels: wp.array(dtype=wp.vec3),
     tiles: wp.array(dtype=wp.vec4i),
     tex: int,
     uv: wp.vec2,
@@ -128,8 +143,8 @@ def sample_texture(
     if tex < 0 or tex >= tiles.shape[0]:
         return wp.vec3(0.0)
     tile = tiles[tex]
-    w = tile[2]
-    h = tile[3]
+    w = tile[1]
+    h = tile[2]
     if bilinear == 0:
         col = int(wp.floor(_scaled(uv[0], w)))
         row = int(wp.floor(_scaled(uv[1], h)))

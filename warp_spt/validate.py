@@ -10,22 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import SceneError
+from .limits import MAX_COORDINATE, MAX_IOR, MAX_RADIANCE, MIN_IOR  # noqa: F401 (obj, mtl import them from here)
 from .scene import CHECKER_NAME, TEX_CHECKER, TEX_NONE, TEX_PROC_BASE, MaterialTable, MeshData, Scene
 
 _WHERE = "<scene>"
-
-# Bounds on the values that reach a kernel, chosen so that every product the kernel forms stays
-# finite in float32 (docs/limits.md, "Values"):
-# * reflectance colours (diffuse, reflect, refract) lie in [0, 1], so the path throughput never
-#   grows; a surface cannot return more light than it receives;
-# * emission and sky radiance are at most MAX_RADIANCE, so one sample's radiance, at most
-#   MAX_DEPTH x MAX_RADIANCE x max(1, texture) = 4.1e33, stays far below float32's 3.4e38;
-# * the index of refraction lies in [MIN_IOR, MAX_IOR]: 1/ior and Schlick's terms stay finite;
-# * camera and geometry coordinates stay within +-MAX_COORDINATE (see warp_spt.obj).
-MAX_RADIANCE = 1e30
-MIN_IOR, MAX_IOR = 1e-3, 1e3
-MAX_COORDINATE = 1e15
-MIN_FOCUS = 1e-9
 
 
 def _fail(message: str) -> None:
@@ -111,30 +99,3 @@ def validate_scene(scene: Scene) -> None:
     _check_index(smat, "sphere_material", n_mat)
     if scene.num_triangles == 0 and len(spheres) == 0:
         _fail("the scene has no geometry: no triangles and no spheres")
-
-
-def camera_problem(position, direction, fov: float, focus: float, aperture: float) -> str | None:
-    """Why these camera values cannot be rendered exactly, or None (host-side check of what the
-    kernel's camera frame forms: a unit direction, focus x tan(fov/2), position + aperture offsets)."""
-    vals = [*position, *direction, fov, focus, aperture]
-    if not all(np.isfinite(v) for v in vals):
-        return "camera values must be finite numbers"
-    if max(abs(v) for v in position) > MAX_COORDINATE:
-        return f"camera position must lie within +-{MAX_COORDINATE:g}"
-    big = max(abs(v) for v in direction)
-    if not 1e-30 <= big <= MAX_COORDINATE:
-        return "camera view direction must be a vector with components between 1e-30 and 1e15 in size (not zero)"
-    if not 0.0 < fov < 180.0:
-        return f"camera fov must be in (0, 180) degrees, got {fov:g}"
-    if not MIN_FOCUS <= focus <= MAX_COORDINATE:
-        return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_COORDINATE:g}], got {focus:g}"
-    if not 0.0 <= aperture <= MAX_COORDINATE:
-        return f"camera aperture must lie in [0, {MAX_COORDINATE:g}], got {aperture:g}"
-    return None
-
-
-def sky_colour_problem(colour) -> str | None:
-    """Why a constant sky colour cannot be rendered exactly, or None."""
-    if not all(np.isfinite(v) and 0.0 <= v <= MAX_RADIANCE for v in colour):
-        return f"sky colour values must lie in [0, {MAX_RADIANCE:g}]"
-    return None

@@ -48,7 +48,9 @@ class RenderSettings:
     as in the seed; ``sky`` defaults to the seed's (blue) BlackSky; ``integrator`` and ``sampler`` are
     names from ``warp_spt.integrators.INTEGRATORS`` and ``warp_spt.samplers.SAMPLERS``;
     ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
-    ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
+    ignores it); ``rows`` = (first, stop) renders only those image rows of the width x height image
+    (the film holds just them, equal bit for bit to the same rows of the full render: random streams
+    key on the global pixel); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
     (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
     """
 
@@ -63,6 +65,7 @@ class RenderSettings:
     roulette_depth: int = 0
     texture_filter: str = "nearest"
     sample_offset: int = 0
+    rows: tuple[int, int] | None = None
     threads: int | None = None
     tile_pixels: int = TILE_PIXELS
     features: Features | None = None
@@ -142,9 +145,9 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     lights = light_table(dev, sky)
     tex = dev.textures(rs.texture_filter)
     n = width * height
-    film = wp.zeros(n, dtype=wp.vec3d, device=dev.device)
-    counters = wp.zeros((n, 2), dtype=wp.int64, device=dev.device)   # rays traced, samples dropped
-    tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
+    first, stop = rs.rows or (0, height)
+    film, counters, keep = _window_arrays(first * width, stop * width, dev.device)
+    tiles = [(p, min(stop * width, p + rs.tile_pixels)) for p in range(first * width, stop * width, rs.tile_pixels)]
     nthreads = max(1, min(rs.threads or os.cpu_count() or 1, len(tiles)))
     per_pass = max(PASS_SAMPLES, PASS_WORK // n)
 
@@ -164,21 +167,21 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
                 dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters])
             done(count * (hi - lo))
 
-    report = _progress_reporter(progress, n * spp)
+    report = _progress_reporter(progress, (stop - first) * width * spp)
     start = time.perf_counter()
     try:
         run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
     finally:
         report(None)
     seconds = time.perf_counter() - start
-    c = counters.numpy().sum(axis=0)
+    c = keep[1].numpy().sum(axis=0)
     stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads)
     if stats.dropped_samples and feats.procedural:
         stats.nonfinite_textures = tuple(nonfinite_textures(dev.scene, dev.device))
         _warnings.warn(f"{stats.dropped_samples} non-finite samples dropped; procedural texture(s) returning "
                        f"NaN or infinity: {', '.join(stats.nonfinite_textures) or 'none found by probing'}",
                        RuntimeWarning, stacklevel=2)
-    sums = film.numpy().reshape(height, width, 3)
+    sums = keep[0].numpy().reshape(stop - first, width, 3)
     return RenderResult(Film(sums, spp), stats, rs)
 
 
@@ -191,6 +194,10 @@ def _check_args(rs: RenderSettings) -> None:
         raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
     if rs.sample_offset < 0 or rs.sample_offset + rs.spp > 2**31 - 1:
         raise ValueError("sample indices must lie in [0, 2**31)")
+    if rs.rows is not None and not (isinstance(rs.rows, tuple) and len(rs.rows) == 2
+                                    and all(isinstance(r, (int, np.integer)) for r in rs.rows)
+                                    and 0 <= rs.rows[0] < rs.rows[1] <= rs.height):
+        raise ValueError(f"rows must be (first, stop) with 0 <= first < stop <= height, got {rs.rows!r}")
     if not isinstance(rs.seed, (int, np.integer)):
         raise ValueError(f"seed must be an integer, got {rs.seed!r}")
     if not isinstance(rs.roulette_depth, (int, np.integer)) or rs.roulette_depth < 0:
@@ -200,6 +207,21 @@ def _check_args(rs: RenderSettings) -> None:
     check_integrator(rs.integrator)
     if rs.sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {rs.sampler!r}; choose from {', '.join(sorted(SAMPLERS))}")
+
+
+def _window_arrays(lo: int, hi: int, device) -> tuple[wp.array, wp.array, tuple[wp.array, wp.array]]:
+    """Film and counters for global pixels [lo, hi): device memory for those pixels only, viewed
+    through arrays indexed by the global pixel (the kernel writes ``film[pixel]``). The views start
+    ``lo`` elements before the allocation, an address that is computed but never read or written.
+    Returns (film view, counters view, (film, counters) allocations: keep them alive, read them)."""
+    film = wp.zeros(hi - lo, dtype=wp.vec3d, device=device)
+    counters = wp.zeros((hi - lo, 2), dtype=wp.int64, device=device)    # rays traced, samples dropped
+    if lo == 0:
+        return film, counters, (film, counters)
+    film_view = wp.array(ptr=film.ptr - lo * film.strides[0], dtype=wp.vec3d, shape=(hi,), device=device)
+    counters_view = wp.array(ptr=counters.ptr - lo * counters.strides[0], dtype=wp.int64, shape=(hi, 2),
+                             device=device)
+    return film_view, counters_view, (film, counters)
 
 
 def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:

@@ -247,3 +247,21 @@ def test_time_budget_on_the_cluster(client, small_scene):
     _batch_films_are_plain_renders(small_scene, res, 8, **kw)
     with pytest.raises(ValueError, match="time_budget"):
         cluster.render_progressive(client, small_scene, CAMERA, time_budget=-1.0)
+
+
+def test_cli_target_error_on_the_cluster(client, tmp_path, capsys):
+    """--target-error with --cluster: rounds until the estimate is met; other budget flags are refused."""
+    from warp_spt.cli import main
+
+    from .scenes import write_ball_sequence
+
+    objs, mtls = write_ball_sequence(tmp_path, [0])
+    base = ["-mtl", mtls[0], "-obj", objs[0], "-obj", str(tmp_path / "ball_00.obj"), "-res", "10", "8",
+            "-depth", "3", "-cam", "0", "-0.9", "0", "0", "1", "0", "70", "1", "0", "--cluster", client.scheduler.address]
+    out = tmp_path / "x.npy"
+    assert main(base + ["--target-error", "3%", "-out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "stopped by error" in err and out.exists() and np.load(out).shape == (8, 10, 3)
+    assert main(base + ["--target-error", "3%", "--adaptive", "-out", str(tmp_path / "y.npy")]) == 2
+    assert "--adaptive is not supported on a cluster" in capsys.readouterr().err
+    assert not (tmp_path / "y.npy").exists()

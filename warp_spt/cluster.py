@@ -208,11 +208,13 @@ class SceneCache(WorkerPlugin):
             return dev
 
 
-def _render_task(scene_key: str, skeleton: Scene, meshes: list, camera: Camera, rs: RenderSettings,
+def _render_task(scene_key: str, parts: tuple, camera: Camera, rs: RenderSettings,
                  rows: tuple[int, int], passes: tuple[tuple[int, int], ...]) -> TaskResult:
-    """One task: some passes of some rows of one image, on whichever worker Dask chose."""
+    """One task: some passes of some rows of one image, on whichever worker Dask chose.
+    ``parts`` is (the scene without meshes and textures, its meshes, its textures)."""
+    skeleton, meshes, textures = parts
     cache = distributed.get_worker().plugins[PLUGIN_NAME]
-    dev = cache.device_scene(scene_key, lambda: replace(skeleton, meshes=list(meshes)), rs)
+    dev = cache.device_scene(scene_key, lambda: replace(skeleton, meshes=list(meshes), textures=list(textures)), rs)
     return render_passes(dev, camera, rs, rows, passes)
 
 
@@ -227,17 +229,24 @@ def scene_key(scene: Scene) -> str:
 
 @dataclass
 class SharedScene:
-    """A scene on the cluster: its content key, its meshes (one Dask future each) and the rest (a future)."""
+    """A scene on the cluster: its content key, its meshes and textures (one Dask future each, so that
+    what frames share travels once) and the rest (a future)."""
 
     key: str
     skeleton: object
     meshes: list
+    textures: list
+
+    @property
+    def parts(self) -> tuple:
+        """What a task takes: (skeleton, meshes, textures); Dask resolves the futures inside."""
+        return self.skeleton, self.meshes, self.textures
 
 
 def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -> SharedScene:
-    """Scatter ``scene`` to the cluster, each mesh apart, keyed by content: what ``shared`` already
-    holds (the static meshes of an animation's earlier frames) is not sent again, and a worker that
-    holds a mesh's data from an earlier task does not fetch it again.
+    """Scatter ``scene`` to the cluster, each mesh and texture apart, keyed by content: what ``shared``
+    already holds (the static meshes and textures of an animation's earlier frames) is not sent
+    again, and a worker that holds a piece from an earlier task does not fetch it again.
 
     A DeviceScene is accepted too: its host-side Scene is what travels.
     """
@@ -253,7 +262,13 @@ def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -
         return shared[k]
 
     meshes = [one("mesh:" + mesh_key(m), m) for m in scene.meshes]
-    return SharedScene(key, one("scene:" + key, replace(scene, meshes=[])), meshes)
+    textures = [one("texture:" + _array_key(t), t) for t in scene.textures]
+    return SharedScene(key, one("scene:" + key, replace(scene, meshes=[], textures=[])), meshes, textures)
+
+
+def _array_key(a: np.ndarray) -> str:
+    a = np.ascontiguousarray(a)
+    return hashlib.sha256(f"{a.dtype}{a.shape}".encode() + a.data).hexdigest()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -372,8 +387,8 @@ def _run_tasks(client, jobs: Sequence[Job], tasks: Sequence[Task], merge: _Order
     futures, owner = [], {}
     for task in tasks:
         job = jobs[task.job]
-        f = client.submit(_render_task, job.scene.key, job.scene.skeleton, job.scene.meshes, job.camera,
-                          job.settings, task.rows, task.passes, pure=False)
+        f = client.submit(_render_task, job.scene.key, job.scene.parts, job.camera, job.settings, task.rows,
+                          task.passes, pure=False)
         tid = len(futures)
         futures.append(f)
         owner[f.key] = (tid, task)

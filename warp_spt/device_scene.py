@@ -102,21 +102,38 @@ class Features:
         return Features()
 
 
+@dataclass
+class UploadedMesh:
+    """One mesh on the device and its float64 bounds (for the top-level BVH)."""
+
+    mesh: wp.Mesh
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @classmethod
+    def of(cls, m, device: str) -> "UploadedMesh":
+        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
+        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+        p = m.positions[m.indices.reshape(-1)].astype(np.float64)
+        return cls(wp.Mesh(points=points, indices=idx, bvh_constructor="sah"), p.min(0), p.max(0))
+
+
 class DeviceScene:
     """A Scene on a Warp device. Keeps the Warp objects alive while kernels use them.
 
-    ``meshes`` caches ``wp.Mesh`` objects by :func:`mesh_key`: a mesh found there is reused instead of
-    uploaded and rebuilt (animation frames share their static meshes), new ones are added, and
+    ``meshes`` caches :class:`UploadedMesh` objects by :func:`mesh_key`: a mesh found there is reused
+    instead of uploaded and rebuilt (animation frames share their static meshes), new ones are added, and
     ``mesh_keys`` lists this scene's keys so that the cache's owner can drop the ones no scene uses.
     """
 
-    def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, wp.Mesh] | None = None):
+    def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
         validate_scene(scene)
         self.device = device
         self.scene = scene
         self.features = _features(scene)
         self._meshes: list[wp.Mesh] = []
         self._mesh_cache = meshes
+        self._mesh_bounds: list[tuple[np.ndarray, np.ndarray]] = []
         self.mesh_keys: list[str] = []
         self.geometry = Geometry()
         self._upload_meshes(self.geometry, scene, device)
@@ -142,15 +159,13 @@ class DeviceScene:
         cache = self._mesh_cache
         for m in scene.meshes:
             key = mesh_key(m, device) if cache is not None else ""
-            mesh = cache.get(key) if cache is not None else None
-            if mesh is None:
-                points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
-                idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32,
-                               device=device)
-                mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah")
+            uploaded = cache.get(key) if cache is not None else None
+            if uploaded is None:
+                uploaded = UploadedMesh.of(m, device)
                 if cache is not None:
-                    cache[key] = mesh
-            self._meshes.append(mesh)
+                    cache[key] = uploaded
+            self._meshes.append(uploaded.mesh)
+            self._mesh_bounds.append((uploaded.lower, uploaded.upper))
             self.mesh_keys.append(key)
             offsets.append(start)
             start += len(m.indices)
@@ -167,11 +182,8 @@ class DeviceScene:
         s.has_corner_normals = int(self.features.smooth)
 
     def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
-        lowers, uppers = [], []
-        for m in scene.meshes:
-            p = m.positions[m.indices.reshape(-1)].astype(np.float64)
-            lowers.append(p.min(0))
-            uppers.append(p.max(0))
+        lowers = [lo for lo, _ in self._mesh_bounds]
+        uppers = [hi for _, hi in self._mesh_bounds]
         sph = scene.spheres.astype(np.float64).reshape(-1, 4)
         lowers.extend(sph[:, :3] - sph[:, 3:4])
         uppers.extend(sph[:, :3] + sph[:, 3:4])

@@ -173,10 +173,14 @@ def test_cli_cluster_and_workers_write_the_single_process_image(client, small_sc
             "70", "1", "0"]
     assert main(base + ["-out", str(tmp_path / "here.npy")]) == 0
     assert main(base + ["-out", str(tmp_path / "there.npy"), "--cluster", client.scheduler.address]) == 0
-    assert main(base + ["-out", str(tmp_path / "local.npy"), "--workers", "1"]) == 0
     here = np.load(tmp_path / "here.npy")
     assert np.array_equal(np.load(tmp_path / "there.npy"), here)
-    assert np.array_equal(np.load(tmp_path / "local.npy"), here)
+    # without -cam the CLI frames the scene (a probe render): --workers renders that same view
+    framed = base[:base.index("-cam")]
+    assert main(framed + ["-out", str(tmp_path / "framed.npy")]) == 0
+    assert main(framed + ["-out", str(tmp_path / "local.npy"), "--workers", "1"]) == 0
+    assert np.array_equal(np.load(tmp_path / "local.npy"), np.load(tmp_path / "framed.npy"))
+    assert not np.array_equal(np.load(tmp_path / "local.npy"), here)
 
 
 def test_cli_unreachable_cluster_is_one_line(tmp_path, capsys, monkeypatch):

@@ -520,8 +520,6 @@ def run_cli(opts, err, started: float | None = None) -> int:
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
     _init_warp(opts)
-    if opts.budget.active:
-        return _run_budgeted(opts, seq.scene(frames[0]), say, started)
     start = time.perf_counter()
     first = seq.scene(frames[0])
     for warning in first.warnings:
@@ -531,13 +529,27 @@ def run_cli(opts, err, started: float | None = None) -> int:
     say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
         f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
         f"{opts.spp} spp, depth {opts.depth} on {where}")
+    if opts.animated:
+        def images(client, progress):
+            return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
+                                    progress=progress)
+    else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
+        from .cli import CompileNotice, _view
+        with CompileNotice(say):
+            scene, camera, sky = _view(opts, first, say)
+        opts = replace(opts, camera=camera, sky=sky)
+        if opts.budget.active:
+            return _run_budgeted(opts, scene, say, started)
+
+        def images(client, progress):
+            from .cluster import render_scene
+            return [(frames[0], render_scene(client, scene, camera, settings_of(opts), progress=progress).image)]
     bar = None if opts.quiet else ProgressBar(len(frames) * opts.width * opts.height * opts.spp, file=err)
     previews: dict[int, np.ndarray] = {}
     start = time.perf_counter()
     try:
         with cluster_client(opts) as client:
-            for k, image in render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts),
-                                             client=client, progress=bar or False):
+            for k, image in images(client, bar or False):
                 if opts.out:
                     save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap)
                 if opts.gif:

@@ -60,6 +60,9 @@ def test_tasks_cover_every_row_and_pass_once_in_order():
             tasks = cluster.plan(s, 3, cluster.ClusterOptions(task_spp=task_spp, tile_rows=tile_rows))
             for y in range(16):          # every row gets every pass once, in pass order
                 assert [p for t in tasks if t.rows[0] <= y < t.rows[1] for p in t.passes] == passes
+    for bad in (dict(task_spp=0), dict(tile_rows=-1), dict(tile_rows=2.5), dict(timeout=0)):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            cluster.ClusterOptions(**bad)
 
 
 def test_default_row_tiles_keep_workers_busy_and_task_films_small():
@@ -73,7 +76,7 @@ def test_default_row_tiles_keep_workers_busy_and_task_films_small():
 
 
 def test_renderer_rows_are_exactly_those_rows_of_the_full_render(small_scene):
-    """The renderer's pixel window (RenderSettings.rows), on which tile tasks stand."""
+    """The renderer's row window (render_scene(..., rows=...)), on which tile tasks stand."""
     kw = dict(width=13, height=9, spp=24, max_depth=4, seed=5, tile_pixels=7)
     full = _reference(small_scene, **kw)
     for rows in [(0, 9), (0, 1), (3, 7), (8, 9)]:

@@ -14,7 +14,7 @@ The image is **bit-identical** to ``warp_spt.render`` with the same scene, camer
 to its float64 film one *pass* at a time (a pass is a fixed number of samples that depends on the
 image size only), so a single-process film is ``((0 + P0) + P1) + P2 ...`` over the per-pass sums
 ``Pk``. Every ``Pk`` depends only on (seed, pixel, sample index): the random streams key on the
-global pixel index, so a task rendering some rows (``RenderSettings.rows``) gets exactly those
+global pixel index, so a task rendering some rows (``render_scene(..., rows=...)``) gets exactly those
 rows of the full render. A task renders a run of whole passes of some rows and returns their sums
 *separately*; the client adds them in pass order, row tile by row tile. Float64 addition is not
 associative, so summing a task's passes on the worker would not do.
@@ -125,7 +125,7 @@ def render_passes(dev, camera: Camera, rs: RenderSettings, rows: tuple[int, int]
     """Image rows ``rows``, one ``render_scene`` call per pass, the sums of each pass kept apart."""
     from .renderer import render_scene
 
-    results = [render_scene(dev, camera, replace(rs, spp=count, sample_offset=start, rows=tuple(rows)))
+    results = [render_scene(dev, camera, replace(rs, spp=count, sample_offset=start), rows=tuple(rows))
                for start, count in passes]
     return TaskResult(np.stack([r.film.sum for r in results]), sum(r.stats.rays for r in results),
                       sum(r.stats.dropped_samples for r in results), results[0].stats.features)
@@ -301,15 +301,14 @@ def row_tiles(rs: RenderSettings, groups: int, passes_per_task: int, n_workers: 
     worker (when ``groups`` alone do not and no task size was asked for) and keep a task's
     returned film under ``TASK_FILM_BYTES``.
     """
-    first, stop = rs.rows or (0, rs.height)
-    rows = stop - first
+    rows = rs.height
     if options.tile_rows is not None:
         per_tile = options.tile_rows
     else:
         for_workers = 1 if options.task_spp is not None else math.ceil(TASKS_PER_WORKER * n_workers / groups)
         for_memory = math.ceil(passes_per_task * rows * rs.width * FILM_PIXEL_BYTES / TASK_FILM_BYTES)
         per_tile = math.ceil(rows / min(rows, max(1, for_workers, for_memory)))
-    return [(y, min(stop, y + per_tile)) for y in range(first, stop, per_tile)]
+    return [(y, min(rows, y + per_tile)) for y in range(0, rows, per_tile)]
 
 
 def plan(rs: RenderSettings, n_workers: int, options: ClusterOptions = ClusterOptions(), job: int = 0) -> list[Task]:
@@ -348,8 +347,7 @@ class _OrderedMerge:
     (job, rows): every pixel gets its passes in pass order, the single-process order, bit for bit."""
 
     def __init__(self, jobs: Sequence[Job]) -> None:
-        self.films = [Film.empty(*_film_shape(j.settings)) for j in jobs]
-        self.first_row = [(j.settings.rows or (0, 0))[0] for j in jobs]
+        self.films = [Film.empty(j.settings.height, j.settings.width) for j in jobs]
         self.rays = [0] * len(jobs)
         self.dropped = [0] * len(jobs)
         self.features = [None] * len(jobs)
@@ -365,18 +363,12 @@ class _OrderedMerge:
         while queue and queue[0][0] in self._waiting:
             t_id, t = queue.popleft()
             r = self._waiting.pop(t_id)
-            y0, y1 = (y - self.first_row[t.job] for y in t.rows)
-            rows = self.films[t.job].sum[y0:y1]
+            rows = self.films[t.job].sum[t.rows[0]:t.rows[1]]
             for s in r.sums:
                 rows += s
             self.rays[t.job] += r.rays
             self.dropped[t.job] += r.dropped_samples
             self.features[t.job] = r.features
-
-
-def _film_shape(rs: RenderSettings) -> tuple[int, int]:
-    first, stop = rs.rows or (0, rs.height)
-    return stop - first, rs.width
 
 
 def _run_tasks(client, jobs: Sequence[Job], tasks: Sequence[Task], merge: _OrderedMerge,
@@ -421,7 +413,7 @@ def run_jobs(client, jobs: Sequence[Job], options: ClusterOptions = ClusterOptio
     register(client)
     workers = n_workers(client)
     tasks = [t for j, job in enumerate(jobs) for t in plan(job.settings, workers, options, j)]
-    total = sum(math.prod(_film_shape(j.settings)) * j.settings.spp for j in jobs)
+    total = sum(j.settings.width * j.settings.height * j.settings.spp for j in jobs)
     report = progress_reporter(progress, total)
     merge = _OrderedMerge(jobs)
     start = time.perf_counter()
@@ -570,9 +562,8 @@ def _check_budget(rs: RenderSettings, time_budget, target_error, batches) -> Non
     """progressive's own checks of the budget arguments (private there: to be made public), and ours."""
     from .progressive import _check_budget as check_progressive_budget
 
-    if rs.sample_offset or rs.rows is not None:
-        raise ValueError("a budgeted render owns its sample indices and renders whole images: "
-                         "sample_offset and rows are not taken")
+    if rs.sample_offset:
+        raise ValueError("a budgeted render owns its sample indices: sample_offset is not taken")
     check_progressive_budget(time_budget, target_error, batches, None)
 
 

@@ -48,9 +48,7 @@ class RenderSettings:
     as in the seed; ``sky`` defaults to the seed's (blue) BlackSky; ``integrator`` and ``sampler`` are
     names from ``warp_spt.integrators.INTEGRATORS`` and ``warp_spt.samplers.SAMPLERS``;
     ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
-    ignores it); ``rows`` = (first, stop) renders only those image rows of the width x height image
-    (the film holds just them, equal bit for bit to the same rows of the full render: random streams
-    key on the global pixel); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
+    ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
     (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
     """
 
@@ -65,7 +63,6 @@ class RenderSettings:
     roulette_depth: int = 0
     texture_filter: str = "nearest"
     sample_offset: int = 0
-    rows: tuple[int, int] | None = None
     threads: int | None = None
     tile_pixels: int = TILE_PIXELS
     features: Features | None = None
@@ -116,9 +113,10 @@ def render(scene: Scene | DeviceScene, camera: Camera | None = None, *,
 
 
 def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *,
-                progress: bool | ProgressFn = False, **settings) -> Film:
-    """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count)."""
-    return render_scene(scene, camera, _settings(settings), progress=progress).film
+                progress: bool | ProgressFn = False, rows: tuple[int, int] | None = None, **settings) -> Film:
+    """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count); ``rows``
+    as in :func:`render_scene`."""
+    return render_scene(scene, camera, _settings(settings), progress=progress, rows=rows).film
 
 
 def _settings(kw: dict) -> RenderSettings:
@@ -129,10 +127,17 @@ def _settings(kw: dict) -> RenderSettings:
 
 
 def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
-                 settings: RenderSettings | None = None, *, progress: bool | ProgressFn = False) -> RenderResult:
-    """Render with a :class:`RenderSettings`; returns a :class:`RenderResult` (film, image, stats)."""
+                 settings: RenderSettings | None = None, *, progress: bool | ProgressFn = False,
+                 rows: tuple[int, int] | None = None) -> RenderResult:
+    """Render with a :class:`RenderSettings`; returns a :class:`RenderResult` (film, image, stats).
+
+    ``rows`` = (first, stop) renders only those rows of the width x height image: the film holds
+    just them, equal bit for bit to the same rows of the full render (random streams key on the
+    global pixel, passes on the whole image's size), which is what tile tasks stand on.
+    """
     rs = settings or RenderSettings()
     _check_args(rs)
+    _check_rows(rows, rs.height)
     width, height, spp = rs.width, rs.height, rs.spp
     if not isinstance(scene, DeviceScene):      # far from the origin: shift to it in float64 first
         scene, camera, _ = recentre(scene, camera)
@@ -145,7 +150,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     lights = light_table(dev, sky)
     tex = dev.textures(rs.texture_filter)
     n = width * height
-    first, stop = rs.rows or (0, height)
+    first, stop = rows or (0, height)
     film, counters, keep = _window_arrays(first * width, stop * width, dev.device)
     tiles = [(p, min(stop * width, p + rs.tile_pixels)) for p in range(first * width, stop * width, rs.tile_pixels)]
     nthreads = max(1, min(rs.threads or os.cpu_count() or 1, len(tiles)))
@@ -194,10 +199,6 @@ def _check_args(rs: RenderSettings) -> None:
         raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
     if rs.sample_offset < 0 or rs.sample_offset + rs.spp > 2**31 - 1:
         raise ValueError("sample indices must lie in [0, 2**31)")
-    if rs.rows is not None and not (isinstance(rs.rows, tuple) and len(rs.rows) == 2
-                                    and all(isinstance(r, (int, np.integer)) for r in rs.rows)
-                                    and 0 <= rs.rows[0] < rs.rows[1] <= rs.height):
-        raise ValueError(f"rows must be (first, stop) with 0 <= first < stop <= height, got {rs.rows!r}")
     if not isinstance(rs.seed, (int, np.integer)):
         raise ValueError(f"seed must be an integer, got {rs.seed!r}")
     if not isinstance(rs.roulette_depth, (int, np.integer)) or rs.roulette_depth < 0:
@@ -207,6 +208,13 @@ def _check_args(rs: RenderSettings) -> None:
     check_integrator(rs.integrator)
     if rs.sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {rs.sampler!r}; choose from {', '.join(sorted(SAMPLERS))}")
+
+
+def _check_rows(rows, height: int) -> None:
+    if rows is not None and not (isinstance(rows, tuple) and len(rows) == 2
+                                 and all(isinstance(r, (int, np.integer)) for r in rows)
+                                 and 0 <= rows[0] < rows[1] <= height):
+        raise ValueError(f"rows must be (first, stop) with 0 <= first < stop <= height, got {rows!r}")
 
 
 def _window_arrays(lo: int, hi: int, device) -> tuple[wp.array, wp.array, tuple[wp.array, wp.array]]:

@@ -9,7 +9,9 @@
         warp_spt.save_image(f"frame_{k:04d}.png", image)
 
 An OBJ path containing ``{frame`` is a template, formatted with ``frame=k`` (``str.format``); the
-other files are static and parsed once (:class:`ObjSequence`). A camera is one :class:`Camera` or
+other files are static and parsed once (:class:`ObjSequence`); their meshes are uploaded once
+(here, or once per cluster worker, where they are also shipped once), and each frame rebuilds only
+its changed meshes and the top-level structures over them. A camera is one :class:`Camera` or
 a :class:`CameraPath` of keyframes, interpolated per frame: positions linearly, view directions
 by spherical linear interpolation, fov, focus and aperture linearly.
 

@@ -124,6 +124,38 @@ def test_obj_sequence_reloads_only_what_changes(tmp_path):
     assert static.scene(0) is static.scene(7) and static.loads == 1
 
 
+def test_unchanged_meshes_are_uploaded_once_and_render_the_same(tmp_path, monkeypatch):
+    """Frames share a static mesh's wp.Mesh; a changed mesh is built anew; images equal fresh uploads."""
+    import warp as wp
+
+    from warp_spt.device_scene import DeviceScene
+
+    from .scenes import box_obj, material
+
+    (tmp_path / "room.obj").write_text(box_obj((-1, -1, -1), (1, 1, 1), "wall"))
+    for k in range(3):       # a quad moving along x: a mesh that changes every frame
+        x = -0.4 + 0.2 * k
+        (tmp_path / f"quad_{k}.obj").write_text(
+            "usemtl lamp\n" + "".join(f"v {x + dx} 0.3 {dz}\n" for dx, dz in ((0, 0), (0.3, 0), (0.3, 0.3), (0, 0.3)))
+            + "f 1 2 3 4\n")
+    (tmp_path / "seq.mtl").write_text(material("wall", Kd=(0.7, 0.6, 0.5), Roughness=0.9) + material("lamp", Kl=(6, 5, 4)))
+    seq = ObjSequence([str(tmp_path / "room.obj"), str(tmp_path / "quad_{frame}.obj")], [str(tmp_path / "seq.mtl")])
+    cache: dict = {}
+    devs = [DeviceScene(seq.scene(k), meshes=cache) for k in range(3)]
+    assert devs[0]._meshes[0] is devs[1]._meshes[0] is devs[2]._meshes[0]          # the room: built once
+    assert len({id(d._meshes[1]) for d in devs}) == 3 and len(cache) == 1 + 3      # the quad: every frame
+    cam = warp_spt.Camera(position=(0, -0.9, 0), direction=(0, 1, 0), fov=70, focus=1)
+    for k, dev in enumerate(devs):
+        fresh = DeviceScene(seq.scene(k))
+        assert np.array_equal(warp_spt.render_film(dev, cam, **SETTINGS).sum,
+                              warp_spt.render_film(fresh, cam, **SETTINGS).sum)
+    built = []
+    real_mesh = wp.Mesh
+    monkeypatch.setattr(wp, "Mesh", lambda *a, **kw: built.append(1) or real_mesh(*a, **kw))
+    frames = dict(render_animation(seq, (), range(3), cam, **SETTINGS))
+    assert len(built) == 1 + 3 and sorted(frames) == [0, 1, 2]                      # room once, quad per frame
+
+
 def test_missing_frame_file_is_a_scene_error(tmp_path):
     objs, mtls = write_ball_sequence(tmp_path, range(2))
     with pytest.raises(SceneError, match="ball_05.obj"):

@@ -10,6 +10,7 @@ import importlib
 import os
 import signal
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ pytest.importorskip("distributed")
 
 import warp_spt  # noqa: E402
 from warp_spt import cluster  # noqa: E402
+from warp_spt.renderer import RenderSettings  # noqa: E402
 
 from .scenes import box_obj, material, write_scene_files  # noqa: E402
 
@@ -48,23 +50,50 @@ def _reference(scene, **kw) -> warp_spt.Film:
     return warp_spt.render_film(scene, CAMERA, **kw)
 
 
-def test_tasks_cover_every_pass_once_in_order():
-    s = cluster.Settings(width=16, height=16, spp=1000)
+def test_tasks_cover_every_row_and_pass_once_in_order():
+    s = RenderSettings(width=16, height=16, spp=1000, sample_offset=5)
     passes = cluster.pass_ranges(s)
-    assert sum(c for _, c in passes) == 1000
-    assert [a for a, _ in passes] == list(np.cumsum([0] + [c for _, c in passes[:-1]]))
+    assert sum(c for _, c in passes) == 1000 and passes[0][0] == 5
+    assert [a for a, _ in passes] == list(np.cumsum([5] + [c for _, c in passes[:-1]]))
     for task_spp in (None, 1, 256, 700, 5000):
-        tasks = cluster.tasks_for(s, n_workers=3, task_spp=task_spp)
-        assert [p for t in tasks for p in t] == passes
+        for tile_rows in (None, 1, 5, 16, 40):
+            tasks = cluster.plan(s, 3, cluster.ClusterOptions(task_spp=task_spp, tile_rows=tile_rows))
+            for y in range(16):          # every row gets every pass once, in pass order
+                assert [p for t in tasks if t.rows[0] <= y < t.rows[1] for p in t.passes] == passes
+    for bad in (dict(task_spp=0), dict(tile_rows=-1), dict(tile_rows=2.5), dict(timeout=0)):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            cluster.ClusterOptions(**bad)
+
+
+def test_default_row_tiles_keep_workers_busy_and_task_films_small():
+    one_pass = RenderSettings(width=128, height=128, spp=8)           # a single pass: only tiles split it
+    assert len(cluster.plan(one_pass, 4)) == 4 * cluster.TASKS_PER_WORKER
+    many_passes = RenderSettings(width=128, height=128, spp=8 * 64)
+    assert {t.rows for t in cluster.plan(many_passes, 4)} == {(0, 128)}
+    huge = RenderSettings(width=3840, height=2160, spp=8)               # one pass is 199 MB of float64 RGB
+    tiles = {t.rows for t in cluster.plan(huge, 1, cluster.ClusterOptions(task_spp=8))}
+    assert max(b - a for a, b in tiles) * 3840 * 24 <= cluster.TASK_FILM_BYTES < 3840 * 2160 * 24
+
+
+def test_renderer_rows_are_exactly_those_rows_of_the_full_render(small_scene):
+    """The renderer's row window (render_scene(..., rows=...)), on which tile tasks stand."""
+    kw = dict(width=13, height=9, spp=24, max_depth=4, seed=5, tile_pixels=7)
+    full = _reference(small_scene, **kw)
+    for rows in [(0, 9), (0, 1), (3, 7), (8, 9)]:
+        part = _reference(small_scene, rows=rows, **kw)
+        assert part.spp == 24 and np.array_equal(part.sum, full.sum[rows[0]:rows[1]])
+    for bad in [(0, 0), (5, 3), (0, 10), (-1, 2), [0, 2]]:
+        with pytest.raises(ValueError, match="rows"):
+            _reference(small_scene, rows=bad, **kw)
 
 
 def test_cluster_render_is_bit_identical_to_one_process(client, small_scene):
     kw = dict(width=20, height=12, spp=700, max_depth=5, seed=7, sky=warp_spt.Sky.gradient())
     ref = _reference(small_scene, **kw)
     seen = []
-    film = cluster.render_film(client, small_scene, CAMERA, task_spp=1, timeout=TIMEOUT,
+    film = cluster.render_film(client, small_scene, CAMERA, task_spp=1, tile_rows=5, timeout=TIMEOUT,
                                progress=lambda done, total: seen.append((done, total)), **kw)
-    assert len(cluster.pass_ranges(cluster.Settings(20, 12, 700))) >= 3     # really several tasks
+    assert len(cluster.pass_ranges(RenderSettings(20, 12, 700))) >= 3     # really several passes x 3 tiles
     assert film.spp == ref.spp == 700
     assert np.array_equal(film.sum, ref.sum)
     assert seen[-1] == (20 * 12 * 700, 20 * 12 * 700) and [d for d, _ in seen] == sorted(d for d, _ in seen)
@@ -92,14 +121,19 @@ def test_animation_frames_on_the_cluster_equal_local_frames(client, tmp_path):
         {"frame": 2, "position": [0.3, -0.9, 0.2], "direction": [-0.2, 1, -0.1], "fov": 60, "focus": 1}]})
     kw = dict(width=16, height=12, spp=1000, max_depth=4, seed=9)
     here = dict(render_animation(objs, mtls, range(3), path, **kw))
-    there = dict(render_animation(objs, mtls, range(3), path, client=client, task_spp=1, timeout=TIMEOUT, **kw))
+    meshes_before = client.run(lambda dask_worker: dask_worker.plugins[cluster.PLUGIN_NAME].mesh_builds)
+    there = dict(render_animation(objs, mtls, range(3), path, client=client,
+                                  options=cluster.ClusterOptions(task_spp=1, timeout=TIMEOUT), **kw))
     assert sorted(there) == [0, 1, 2]
     for k in range(3):
         assert np.array_equal(there[k], here[k])
+    # the static room is the only mesh (the balls are spheres): uploaded at most once per worker
+    meshes_after = client.run(lambda dask_worker: dask_worker.plugins[cluster.PLUGIN_NAME].mesh_builds)
+    assert all(meshes_after[w] - meshes_before.get(w, 0) <= 1 for w in meshes_after)
 
 
 def test_killed_worker_costs_only_its_tasks(client, small_scene):
-    """SIGKILL a worker process while it runs a task: Dask reruns its tasks; the image is unchanged."""
+    """SIGKILL a worker process while it runs a tile task: Dask reruns its tasks; the image is unchanged."""
     kw = dict(width=32, height=32, spp=64 * 12, max_depth=6, seed=11)
     ref = _reference(small_scene, **kw)
     pids_before = client.run(os.getpid)
@@ -114,7 +148,7 @@ def test_killed_worker_costs_only_its_tasks(client, small_scene):
             os.kill(pid, signal.SIGKILL)
             killed.update(pid=pid, remaining=total - done)
 
-    film = cluster.render_film(client, small_scene, CAMERA, task_spp=64, timeout=TIMEOUT,
+    film = cluster.render_film(client, small_scene, CAMERA, task_spp=64, tile_rows=16, timeout=TIMEOUT,
                                progress=kill_a_busy_worker, **kw)
     assert killed, "no worker was busy after the first task finished"
     assert killed["remaining"] > 0
@@ -142,10 +176,14 @@ def test_cli_cluster_and_workers_write_the_single_process_image(client, small_sc
             "70", "1", "0"]
     assert main(base + ["-out", str(tmp_path / "here.npy")]) == 0
     assert main(base + ["-out", str(tmp_path / "there.npy"), "--cluster", client.scheduler.address]) == 0
-    assert main(base + ["-out", str(tmp_path / "local.npy"), "--workers", "1"]) == 0
     here = np.load(tmp_path / "here.npy")
     assert np.array_equal(np.load(tmp_path / "there.npy"), here)
-    assert np.array_equal(np.load(tmp_path / "local.npy"), here)
+    # without -cam the CLI frames the scene (a probe render): --workers renders that same view
+    framed = base[:base.index("-cam")]
+    assert main(framed + ["-out", str(tmp_path / "framed.npy")]) == 0
+    assert main(framed + ["-out", str(tmp_path / "local.npy"), "--workers", "1"]) == 0
+    assert np.array_equal(np.load(tmp_path / "local.npy"), np.load(tmp_path / "framed.npy"))
+    assert not np.array_equal(np.load(tmp_path / "local.npy"), here)
 
 
 def test_cli_unreachable_cluster_is_one_line(tmp_path, capsys, monkeypatch):
@@ -172,3 +210,65 @@ def test_a_second_render_keeps_the_workers_scene_caches(client, small_scene):
     cluster.render_film(client, small_scene, CAMERA, seed=4, **kw)       # same scene, other settings
     after = client.run(caches)
     assert {w: t for w, (t, _) in after.items()} == {w: t for w, (t, _) in before.items()}
+
+
+def _batch_films_are_plain_renders(scene, result, seed: int, **kw) -> None:
+    """Batch b of a budgeted cluster render is the plain single-process render of its samples with
+    seed batch_seed(seed, b): an independent reference, bit for bit."""
+    from warp_spt.progressive import batch_seed
+
+    assert (result.counts[:, :1, :1] == result.counts).all()
+    for b, n in enumerate(result.counts[:, 0, 0]):
+        if n:
+            ref = _reference(scene, spp=int(n), seed=batch_seed(seed, b), **kw)
+            assert np.array_equal(result.sums[b], ref.sum)
+        else:
+            assert not result.sums[b].any()
+
+
+def test_target_error_on_the_cluster_stops_on_whole_passes(client, small_scene):
+    """--target-error on a cluster: rounds until the estimate is met; the run equals one asked for its samples."""
+    kw = dict(width=12, height=10, max_depth=4)
+    rs = RenderSettings(spp=1 << 20, seed=3, **kw)
+    errors = []
+    res = cluster.render_progressive(client, small_scene, CAMERA, rs, cluster.ClusterOptions(tile_rows=4),
+                                     target_error=0.02, on_pass=lambda r: errors.append(r.relative_error))
+    assert res.stats.stopped_by == "error" and res.relative_error <= 0.02 < errors[0]
+    assert res.stats.passes == len(errors) >= 2
+    _batch_films_are_plain_renders(small_scene, res, 3, **kw)
+    again = cluster.render_progressive(client, small_scene, CAMERA, replace(rs, spp=res.spp_total))
+    assert again.stats.stopped_by == "spp" and np.array_equal(again.sums, res.sums)
+    assert again.relative_error == res.relative_error
+
+
+def test_time_budget_on_the_cluster(client, small_scene):
+    """A time budget ends the render; what it rendered is still the plain renders of its samples."""
+    import time
+
+    kw = dict(width=12, height=10, max_depth=4)
+    t0 = time.perf_counter()
+    res = cluster.render_progressive(client, small_scene, CAMERA, RenderSettings(spp=1 << 20, seed=8, **kw),
+                                     time_budget=4.0, started=t0)
+    assert res.stats.stopped_by == "time" and res.stats.passes >= 1
+    assert np.isfinite(res.relative_error)
+    _batch_films_are_plain_renders(small_scene, res, 8, **kw)
+    with pytest.raises(ValueError, match="time_budget"):
+        cluster.render_progressive(client, small_scene, CAMERA, time_budget=-1.0)
+
+
+def test_cli_target_error_on_the_cluster(client, tmp_path, capsys):
+    """--target-error with --cluster: rounds until the estimate is met; other budget flags are refused."""
+    from warp_spt.cli import main
+
+    from .scenes import write_ball_sequence
+
+    objs, mtls = write_ball_sequence(tmp_path, [0])
+    base = ["-mtl", mtls[0], "-obj", objs[0], "-obj", str(tmp_path / "ball_00.obj"), "-res", "10", "8",
+            "-depth", "3", "-cam", "0", "-0.9", "0", "0", "1", "0", "70", "1", "0", "--cluster", client.scheduler.address]
+    out = tmp_path / "x.npy"
+    assert main(base + ["--target-error", "3%", "-out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "stopped by error" in err and out.exists() and np.load(out).shape == (8, 10, 3)
+    assert main(base + ["--target-error", "3%", "--adaptive", "-out", str(tmp_path / "y.npy")]) == 2
+    assert "--adaptive is not supported on a cluster" in capsys.readouterr().err
+    assert not (tmp_path / "y.npy").exists()

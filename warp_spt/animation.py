@@ -9,7 +9,9 @@
         warp_spt.save_image(f"frame_{k:04d}.png", image)
 
 An OBJ path containing ``{frame`` is a template, formatted with ``frame=k`` (``str.format``); the
-other files are static and parsed once (:class:`ObjSequence`). A camera is one :class:`Camera` or
+other files are static and parsed once (:class:`ObjSequence`); their meshes are uploaded once
+(here, or once per cluster worker, where they are also shipped once), and each frame rebuilds only
+its changed meshes and the top-level structures over them. A camera is one :class:`Camera` or
 a :class:`CameraPath` of keyframes, interpolated per frame: positions linearly, view directions
 by spherical linear interpolation, fov, focus and aperture linearly.
 
@@ -33,7 +35,6 @@ import numpy as np
 from .camera import Camera
 from .errors import SceneError
 from .scene import ObjData, Scene
-from .sky import Sky
 
 FRAME_FIELD = "{frame"
 
@@ -270,42 +271,58 @@ class ObjSequence:
 
 
 def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = (), frames: Sequence[int] = (0,),
-                     camera: Camera | CameraPath | None = None, *, width: int = 500, height: int = 500,
-                     spp: int = 16, max_depth: int = 6, sky: Sky | None = None, seed: int = 0,
-                     texture_filter: str = "nearest", threads: int | None = None, client=None,
-                     task_spp: int | None = None, progress=False,
-                     timeout: float | None = None) -> Iterator[tuple[int, np.ndarray]]:
+                     camera: Camera | CameraPath | None = None, settings=None, *, client=None, options=None,
+                     progress=False, **kw) -> Iterator[tuple[int, np.ndarray]]:
     """Render ``frames``; yield ``(frame, float32 (H, W, 3) image)`` as each frame finishes.
 
-    Without ``client`` frames render here, in order; with a ``dask.distributed`` Client every frame's
-    sample ranges become cluster tasks (see :mod:`warp_spt.cluster`) and frames come in the order
-    they finish. Either way frame k is the same image (same seed for every frame).
-    ``progress`` (True or a callable ``(done, total)``) counts samples x pixels of the whole run.
+    ``settings`` is a :class:`warp_spt.renderer.RenderSettings`, or its fields are given as keywords.
+    Without ``client`` frames render here, in order, and a mesh that does not change between frames
+    is uploaded once. With a ``dask.distributed`` Client every frame's sample ranges become cluster
+    tasks (``options``: a :class:`warp_spt.cluster.ClusterOptions`; see :mod:`warp_spt.cluster`),
+    each mesh is shipped and uploaded once per worker, and frames come in the order they finish.
+    Either way frame k is the same image as a single render of its scene and camera (same seed for
+    every frame). ``progress`` (True or a callable ``(done, total)``) counts samples x pixels of the
+    whole run.
     """
+    from .renderer import RenderSettings
+
     seq = objs if isinstance(objs, ObjSequence) else ObjSequence(objs, mtls)
     frames = list(frames)
-    kw = dict(width=width, height=height, spp=spp, max_depth=max_depth, sky=sky or Sky.black(), seed=seed,
-              texture_filter=texture_filter)
+    if settings is not None and kw:
+        raise TypeError("give either settings or keyword settings, not both")
+    rs = settings if settings is not None else RenderSettings(**kw)
     if client is not None:
-        yield from _render_on_cluster(client, seq, frames, camera, kw, task_spp, threads or 1, progress, timeout)
+        yield from _render_on_cluster(client, seq, frames, camera, rs, options, progress)
         return
-    yield from _render_here(seq, frames, camera, kw, threads, progress)
+    yield from _render_here(seq, frames, camera, rs, progress)
 
 
-def _render_here(seq: ObjSequence, frames: list[int], camera, kw: dict, threads, progress):
+def frame_scene(seq: ObjSequence, frame: int, camera: Camera | CameraPath | None) -> tuple[Scene, Camera]:
+    """The scene and camera of ``frame``, recentred as a single render recentres them (a no-op for a
+    scene near the origin, so its static meshes stay the same arrays)."""
+    from .framing import recentre
+
+    scene, cam, _ = recentre(seq.scene(frame), camera_at(camera, frame))
+    return scene, cam
+
+
+def _render_here(seq: ObjSequence, frames: list[int], camera, rs, progress):
     from .device_scene import DeviceScene
-    from .renderer import render
+    from .renderer import render_scene
 
-    frame_total = kw["width"] * kw["height"] * kw["spp"]
+    frame_total = rs.width * rs.height * rs.spp
     report = _frames_progress(progress, len(frames) * frame_total)
-    dev, dev_of = None, None
+    dev = None
+    meshes: dict[str, object] = {}             # wp.Mesh by content: static meshes are built once
     try:
         for i, k in enumerate(frames):
-            scene = seq.scene(k)
-            if scene is not dev_of:           # upload again only when the scene changed
-                dev, dev_of = DeviceScene(scene), scene
+            scene, cam = frame_scene(seq, k, camera)
+            if dev is None or scene is not dev.scene:       # upload again only when the scene changed
+                dev = DeviceScene(scene, device=rs.device, meshes=meshes)
+                for key in set(meshes) - set(dev.mesh_keys):
+                    del meshes[key]
             per_frame = (lambda done, total, base=i * frame_total: report(base + done)) if report else False
-            yield k, render(dev, camera_at(camera, k), threads=threads, progress=per_frame, **kw)
+            yield k, render_scene(dev, cam, rs, progress=per_frame).image
     finally:
         if report:
             report(None)
@@ -329,19 +346,17 @@ def _frames_progress(progress, total: int):
     return report
 
 
-def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, kw: dict, task_spp, threads,
-                       progress, timeout):
+def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, rs, options, progress):
     from . import cluster
 
-    settings = cluster.Settings(**kw)
-    shared: dict[str, object] = {}
+    rs = cluster.cluster_settings(rs)
+    shared: dict[str, object] = {}           # what is on the cluster already: static meshes go once
     jobs = []
     for k in frames:
-        key, future = cluster.share_scene(client, seq.scene(k), shared)
-        jobs.append(cluster.Job(key, future, camera_at(camera, k), settings))
-    for j, film in cluster.run_jobs(client, jobs, task_spp=task_spp, threads=threads, progress=progress,
-                                    timeout=timeout):
-        yield frames[j], film.image()
+        scene, cam = frame_scene(seq, k, camera)
+        jobs.append(cluster.Job(cluster.share_scene(client, scene, shared), cam, rs))
+    for j, result in cluster.run_jobs(client, jobs, options or cluster.ClusterOptions(), progress=progress):
+        yield frames[j], result.image
 
 
 def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.0, tonemap: str = "seed") -> None:
@@ -394,6 +409,7 @@ def with_animation_options(opts, ns, *, explicit_out: bool):
         raise UsageError(f"argument --frames: {err}") from None
     opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
                    gif=ns.gif)
+    check_budget_flags(opts)
     if not opts.animated:
         return opts
     templates = [p for p in opts.objs if is_template(p)]
@@ -412,6 +428,29 @@ def with_animation_options(opts, ns, *, explicit_out: bool):
     if out and Path(frame_path(out, 0)).suffix.lower() not in OUTPUT_SUFFIXES:
         raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
     return replace(opts, out=out)
+
+
+def _run_budgeted(opts, scene, say, started: float | None) -> int:
+    """One image on the cluster until --time-budget or --target-error (-sr: the maximum) is met."""
+    from .cli import EXIT_OK
+    from .film import save_image
+    from .progressive import UNLIMITED_SPP
+
+    b = opts.budget
+    rs = replace(settings_of(opts), spp=opts.spp if b.spp_given else UNLIMITED_SPP)
+
+    def on_pass(res) -> None:
+        say(f"round {res.stats.passes}: {res.spp_total} spp, {res.stats.seconds:.1f} s, "
+            f"estimated relative error {100 * res.relative_error:.2f}%")
+
+    with cluster_client(opts) as client:
+        from . import cluster
+        res = cluster.render_progressive(client, scene, opts.camera, rs, time_budget=b.time_budget,
+                                         target_error=b.target_error, on_pass=on_pass, started=started)
+    save_image(opts.out, res.image, tonemap=opts.tonemap)
+    say(f"wrote {opts.out} ({res.spp_total} spp, {res.stats.seconds:.1f} s since start, stopped by "
+        f"{res.stats.stopped_by}); estimated relative error of the image: {100 * res.relative_error:.2f}%")
+    return EXIT_OK
 
 
 @contextmanager
@@ -440,7 +479,36 @@ def cluster_client(opts):
         context.__exit__(None, None, None)
 
 
-def run_cli(opts, err) -> int:
+def settings_of(opts):
+    """The RenderSettings the command line asks for."""
+    from .renderer import RenderSettings
+
+    chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
+    return RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
+                          seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+
+
+BUDGET_FLAGS = (("adaptive", "--adaptive"), ("min_spp", "--min-spp"), ("save_partial", "--save-partial"),
+                ("progressive", "--progressive"), ("error_map", "--error-map"), ("spp_map", "--spp-map"),
+                ("denoise", "--denoise"))
+
+
+def check_budget_flags(opts) -> None:
+    """On a cluster only --time-budget and --target-error of the budget flags apply, and to one image."""
+    from .cli import UsageError
+
+    b = opts.budget
+    if not (opts.cluster or opts.workers or opts.animated) or not b.active:
+        return
+    where = "an animation" if opts.animated else "a cluster"
+    if opts.animated:
+        raise UsageError(f"budget and error flags are not supported for {where}: render frames with -sr")
+    for name, flag in BUDGET_FLAGS:
+        if getattr(b, name):
+            raise UsageError(f"{flag} is not supported on {where} (--time-budget and --target-error are)")
+
+
+def run_cli(opts, err, started: float | None = None) -> int:
     """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
     from .cli import EXIT_OK, PROG, _init_warp, check_files, one_line, scene_files
     from .film import _TONEMAPS, save_image
@@ -460,18 +528,34 @@ def run_cli(opts, err) -> int:
         say(f"warning: {warning}")
     where = (f"the cluster at {opts.cluster}" if opts.cluster else
              f"{opts.workers} local worker processes" if opts.workers else "this machine")
+    b = opts.budget
+    spp = (f"{opts.spp} spp" if not b.active else
+           f"until {' or '.join(f for f, v in (('--time-budget', b.time_budget), ('--target-error', b.target_error)) if v)}"
+           + (f" (at most {opts.spp} spp)" if b.spp_given else ""))
     say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
         f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
-        f"{opts.spp} spp, depth {opts.depth} on {where}")
+        f"{spp}, depth {opts.depth} on {where}")
+    if opts.animated:
+        def images(client, progress):
+            return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
+                                    progress=progress)
+    else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
+        from .cli import CompileNotice, _view
+        with CompileNotice(say):
+            scene, camera, sky = _view(opts, first, say)
+        opts = replace(opts, camera=camera, sky=sky)
+        if opts.budget.active:
+            return _run_budgeted(opts, scene, say, started)
+
+        def images(client, progress):
+            from .cluster import render_scene
+            return [(frames[0], render_scene(client, scene, camera, settings_of(opts), progress=progress).image)]
     bar = None if opts.quiet else ProgressBar(len(frames) * opts.width * opts.height * opts.spp, file=err)
     previews: dict[int, np.ndarray] = {}
     start = time.perf_counter()
     try:
         with cluster_client(opts) as client:
-            for k, image in render_animation(seq, mtls, frames, path or opts.camera, width=opts.width,
-                                             height=opts.height, spp=opts.spp, max_depth=opts.depth,
-                                             sky=opts.sky, seed=opts.seed, texture_filter=opts.texture_filter,
-                                             threads=opts.threads, client=client, progress=bar or False):
+            for k, image in images(client, bar or False):
                 if opts.out:
                     save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap)
                 if opts.gif:

@@ -535,7 +535,7 @@ def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = 
     err = stderr or sys.stderr
     if opts.animated or opts.cluster or opts.workers:
         from .animation import run_cli
-        return run_cli(opts, err)
+        return run_cli(opts, err, started)
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     check_outputs(opts.budget, RunError)

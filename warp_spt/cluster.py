@@ -1,4 +1,4 @@
-"""Rendering on a ``dask.distributed`` cluster: sample-range tasks, merged bit for bit.
+"""Rendering on a ``dask.distributed`` cluster: tasks of sample ranges x row tiles, merged bit for bit.
 
 ::
 
@@ -7,24 +7,27 @@
 
     with warp_spt.cluster.local_client(n_workers=2) as client:      # or Client("tcp://scheduler:8786")
         img = warp_spt.cluster.render(client, scene, camera, width=512, height=512, spp=256, seed=1)
+        result = warp_spt.cluster.render_scene(client, scene, camera, RenderSettings(...), ClusterOptions(...))
 
-The image is **bit-identical** to ``warp_spt.render`` with the same scene, camera, seed and settings.
-Why that holds: the renderer adds each pixel's samples to its float64 film one *pass* at a time
-(a pass is a fixed number of samples that depends on the image size only), so a single-process
-film is ``((0 + P0) + P1) + P2 ...`` over the per-pass sums ``Pk``. Every ``Pk`` depends only on
-(seed, pixel, sample index), so any process can compute it; a task here renders a run of whole
-passes and returns their sums *separately*, and the client adds them in pass order. Float64
-addition is not associative, so summing a task's passes on the worker would not do.
+The image is **bit-identical** to ``warp_spt.render`` with the same scene, camera and
+:class:`~warp_spt.renderer.RenderSettings`. Why that holds: the renderer adds each pixel's samples
+to its float64 film one *pass* at a time (a pass is a fixed number of samples that depends on the
+image size only), so a single-process film is ``((0 + P0) + P1) + P2 ...`` over the per-pass sums
+``Pk``. Every ``Pk`` depends only on (seed, pixel, sample index): the random streams key on the
+global pixel index, so a task rendering some rows (``render_scene(..., rows=...)``) gets exactly those
+rows of the full render. A task renders a run of whole passes of some rows and returns their sums
+*separately*; the client adds them in pass order, row tile by row tile. Float64 addition is not
+associative, so summing a task's passes on the worker would not do.
 
-What travels: the parsed :class:`~warp_spt.scene.Scene` (numpy arrays, textures included), scattered
-once per render and keyed by a SHA-256 of its content, never file paths (they need not exist on
-workers). Each worker uploads a scene once (:class:`SceneCache`, a worker plugin) and reuses it for
-all its tasks. A worker that dies costs only its tasks: Dask reruns them elsewhere, and because a
+What travels: the parsed :class:`~warp_spt.scene.Scene` (numpy arrays, textures included), each
+mesh apart, keyed by content hashes, never file paths (they need not exist on workers). Each
+worker uploads a scene once (:class:`SceneCache`, a worker plugin) and reuses it for all its tasks;
+meshes are cached by content too, so an animation's static meshes are shipped and uploaded once
+per worker. A worker that dies costs only its tasks: Dask reruns them elsewhere, and because a
 task's result depends only on its inputs, the image is unchanged.
 
-Tiles are not split across tasks: the renderer renders whole images and its random streams are
-keyed by the global pixel index, so a pixel-range task would need the renderer's kernel interface.
-Large images are split by sample ranges only.
+With a time budget or a target error, :func:`render_progressive` schedules rounds of passes until
+either is met, with warp_spt.progressive's error estimate (batch buffers with independent seeds).
 """
 
 from __future__ import annotations
@@ -34,16 +37,18 @@ import logging
 import math
 import pickle
 import threading
+import time
 import uuid
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, fields, replace
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
 from .camera import Camera
 from .film import Film
+from .renderer import RenderResult, RenderSettings
 from .scene import Scene
 from .sky import Sky
 
@@ -57,53 +62,80 @@ except ImportError as _err:  # the [cluster] extra is optional
 
 PLUGIN_NAME = "warp_spt-scenes"
 ProgressFn = Callable[[int, int], None]
+TASKS_PER_WORKER = 4            # default tasks per worker: a slow or lost worker delays the end little
+TASK_FILM_BYTES = 32 << 20      # a task returns at most about this much film per pass: larger images get row tiles
+FILM_PIXEL_BYTES = 24           # float64 RGB
 
 
 @dataclass(frozen=True)
-class Settings:
-    """What a render needs besides the scene and camera (the arguments of ``warp_spt.render``)."""
+class ClusterOptions:
+    """How a render is cut into tasks (what is rendered is a :class:`~warp_spt.renderer.RenderSettings`).
 
-    width: int = 500
-    height: int = 500
-    spp: int = 16
-    max_depth: int = 6
-    sky: Sky = field(default_factory=Sky.black)
-    seed: int = 0
-    texture_filter: str = "nearest"
+    ``task_spp``: samples per task, rounded to the renderer's passes (default: about
+    ``TASKS_PER_WORKER`` tasks per worker). ``tile_rows``: image rows per task (default: the whole
+    image, cut into row tiles when it has too few passes to keep every worker busy, or when one
+    pass of it would return more than ``TASK_FILM_BYTES``). ``timeout``: seconds for the whole
+    render (default: no limit). Render threads per task are ``RenderSettings.threads`` (default 1,
+    which suits one Dask thread per core).
+    """
+
+    task_spp: int | None = None
+    tile_rows: int | None = None
+    timeout: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("task_spp", "tile_rows"):
+            v = getattr(self, name)
+            if v is not None and (not isinstance(v, (int, np.integer)) or v < 1):
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        if self.timeout is not None and not self.timeout > 0:
+            raise ValueError(f"timeout must be a positive number of seconds, got {self.timeout!r}")
 
 
 # ---------------------------------------------------------------------------------------------
 # The adapter: the only code that knows how the renderer is called, checks its arguments, groups
-# samples into passes and reports progress (after the renderer's restructuring, only this changes).
+# samples into passes and reports progress.
 
 
-def pass_ranges(settings: Settings) -> list[tuple[int, int]]:
-    """The renderer's passes as (first sample, sample count), in the order it adds them to the film."""
+def samples_per_pass(width: int, height: int) -> int:
+    """The renderer's pass size for a width x height image (it depends on the image size only)."""
     from .renderer import PASS_SAMPLES, PASS_WORK
 
-    per_pass = max(PASS_SAMPLES, PASS_WORK // (settings.width * settings.height))
-    return [(s, min(per_pass, settings.spp - s)) for s in range(0, settings.spp, per_pass)]
+    return max(PASS_SAMPLES, PASS_WORK // (width * height))
 
 
-def render_passes(dev, camera: Camera, settings: Settings, passes: Sequence[tuple[int, int]],
-                  threads: int = 1) -> np.ndarray:
-    """Per-pass float64 sums, shape (len(passes), H, W, 3): one ``render_film`` call per pass."""
-    from .renderer import render_film
-
-    return np.stack([
-        render_film(dev, camera, width=settings.width, height=settings.height, spp=count,
-                    max_depth=settings.max_depth, sky=settings.sky, seed=settings.seed,
-                    sample_offset=start, texture_filter=settings.texture_filter, threads=threads).sum
-        for start, count in passes])
+def pass_ranges(rs: RenderSettings) -> list[tuple[int, int]]:
+    """The renderer's passes as (first sample index, sample count), in the order it adds them to the film."""
+    per_pass = samples_per_pass(rs.width, rs.height)
+    return [(rs.sample_offset + s, min(per_pass, rs.spp - s)) for s in range(0, rs.spp, per_pass)]
 
 
-def check_settings(settings: Settings) -> None:
+@dataclass
+class TaskResult:
+    """What a task sends back: per-pass float64 sums (passes, rows, W, 3) and the renderer's counters."""
+
+    sums: np.ndarray
+    rays: int
+    dropped_samples: int
+    features: object
+
+
+def render_passes(dev, camera: Camera, rs: RenderSettings, rows: tuple[int, int],
+                  passes: Sequence[tuple[int, int]]) -> TaskResult:
+    """Image rows ``rows``, one ``render_scene`` call per pass, the sums of each pass kept apart."""
+    from .renderer import render_scene
+
+    results = [render_scene(dev, camera, replace(rs, spp=count, sample_offset=start), rows=tuple(rows))
+               for start, count in passes]
+    return TaskResult(np.stack([r.film.sum for r in results]), sum(r.stats.rays for r in results),
+                      sum(r.stats.dropped_samples for r in results), results[0].stats.features)
+
+
+def check_settings(rs: RenderSettings) -> None:
     """The renderer's own argument checks, run on the client before anything is submitted."""
-    from .renderer import RenderSettings, _check_args
+    from .renderer import _check_args
 
-    s = settings
-    _check_args(RenderSettings(width=s.width, height=s.height, spp=s.spp, max_depth=s.max_depth, sky=s.sky,
-                               seed=s.seed, texture_filter=s.texture_filter))
+    _check_args(rs)
 
 
 def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:
@@ -120,15 +152,19 @@ def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int 
 class SceneCache(WorkerPlugin):
     """Per-worker cache of uploaded scenes, keyed by content hash (least recently used goes first).
 
-    ``builds`` counts uploads, so tests can check that a worker uploads each scene once; ``token``
-    tells one cache from its replacement.
+    Meshes are cached apart, by their own content (:func:`warp_spt.device_scene.mesh_key`), so the
+    frames of an animation upload their static meshes once per worker. ``builds`` counts scene
+    uploads and ``mesh_builds`` mesh uploads (tests check both); ``token`` tells one cache from its
+    replacement.
     """
 
     def __init__(self, size: int = 4) -> None:
         self.size = size
         self.builds = 0
+        self.mesh_builds = 0
         self.token = uuid.uuid4().hex
         self._scenes: OrderedDict[str, object] = OrderedDict()
+        self._meshes: dict[str, object] = {}
         self._lock = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -143,40 +179,47 @@ class SceneCache(WorkerPlugin):
 
         init_warp()
 
-    def device_scene(self, key: str, scene: Scene):
-        """The uploaded scene for ``key``, uploading ``scene`` on first use.
+    def device_scene(self, key: str, scene: Scene | Callable[[], Scene], rs: RenderSettings):
+        """The uploaded scene for ``key`` (``scene``, or a function making it, is used on first use),
+        with the kernel ``rs`` needs compiled or loaded.
 
         Under one lock, so a worker running several task threads uploads once, and compiles or
-        loads the kernel module from one thread at a time (Warp's concurrent module loads are unsafe).
+        loads a kernel module from one thread at a time (Warp's concurrent module loads are unsafe).
         """
-        from dataclasses import replace
-
         from .device_scene import DeviceScene
-        from .integrators import DEFAULT_INTEGRATOR, get_kernel
-        from .samplers import DEFAULT_SAMPLER
+        from .integrators import get_kernel
+        from .lights import sky_emits
 
         with self._lock:
             dev = self._scenes.pop(key, None)
             if dev is None:
-                dev = DeviceScene(scene)
-                for sky in (False, True):    # the render picks by whether the sky emits
-                    get_kernel(replace(dev.features, sky=sky), dev.device, DEFAULT_INTEGRATOR, DEFAULT_SAMPLER)
+                before = len(self._meshes)
+                dev = DeviceScene(scene() if callable(scene) else scene, device=rs.device, meshes=self._meshes)
                 self.builds += 1
+                self.mesh_builds += len(self._meshes) - before
             self._scenes[key] = dev
             while len(self._scenes) > self.size:
                 self._scenes.popitem(last=False)
+            used = {k for d in self._scenes.values() for k in d.mesh_keys}
+            for k in set(self._meshes) - used:
+                del self._meshes[k]
+            get_kernel(rs.features or replace(dev.features, sky=sky_emits(rs.sky or Sky.black())), dev.device,
+                       rs.integrator, rs.sampler)
             return dev
 
 
-def _render_task(scene_key: str, scene: Scene, camera: Camera, settings: Settings,
-                 passes: list[tuple[int, int]], threads: int) -> np.ndarray:
-    """One task: a run of whole passes of one image, on whichever worker Dask chose."""
+def _render_task(scene_key: str, parts: tuple, camera: Camera, rs: RenderSettings,
+                 rows: tuple[int, int], passes: tuple[tuple[int, int], ...]) -> TaskResult:
+    """One task: some passes of some rows of one image, on whichever worker Dask chose.
+    ``parts`` is (the scene without meshes and textures, its meshes, its textures)."""
+    skeleton, meshes, textures = parts
     cache = distributed.get_worker().plugins[PLUGIN_NAME]
-    return render_passes(cache.device_scene(scene_key, scene), camera, settings, passes, threads)
+    dev = cache.device_scene(scene_key, lambda: replace(skeleton, meshes=list(meshes), textures=list(textures)), rs)
+    return render_passes(dev, camera, rs, rows, passes)
 
 
 # ---------------------------------------------------------------------------------------------
-# Client side
+# Client side: shipping scenes
 
 
 def scene_key(scene: Scene) -> str:
@@ -185,43 +228,102 @@ def scene_key(scene: Scene) -> str:
 
 
 @dataclass
-class Job:
-    """One image to render: a scene (already on the cluster), a camera and settings."""
+class SharedScene:
+    """A scene on the cluster: its content key, its meshes and textures (one Dask future each, so that
+    what frames share travels once) and the rest (a future)."""
 
     key: str
-    scene: object                 # a Dask future holding the Scene
-    camera: Camera
-    settings: Settings
+    skeleton: object
+    meshes: list
+    textures: list
+
+    @property
+    def parts(self) -> tuple:
+        """What a task takes: (skeleton, meshes, textures); Dask resolves the futures inside."""
+        return self.skeleton, self.meshes, self.textures
 
 
-def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -> tuple[str, object]:
-    """(content key, future) for ``scene``, scattering it only when ``shared`` does not hold it yet.
+def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -> SharedScene:
+    """Scatter ``scene`` to the cluster, each mesh and texture apart, keyed by content: what ``shared``
+    already holds (the static meshes and textures of an animation's earlier frames) is not sent
+    again, and a worker that holds a piece from an earlier task does not fetch it again.
 
     A DeviceScene is accepted too: its host-side Scene is what travels.
     """
+    from .device_scene import mesh_key
+
     scene = getattr(scene, "scene", scene)
+    shared = {} if shared is None else shared
     key = scene_key(scene)
-    if shared is not None and key in shared:
-        return key, shared[key]
-    future = client.scatter(scene, hash=False)
-    if shared is not None:
-        shared[key] = future
-    return key, future
+
+    def one(k: str, obj) -> object:
+        if k not in shared:
+            shared[k] = client.scatter(obj, hash=False)
+        return shared[k]
+
+    meshes = [one("mesh:" + mesh_key(m), m) for m in scene.meshes]
+    textures = [one("texture:" + _array_key(t), t) for t in scene.textures]
+    return SharedScene(key, one("scene:" + key, replace(scene, meshes=[], textures=[])), meshes, textures)
 
 
-def tasks_for(settings: Settings, n_workers: int, task_spp: int | None = None) -> list[list[tuple[int, int]]]:
-    """Group the passes into tasks of about ``task_spp`` samples (rounded to whole passes).
+def _array_key(a: np.ndarray) -> str:
+    a = np.ascontiguousarray(a)
+    return hashlib.sha256(f"{a.dtype}{a.shape}".encode() + a.data).hexdigest()
 
-    By default about four tasks per worker, so a slow or lost worker delays the end little.
+
+# ---------------------------------------------------------------------------------------------
+# Client side: cutting a render into tasks
+
+
+@dataclass
+class Job:
+    """One image to render: a scene already on the cluster, a camera and settings."""
+
+    scene: SharedScene
+    camera: Camera
+    settings: RenderSettings
+
+
+@dataclass(frozen=True)
+class Task:
+    """Passes ((first sample, count), ...) of image rows [first, stop) of job ``job``."""
+
+    job: int
+    rows: tuple[int, int]
+    passes: tuple[tuple[int, int], ...]
+
+
+def row_tiles(rs: RenderSettings, groups: int, passes_per_task: int, n_workers: int,
+              options: ClusterOptions) -> list[tuple[int, int]]:
+    """The row ranges each group of passes is cut into.
+
+    ``options.tile_rows`` if given; else as few tiles as give about ``TASKS_PER_WORKER`` tasks per
+    worker (when ``groups`` alone do not and no task size was asked for) and keep a task's
+    returned film under ``TASK_FILM_BYTES``.
     """
-    passes = pass_ranges(settings)
-    if task_spp is None:
-        per_task = max(1, math.ceil(len(passes) / (4 * max(1, n_workers))))
+    rows = rs.height
+    if options.tile_rows is not None:
+        per_tile = options.tile_rows
     else:
-        if task_spp < 1:
-            raise ValueError(f"task_spp must be a positive integer, got {task_spp!r}")
-        per_task = max(1, round(task_spp / passes[0][1]))
-    return [passes[i:i + per_task] for i in range(0, len(passes), per_task)]
+        for_workers = 1 if options.task_spp is not None else math.ceil(TASKS_PER_WORKER * n_workers / groups)
+        for_memory = math.ceil(passes_per_task * rows * rs.width * FILM_PIXEL_BYTES / TASK_FILM_BYTES)
+        per_tile = math.ceil(rows / min(rows, max(1, for_workers, for_memory)))
+    return [(y, min(rows, y + per_tile)) for y in range(0, rows, per_tile)]
+
+
+def plan(rs: RenderSettings, n_workers: int, options: ClusterOptions = ClusterOptions(), job: int = 0) -> list[Task]:
+    """The tasks of one image: groups of whole passes (about ``options.task_spp`` samples each) x row tiles.
+
+    Submitted in this order: every tile of the first passes, then of the next, and so on.
+    """
+    passes = pass_ranges(rs)
+    if options.task_spp is None:
+        per_task = max(1, math.ceil(len(passes) / (TASKS_PER_WORKER * max(1, n_workers))))
+    else:
+        per_task = max(1, round(options.task_spp / passes[0][1]))
+    groups = [tuple(passes[i:i + per_task]) for i in range(0, len(passes), per_task)]
+    tiles = row_tiles(rs, len(groups), per_task, max(1, n_workers), options)
+    return [Task(job, rows, g) for g in groups for rows in tiles]
 
 
 def register(client) -> None:
@@ -235,87 +337,287 @@ def register(client) -> None:
         client.register_plugin(SceneCache(), name=PLUGIN_NAME)
 
 
-def run_jobs(client, jobs: Sequence[Job], *, task_spp: int | None = None, threads: int = 1,
-             progress: bool | ProgressFn = False, timeout: float | None = None) -> Iterator[tuple[int, Film]]:
-    """Render every job on the cluster; yield (job index, Film) as each image completes.
-
-    Tasks of all jobs are submitted at once (frames x sample ranges); each film is merged in pass
-    order, whatever order its tasks finish in. ``progress`` counts finished samples x pixels across
-    all workers; ``timeout`` (seconds) bounds the whole run.
-    """
-    for job in jobs:
-        check_settings(job.settings)
-    register(client)
-    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-    futures, owner = [], {}
-    plans = []
-    for j, job in enumerate(jobs):
-        plan = tasks_for(job.settings, n_workers, task_spp)
-        plans.append(plan)
-        for t, passes in enumerate(plan):
-            f = client.submit(_render_task, job.key, job.scene, job.camera, job.settings, passes, threads,
-                              pure=False)
-            futures.append(f)
-            owner[f.key] = (j, t)
-    total = sum(j.settings.width * j.settings.height * j.settings.spp for j in jobs)
-    report = progress_reporter(progress, total)
-    merger = _OrderedMerge(jobs, plans)
-    try:
-        for future, sums in distributed.as_completed(futures, with_results=True, timeout=timeout):
-            j, t = owner[future.key]
-            film = merger.add(j, t, sums)
-            report(sum(c for _, c in plans[j][t]) * jobs[j].settings.width * jobs[j].settings.height)
-            if film is not None:
-                yield j, film
-    finally:
-        report(None)
-        client.cancel(futures)
+def n_workers(client) -> int:
+    """Workers the scheduler knows now (at least 1)."""
+    return max(1, len(client.scheduler_info().get("workers", {})))
 
 
 class _OrderedMerge:
-    """Adds each job's per-pass sums to its film strictly in pass order (the bit-exact order)."""
+    """Adds every task's per-pass sums to its job's film rows strictly in submission order per
+    (job, rows): every pixel gets its passes in pass order, the single-process order, bit for bit."""
 
-    def __init__(self, jobs: Sequence[Job], plans: list[list[list[tuple[int, int]]]]) -> None:
-        self.plans = plans
+    def __init__(self, jobs: Sequence[Job]) -> None:
         self.films = [Film.empty(j.settings.height, j.settings.width) for j in jobs]
-        self.waiting: list[dict[int, np.ndarray]] = [{} for _ in jobs]
-        self.next = [0] * len(jobs)
+        self.rays = [0] * len(jobs)
+        self.dropped = [0] * len(jobs)
+        self.features = [None] * len(jobs)
+        self._queues: dict[tuple, deque] = {}
+        self._waiting: dict[int, TaskResult] = {}
 
-    def add(self, j: int, t: int, sums: np.ndarray) -> Film | None:
-        """Store task t's sums; merge what is now in order; return the film once it is complete."""
-        self.waiting[j][t] = sums
-        while self.next[j] in self.waiting[j]:
-            t_next = self.next[j]
-            for (_, count), s in zip(self.plans[j][t_next], self.waiting[j].pop(t_next)):
-                self.films[j].accumulate(s, count)
-            self.next[j] += 1
-        return self.films[j] if self.next[j] == len(self.plans[j]) else None
+    def expect(self, tid: int, task: Task) -> None:
+        self._queues.setdefault((task.job, task.rows), deque()).append((tid, task))
+
+    def add(self, tid: int, task: Task, result: TaskResult) -> None:
+        self._waiting[tid] = result
+        queue = self._queues[(task.job, task.rows)]
+        while queue and queue[0][0] in self._waiting:
+            t_id, t = queue.popleft()
+            r = self._waiting.pop(t_id)
+            rows = self.films[t.job].sum[t.rows[0]:t.rows[1]]
+            for s in r.sums:
+                rows += s
+            self.rays[t.job] += r.rays
+            self.dropped[t.job] += r.dropped_samples
+            self.features[t.job] = r.features
 
 
-def render_film(client, scene: Scene, camera: Camera | None = None, *, width: int = 500, height: int = 500,
-                spp: int = 16, max_depth: int = 6, sky: Sky | None = None, seed: int = 0,
-                texture_filter: str = "nearest", task_spp: int | None = None, threads: int = 1,
-                progress: bool | ProgressFn = False, timeout: float | None = None) -> Film:
-    """Like :func:`warp_spt.render_film`, on the cluster behind ``client``; the same film bit for bit.
+def _run_tasks(client, jobs: Sequence[Job], tasks: Sequence[Task], merge: _OrderedMerge,
+               report: Callable[[int | None], None], timeout: float | None) -> Iterator[int]:
+    """Submit ``tasks`` at once, merge their results as they come; yield each job's index when the
+    last of its tasks among these is merged."""
+    left = [0] * len(jobs)
+    futures, owner = [], {}
+    for task in tasks:
+        job = jobs[task.job]
+        f = client.submit(_render_task, job.scene.key, job.scene.parts, job.camera, job.settings, task.rows,
+                          task.passes, pure=False)
+        tid = len(futures)
+        futures.append(f)
+        owner[f.key] = (tid, task)
+        merge.expect(tid, task)
+        left[task.job] += 1
+    try:
+        for future, result in distributed.as_completed(futures, with_results=True, timeout=timeout):
+            tid, task = owner[future.key]
+            merge.add(tid, task, result)
+            report(sum(c for _, c in task.passes) * (task.rows[1] - task.rows[0]) * jobs[task.job].settings.width)
+            left[task.job] -= 1
+            if left[task.job] == 0:
+                yield task.job
+    finally:
+        client.cancel(futures)
 
-    ``task_spp`` is the samples per task (rounded to the renderer's passes; default about four tasks
-    per worker); ``threads`` is the render threads per task (1 suits one Dask thread per core).
+
+def run_jobs(client, jobs: Sequence[Job], options: ClusterOptions = ClusterOptions(), *,
+             progress: bool | ProgressFn = False) -> Iterator[tuple[int, RenderResult]]:
+    """Render every job on the cluster; yield (job index, RenderResult) as each image completes.
+
+    Tasks of all jobs are submitted at once (frames x sample ranges x row tiles); each film is
+    merged in pass order, whatever order its tasks finish in. ``progress`` counts finished samples
+    x pixels across all workers.
     """
-    settings = Settings(width, height, spp, max_depth, sky or Sky.black(), seed, texture_filter)
-    key, future = share_scene(client, scene)
-    job = Job(key, future, camera or Camera(), settings)
-    for _, film in run_jobs(client, [job], task_spp=task_spp, threads=threads, progress=progress,
-                            timeout=timeout):
-        return film
+    from .renderer import RenderStats
+
+    for job in jobs:
+        check_settings(job.settings)
+    register(client)
+    workers = n_workers(client)
+    tasks = [t for j, job in enumerate(jobs) for t in plan(job.settings, workers, options, j)]
+    total = sum(j.settings.width * j.settings.height * j.settings.spp for j in jobs)
+    report = progress_reporter(progress, total)
+    merge = _OrderedMerge(jobs)
+    start = time.perf_counter()
+    try:
+        for j in _run_tasks(client, jobs, tasks, merge, report, options.timeout):
+            rs = jobs[j].settings
+            film = merge.films[j]
+            film.spp = rs.spp
+            stats = RenderStats(merge.features[j], rs.integrator, rs.sampler, time.perf_counter() - start,
+                                merge.rays[j], merge.dropped[j], len({t.rows for t in tasks if t.job == j}),
+                                workers * (rs.threads or 1))
+            yield j, RenderResult(film, stats, rs)
+    finally:
+        report(None)
+
+
+def settings_for(kw: dict) -> tuple[RenderSettings, ClusterOptions]:
+    """Split keyword arguments into RenderSettings fields and ClusterOptions fields (unknown: TypeError)."""
+    names = {f.name for f in fields(ClusterOptions)}
+    render_kw = {k: v for k, v in kw.items() if k not in names}
+    unknown = set(render_kw) - {f.name for f in fields(RenderSettings)}
+    if unknown:
+        raise TypeError(f"unknown render setting(s): {', '.join(sorted(unknown))}")
+    return RenderSettings(**render_kw), ClusterOptions(**{k: v for k, v in kw.items() if k in names})
+
+
+def cluster_settings(rs: RenderSettings) -> RenderSettings:
+    """``rs`` as tasks run it: one render thread per task unless ``threads`` says otherwise, the sky filled in."""
+    return replace(rs, threads=rs.threads or 1, sky=rs.sky or Sky.black())
+
+
+def render_scene(client, scene: Scene, camera: Camera | None = None, settings: RenderSettings | None = None,
+                 options: ClusterOptions | None = None, *, progress: bool | ProgressFn = False) -> RenderResult:
+    """Like :func:`warp_spt.renderer.render_scene`, on the cluster behind ``client``: the same film bit
+    for bit (a host Scene far from the origin is recentred here first, as the renderer does)."""
+    from .framing import recentre
+
+    rs = cluster_settings(settings or RenderSettings())
+    if isinstance(scene, Scene):
+        scene, camera, _ = recentre(scene, camera)
+    job = Job(share_scene(client, scene), camera or Camera(), rs)
+    for _, result in run_jobs(client, [job], options or ClusterOptions(), progress=progress):
+        return result
     raise RuntimeError("the cluster returned no film")      # unreachable: run_jobs yields once
 
 
-def render(client, scene: Scene, camera: Camera | None = None, **kwargs) -> np.ndarray:
-    """Like :func:`warp_spt.render` on the cluster: float32 (H, W, 3) linear radiance.
+def render_film(client, scene: Scene, camera: Camera | None = None, *, progress: bool | ProgressFn = False,
+                **kw) -> Film:
+    """Like :func:`warp_spt.render_film` on the cluster; keywords are the fields of RenderSettings
+    and of :class:`ClusterOptions`."""
+    rs, options = settings_for(kw)
+    return render_scene(client, scene, camera, rs, options, progress=progress).film
 
-    Takes the arguments of :func:`render_film` (this module's).
-    """
+
+def render(client, scene: Scene, camera: Camera | None = None, **kwargs) -> np.ndarray:
+    """Like :func:`warp_spt.render` on the cluster: float32 (H, W, 3) linear radiance (arguments
+    as :func:`render_film`)."""
     return render_film(client, scene, camera, **kwargs).image()
+
+
+# ---------------------------------------------------------------------------------------------
+# Budgets and target errors: rounds of passes until the budget or the error is met
+#
+# The error estimate is warp_spt.progressive's: ``batches`` films with independent seeds
+# ``batch_seed(seed, b)``, whose spread estimates each pixel's standard error. Work is cut into
+# *units*, one renderer pass of one batch each, batches in turn; a round submits some units (x row
+# tiles), waits for them, and decides the next round from the merged estimate and the measured rate.
+# Rounds end on whole units, so a batch's film always equals a plain render of its samples with its
+# seed, and a run stopped after any round equals a run asked for exactly the samples it has.
+
+
+def unit_passes(u: int, spp: int, per_pass: int, batches: int) -> tuple[int, tuple[int, int]]:
+    """Unit ``u`` of a batched render of ``spp`` samples per pixel: (batch, (first sample, count)).
+
+    Unit u covers samples [u * per_pass, (u + 1) * per_pass) of the whole render (the last unit
+    may be short) and is pass ``u // batches`` of batch ``u % batches``.
+    """
+    return u % batches, ((u // batches) * per_pass, min(per_pass, spp - u * per_pass))
+
+
+def batch_spp(units: int, spp: int, per_pass: int, batches: int) -> np.ndarray:
+    """Samples per pixel of each batch after the first ``units`` units."""
+    counts = np.zeros(batches, np.int64)
+    for u in range(units):
+        b, (_, count) = unit_passes(u, spp, per_pass, batches)
+        counts[b] += count
+    return counts
+
+
+def render_progressive(client, scene: Scene, camera: Camera | None = None, settings: RenderSettings | None = None,
+                       options: ClusterOptions | None = None, *, time_budget: float | None = None,
+                       target_error: float | None = None, batches: int | None = None,
+                       on_pass: Callable | None = None, started: float | None = None):
+    """Render on the cluster in rounds until ``settings.spp`` (the maximum), ``time_budget`` seconds
+    (counted from ``started``, a ``time.perf_counter()`` value; default now) or ``target_error``
+    (:func:`warp_spt.progressive.relative_error` of the estimate) is reached.
+
+    Returns a :class:`warp_spt.progressive.ProgressiveResult` (image, standard-error map, batch
+    buffers, stats; ``stats.passes`` counts rounds). ``on_pass(result)`` is called after every
+    round; True stops. Batch b's film is bit for bit ``warp_spt.render_film(scene, camera,
+    seed=batch_seed(seed, b), spp=<its samples>)``, and a run stopped by a budget equals this
+    function asked for ``result.spp_total`` samples without one. (It is not the in-process
+    ``render_progressive`` image: that one launches each batch's pass as one float64 sum.)
+    """
+    from .framing import recentre
+    from .progressive import DEFAULT_BATCHES, ProgressiveStats, batch_seed
+
+    t0 = time.perf_counter() if started is None else started
+    rs = cluster_settings(settings or RenderSettings())
+    batches = DEFAULT_BATCHES if batches is None else batches
+    check_settings(rs)
+    _check_budget(rs, time_budget, target_error, batches)
+    options = options or ClusterOptions()
+    if isinstance(scene, Scene):
+        scene, camera, _ = recentre(scene, camera)
+    shared = share_scene(client, scene)
+    jobs = [Job(shared, camera or Camera(), replace(rs, seed=batch_seed(rs.seed, b))) for b in range(batches)]
+    register(client)
+    workers = n_workers(client)
+    rounds = _Rounds(rs, batches, time_budget, target_error, t0, max(batches, TASKS_PER_WORKER * workers))
+    merge = _OrderedMerge(jobs)
+    stats = ProgressiveStats(threads=workers * rs.threads, integrator=rs.integrator, sampler=rs.sampler)
+    result = None
+    while True:
+        n, why = rounds.next(result)
+        if why is not None:
+            stats.stopped_by = why
+            break
+        tiles = row_tiles(rs, n, 1, workers, options)
+        tasks = [Task(b, rows, (p,)) for u in range(rounds.units, rounds.units + n)
+                 for b, p in [unit_passes(u, rs.spp, rounds.per_pass, batches)] for rows in tiles]
+        t = time.perf_counter()
+        timeout = None if options.timeout is None else max(1e-3, options.timeout - (t - t0))
+        for _ in _run_tasks(client, jobs, tasks, merge, lambda inc: None, timeout):
+            pass
+        stats.render_seconds += time.perf_counter() - t
+        rounds.done(n, time.perf_counter() - t)
+        result = _snapshot(merge, rounds, stats, t0)
+        if on_pass is not None and on_pass(result):
+            stats.stopped_by = "callback"
+            break
+    return result
+
+
+def _check_budget(rs: RenderSettings, time_budget, target_error, batches) -> None:
+    """progressive's own checks of the budget arguments (private there: to be made public), and ours."""
+    from .progressive import _check_budget as check_progressive_budget
+
+    if rs.sample_offset:
+        raise ValueError("a budgeted render owns its sample indices: sample_offset is not taken")
+    check_progressive_budget(time_budget, target_error, batches, None)
+
+
+class _Rounds:
+    """The schedule: how many units the next round gets, or why the render stops."""
+
+    def __init__(self, rs: RenderSettings, batches: int, time_budget, target_error, t0: float, cap: int):
+        self.spp, self.B, self.cap = rs.spp, batches, cap
+        self.per_pass = samples_per_pass(rs.width, rs.height)
+        self.total = math.ceil(rs.spp / self.per_pass)
+        self.deadline = math.inf if time_budget is None else t0 + time_budget
+        self.target = target_error
+        self.units, self.rounds, self.rate = 0, 0, 0.0      # rate: units per second in the last round
+
+    def next(self, result) -> tuple[int, str | None]:
+        left = self.total - self.units
+        if left <= 0:
+            return 0, "spp"
+        if self.rounds == 0:
+            return min(2, left), None           # two batches: the first error estimate
+        e = result.relative_error
+        if self.target is not None and e <= self.target:
+            return 0, "error"
+        n = min(left, self.cap, 2 ** self.rounds)
+        if self.target is not None and math.isfinite(e) and self.units >= self.B:
+            # aim at the target: error falls as 1 / sqrt(samples)
+            need_spp = math.ceil(min(self.units * self.per_pass, self.spp) * (e / self.target) ** 2)
+            n = min(n, max(1, math.ceil(need_spp / self.per_pass) - self.units))
+        if self.deadline < math.inf:
+            n = min(n, int((self.deadline - time.perf_counter()) * self.rate))
+            if n <= 0:
+                return 0, "time"
+        return n, None
+
+    def done(self, n: int, seconds: float) -> None:
+        self.units += n
+        self.rounds += 1
+        self.rate = n / max(seconds, 1e-6)
+
+
+def _snapshot(merge: _OrderedMerge, rounds: _Rounds, stats, t0: float):
+    from .progressive import ProgressiveResult
+
+    sums = np.stack([f.sum for f in merge.films])
+    per_batch = batch_spp(rounds.units, rounds.spp, rounds.per_pass, rounds.B)
+    counts = np.broadcast_to(per_batch[:, None, None], sums.shape[:3]).copy()
+    stats.passes = rounds.rounds
+    stats.rays, stats.dropped_samples = sum(merge.rays), sum(merge.dropped)
+    stats.pixel_samples = int(counts.sum())
+    stats.seconds = time.perf_counter() - t0
+    result = ProgressiveResult.from_batches(sums, counts, stats)
+    stats.pass_errors.append(result.relative_error)
+    stats.pass_seconds.append(stats.seconds)
+    return result
 
 
 @contextmanager

@@ -8,7 +8,9 @@ integrators specialise their kernels.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from typing import MutableMapping
 
 import numpy as np
 import warp as wp
@@ -100,15 +102,39 @@ class Features:
         return Features()
 
 
-class DeviceScene:
-    """A Scene on a Warp device. Keeps the Warp objects alive while kernels use them."""
+@dataclass
+class UploadedMesh:
+    """One mesh on the device and its float64 bounds (for the top-level BVH)."""
 
-    def __init__(self, scene: Scene, device: str = "cpu"):
+    mesh: wp.Mesh
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @classmethod
+    def of(cls, m, device: str) -> "UploadedMesh":
+        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
+        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+        p = m.positions[m.indices.reshape(-1)].astype(np.float64)
+        return cls(wp.Mesh(points=points, indices=idx, bvh_constructor="sah"), p.min(0), p.max(0))
+
+
+class DeviceScene:
+    """A Scene on a Warp device. Keeps the Warp objects alive while kernels use them.
+
+    ``meshes`` caches :class:`UploadedMesh` objects by :func:`mesh_key`: a mesh found there is reused
+    instead of uploaded and rebuilt (animation frames share their static meshes), new ones are added, and
+    ``mesh_keys`` lists this scene's keys so that the cache's owner can drop the ones no scene uses.
+    """
+
+    def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
         validate_scene(scene)
         self.device = device
         self.scene = scene
         self.features = _features(scene)
         self._meshes: list[wp.Mesh] = []
+        self._mesh_cache = meshes
+        self._mesh_bounds: list[tuple[np.ndarray, np.ndarray]] = []
+        self.mesh_keys: list[str] = []
         self.geometry = Geometry()
         self._upload_meshes(self.geometry, scene, device)
         self._upload_spheres_and_tlas(self.geometry, scene, device)
@@ -130,10 +156,17 @@ class DeviceScene:
     def _upload_meshes(self, s: Geometry, scene: Scene, device: str) -> None:
         offsets, mats, uvs, normals = [], [], [], []
         start = 0
+        cache = self._mesh_cache
         for m in scene.meshes:
-            points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
-            idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
-            self._meshes.append(wp.Mesh(points=points, indices=idx, bvh_constructor="sah"))
+            key = mesh_key(m, device) if cache is not None else ""
+            uploaded = cache.get(key) if cache is not None else None
+            if uploaded is None:
+                uploaded = UploadedMesh.of(m, device)
+                if cache is not None:
+                    cache[key] = uploaded
+            self._meshes.append(uploaded.mesh)
+            self._mesh_bounds.append((uploaded.lower, uploaded.upper))
+            self.mesh_keys.append(key)
             offsets.append(start)
             start += len(m.indices)
             mats.append(m.face_material.astype(np.int32))
@@ -149,11 +182,8 @@ class DeviceScene:
         s.has_corner_normals = int(self.features.smooth)
 
     def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
-        lowers, uppers = [], []
-        for m in scene.meshes:
-            p = m.positions[m.indices.reshape(-1)].astype(np.float64)
-            lowers.append(p.min(0))
-            uppers.append(p.max(0))
+        lowers = [lo for lo, _ in self._mesh_bounds]
+        uppers = [hi for _, hi in self._mesh_bounds]
         sph = scene.spheres.astype(np.float64).reshape(-1, 4)
         lowers.extend(sph[:, :3] - sph[:, 3:4])
         uppers.extend(sph[:, :3] + sph[:, 3:4])
@@ -164,6 +194,16 @@ class DeviceScene:
                     node_lower=(t.lower, wp.vec3), node_upper=(t.upper, wp.vec3),
                     node_left=(t.left, wp.int32), node_right=(t.right, wp.int32),
                     node_first=(t.first, wp.int32), node_count=(t.count, wp.int32), items=(t.items, wp.int32))
+
+
+def mesh_key(m, device: str = "cpu") -> str:
+    """What a ``wp.Mesh`` is built from (float32 positions, int32 triangles, the device), hashed."""
+    h = hashlib.sha256(str(device).encode())
+    for a, dtype in ((m.positions, np.float32), (m.indices, np.int32)):
+        a = np.ascontiguousarray(a, dtype=dtype)
+        h.update(str(a.shape).encode())
+        h.update(a.data)
+    return h.hexdigest()
 
 
 def _upload_materials(scene: Scene, device: str) -> Materials:

@@ -113,9 +113,10 @@ def render(scene: Scene | DeviceScene, camera: Camera | None = None, *,
 
 
 def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *,
-                progress: bool | ProgressFn = False, **settings) -> Film:
-    """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count)."""
-    return render_scene(scene, camera, _settings(settings), progress=progress).film
+                progress: bool | ProgressFn = False, rows: tuple[int, int] | None = None, **settings) -> Film:
+    """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count); ``rows``
+    as in :func:`render_scene`."""
+    return render_scene(scene, camera, _settings(settings), progress=progress, rows=rows).film
 
 
 def _settings(kw: dict) -> RenderSettings:
@@ -126,11 +127,18 @@ def _settings(kw: dict) -> RenderSettings:
 
 
 def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
-                 settings: RenderSettings | None = None, *, progress: bool | ProgressFn = False) -> RenderResult:
-    """Render with a :class:`RenderSettings`; returns a :class:`RenderResult` (film, image, stats)."""
+                 settings: RenderSettings | None = None, *, progress: bool | ProgressFn = False,
+                 rows: tuple[int, int] | None = None) -> RenderResult:
+    """Render with a :class:`RenderSettings`; returns a :class:`RenderResult` (film, image, stats).
+
+    ``rows`` = (first, stop) renders only those rows of the width x height image: the film holds
+    just them, equal bit for bit to the same rows of the full render (random streams key on the
+    global pixel, passes on the whole image's size), which is what tile tasks stand on.
+    """
     rs = settings or RenderSettings()
     _check_args(rs)
     (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
+    _check_rows(rows, rs.height)
     width, height, spp = rs.width, rs.height, rs.spp
     if not isinstance(scene, DeviceScene):      # far from the origin: shift to it in float64 first
         scene, camera, _ = recentre(scene, camera)
@@ -143,9 +151,9 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     lights = light_table(dev, sky, camera.up)
     tex = dev.textures(rs.texture_filter)
     n = width * height
-    film = wp.zeros(n, dtype=wp.vec3d, device=dev.device)
-    counters = wp.zeros((n, 2), dtype=wp.int64, device=dev.device)   # rays traced, samples dropped
-    tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
+    first, stop = rows or (0, height)
+    film, counters, keep = _window_arrays(first * width, stop * width, dev.device)
+    tiles = [(p, min(stop * width, p + rs.tile_pixels)) for p in range(first * width, stop * width, rs.tile_pixels)]
     nthreads = max(1, min(rs.threads or os.cpu_count() or 1, len(tiles)))
     per_pass = max(PASS_SAMPLES, PASS_WORK // n)
 
@@ -165,21 +173,21 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
                 dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters])
             done(count * (hi - lo))
 
-    report = _progress_reporter(progress, n * spp)
+    report = _progress_reporter(progress, (stop - first) * width * spp)
     start = time.perf_counter()
     try:
         run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
     finally:
         report(None)
     seconds = time.perf_counter() - start
-    c = counters.numpy().sum(axis=0)
+    c = keep[1].numpy().sum(axis=0)
     stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads)
     if stats.dropped_samples and feats.procedural:
         stats.nonfinite_textures = tuple(nonfinite_textures(dev.scene, dev.device))
         _warnings.warn(f"{stats.dropped_samples} non-finite samples dropped; procedural texture(s) returning "
                        f"NaN or infinity: {', '.join(stats.nonfinite_textures) or 'none found by probing'}",
                        RuntimeWarning, stacklevel=2)
-    sums = film.numpy().reshape(height, width, 3)
+    sums = keep[0].numpy().reshape(stop - first, width, 3)
     return RenderResult(Film(sums, spp), stats, rs)
 
 
@@ -201,6 +209,28 @@ def _check_args(rs: RenderSettings) -> None:
     check_integrator(rs.integrator)
     if rs.sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {rs.sampler!r}; choose from {', '.join(sorted(SAMPLERS))}")
+
+
+def _check_rows(rows, height: int) -> None:
+    if rows is not None and not (isinstance(rows, tuple) and len(rows) == 2
+                                 and all(isinstance(r, (int, np.integer)) for r in rows)
+                                 and 0 <= rows[0] < rows[1] <= height):
+        raise ValueError(f"rows must be (first, stop) with 0 <= first < stop <= height, got {rows!r}")
+
+
+def _window_arrays(lo: int, hi: int, device) -> tuple[wp.array, wp.array, tuple[wp.array, wp.array]]:
+    """Film and counters for global pixels [lo, hi): device memory for those pixels only, viewed
+    through arrays indexed by the global pixel (the kernel writes ``film[pixel]``). The views start
+    ``lo`` elements before the allocation, an address that is computed but never read or written.
+    Returns (film view, counters view, (film, counters) allocations: keep them alive, read them)."""
+    film = wp.zeros(hi - lo, dtype=wp.vec3d, device=device)
+    counters = wp.zeros((hi - lo, 2), dtype=wp.int64, device=device)    # rays traced, samples dropped
+    if lo == 0:
+        return film, counters, (film, counters)
+    film_view = wp.array(ptr=film.ptr - lo * film.strides[0], dtype=wp.vec3d, shape=(hi,), device=device)
+    counters_view = wp.array(ptr=counters.ptr - lo * counters.strides[0], dtype=wp.int64, shape=(hi, 2),
+                             device=device)
+    return film_view, counters_view, (film, counters)
 
 
 def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:

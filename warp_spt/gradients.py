@@ -34,16 +34,21 @@ import warp as wp
 
 from .camera import Camera
 from .device_scene import DeviceScene, Features, Geometry, Materials, Textures
-from .integrators import CameraParams, RenderParams, camera_params, check_integrator, get_step
+from .integrators import VERTICES, CameraParams, RenderParams, camera_params, check_integrator, get_step
 from .lights import Lights, light_table, sky_emits
 from .losses import Loss
 from .parallel import run_jobs
-from .params import COLOR_FIELDS, MATERIAL_FIELDS, SceneParameters
+from .params import COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters
+from .prb import get_replay_kernel
 from .renderer import RenderSettings, render_scene
 from .samplers import DEFAULT_SAMPLER
 from .sky import Sky
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
+MODES = ("auto", "prb", "tape")
+# Parameters path replay differentiates (it holds sampled directions fixed, see warp_spt.prb); the
+# others (fuzz bends directions, the camera moves rays) need the tape's pathwise derivative.
+REPLAYABLE = {("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels"), ("sky", "color")}
 # deltas[k] shift values passed by value in structs (the sky colour); zero, they exist for their gradients
 D_SKY = 0
 NUM_DELTAS = 1
@@ -99,7 +104,23 @@ def _check_estimator(integrator: str, sampler: str) -> None:
 
 def _check_depth(max_depth: int) -> None:
     if not 1 <= max_depth <= MAX_UNROLLED_DEPTH:
-        raise ValueError(f"max_depth must be in [1, {MAX_UNROLLED_DEPTH}] for differentiable renders")
+        raise ValueError(f"max_depth must be in [1, {MAX_UNROLLED_DEPTH}] for differentiable renders "
+                         f"through the tape (path replay, mode='prb', has no limit)")
+
+
+def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
+    """"prb" or "tape" for these parameters: "auto" takes path replay when it covers them all."""
+    if mode not in MODES:
+        raise ValueError(f"unknown gradient mode {mode!r}; choose from {', '.join(MODES)}")
+    pathwise = [p.name for p in infos if (p.kind, p.field) not in REPLAYABLE]
+    replayable = not pathwise and integrator in VERTICES
+    if mode == "auto":
+        return "prb" if replayable else "tape"
+    if mode == "prb" and not replayable:
+        why = (f"{', '.join(pathwise)} need(s) the pathwise derivative of the tape" if pathwise
+               else f"integrator {integrator!r} has no vertex function")
+        raise ValueError(f"path replay cannot differentiate this: {why}; use mode='tape' or 'auto'")
+    return mode
 
 
 def _render_params(width: int, lo: int, s0: int, spp: int, max_depth: int, seed: int) -> RenderParams:
@@ -118,7 +139,8 @@ class GradientResult:
     """``image`` (H, W, 3) float32 linear radiance from the fast kernel; ``loss`` its value (None when
     an adjoint image was given); ``grads`` d loss / d parameter by name (float64, the parameter's
     shape); ``backward_seconds`` and ``forward_seconds`` wall-clock; ``backward_bytes`` what the
-    backward pass allocated (adjoint image, per-tile gradient buffers, scratch)."""
+    backward pass allocated (adjoint image, per-tile gradient buffers, scratch); ``mode`` "prb" or
+    "tape", the backward pass that ran."""
 
     image: np.ndarray
     loss: float | None
@@ -128,15 +150,22 @@ class GradientResult:
     backward_bytes: int
     tiles: int
     threads: int
+    mode: str = "tape"
 
 
 def render_gradients(params: SceneParameters, settings: RenderSettings | None = None, *,
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
-                     wrt: list[str] | None = None, gradient_seed: int | None = None) -> GradientResult:
+                     wrt: list[str] | None = None, gradient_seed: int | None = None,
+                     mode: str = "auto") -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``);
-    Russian roulette must be off; ``max_depth`` at most MAX_UNROLLED_DEPTH.
+    Russian roulette must be off.
+
+    ``mode``: "prb" (path replay, ``warp_spt.prb``: any depth, about the cost of two forward
+    passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
+    alone has the pathwise derivatives of fuzz), or "auto": "prb" unless a parameter in ``wrt``
+    needs the tape.
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -146,12 +175,14 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     rs = settings or RenderSettings(width=64, height=64, spp=4, max_depth=4)
     if (loss is None) == (adjoint is None):
         raise ValueError("give exactly one of loss= and adjoint=")
-    _check_depth(rs.max_depth)
     if rs.roulette_depth != 0:
         raise ValueError("Russian roulette is not differentiated: use roulette_depth=0")
-    _check_estimator(rs.integrator, rs.sampler)
     names = list(params.differentiable() if wrt is None else wrt)
     infos = [params.info(n) for n in names]
+    mode = choose_mode(mode, infos, rs.integrator)
+    if mode == "tape":
+        _check_depth(rs.max_depth)
+        _check_estimator(rs.integrator, rs.sampler)
     for p in infos:
         if p.kind == "camera":
             raise ValueError(f"{p.name} is not differentiated (see docs/gradients.md); "
@@ -173,21 +204,25 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
-    bw = _Backward(dev, camera, sky, brs, wants_texels=any(p.kind == "texture" for p in infos))
+    bw = _Backward(dev, camera, sky, brs, wants_texels=any(p.kind == "texture" for p in infos), mode=mode)
     sums = bw.run(adj.reshape(-1, 3), rs.threads)
     backward_seconds = time.perf_counter() - t0
     grads = {p.name: _pick(p, sums, dev) for p in infos}
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
-                          bw.threads)
+                          bw.threads, mode)
 
 
 class _Backward:
     """One backward pass: per-tile gradient buffers, adjoint launches from a pool, ordered reduction."""
 
-    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants_texels: bool):
-        self.dev, self.rs = dev, rs
+    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants_texels: bool,
+                 mode: str = "tape"):
+        self.dev, self.rs, self.mode = dev, rs, mode
         feats = replace(dev.features, sky=sky_emits(sky))
-        self.kernel = get_diff_kernel(feats, rs.max_depth, rs.integrator, rs.sampler, dev.device)
+        if mode == "prb":
+            self.kernel = get_replay_kernel(feats, rs.integrator, rs.sampler, dev.device)
+        else:
+            self.kernel = get_diff_kernel(feats, rs.max_depth, rs.integrator, rs.sampler, dev.device)
         self.cam = camera_params(camera, rs.width, rs.height)
         self.lights = light_table(dev, sky)
         self.tex = dev.textures(rs.texture_filter)
@@ -214,8 +249,11 @@ class _Backward:
             t.texels, t.tiles, t.bilinear = self._grad_alias(self.tex.texels), self.tex.tiles, self.tex.bilinear
             t.proc_kind, t.proc_params = self.tex.proc_kind, self.tex.proc_params
         deltas = wp.zeros(NUM_DELTAS, dtype=wp.vec3, device=self.dev.device, requires_grad=True)
-        scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
-        self.nbytes += scratch.capacity + 2 * deltas.capacity
+        scratch = None      # the tape's forward output; path replay needs none
+        if self.mode == "tape":
+            scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
+            self.nbytes += scratch.capacity
+        self.nbytes += 2 * deltas.capacity
         return m, t, deltas, scratch
 
     def run(self, adj: np.ndarray, threads: int | None) -> dict:
@@ -228,6 +266,10 @@ class _Backward:
             lo, hi = self.tiles[k]
             m, t, deltas, scratch = inputs[k]
             rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed)
+            if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
+                wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=[
+                    dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad])
+                return
             args = [dev.geometry, m, t, self.lights, self.cam, rp, deltas, scratch]
             adj_structs = [_ADJ.get_adjoint(a) for a in args[:6]]   # mirrors holding each array's .grad
             wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=args,

@@ -180,9 +180,9 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     names = list(params.differentiable() if wrt is None else wrt)
     infos = [params.info(n) for n in names]
     mode = choose_mode(mode, infos, rs.integrator)
+    _check_estimator(rs.integrator, rs.sampler)     # path replay measured as wrong as the tape there
     if mode == "tape":
         _check_depth(rs.max_depth)
-        _check_estimator(rs.integrator, rs.sampler)
     for p in infos:
         if p.kind == "camera":
             raise ValueError(f"{p.name} is not differentiated (see docs/gradients.md); "

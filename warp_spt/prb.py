@@ -59,6 +59,22 @@ def remaining(total: wp.vec3, gathered: wp.vec3, throughput: wp.vec3) -> wp.vec3
     return out
 
 
+def _skip_replay(vertex) -> None:
+    """Inside ``objective``'s adjoint, Warp replays ``vertex`` forward and then calls its adjoint,
+    which replays it again; the first replay is wasted (the adjoint of ``objective``'s dot products
+    needs only the seeds, not ``vertex``'s value), so it returns its input unchanged. Only path
+    replay's own ``vertex`` (``get_vertex``) gets this replay."""
+
+    @wp.func_replay(vertex)
+    def replay_vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+                      path: PathState, h: Hit):
+        return path
+
+    # Warp 1.19 names the replay after its own counter ("replay_<key>_0") but calls it after the
+    # closure's ("replay_<key>_<n>"): give it the name the call site uses
+    vertex.custom_replay_func.native_func = "replay_" + vertex.native_func
+
+
 def _make_kernel(vertex, start_path, closest_hit):
     @wp.func
     def objective(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
@@ -127,6 +143,7 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
         # callees got empty adjoints (all gradients 0). Flag it before the build. (get_vertex's
         # functions are path replay's own: the fast and tape kernels build theirs in get_step.)
         vertex.adj.force_adjoint_codegen = True
+        _skip_replay(vertex)
         _kernels[key] = _make_kernel(vertex, start_path, make_closest_hit(features))
     k = _kernels[key]
     wp.load_module(k.module, device=device)     # on this thread, before any worker launches it

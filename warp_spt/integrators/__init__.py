@@ -26,7 +26,7 @@ VERTICES = {"seed": seed.make_vertex, "nee": nee.make_vertex}
 DEFAULT_INTEGRATOR = "nee"      # see README, "Speed and accuracy": several times the seed's efficiency
 
 _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
-_steps: dict[tuple[str, str, Features], tuple] = {}
+_steps: dict[tuple, tuple] = {}      # (registry, integrator, sampler, features) -> functions
 _lock = threading.Lock()
 
 
@@ -38,12 +38,7 @@ def check_integrator(name: str) -> None:
 def get_step(integrator: str, sampler: str, features: Features):
     """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``."""
     check_integrator(integrator)
-    key = (integrator, sampler, features)
-    with _lock:
-        if key not in _steps:
-            s = get_sampler(sampler)
-            _steps[key] = (INTEGRATORS[integrator](features, s), make_start_path(s))
-        return _steps[key]
+    return _functions(INTEGRATORS, integrator, sampler, features)
 
 
 def get_vertex(integrator: str, sampler: str, features: Features):
@@ -52,11 +47,16 @@ def get_vertex(integrator: str, sampler: str, features: Features):
     check_integrator(integrator)
     if integrator not in VERTICES:
         raise ValueError(f"integrator {integrator!r} has no vertex function for path replay")
-    key = ("vertex", integrator, sampler, features)
+    return _functions(VERTICES, integrator, sampler, features)
+
+
+def _functions(registry: dict, integrator: str, sampler: str, features: Features) -> tuple:
+    """``(registry[integrator](features, sampler), start_path)``, built once per process."""
+    key = (id(registry), integrator, sampler, features)
     with _lock:
         if key not in _steps:
             s = get_sampler(sampler)
-            _steps[key] = (VERTICES[integrator](features, s), make_start_path(s))
+            _steps[key] = (registry[integrator](features, s), make_start_path(s))
         return _steps[key]
 
 

@@ -1,26 +1,31 @@
 """Differentiable rendering: gradients of an image (or of a loss on it) with respect to named parameters.
 
-Differentiation is a mode of the same integrator, not a copy of it: the kernel here runs the very
-``step`` function of the fast kernel (``warp_spt.integrators``), in a loop unrolled to a fixed depth
-with the path's ``alive`` flag instead of a dynamic loop, because Warp differentiates a dynamic loop
-correctly only when the carried state is additive (a ``break`` silently zeroes gradients).
-
 :func:`render_gradients` is the user-facing call. It renders the image with the fast kernel on every
-core, evaluates the loss (``warp_spt.losses``) or takes an adjoint image, then launches the
-*adjoint* of the differentiable kernel directly (no ``wp.Tape``: the tape is one global in Warp
-1.19, so it cannot be shared by threads) over tiles from a thread pool. Warp's adjoint kernel replays
-each path in registers with the same random numbers and accumulates into the parameters' gradient
-arrays, so nothing is stored per bounce or per sample: the backward pass allocates the adjoint image
-and one gradient buffer per tile, whatever the spp and depth (``GradientResult.backward_bytes``).
-Each tile has its own buffers, summed in tile order in float64, so the gradients are bit-identical
-whatever the number of threads.
+core, evaluates the loss (``warp_spt.losses``) or takes an adjoint image, then runs one of two
+backward passes over tiles from a thread pool:
+
+* ``mode="prb"``: path-replay backpropagation (``warp_spt.prb``): a forward-only kernel traces each
+  path again with the same random numbers and differentiates the integrator's own ``vertex``
+  function at each vertex, with what arrives from beyond it held constant. Any depth; nothing is
+  stored per vertex or sample; about the cost of two forward passes.
+* ``mode="tape"``: Warp's adjoint of a kernel that runs the integrator's ``step`` in a loop unrolled
+  to a fixed depth (at most MAX_UNROLLED_DEPTH) with the path's ``alive`` flag instead of a dynamic
+  loop (Warp differentiates a dynamic loop correctly only when the carried state is additive). It is
+  launched directly (``wp.launch(adjoint=True)``; no ``wp.Tape``, which is one global in Warp 1.19
+  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions).
+
+``mode="auto"`` (the default) takes path replay unless a parameter needs the tape. Either way each
+tile accumulates into its own gradient buffers, aliased onto the parameter arrays, summed in tile
+order in float64, so the gradients are bit-identical whatever the number of threads, and the
+backward pass allocates the adjoint image and per-tile buffers whatever the spp and depth
+(``GradientResult.backward_bytes``).
 
 What is differentiated (see docs/gradients.md): material colours and emission (exact: paths do not
 depend on them), texture texels (nearest and bilinear), ``Roughness`` (the lobe choice is discrete:
-``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz``, the
-constant sky colour. Visibility is not differentiated (no edge sampling): silhouettes that move with
-a parameter bias its gradient. The camera is not differentiated: the closest hit comes out of the
-top-level BVH's ``while`` traversal, whose adjoint Warp drops, so hit points carry no gradient.
+``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz`` (tape),
+the constant sky colour. Visibility is not differentiated (no edge sampling): silhouettes that move
+with a parameter bias its gradient. The camera is not differentiated: the closest hit comes out of
+the top-level BVH's ``while`` traversal, whose adjoint Warp drops, so hit points carry no gradient.
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ from .parallel import run_jobs
 from .params import COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters
 from .prb import get_replay_kernel
 from .renderer import RenderSettings, render_scene
-from .samplers import DEFAULT_SAMPLER
+from .samplers import DEFAULT_SAMPLER, get_sampler
 from .sky import Sky
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
@@ -90,16 +95,13 @@ def get_diff_kernel(features: Features, depth: int, integrator: str = "seed", sa
 
 
 def _check_estimator(integrator: str, sampler: str) -> None:
-    """Refuse the (integrator, sampler) pairs whose gradients disagree with finite differences."""
+    """Refuse the (integrator, sampler) pairs whose gradients disagree with finite differences: none
+    now. NEE with the independent sampler was refused (gradients off by up to 4x) until the cause
+    was found: ``nee``'s vertex updated the path's struct in place after passing it to ``direct``,
+    whose adjoint then replayed the light sample with the updated sampler state (the Sobol' state
+    does not change, so it was exact); the vertex now updates a copy."""
     check_integrator(integrator)
-    if integrator != "seed" and sampler == "independent":
-        # Measured, not understood yet: with NEE and the independent sampler, Warp's adjoint replay
-        # of the bounce step traces other light samples than the forward pass (per-pixel gradients off
-        # by up to 4x against finite differences), while NEE with sobol and the seed integrator with
-        # either sampler agree with them to float rounding (tests/test_param_gradients.py). A likely
-        # cause: the independent sampler skips unused dimensions in a dynamic loop, which Warp's
-        # adjoint does not replay; the seed integrator never skips one.
-        raise ValueError("gradients with light sampling need sampler='sobol' (see docs/gradients.md)")
+    get_sampler(sampler)
 
 
 def _check_depth(max_depth: int) -> None:
@@ -180,7 +182,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     names = list(params.differentiable() if wrt is None else wrt)
     infos = [params.info(n) for n in names]
     mode = choose_mode(mode, infos, rs.integrator)
-    _check_estimator(rs.integrator, rs.sampler)     # path replay measured as wrong as the tape there
+    _check_estimator(rs.integrator, rs.sampler)
     if mode == "tape":
         _check_depth(rs.max_depth)
     for p in infos:

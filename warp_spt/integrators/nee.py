@@ -131,8 +131,13 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         if wp.static(sample_lights):
             contrib, st = direct(geo, mats, tex, lights, p, sf, base)
-            p.radiance += contrib
-            p.sampler = st
+            # a copy, not p's own fields: Warp assigns struct fields in place, and the adjoint of
+            # ``direct`` (gradients) replays it with ``p`` as it is at that point; an updated
+            # p.sampler there drew other light samples (independent sampler: gradients off by up to 4x)
+            lit = p
+            lit.radiance += contrib
+            lit.sampler = st
+            p = lit
         p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
             if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:

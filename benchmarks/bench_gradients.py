@@ -108,28 +108,34 @@ def bench_modes(size: int, spp: int, depth: int, integrator: str, sampler: str) 
     for name, _ in rows:
         s, mb = min(r[0] for r in runs[name]), max(r[1] for r in runs[name])
         print(f"  {name:42s} {s * 1e3:8.0f} ms  {s / f:5.2f}x forward   peak +{mb:6.1f} MB")
+    print("  backward / forward of the same call, 1 thread (each call times its own forward right before its "
+          "backward, so a changing load on the shared machine moves both); median [range] of 5:")
     for mode in ("prb", "tape"):
-        splits = [render_gradients(params, rs, adjoint=adj, wrt=NAMES, mode=mode) for _ in range(3)]
-        r = min(splits, key=lambda x: x.backward_seconds / x.forward_seconds)
-        print(f"  {mode}: forward {r.forward_seconds * 1e3:.0f} ms + backward {r.backward_seconds * 1e3:.0f} ms = "
-              f"backward {r.backward_seconds / r.forward_seconds:.2f}x its forward (best of 3); backward allocates "
-              f"{r.backward_bytes / 1024:.0f} KiB ({r.tiles} tiles, {r.threads} threads)")
+        splits = [render_gradients(params, replace(rs, threads=1), adjoint=adj, wrt=NAMES, mode=mode)
+                  for _ in range(5)]
+        ratios = sorted(x.backward_seconds / x.forward_seconds for x in splits)
+        r = splits[0]
+        print(f"  {mode:4s}: backward {ratios[2]:.2f}x its forward [{ratios[0]:.2f}-{ratios[-1]:.2f}]; forward "
+              f"{min(x.forward_seconds for x in splits) * 1e3:.0f} ms, backward "
+              f"{min(x.backward_seconds for x in splits) * 1e3:.0f} ms (best); backward allocates "
+              f"{r.backward_bytes / 1024:.0f} KiB ({r.tiles} tiles)")
 
 
 def bench_growth(size: int, spp: int, depth: int, integrator: str, sampler: str) -> None:
     """Path replay's backward against its forward as spp and depth grow (the tape stops at depth 8)."""
     params, rs = cornell(size, spp, depth, integrator, sampler)
     adj = np.ones((size, size, 3))
-    print(f"\nPath replay as spp and depth grow ({size}x{size}; backward/forward from one call, best of 2)")
+    print(f"\nPath replay as spp and depth grow ({size}x{size}, 1 thread; backward/forward of the same call, "
+          f"median of 3)")
     for s, d in ((spp, depth), (4 * spp, depth), (spp, 2 * depth), (spp, 4 * depth)):
-        rr = replace(rs, spp=s, max_depth=d)
+        rr = replace(rs, spp=s, max_depth=d, threads=1)
         out = []
-        for _ in range(2):
-            secs, mb = peak_rise_mb(lambda: out.append(render_gradients(params, rr, adjoint=adj, wrt=NAMES, mode="prb")))
-        r = min(out, key=lambda x: x.backward_seconds / x.forward_seconds)
+        mbs = [peak_rise_mb(lambda: out.append(render_gradients(params, rr, adjoint=adj, wrt=NAMES, mode="prb")))[1]
+               for _ in range(3)]
+        r = sorted(out, key=lambda x: x.backward_seconds / x.forward_seconds)[1]
         print(f"  spp {s:4d} depth {d:3d}: forward {r.forward_seconds * 1e3:7.0f} ms, backward "
               f"{r.backward_seconds * 1e3:7.0f} ms ({r.backward_seconds / r.forward_seconds:.2f}x), backward allocates "
-              f"{r.backward_bytes / 1024:.0f} KiB, peak +{mb:.1f} MB")
+              f"{r.backward_bytes / 1024:.0f} KiB, peak +{max(mbs):.1f} MB")
 
 
 def bench_texels(size: int, spp: int) -> None:

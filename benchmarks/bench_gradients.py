@@ -1,12 +1,17 @@
 """Backward against forward: time and peak memory of gradient renders, and texel-gradient contention.
 
     PYTHONPATH=. python benchmarks/bench_gradients.py [--size 128] [--spp 4] [--depth 6]
+        [--integrator seed] [--sampler independent] [--skip modes growth texels]
 
 Scene: the demo Cornell box (cornell.obj, demo.mtl), seed integrator, independent sampler. Modes:
 
 * ``forward``: the fast renderer (enable_backward=False), all cores;
-* ``render_gradients``: its forward image, then the adjoint kernel per tile (1 and all threads);
-* ``tape``: ``render_differentiable`` + ``wp.Tape.backward`` (one thread, the previous approach).
+* ``render_gradients prb``: its forward image, then path replay per tile (warp_spt.prb; 1 and all threads);
+* ``render_gradients tape``: the same with Warp's adjoint of the unrolled step per tile;
+* ``tape``: ``render_differentiable`` + ``wp.Tape.backward`` (one thread, the first approach).
+
+Then path replay at 4x the spp, 2x and 4x the depth (beyond the tape's 8): backward/forward and
+what the backward pass allocates.
 
 Peak memory is the rise of the process's peak resident set (VmHWM, reset through
 /proc/self/clear_refs after compiling and warming up) during one call. Compile times are printed too
@@ -22,6 +27,7 @@ import argparse
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -54,56 +60,82 @@ def peak_rise_mb(fn) -> tuple[float, float]:
     return seconds, (_rss_kb("VmHWM") - before) / 1024.0
 
 
-def cornell(size: int, spp: int, depth: int):
+def cornell(size: int, spp: int, depth: int, integrator: str = "seed", sampler: str = "independent"):
     d = demo_dir()
     scene = warp_spt.load_scene([str(d / "cornell.obj")], [str(d / "demo.mtl")])
     params = parameters(scene, warp_spt.Camera(), warp_spt.Sky.black())
-    rs = RenderSettings(width=size, height=size, spp=spp, max_depth=depth, tile_pixels=1024)
+    rs = RenderSettings(width=size, height=size, spp=spp, max_depth=depth, tile_pixels=1024, integrator=integrator,
+                        sampler=sampler)
     return params, rs
 
 
-def bench_modes(size: int, spp: int, depth: int) -> None:
-    params, rs = cornell(size, spp, depth)
+NAMES = ["red.diffuse", "green.diffuse", "white.diffuse", "light.emission", "Floor.roughness"]
+
+
+def bench_modes(size: int, spp: int, depth: int, integrator: str, sampler: str) -> None:
+    params, rs = cornell(size, spp, depth, integrator, sampler)
     adj = np.ones((size, size, 3))
-    names = ["red.diffuse", "green.diffuse", "white.diffuse", "light.emission", "Floor.roughness"]
     dev = params.scene
 
     def forward():
-        render_scene(dev, params.camera, rs.__class__(**{**rs.__dict__, "sky": params.sky}))
+        render_scene(dev, params.camera, replace(rs, sky=params.sky))
 
-    def grads(threads):
-        return lambda: render_gradients(params, RenderSettings(**{**rs.__dict__, "threads": threads}), adjoint=adj,
-                                        wrt=names)
+    def grads(mode, threads=None):
+        return lambda: render_gradients(params, replace(rs, threads=threads), adjoint=adj, wrt=NAMES, mode=mode)
 
     def tape():
         enable_material_gradients(dev)
         r = render_differentiable(dev, params.camera, width=size, height=size, spp=spp, max_depth=depth,
-                                  sky=params.sky)
+                                  sky=params.sky, integrator=integrator, sampler=sampler)
         r.tape.backward(grads={r.image: wp.array(adj.reshape(-1, 3).astype(np.float32), dtype=wp.vec3)})
 
-    for name, fn in [("forward", forward), ("gradients", grads(None)), ("tape", tape)]:
+    rows = [("forward (fast kernel, all threads)", forward),
+            ("render_gradients prb, all threads", grads("prb")),
+            ("render_gradients prb, 1 thread", grads("prb", 1)),
+            ("render_gradients tape, all threads", grads("tape")),
+            ("tape: render_differentiable + backward", tape)]
+    for name, fn in rows[:2] + rows[3:]:
         t0 = time.perf_counter()
         fn()                                       # compile (or load from Warp's cache) and warm up
         print(f"  first call of {name}: {time.perf_counter() - t0:.1f} s (includes compiling)")
-    print(f"\nCornell box {size}x{size}, spp {spp}, depth {depth}; seed integrator; times best of 3")
-    rows = {}
-    for name, fn in [("forward (fast kernel, all threads)", forward),
-                     ("render_gradients, 1 thread", grads(1)),
-                     ("render_gradients, all threads", grads(None)),
-                     ("tape: render_differentiable + backward", tape)]:
-        runs = [peak_rise_mb(fn) for _ in range(3)]
-        rows[name] = (min(r[0] for r in runs), max(r[1] for r in runs))
-    f = rows["forward (fast kernel, all threads)"][0]
-    for name, (s, mb) in rows.items():
+    print(f"\nCornell box {size}x{size}, spp {spp}, depth {depth}; {integrator} + {sampler}; best of 3, "
+          f"the modes interleaved")
+    runs: dict[str, list] = {name: [] for name, _ in rows}
+    for _ in range(3):
+        for name, fn in rows:
+            runs[name].append(peak_rise_mb(fn))
+    f = min(r[0] for r in runs[rows[0][0]])
+    for name, _ in rows:
+        s, mb = min(r[0] for r in runs[name]), max(r[1] for r in runs[name])
         print(f"  {name:42s} {s * 1e3:8.0f} ms  {s / f:5.2f}x forward   peak +{mb:6.1f} MB")
-    r = render_gradients(params, rs, adjoint=adj, wrt=names)
-    print(f"  render_gradients split: forward {r.forward_seconds * 1e3:.0f} ms + backward "
-          f"{r.backward_seconds * 1e3:.0f} ms = backward {r.backward_seconds / r.forward_seconds:.2f}x its forward;"
-          f" backward allocates {r.backward_bytes / 1024:.0f} KiB ({r.tiles} tiles, {r.threads} threads)")
-    for s in (spp, 4 * spp):
-        rr = RenderSettings(**{**rs.__dict__, "spp": s})
-        secs, mb = peak_rise_mb(lambda: render_gradients(params, rr, adjoint=adj, wrt=names))
-        print(f"  spp {s:4d}: render_gradients {secs * 1e3:7.0f} ms, peak +{mb:.1f} MB")
+    print("  backward / forward of the same call, 1 thread (each call times its own forward right before its "
+          "backward, so a changing load on the shared machine moves both); median [range] of 5:")
+    for mode in ("prb", "tape"):
+        splits = [render_gradients(params, replace(rs, threads=1), adjoint=adj, wrt=NAMES, mode=mode)
+                  for _ in range(5)]
+        ratios = sorted(x.backward_seconds / x.forward_seconds for x in splits)
+        r = splits[0]
+        print(f"  {mode:4s}: backward {ratios[2]:.2f}x its forward [{ratios[0]:.2f}-{ratios[-1]:.2f}]; forward "
+              f"{min(x.forward_seconds for x in splits) * 1e3:.0f} ms, backward "
+              f"{min(x.backward_seconds for x in splits) * 1e3:.0f} ms (best); backward allocates "
+              f"{r.backward_bytes / 1024:.0f} KiB ({r.tiles} tiles)")
+
+
+def bench_growth(size: int, spp: int, depth: int, integrator: str, sampler: str) -> None:
+    """Path replay's backward against its forward as spp and depth grow (the tape stops at depth 8)."""
+    params, rs = cornell(size, spp, depth, integrator, sampler)
+    adj = np.ones((size, size, 3))
+    print(f"\nPath replay as spp and depth grow ({size}x{size}, 1 thread; backward/forward of the same call, "
+          f"median of 3)")
+    for s, d in ((spp, depth), (4 * spp, depth), (spp, 2 * depth), (spp, 4 * depth)):
+        rr = replace(rs, spp=s, max_depth=d, threads=1)
+        out = []
+        mbs = [peak_rise_mb(lambda: out.append(render_gradients(params, rr, adjoint=adj, wrt=NAMES, mode="prb")))[1]
+               for _ in range(3)]
+        r = sorted(out, key=lambda x: x.backward_seconds / x.forward_seconds)[1]
+        print(f"  spp {s:4d} depth {d:3d}: forward {r.forward_seconds * 1e3:7.0f} ms, backward "
+              f"{r.backward_seconds * 1e3:7.0f} ms ({r.backward_seconds / r.forward_seconds:.2f}x), backward allocates "
+              f"{r.backward_bytes / 1024:.0f} KiB, peak +{max(mbs):.1f} MB")
 
 
 def bench_texels(size: int, spp: int) -> None:
@@ -130,9 +162,16 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("--depth", type=int, default=6)
+    ap.add_argument("--integrator", default="seed")
+    ap.add_argument("--sampler", default="independent")
+    ap.add_argument("--skip", nargs="*", default=[], choices=["modes", "growth", "texels"])
     a = ap.parse_args()
-    bench_modes(a.size, a.spp, a.depth)
-    bench_texels(a.size, a.spp)
+    if "modes" not in a.skip:
+        bench_modes(a.size, a.spp, a.depth, a.integrator, a.sampler)
+    if "growth" not in a.skip:
+        bench_growth(a.size, a.spp, a.depth, a.integrator, a.sampler)
+    if "texels" not in a.skip:
+        bench_texels(a.size, a.spp)
 
 
 if __name__ == "__main__":

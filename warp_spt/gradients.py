@@ -1,26 +1,31 @@
 """Differentiable rendering: gradients of an image (or of a loss on it) with respect to named parameters.
 
-Differentiation is a mode of the same integrator, not a copy of it: the kernel here runs the very
-``step`` function of the fast kernel (``warp_spt.integrators``), in a loop unrolled to a fixed depth
-with the path's ``alive`` flag instead of a dynamic loop, because Warp differentiates a dynamic loop
-correctly only when the carried state is additive (a ``break`` silently zeroes gradients).
-
 :func:`render_gradients` is the user-facing call. It renders the image with the fast kernel on every
-core, evaluates the loss (``warp_spt.losses``) or takes an adjoint image, then launches the
-*adjoint* of the differentiable kernel directly (no ``wp.Tape``: the tape is one global in Warp
-1.19, so it cannot be shared by threads) over tiles from a thread pool. Warp's adjoint kernel replays
-each path in registers with the same random numbers and accumulates into the parameters' gradient
-arrays, so nothing is stored per bounce or per sample: the backward pass allocates the adjoint image
-and one gradient buffer per tile, whatever the spp and depth (``GradientResult.backward_bytes``).
-Each tile has its own buffers, summed in tile order in float64, so the gradients are bit-identical
-whatever the number of threads.
+core, evaluates the loss (``warp_spt.losses``) or takes an adjoint image, then runs one of two
+backward passes over tiles from a thread pool:
+
+* ``mode="prb"``: path-replay backpropagation (``warp_spt.prb``): a forward-only kernel traces each
+  path again with the same random numbers and differentiates the integrator's own ``vertex``
+  function at each vertex, with what arrives from beyond it held constant. Any depth; nothing is
+  stored per vertex or sample; about the cost of two forward passes.
+* ``mode="tape"``: Warp's adjoint of a kernel that runs the integrator's ``step`` in a loop unrolled
+  to a fixed depth (at most MAX_UNROLLED_DEPTH) with the path's ``alive`` flag instead of a dynamic
+  loop (Warp differentiates a dynamic loop correctly only when the carried state is additive). It is
+  launched directly (``wp.launch(adjoint=True)``; no ``wp.Tape``, which is one global in Warp 1.19
+  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions).
+
+``mode="auto"`` (the default) takes path replay unless a parameter needs the tape. Either way each
+tile accumulates into its own gradient buffers, aliased onto the parameter arrays, summed in tile
+order in float64, so the gradients are bit-identical whatever the number of threads, and the
+backward pass allocates the adjoint image and per-tile buffers whatever the spp and depth
+(``GradientResult.backward_bytes``).
 
 What is differentiated (see docs/gradients.md): material colours and emission (exact: paths do not
 depend on them), texture texels (nearest and bilinear), ``Roughness`` (the lobe choice is discrete:
-``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz``, the
-constant sky colour. Visibility is not differentiated (no edge sampling): silhouettes that move with
-a parameter bias its gradient. The camera is not differentiated: the closest hit comes out of the
-top-level BVH's ``while`` traversal, whose adjoint Warp drops, so hit points carry no gradient.
+``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz`` (tape),
+the constant sky colour. Visibility is not differentiated (no edge sampling): silhouettes that move
+with a parameter bias its gradient. The camera is not differentiated: the closest hit comes out of
+the top-level BVH's ``while`` traversal, whose adjoint Warp drops, so hit points carry no gradient.
 """
 
 from __future__ import annotations
@@ -34,17 +39,22 @@ import warp as wp
 
 from .camera import Camera
 from .device_scene import DeviceScene, Features, Geometry, Materials, Textures
-from .integrators import CameraParams, RenderParams, camera_params, check_integrator, get_step
+from .integrators import VERTICES, CameraParams, RenderParams, camera_params, check_integrator, get_step
 from .lights import Lights, light_table, sky_emits
 from .losses import Loss
 from .parallel import run_jobs
-from .params import COLOR_FIELDS, MATERIAL_FIELDS, SceneParameters
+from .params import COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters
+from .prb import get_replay_kernel
 from .renderer import RenderSettings, render_scene
-from .samplers import DEFAULT_SAMPLER
+from .samplers import DEFAULT_SAMPLER, get_sampler
 from .sky import Sky
 from .textures import tile_view
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
+MODES = ("auto", "prb", "tape")
+# Parameters path replay differentiates (it holds sampled directions fixed, see warp_spt.prb); the
+# others (fuzz bends directions, the camera moves rays) need the tape's pathwise derivative.
+REPLAYABLE = {("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels"), ("sky", "color")}
 # deltas[k] shift values passed by value in structs (the sky colour); zero, they exist for their gradients
 D_SKY = 0
 NUM_DELTAS = 1
@@ -86,21 +96,34 @@ def get_diff_kernel(features: Features, depth: int, integrator: str = "seed", sa
 
 
 def _check_estimator(integrator: str, sampler: str) -> None:
-    """Refuse the (integrator, sampler) pairs whose gradients disagree with finite differences."""
+    """Refuse the (integrator, sampler) pairs whose gradients disagree with finite differences: none
+    now. NEE with the independent sampler was refused (gradients off by up to 4x) until the cause
+    was found: ``nee``'s vertex updated the path's struct in place after passing it to ``direct``,
+    whose adjoint then replayed the light sample with the updated sampler state (the Sobol' state
+    does not change, so it was exact); the vertex now updates a copy."""
     check_integrator(integrator)
-    if integrator != "seed" and sampler == "independent":
-        # Measured, not understood yet: with NEE and the independent sampler, Warp's adjoint replay
-        # of the bounce step traces other light samples than the forward pass (per-pixel gradients off
-        # by up to 4x against finite differences), while NEE with sobol and the seed integrator with
-        # either sampler agree with them to float rounding (tests/test_param_gradients.py). A likely
-        # cause: the independent sampler skips unused dimensions in a dynamic loop, which Warp's
-        # adjoint does not replay; the seed integrator never skips one.
-        raise ValueError("gradients with light sampling need sampler='sobol' (see docs/gradients.md)")
+    get_sampler(sampler)
 
 
 def _check_depth(max_depth: int) -> None:
     if not 1 <= max_depth <= MAX_UNROLLED_DEPTH:
-        raise ValueError(f"max_depth must be in [1, {MAX_UNROLLED_DEPTH}] for differentiable renders")
+        raise ValueError(f"max_depth must be in [1, {MAX_UNROLLED_DEPTH}] for differentiable renders "
+                         f"through the tape (path replay, mode='prb', has no limit)")
+
+
+def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
+    """"prb" or "tape" for these parameters: "auto" takes path replay when it covers them all."""
+    if mode not in MODES:
+        raise ValueError(f"unknown gradient mode {mode!r}; choose from {', '.join(MODES)}")
+    pathwise = [p.name for p in infos if (p.kind, p.field) not in REPLAYABLE]
+    replayable = not pathwise and integrator in VERTICES
+    if mode == "auto":
+        return "prb" if replayable else "tape"
+    if mode == "prb" and not replayable:
+        why = (f"{', '.join(pathwise)} need(s) the pathwise derivative of the tape" if pathwise
+               else f"integrator {integrator!r} has no vertex function")
+        raise ValueError(f"path replay cannot differentiate this: {why}; use mode='tape' or 'auto'")
+    return mode
 
 
 def _render_params(width: int, lo: int, s0: int, spp: int, max_depth: int, seed: int) -> RenderParams:
@@ -119,7 +142,8 @@ class GradientResult:
     """``image`` (H, W, 3) float32 linear radiance from the fast kernel; ``loss`` its value (None when
     an adjoint image was given); ``grads`` d loss / d parameter by name (float64, the parameter's
     shape); ``backward_seconds`` and ``forward_seconds`` wall-clock; ``backward_bytes`` what the
-    backward pass allocated (adjoint image, per-tile gradient buffers, scratch)."""
+    backward pass allocated (adjoint image, per-tile gradient buffers, scratch); ``mode`` "prb" or
+    "tape", the backward pass that ran."""
 
     image: np.ndarray
     loss: float | None
@@ -129,15 +153,22 @@ class GradientResult:
     backward_bytes: int
     tiles: int
     threads: int
+    mode: str = "tape"
 
 
 def render_gradients(params: SceneParameters, settings: RenderSettings | None = None, *,
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
-                     wrt: list[str] | None = None, gradient_seed: int | None = None) -> GradientResult:
+                     wrt: list[str] | None = None, gradient_seed: int | None = None,
+                     mode: str = "auto") -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``);
-    Russian roulette must be off; ``max_depth`` at most MAX_UNROLLED_DEPTH.
+    Russian roulette must be off.
+
+    ``mode``: "prb" (path replay, ``warp_spt.prb``: any depth, about the cost of two forward
+    passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
+    alone has the pathwise derivatives of fuzz), or "auto": "prb" unless a parameter in ``wrt``
+    needs the tape.
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -147,12 +178,14 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     rs = settings or RenderSettings(width=64, height=64, spp=4, max_depth=4)
     if (loss is None) == (adjoint is None):
         raise ValueError("give exactly one of loss= and adjoint=")
-    _check_depth(rs.max_depth)
     if rs.roulette_depth != 0:
         raise ValueError("Russian roulette is not differentiated: use roulette_depth=0")
-    _check_estimator(rs.integrator, rs.sampler)
     names = list(params.differentiable() if wrt is None else wrt)
     infos = [params.info(n) for n in names]
+    mode = choose_mode(mode, infos, rs.integrator)
+    _check_estimator(rs.integrator, rs.sampler)
+    if mode == "tape":
+        _check_depth(rs.max_depth)
     for p in infos:
         if p.kind == "camera":
             raise ValueError(f"{p.name} is not differentiated (see docs/gradients.md); "
@@ -174,21 +207,25 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
-    bw = _Backward(dev, camera, sky, brs, wants_texels=any(p.kind == "texture" for p in infos))
+    bw = _Backward(dev, camera, sky, brs, wants_texels=any(p.kind == "texture" for p in infos), mode=mode)
     sums = bw.run(adj.reshape(-1, 3), rs.threads)
     backward_seconds = time.perf_counter() - t0
     grads = {p.name: _pick(p, sums, dev) for p in infos}
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
-                          bw.threads)
+                          bw.threads, mode)
 
 
 class _Backward:
     """One backward pass: per-tile gradient buffers, adjoint launches from a pool, ordered reduction."""
 
-    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants_texels: bool):
-        self.dev, self.rs = dev, rs
+    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants_texels: bool,
+                 mode: str = "tape"):
+        self.dev, self.rs, self.mode = dev, rs, mode
         feats = replace(dev.features, sky=sky_emits(sky))
-        self.kernel = get_diff_kernel(feats, rs.max_depth, rs.integrator, rs.sampler, dev.device)
+        if mode == "prb":
+            self.kernel = get_replay_kernel(feats, rs.integrator, rs.sampler, dev.device)
+        else:
+            self.kernel = get_diff_kernel(feats, rs.max_depth, rs.integrator, rs.sampler, dev.device)
         self.cam = camera_params(camera, rs.width, rs.height)
         self.lights = light_table(dev, sky, camera.up)
         self.tex = dev.textures(rs.texture_filter)
@@ -215,8 +252,11 @@ class _Backward:
             t.texels, t.tiles, t.bilinear = self._grad_alias(self.tex.texels), self.tex.tiles, self.tex.bilinear
             t.proc_kind, t.proc_params = self.tex.proc_kind, self.tex.proc_params
         deltas = wp.zeros(NUM_DELTAS, dtype=wp.vec3, device=self.dev.device, requires_grad=True)
-        scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
-        self.nbytes += scratch.capacity + 2 * deltas.capacity
+        scratch = None      # the tape's forward output; path replay needs none
+        if self.mode == "tape":
+            scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
+            self.nbytes += scratch.capacity
+        self.nbytes += 2 * deltas.capacity
         return m, t, deltas, scratch
 
     def run(self, adj: np.ndarray, threads: int | None) -> dict:
@@ -229,6 +269,10 @@ class _Backward:
             lo, hi = self.tiles[k]
             m, t, deltas, scratch = inputs[k]
             rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed)
+            if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
+                wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=[
+                    dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad])
+                return
             args = [dev.geometry, m, t, self.lights, self.cam, rp, deltas, scratch]
             adj_structs = [_ADJ.get_adjoint(a) for a in args[:6]]   # mirrors holding each array's .grad
             wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=args,

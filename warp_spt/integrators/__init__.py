@@ -19,10 +19,14 @@ from . import nee, seed
 from .common import CameraParams, PathState, RenderParams, camera_params, camera_ray, make_kernel, make_start_path
 
 INTEGRATORS = {"seed": seed.make, "nee": nee.make}
+# Optional: ``make_vertex(features, sampler) -> vertex``, the bounce after its ray was traced
+# (``step`` = closest hit + vertex). Path-replay gradients (warp_spt.prb) need it; an integrator
+# without one gets gradients through the tape only.
+VERTICES = {"seed": seed.make_vertex, "nee": nee.make_vertex}
 DEFAULT_INTEGRATOR = "nee"      # see README, "Speed and accuracy": several times the seed's efficiency
 
 _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
-_steps: dict[tuple[str, str, Features], tuple] = {}
+_steps: dict[tuple, tuple] = {}      # (registry, integrator, sampler, features) -> functions
 _lock = threading.Lock()
 
 
@@ -34,11 +38,25 @@ def check_integrator(name: str) -> None:
 def get_step(integrator: str, sampler: str, features: Features):
     """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``."""
     check_integrator(integrator)
-    key = (integrator, sampler, features)
+    return _functions(INTEGRATORS, integrator, sampler, features)
+
+
+def get_vertex(integrator: str, sampler: str, features: Features):
+    """``(vertex, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``
+    (ValueError when the integrator has no vertex function: no path replay for it)."""
+    check_integrator(integrator)
+    if integrator not in VERTICES:
+        raise ValueError(f"integrator {integrator!r} has no vertex function for path replay")
+    return _functions(VERTICES, integrator, sampler, features)
+
+
+def _functions(registry: dict, integrator: str, sampler: str, features: Features) -> tuple:
+    """``(registry[integrator](features, sampler), start_path)``, built once per process."""
+    key = (id(registry), integrator, sampler, features)
     with _lock:
         if key not in _steps:
             s = get_sampler(sampler)
-            _steps[key] = (INTEGRATORS[integrator](features, s), make_start_path(s))
+            _steps[key] = (registry[integrator](features, s), make_start_path(s))
         return _steps[key]
 
 
@@ -63,5 +81,5 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
     return k
 
 
-__all__ = ["INTEGRATORS", "CameraParams", "PathState", "RenderParams", "camera_params", "camera_ray",
-           "get_kernel", "get_step", "check_integrator"]
+__all__ = ["INTEGRATORS", "VERTICES", "CameraParams", "PathState", "RenderParams", "camera_params", "camera_ray",
+           "get_kernel", "get_step", "get_vertex", "check_integrator"]

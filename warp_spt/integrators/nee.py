@@ -18,7 +18,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..device_scene import Features, Geometry, Materials, Textures
-from ..geometry import KIND_MISS, NO_HIT, make_closest_hit, make_occluded
+from ..geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
 from ..lights import Lights, make_lights, sky_radiance
 from ..materials import make_materials
 from ..samplers import Sampler
@@ -41,10 +41,34 @@ def make(features: Features, sampler: Sampler):
     return make_path_step(features, sampler, light_sampling=True)
 
 
+def make_vertex(features: Features, sampler: Sampler):
+    """The NEE + MIS vertex (``make_path_vertex``): what path replay differentiates."""
+    return make_path_vertex(features, sampler, light_sampling=True)
+
+
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
-    """A path-tracing bounce step; ``light_sampling`` False leaves pure BSDF sampling, no roulette,
-    and the seed's four dimensions per bounce (``integrators.seed``)."""
+    """A path-tracing bounce step: trace the path's ray, then ``make_path_vertex``'s vertex at what it
+    meets. ``light_sampling`` False leaves pure BSDF sampling, no roulette, and the seed's four
+    dimensions per bounce (``integrators.seed``)."""
     closest_hit = make_closest_hit(features)
+    vertex = make_path_vertex(features, sampler, light_sampling)
+
+    @wp.func
+    def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+             path: PathState) -> PathState:
+        p = path
+        h = closest_hit(geo, p.o, p.d, NO_HIT)
+        p.rays += 1
+        return vertex(geo, mats, tex, lights, rp, p, h)
+
+    return step
+
+
+def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool):
+    """``vertex(geo, mats, tex, lights, rp, path, hit) -> PathState``: everything a bounce does once
+    its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The fast and
+    tape kernels run it inside ``step``; path replay (``warp_spt.prb``) differentiates it alone, the
+    hit being found outside, so its adjoint never retraces a ray."""
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
@@ -85,11 +109,9 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
         return contrib, st
 
     @wp.func
-    def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-             path: PathState) -> PathState:
+    def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+               path: PathState, h: Hit) -> PathState:
         p = path
-        h = closest_hit(geo, p.o, p.d, NO_HIT)
-        p.rays += 1
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_sky(lights, p.d))
             p.radiance += wp.cw_mul(p.throughput, sky_radiance(lights, p.d)) * w
@@ -109,8 +131,13 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         if wp.static(sample_lights):
             contrib, st = direct(geo, mats, tex, lights, p, sf, base)
-            p.radiance += contrib
-            p.sampler = st
+            # a copy, not p's own fields: Warp assigns struct fields in place, and the adjoint of
+            # ``direct`` (gradients) replays it with ``p`` as it is at that point; an updated
+            # p.sampler there drew other light samples (independent sampler: gradients off by up to 4x)
+            lit = p
+            lit.radiance += contrib
+            lit.sampler = st
+            p = lit
         p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
             if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:
@@ -123,4 +150,4 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
                     p.throughput = p.throughput / q
         return p
 
-    return step
+    return vertex

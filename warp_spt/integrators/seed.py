@@ -10,9 +10,14 @@ from __future__ import annotations
 
 from ..device_scene import Features
 from ..samplers import Sampler
-from .nee import make_path_step
+from .nee import make_path_step, make_path_vertex
 
 
 def make(features: Features, sampler: Sampler):
     """The bounce step of pure path tracing for scenes with these features."""
     return make_path_step(features, sampler, light_sampling=False)
+
+
+def make_vertex(features: Features, sampler: Sampler):
+    """The vertex of pure path tracing (``nee.make_path_vertex``): what path replay differentiates."""
+    return make_path_vertex(features, sampler, light_sampling=False)

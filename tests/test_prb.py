@@ -1,0 +1,127 @@
+"""Path-replay backpropagation (warp_spt.prb) against independent references.
+
+* The tape (Warp's adjoint of the step unrolled to the depth) computes the same derivative another
+  way: the two agree to float32 rounding for every replayable kind, including roughness (score
+  term) and, under NEE, the MIS weights' dependence on the diffuse density.
+* Depth 12 (beyond the tape's 8): central finite differences of the fast renderer with common random
+  numbers, for colours, emission and the sky colour.
+* NEE runs with the independent sampler, the default (tests/test_param_gradients.py has NEE + Sobol).
+* NEE: emission and sky colour re-weight the light table, so finite differences move the light
+  samples; with the table frozen they measure the derivative path replay computes (detached sampling).
+* Memory (array sizes, not wall time) does not grow with spp or depth; 1 and 2 threads agree bit for bit.
+
+Parameters with a pathwise derivative (fuzz) stay on the tape: ``mode="auto"`` routes them there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from warp_spt.gradients import render_gradients
+from warp_spt.lights import Lights, light_table
+from warp_spt.params import parameters
+from warp_spt.sky import Sky
+
+from .test_gradients import CAM as ROOM_CAM
+from .test_gradients import room  # noqa: F401  (fixture)
+from .test_param_gradients import QUAD_CAM, QUAD_RS, ROOM_RS, ROOM_SKY, _fd, _image_sum, _ones
+from .test_param_gradients import quad_scene  # noqa: F401  (fixture)
+
+COLOURS = ["wall.diffuse", "ball.diffuse", "wall.reflect"]
+SEED_NAMES = COLOURS + ["lamp.emission", "sky.color", "wall.roughness", "ball.roughness"]
+NEE = dict(integrator="nee", sampler="independent")     # the default estimator
+
+
+@pytest.mark.parametrize("estimator", [{}, NEE], ids=["seed", "nee"])
+def test_path_replay_equals_the_tape(room, estimator):
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    rs = replace(ROOM_RS, **estimator)
+    prb = render_gradients(p, rs, adjoint=_ones(rs), wrt=SEED_NAMES, mode="prb")
+    tape = render_gradients(p, rs, adjoint=_ones(rs), wrt=SEED_NAMES, mode="tape")
+    assert (prb.mode, tape.mode) == ("prb", "tape")
+    assert np.array_equal(prb.image, tape.image)          # both take the fast renderer's image
+    for n in SEED_NAMES:
+        assert np.any(np.abs(tape.grads[n]) > 1e-2), n
+        np.testing.assert_allclose(prb.grads[n], tape.grads[n], rtol=2e-4, atol=1e-4, err_msg=n)
+
+
+@pytest.mark.parametrize("estimator,names", [({}, COLOURS + ["lamp.emission", "sky.color"]), (NEE, COLOURS)],
+                         ids=["seed", "nee"])
+def test_depth_beyond_the_tape_matches_finite_differences(room, estimator, names):
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    rs = replace(ROOM_RS, max_depth=12, **estimator)
+    r = render_gradients(p, rs, adjoint=_ones(rs), wrt=names)
+    assert r.mode == "prb"
+    shallow = render_gradients(p, replace(rs, max_depth=3), adjoint=_ones(rs), wrt=names)
+    for n in names:
+        assert np.all(r.grads[n] > shallow.grads[n]), n     # the deeper bounces count
+        for c in range(3):
+            fd = _fd(p, rs, n, c, 1e-2)
+            assert r.grads[n][c] == pytest.approx(fd, rel=2e-3, abs=1e-3), (n, c)
+
+
+def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
+    """Central difference with the light table (choice probabilities, sky sampling) of the current
+    values: the light samples stay where they are, as path replay assumes."""
+    dev = p.scene
+    base = light_table(dev, p.sky)
+    v0 = p[name].copy()
+    out = []
+    for s in (h, -h):
+        v = v0.copy()
+        v[c] += s
+        p[name] = v                     # clears the cached tables and the Features
+        frozen = Lights()
+        for field in Lights.vars:
+            setattr(frozen, field, getattr(base, field))
+        frozen.sky_color = p.sky.color if name == "sky.color" else base.sky_color
+        dev._lights[(p.sky.kind, tuple(p.sky.color))] = frozen
+        out.append(_image_sum(p, rs))
+    p[name] = v0
+    return (out[0] - out[1]) / (2 * h)
+
+
+def test_nee_emission_and_sky_gradients_with_the_light_table_frozen(room):
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    rs = replace(ROOM_RS, **NEE)
+    names = ["lamp.emission", "sky.color"]
+    r = render_gradients(p, rs, adjoint=_ones(rs), wrt=names)
+    for n in names:
+        for c in range(3):
+            fd = _frozen_fd(p, rs, n, c, 1e-2)
+            assert abs(fd) > 1e-2
+            assert r.grads[n][c] == pytest.approx(fd, rel=2e-3, abs=1e-3), (n, c)
+
+
+def test_backward_memory_grows_with_neither_spp_nor_depth(room):
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    sizes = {(spp, depth): render_gradients(p, replace(ROOM_RS, spp=spp, max_depth=depth), adjoint=_ones(ROOM_RS),
+                                            wrt=["wall.diffuse"], mode="prb").backward_bytes
+             for spp in (1, 16) for depth in (2, 12)}
+    assert len(set(sizes.values())) == 1 and sizes[(1, 2)] > 0, sizes
+
+
+def test_deep_gradients_are_identical_on_one_and_two_threads(room):
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    rs = replace(ROOM_RS, max_depth=12)
+    one = render_gradients(p, replace(rs, threads=1), adjoint=_ones(rs), wrt=SEED_NAMES)
+    two = render_gradients(p, replace(rs, threads=2), adjoint=_ones(rs), wrt=SEED_NAMES)
+    assert one.threads == 1 and two.threads == 2 and one.mode == two.mode == "prb"
+    for n in SEED_NAMES:
+        assert np.array_equal(one.grads[n], two.grads[n]), n
+
+
+def test_mode_selection(quad_scene):
+    p = parameters(quad_scene, QUAD_CAM, Sky.gradient())
+    adj = _ones(QUAD_RS)
+    assert render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.diffuse_map"]).mode == "prb"
+    assert render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.fuzz", "quad.diffuse"]).mode == "tape"
+    with pytest.raises(ValueError, match="quad.fuzz.*mode='tape'"):
+        render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.fuzz"], mode="prb")
+    with pytest.raises(ValueError, match="unknown gradient mode"):
+        render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.diffuse"], mode="fast")
+    with pytest.raises(ValueError, match="tape"):
+        render_gradients(p, replace(QUAD_RS, max_depth=9), adjoint=adj, wrt=["quad.diffuse"], mode="tape")

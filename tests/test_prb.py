@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from warp_spt.gradients import render_gradients
-from warp_spt.lights import Lights, light_table
+from warp_spt.lights import Lights, light_table, table_key
 from warp_spt.params import parameters
 from warp_spt.sky import Sky
 
@@ -67,7 +67,7 @@ def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
     """Central difference with the light table (choice probabilities, sky sampling) of the current
     values: the light samples stay where they are, as path replay assumes."""
     dev = p.scene
-    base = light_table(dev, p.sky)
+    base = light_table(dev, p.sky, p.camera.up)
     v0 = p[name].copy()
     out = []
     for s in (h, -h):
@@ -78,7 +78,7 @@ def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
         for field in Lights.vars:
             setattr(frozen, field, getattr(base, field))
         frozen.sky_color = p.sky.color if name == "sky.color" else base.sky_color
-        dev._lights[(p.sky.kind, tuple(p.sky.color))] = frozen
+        dev._lights[table_key(p.sky, p.camera.up)] = frozen
         out.append(_image_sum(p, rs))
     p[name] = v0
     return (out[0] - out[1]) / (2 * h)

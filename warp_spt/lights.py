@@ -284,11 +284,16 @@ def sky_density(sky: Sky) -> tuple[float, float]:
     return float(sum(sky.color)), 0.0
 
 
+def table_key(sky: Sky, camera_up=Z_UP) -> tuple:
+    """The key under which a DeviceScene caches its light table for this sky and camera up."""
+    return sky.kind, tuple(sky.color), sky.up_axis(camera_up)
+
+
 def light_table(dev, sky: Sky, camera_up=Z_UP) -> Lights:
     """The device light table of a DeviceScene under ``sky`` (built once per scene and sky); the
     gradient sky follows ``sky.up``, else ``camera_up`` (pass the camera's ``up``)."""
-    up = sky.up_axis(camera_up)
-    key = (sky.kind, tuple(sky.color), up)
+    key = table_key(sky, camera_up)
+    up = key[2]
     if key not in dev._lights:
         if "weights" not in dev._lights:
             dev._lights["weights"] = _emitter_weights(dev.scene)

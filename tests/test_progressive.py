@@ -219,3 +219,12 @@ def test_a_host_scene_far_from_the_origin_is_recentred(tmp_path):
     a = render_progressive(host, cam, spp=4, seed=2, **KW)
     b = render_progressive(DeviceScene(moved), moved_cam, spp=4, seed=2, **KW)
     assert np.array_equal(a.sums, b.sums) and a.image.mean() > 0
+
+
+def test_adaptive_renders_are_deterministic_without_a_time_budget(open_scene):
+    # Decisions depend only on the sums (and on ray counts, not on timing): threads do not matter.
+    kw = dict(KW, spp=512, sample_budget=40 * 144, adaptive=True, seed=4)
+    a = render_progressive(open_scene, CAMERA, threads=1, **kw)
+    b = render_progressive(open_scene, CAMERA, threads=2, **kw)
+    assert a.spp.min() < a.spp.max() and a.stats.stopped_by == "samples"
+    assert np.array_equal(a.sums, b.sums) and np.array_equal(a.counts, b.counts)

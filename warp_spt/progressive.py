@@ -56,8 +56,8 @@ ERROR_FLOOR_FRACTION = 0.1   # relative error divides by max(value, 0.1 x mean o
 PASS_WORK = 1 << 20          # pixel-samples per pass once the schedule has grown (about 4 s here)
 ADAPTIVE_TILE = (1, 16)      # adaptive decisions are made per run of 16 pixels of one row: one launch each
 ADAPTIVE_MIN_STEP = 2        # samples per batch below which a tile's adaptive increment waits (launch cost)
-LAUNCH_SECONDS = 40e-6       # overhead of one recorded launch on the CPU (measured 30-40 us, docs/error.md)
-LAUNCH_PAYBACK = 10          # an adaptive launch holds at least this many launch overheads of work
+ADAPTIVE_LAUNCH_RAYS = 512   # rays an adaptive launch should trace at least: a launch costs 30-40 us, 512 rays
+                             # take 0.3-3 ms on one thread here (docs/error.md)
 UNLIMITED_SPP = 1 << 20
 
 
@@ -297,12 +297,15 @@ class _Driver:
         thread busy when a pass feeds fewer batches than there are threads. Tasks of one batch touch
         disjoint pixels, so the sums do not depend on the split."""
         fed = [b for b in range(self.B) if inc[b].any()]
-        shares = max(1, -(-2 * self.threads // max(1, len(fed)))) if self.threads > 1 else 1
+        shares = max(1, -(-4 * self.threads // max(1, len(fed)))) if self.threads > 1 else 1
         tasks = []
         for b in fed:
             runs = [(lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
-            step = -(-len(runs) // shares)
-            tasks += [[(b, slot, *r) for r in runs[i:i + step]] for slot, i in enumerate(range(0, len(runs), step))]
+            # contiguous shares of about equal work (pixel-samples), so no thread is left with the tail
+            work = np.cumsum([(hi - lo) * c for lo, hi, _, c in runs])
+            share = np.minimum((work - 0.5) * shares // max(int(work[-1]), 1), shares - 1).astype(int)
+            for slot in np.unique(share).tolist():
+                tasks.append([(b, slot, *r) for r, sh in zip(runs, share) if sh == slot])
         self.stats.launches += sum(len(t) for t in tasks)
         for task in tasks:
             self._command(*task[0][:2])       # recorded here, not on the workers
@@ -455,11 +458,10 @@ class _Driver:
                           / max(float((npix * weight).sum()), 1e-300), 0.0)
         inc = np.where(known, np.floor(target - tile_n), step)             # unknown noise: a uniform step
         inc = np.clip(inc, 0, plan.spp - tile_n).astype(np.int64)
-        # A tile's launch should hold LAUNCH_PAYBACK times a launch's overhead of work; smaller
-        # increments wait for a later pass (unless nothing would be left to launch).
-        thread_rays = self.ray_rate / self.threads
-        min_inc = 2 * np.maximum(ADAPTIVE_MIN_STEP,
-                                 np.ceil(LAUNCH_PAYBACK * LAUNCH_SECONDS * thread_rays / np.maximum(npix * cost, 1.0)))
+        # A tile's launch should trace at least ADAPTIVE_LAUNCH_RAYS rays; smaller increments wait for
+        # a later pass (unless nothing would be left to launch). Counted in rays, not seconds, so that
+        # the decisions, and the image, do not depend on timing when there is no time budget.
+        min_inc = 2 * np.maximum(ADAPTIVE_MIN_STEP, np.ceil(ADAPTIVE_LAUNCH_RAYS / np.maximum(npix * cost, 1.0)))
         if (inc >= min_inc).any():
             inc = np.where(inc >= min_inc, inc, 0)
         per_pixel = _untile(inc, self.height, self.width)

@@ -2,8 +2,9 @@
 
 cli.py calls :func:`add_flags` on its parser, :func:`options` on the parsed namespace, and
 :func:`render_and_save` instead of its plain render when :attr:`BudgetOptions.active`. The time
-budget counts from the start of ``main()``, so it covers loading the scene and compiling the
-kernel: the wall time the user sees (minus Python's own start-up and the final save).
+budget counts from the start of the process (:func:`process_start`), so it covers Python's start-up,
+loading the scene and compiling the kernel, and the render stops early enough for the measured cost
+of saving (:func:`finish_seconds`): the wall time the user sees (docs/error.md, "Budgets").
 """
 
 from __future__ import annotations
@@ -66,12 +67,13 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     """The issue-9 flags, as their own argument group."""
     g = parser.add_argument_group("error, budgets and adaptive sampling (docs/error.md)")
     g.add_argument("--time-budget", type=_positive_float, metavar="SECONDS",
-                   help="stop when this much wall time has passed since the command started (load and "
-                        "compile included); -sr becomes a maximum")
+                   help="end this many seconds after the command started (start-up, load, compile, saving "
+                        "and exit included); -sr becomes a maximum")
     g.add_argument("--target-error", type=_fraction, metavar="E",
                    help="stop when the estimated relative error of the image is at most E (0.01 or 1%%)")
     g.add_argument("--adaptive", action="store_true",
-                   help="after --min-spp, spend passes only on 8x8 tiles whose estimated error is high")
+                   help="after --min-spp, spend passes on the tiles (16 pixels of a row) whose estimated error "
+                        "is high")
     g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
     g.add_argument("--save-partial", action="store_true",
                    help="on Ctrl-C, write the image accumulated so far instead of nothing")

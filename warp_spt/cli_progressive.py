@@ -275,10 +275,12 @@ def save_map(path: str, linear: np.ndarray, scalar: np.ndarray) -> None:
     """``.npy``/``.pfm``/``.exr``: the linear (H, W, 3) map; ``.png``: false colour of ``scalar`` (0 .. its max)."""
     import numpy as np
 
-    from .film import _write_png, atomic_write, save_image
+    from PIL import Image
+
+    from .film import atomic_write, save_image
 
     if Path(path).suffix.lower() == ".png":
         img8 = false_colour(scalar)
-        atomic_write(path, lambda f: _write_png(f, img8))
+        atomic_write(path, lambda f: Image.fromarray(img8).save(f, format="PNG"))
     else:
         save_image(path, np.asarray(linear, dtype=np.float32))     # NaN where there is no estimate yet

@@ -34,7 +34,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -43,10 +43,10 @@ import warp as wp
 from .camera import Camera
 from .device_scene import DeviceScene
 from .film import Film
+from .framing import recentre
 from .integrators import RenderParams, camera_params, get_kernel
 from .lights import light_table, sky_emits
 from .parallel import run_jobs
-from .framing import recentre
 from .renderer import TILE_PIXELS, RenderResult, RenderSettings, RenderStats, check_args, settings_from
 from .scene import Scene
 from .sky import Sky

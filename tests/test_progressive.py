@@ -228,3 +228,11 @@ def test_adaptive_renders_are_deterministic_without_a_time_budget(open_scene):
     b = render_progressive(open_scene, CAMERA, threads=2, **kw)
     assert a.spp.min() < a.spp.max() and a.stats.stopped_by == "samples"
     assert np.array_equal(a.sums, b.sums) and np.array_equal(a.counts, b.counts)
+
+
+def test_a_result_from_batch_buffers(open_scene):
+    # The cluster builds its results this way (RenderResult.from_batches, alias ProgressiveResult).
+    res = render_progressive(open_scene, CAMERA, spp=16, seed=3, **KW)
+    again = ProgressiveResult.from_batches(res.sums, res.counts, ProgressiveStats(threads=2))
+    assert np.array_equal(again.image, res.image) and again.relative_error == res.relative_error
+    assert again.film.spp == 16 and again.stats.threads == 2

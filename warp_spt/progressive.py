@@ -201,7 +201,7 @@ def render_progressive(
         settings["spp"] = UNLIMITED_SPP if budgeted else RenderSettings.spp
     rs = settings_from(settings)
     check_args(rs)
-    _check_budget(time_budget, target_error, batches, min_spp)
+    check_budget(time_budget, target_error, batches, min_spp)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
     if not isinstance(scene, DeviceScene):      # far from the origin: shifted to it, as render_scene does
@@ -213,7 +213,8 @@ def render_progressive(
     return driver.run(plan, on_pass, keep_partial)
 
 
-def _check_budget(time_budget, target_error, batches, min_spp) -> None:
+def check_budget(time_budget, target_error, batches, min_spp) -> None:
+    """Raise ValueError naming the first budget argument of :func:`render_progressive` that is not valid."""
     if time_budget is not None and not (math.isfinite(time_budget) and time_budget > 0):
         raise ValueError(f"time_budget must be a positive number of seconds, got {time_budget!r}")
     if target_error is not None and not (math.isfinite(target_error) and target_error > 0):
@@ -222,6 +223,9 @@ def _check_budget(time_budget, target_error, batches, min_spp) -> None:
         raise ValueError(f"batches must be an integer >= 2 (the error estimate needs two), got {batches!r}")
     if min_spp is not None and (not isinstance(min_spp, (int, np.integer)) or min_spp < 1):
         raise ValueError(f"min_spp must be a positive integer, got {min_spp!r}")
+
+
+_check_budget = check_budget     # the old private name, imported by the cluster branch (switch, then delete)
 
 
 @dataclass

@@ -135,6 +135,14 @@ class RenderResult:
         """Samples per pixel when every pixel has the same count, else the largest count."""
         return int(self.spp.max())
 
+    @classmethod
+    def from_batches(cls, sums: np.ndarray, counts: np.ndarray, stats: RenderStats,
+                     settings: RenderSettings | None = None) -> "RenderResult":
+        """A result from batch buffers (:func:`warp_spt.progressive.result_from_batches`)."""
+        from .progressive import result_from_batches      # progressive imports this module
+
+        return result_from_batches(sums, counts, stats, settings)
+
 
 _SETTING_NAMES = {f.name for f in fields(RenderSettings)}
 

@@ -65,41 +65,72 @@ def scenes(tmp: Path):
     return {"demo": demo, "cornell": cornell, "open": open_}
 
 
-def cli_wall_time(files, cli_cam, size: int, budget: float, out: Path) -> tuple[float, int]:
+def cli_wall_time(files, cli_cam, size: int, budget: float, out: Path) -> tuple[float, int, bool]:
+    """The CLI's whole wall time from the shell's point of view, its spp, and whether it said the budget
+    is shorter than start-up plus one pass."""
     objs, mtls = files
     args = [a for o in objs for a in ("-obj", o)] + [a for m in mtls for a in ("-mtl", m)] if cli_cam else []
     cmd = [sys.executable, "-m", "warp_spt", *args, *cli_cam, "-res", str(size), str(size), "--time-budget",
-           str(budget), "--quiet", "-out", str(out)]
+           str(budget), "-out", str(out)]
     if not cli_cam:
         cmd += ["-sky", "1", "-depth", "8"]
     t = time.perf_counter()
-    subprocess.run(cmd, check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    return time.perf_counter() - t, 0
+    err = subprocess.run(cmd, check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True,
+                         text=True).stderr
+    wall = time.perf_counter() - t
+    wrote = [line for line in err.splitlines() if " wrote " in line]
+    spp = int(wrote[-1].split("(")[1].split(" spp")[0].split("..")[-1]) if wrote else 0
+    return wall, spp, "is less than start-up" in err
+
+
+def ceiling(ref) -> tuple[float, float]:
+    """The most any allocation can gain at equal work: RMSE and relative-error ratio (uniform over optimal)
+    for an oracle that knows every pixel's variance (from the reference's batches) and gives each pixel
+    samples in proportion to its standard deviation. Per pixel; adaptive sampling decides per tile."""
+    var = np.nan_to_num(ref.std_error.astype(np.float64) ** 2 * ref.spp[..., None]).mean(axis=2)
+    img = ref.image.astype(np.float64)
+    rel = np.nan_to_num(ref.std_error.astype(np.float64) ** 2 * ref.spp[..., None]
+                        / np.maximum(img, 0.1 * img.mean()) ** 2).mean(axis=2)
+    return tuple(math.sqrt(v.mean()) / np.sqrt(v).mean() for v in (var, rel))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--parts", default="time,error,adaptive", help="comma-separated: time, error, adaptive")
+    ap.add_argument("--scenes", default="demo,cornell,open")
+    ap.add_argument("--seeds", type=int, default=2, help="seeds per adaptive comparison")
+    ap.add_argument("--budgets", help="comma-separated time budgets in seconds (default 4,8,16; --quick 3,6)")
+    ap.add_argument("--adaptive-budget", type=float, help="seconds per adaptive comparison (default the largest budget)")
+    ap.add_argument("--ref-factor", type=float, default=20.0, help="reference samples over the largest budget's")
     args = ap.parse_args()
+    parts = set(args.parts.split(","))
     size = 32 if args.quick else 64
     budgets = (3.0, 6.0) if args.quick else (4.0, 8.0, 16.0)
+    if args.budgets:
+        budgets = tuple(float(b) for b in args.budgets.split(","))
+    adaptive_budget = args.adaptive_budget or max(budgets)
     tmp = Path(tempfile.mkdtemp())
-    print(f"{size}x{size} pixels; {os.cpu_count()} cores\n")
+    print(f"{size}x{size} pixels; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f} at the start\n")
     rows_t, rows_e, rows_a = [], [], []
     for name, (files, cam, kw, cli_cam) in scenes(tmp).items():
+        if name not in args.scenes.split(","):
+            continue
         dev = DeviceScene(load_scene(*files, warn=lambda m: None))
         kw = dict(kw, width=size, height=size)
         render_progressive(dev, cam, spp=2, **kw)                                  # compile once
         probe = render_progressive(dev, cam, spp=64, seed=11, **kw)
         rate = probe.stats.pixel_samples / probe.stats.render_seconds
-        # reference: about 20x the samples of the largest budget
-        ref_spp = int(min(1 << 14, 20 * rate * max(budgets) / (size * size)))
-        t = time.perf_counter()
-        ref = render_progressive(dev, cam, spp=ref_spp, seed=7919, **kw)
-        ref_img = ref.image.astype(np.float64)
-        ref_mse = float(np.nanmean(ref.std_error.astype(np.float64) ** 2))
-        print(f"[{name}] {rate / 1e6:.2f} M samples/s; reference {ref_spp} spp in {time.perf_counter() - t:.0f} s, "
-              f"estimated relative error {ref.relative_error:.2%}", flush=True)
+        print(f"[{name}] {rate / 1e6:.2f} M samples/s", flush=True)
+        if parts & {"error", "adaptive"}:
+            # reference: about 20x the samples of the largest budget
+            ref_spp = int(min(1 << 14, args.ref_factor * rate * max(budgets) / (size * size)))
+            t = time.perf_counter()
+            ref = render_progressive(dev, cam, spp=ref_spp, seed=7919, **kw)
+            ref_img = ref.image.astype(np.float64)
+            ref_mse = float(np.nanmean(ref.std_error.astype(np.float64) ** 2))
+            print(f"  reference {ref_spp} spp in {time.perf_counter() - t:.0f} s, estimated relative error "
+                  f"{ref.relative_error:.2%}", flush=True)
 
         def measured(res):
             rel = relative_error(res.image - ref_img, ref_img)
@@ -107,50 +138,61 @@ def main() -> None:
             mse = max(float(np.mean((res.image - ref_img) ** 2)) - ref_mse, 0.0)
             return rel_c, math.sqrt(mse)
 
-        for budget in budgets:
-            wall, _ = cli_wall_time(files, cli_cam, size, budget, tmp / f"{name}.png")
+        for budget in budgets if "time" in parts else ():
+            wall, cli_spp, too_short = cli_wall_time(files, cli_cam, size, budget, tmp / f"{name}.png")
             res = render_progressive(dev, cam, time_budget=budget, seed=3, **kw)
-            rows_t.append((name, budget, wall / budget, res.stats.seconds / budget, res.spp_total))
-            print(f"  time budget {budget:>4.0f} s: CLI wall {wall:6.2f} s ({wall / budget:.3f}x), "
+            rows_t.append((name, budget, wall / budget, cli_spp, too_short, res.stats.seconds / budget, res.spp_total))
+            print(f"  time budget {budget:>4.0f} s: CLI wall {wall:6.2f} s ({wall / budget:.3f}x, {cli_spp} spp"
+                  f"{', said: shorter than start-up + one pass' if too_short else ''}), "
                   f"API {res.stats.seconds:6.2f} s ({res.stats.seconds / budget:.3f}x), {res.spp_total} spp",
                   flush=True)
         e_now = probe.relative_error
-        for target in (e_now / 2, e_now / 4):
+        for target in (e_now / 2, e_now / 4) if "error" in parts else ():
             res = render_progressive(dev, cam, target_error=target, seed=5, **kw)
             rel_c, _ = measured(res)
             rows_e.append((name, target, rel_c / target, res.relative_error / target, res.spp_total))
             print(f"  target error {target:.2%}: estimated {res.relative_error:.2%}, measured {rel_c:.2%} "
                   f"({rel_c / target:.3f}x target), {res.spp_total} spp, {res.stats.seconds:.1f} s", flush=True)
-        budget = budgets[-1]
+        if "adaptive" not in parts:
+            continue
+        budget = adaptive_budget
         gains = []
-        for seed in (21, 22):
+        for seed in range(21, 21 + args.seeds):
             u = render_progressive(dev, cam, time_budget=budget, seed=seed, **kw)
             a = render_progressive(dev, cam, time_budget=budget, adaptive=True, seed=seed, **kw)
             w = render_progressive(dev, cam, sample_budget=u.stats.pixel_samples, adaptive=True, seed=seed, **kw)
             (ru, mu), (ra, ma), (rw, mw) = measured(u), measured(a), measured(w)
-            gains.append((mu / ma, ru / ra, mu / mw, ru / rw))
-            print(f"  equal time {budget:.0f} s, seed {seed}: uniform RMSE {mu:.4g} (rel {ru:.2%}, {u.spp_total} spp), "
-                  f"adaptive RMSE {ma:.4g} (rel {ra:.2%}, {a.spp.min()}..{a.spp.max()} spp, mean {a.spp.mean():.0f})",
-                  flush=True)
+            speed = (a.stats.rays / a.stats.render_seconds) / (u.stats.rays / u.stats.render_seconds)
+            gains.append((mu / ma, ru / ra, mu / mw, ru / rw, speed))
+            print(f"  equal time {budget:.0f} s, seed {seed}: uniform RMSE {mu:.4g} (rel {ru:.2%}, {u.spp_total} spp, "
+                  f"{u.stats.rays / u.stats.render_seconds / 1e6:.2f} Mrays/s), adaptive RMSE {ma:.4g} (rel {ra:.2%}, "
+                  f"{a.spp.min()}..{a.spp.max()} spp, mean {a.spp.mean():.0f}, "
+                  f"{a.stats.rays / a.stats.render_seconds / 1e6:.2f} Mrays/s)", flush=True)
         g = np.mean(gains, axis=0)
-        rows_a.append((name, *g))
+        c = ceiling(ref)
+        rows_a.append((name, *g, *c))
         print(f"  adaptive gain at equal time: RMSE x{g[0]:.2f}, relative error x{g[1]:.2f}; at equal work: "
-              f"RMSE x{g[2]:.2f}, relative error x{g[3]:.2f}\n", flush=True)
+              f"RMSE x{g[2]:.2f}, relative error x{g[3]:.2f}; rays per second x{g[4]:.2f}; "
+              f"per-pixel oracle at equal work: RMSE x{c[0]:.2f}, "
+              f"relative error x{c[1]:.2f}\n", flush=True)
 
-    print("summary")
-    print("| scene | budget s | CLI wall / budget | API / budget |")
-    print("|---|---|---|---|")
-    for r in rows_t:
-        print(f"| {r[0]} | {r[1]:.0f} | {r[2]:.3f} | {r[3]:.3f} |")
-    print("\n| scene | target | measured / target | estimated / target | spp |")
-    print("|---|---|---|---|---|")
-    for r in rows_e:
-        print(f"| {r[0]} | {r[1]:.2%} | {r[2]:.3f} | {r[3]:.3f} | {r[4]} |")
-    print("\n| scene | equal time: RMSE gain (uniform / adaptive) | relative-error gain | equal work: RMSE gain "
-          "| relative-error gain |")
-    print("|---|---|---|---|---|")
-    for r in rows_a:
-        print(f"| {r[0]} | {r[1]:.2f} | {r[2]:.2f} | {r[3]:.2f} | {r[4]:.2f} |")
+    print(f"summary (load average {os.getloadavg()[0]:.1f} at the end)")
+    if rows_t:
+        print("| scene | budget s | CLI wall / budget | CLI spp | CLI said too short | API / budget | API spp |")
+        print("|---|---|---|---|---|---|---|")
+        for r in rows_t:
+            print(f"| {r[0]} | {r[1]:g} | {r[2]:.3f} | {r[3]} | {'yes' if r[4] else 'no'} | {r[5]:.3f} | {r[6]} |")
+    if rows_e:
+        print("\n| scene | target | measured / target | estimated / target | spp |")
+        print("|---|---|---|---|---|")
+        for r in rows_e:
+            print(f"| {r[0]} | {r[1]:.2%} | {r[2]:.3f} | {r[3]:.3f} | {r[4]} |")
+    if rows_a:
+        print("\n| scene | equal time: RMSE gain (uniform / adaptive) | relative-error gain | equal work: RMSE gain "
+              "| relative-error gain | rays/s adaptive / uniform | oracle per pixel, equal work: RMSE | relative error |")
+        print("|---|---|---|---|---|---|---|---|")
+        for r in rows_a:
+            print(f"| {r[0]} | {r[1]:.2f} | {r[2]:.2f} | {r[3]:.2f} | {r[4]:.2f} | {r[5]:.2f} | {r[6]:.2f} | {r[7]:.2f} |")
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from warp_spt.cli import main, parse_args
-from warp_spt.cli_progressive import false_colour, process_start
+from warp_spt.cli_progressive import EXIT_SECONDS, false_colour, finish_seconds, process_start
 from warp_spt.film import load_image
 
 from .scenes import material
@@ -125,3 +125,17 @@ def test_denoiser_reduces_noise_on_a_smooth_image():
     assert np.sqrt(np.mean((out - clean) ** 2)) < 0.5 * np.sqrt(np.mean((noisy - clean) ** 2))
     with pytest.raises(ValueError):
         dn.denoise(np.full((4, 4, 3), np.nan, np.float32))
+
+
+def test_a_budget_shorter_than_start_up_says_so_in_one_line(tmp_path, lit_files, capsys):
+    out = tmp_path / "o.png"
+    assert main(lit_files + ["-res", "16", "12", "--time-budget", "0.001", "-out", str(out)]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if "is less than start-up" in line]
+    assert len(lines) == 1 and "first pass's 2 spp" in lines[0]
+    assert load_image(out).shape == (12, 16, 3)
+
+
+def test_finish_seconds_counts_every_output_and_the_exit(tmp_path):
+    one = finish_seconds(str(tmp_path / "o.png"), 64, 48, "seed", 1)
+    assert one >= EXIT_SECONDS and finish_seconds(str(tmp_path / "o.npy"), 64, 48, "seed", 3) >= EXIT_SECONDS
+    assert not list(tmp_path.iterdir())           # measured in memory: nothing written

@@ -16,7 +16,9 @@ from warp_spt.progressive import (ProgressiveStats, ProgressiveResult, batch_cou
                                   relative_error, render_progressive)
 
 from .scenes import material
-from .stability_scenes import GENERAL, assert_same_image, quads_obj, scene_from_text, sky
+from warp_spt.loader import load_scene
+
+from .stability_scenes import GENERAL, assert_same_image, quads_obj, scene_from_text, sky, write_scene_files
 
 KW = dict(width=12, height=12, max_depth=4, sky=sky(1.0), features=GENERAL)
 
@@ -182,3 +184,55 @@ def test_live_view_outside_jupyter_prints_each_pass(open_scene, capsys):
     assert [line.split(",")[0] for line in lines] == ["pass 1: 2 spp", "pass 2: 10 spp", "pass 3: 26 spp",
                                                       "pass 3: 26 spp"]      # each pass, then the final state
     assert res.spp_total == 26 and all("estimated relative error" in line for line in lines)
+
+
+def test_one_result_type(open_scene):
+    from warp_spt.renderer import RenderResult, RenderSettings, render_scene
+
+    plain = render_scene(open_scene, CAMERA, RenderSettings(spp=4, seed=1, **KW))
+    prog = render_progressive(open_scene, CAMERA, spp=4, seed=1, **KW)
+    assert type(plain) is type(prog) is RenderResult and ProgressiveResult is RenderResult
+    for res in (plain, prog):
+        assert res.image.shape == res.std_error.shape == (12, 12, 3) and res.spp.shape == (12, 12)
+        assert res.spp_total == 4 and res.film.spp == 4 and res.stats.rays > 0 and res.stats.passes >= 1
+        assert res.stats.pixel_samples == 4 * 144 and res.stats.dropped_samples == 0
+    assert np.isnan(plain.std_error).all() and math.isnan(plain.relative_error)    # one stream: no estimate
+    assert np.isfinite(prog.std_error).all() and prog.relative_error > 0
+    assert np.array_equal(prog.film.image(), prog.image)
+
+
+def test_a_host_scene_far_from_the_origin_is_recentred(tmp_path):
+    # Budget renders given a host Scene get render_scene's recentring: bit-identical to rendering the
+    # recentred scene (a DeviceScene is used as it is).
+    from warp_spt.device_scene import DeviceScene
+    from warp_spt.framing import recentre
+
+    far = (1e5, -2e5, 3e4)
+    obj = quads_obj([("floor", [(x + far[0], y + far[1], far[2]) for x, y in ((-8, -8), (8, -8), (8, 8), (-8, 8))])],
+                    spheres=[("ball", (far[0], far[1], far[2] + 1.0), 1.0)])
+    mtl = material("floor", Kd=(0.6, 0.6, 0.6), Roughness=1) + material("ball", Kd=(0.8, 0.3, 0.2), Roughness=1)
+    host = load_scene(*write_scene_files(tmp_path, "far", obj, mtl), warn=lambda m: None)
+    cam = Camera(position=(far[0], far[1] - 7.0, far[2] + 2.0), direction=(0.0, 1.0, -0.2), fov=50.0, aperture=0.0,
+                 focus=7.0)
+    moved, moved_cam, offset = recentre(host, cam)
+    assert np.abs(offset).max() > 1e4
+    a = render_progressive(host, cam, spp=4, seed=2, **KW)
+    b = render_progressive(DeviceScene(moved), moved_cam, spp=4, seed=2, **KW)
+    assert np.array_equal(a.sums, b.sums) and a.image.mean() > 0
+
+
+def test_adaptive_renders_are_deterministic_without_a_time_budget(open_scene):
+    # Decisions depend only on the sums (and on ray counts, not on timing): threads do not matter.
+    kw = dict(KW, spp=512, sample_budget=40 * 144, adaptive=True, seed=4)
+    a = render_progressive(open_scene, CAMERA, threads=1, **kw)
+    b = render_progressive(open_scene, CAMERA, threads=2, **kw)
+    assert a.spp.min() < a.spp.max() and a.stats.stopped_by == "samples"
+    assert np.array_equal(a.sums, b.sums) and np.array_equal(a.counts, b.counts)
+
+
+def test_a_result_from_batch_buffers(open_scene):
+    # The cluster builds its results this way (RenderResult.from_batches, alias ProgressiveResult).
+    res = render_progressive(open_scene, CAMERA, spp=16, seed=3, **KW)
+    again = ProgressiveResult.from_batches(res.sums, res.counts, ProgressiveStats(threads=2))
+    assert np.array_equal(again.image, res.image) and again.relative_error == res.relative_error
+    assert again.film.spp == 16 and again.stats.threads == 2

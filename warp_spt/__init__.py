@@ -13,10 +13,11 @@ single files; :class:`SceneError` is the one exception for bad scene input (it n
 line); :class:`Film` holds float64 sums so renders of separate sample ranges merge exactly;
 :func:`render_film` returns one. :func:`render_scene` takes a :class:`RenderSettings` (integrator
 and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
-:class:`RenderResult` (film, image, stats). :func:`texture` registers a procedural texture written as a Warp function
+:class:`RenderResult`, the one result type of every render (image, per-pixel standard error and sample
+counts, film, stats). :func:`texture` registers a procedural texture written as a Warp function
 (:mod:`warp_spt.proctex`), usable as ``map_Kd proc:NAME``. :func:`render_progressive` renders in
 passes until a sample count, a time budget or a target error, optionally adaptively, and returns a
-:class:`ProgressiveResult` (image, per-pixel standard error, per-pixel sample counts, stats);
+:class:`RenderResult` with a per-pixel standard error (``ProgressiveResult`` is another name for it);
 :func:`relative_error` is the one definition of an image's relative error (docs/error.md).
 
 Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,

@@ -2,8 +2,9 @@
 
 cli.py calls :func:`add_flags` on its parser, :func:`options` on the parsed namespace, and
 :func:`render_and_save` instead of its plain render when :attr:`BudgetOptions.active`. The time
-budget counts from the start of ``main()``, so it covers loading the scene and compiling the
-kernel: the wall time the user sees (minus Python's own start-up and the final save).
+budget counts from the start of the process (:func:`process_start`), so it covers Python's start-up,
+loading the scene and compiling the kernel, and the render stops early enough for the measured cost
+of saving (:func:`finish_seconds`): the wall time the user sees (docs/error.md, "Budgets").
 """
 
 from __future__ import annotations
@@ -66,12 +67,13 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     """The issue-9 flags, as their own argument group."""
     g = parser.add_argument_group("error, budgets and adaptive sampling (docs/error.md)")
     g.add_argument("--time-budget", type=_positive_float, metavar="SECONDS",
-                   help="stop when this much wall time has passed since the command started (load and "
-                        "compile included); -sr becomes a maximum")
+                   help="end this many seconds after the command started (start-up, load, compile, saving "
+                        "and exit included); -sr becomes a maximum")
     g.add_argument("--target-error", type=_fraction, metavar="E",
                    help="stop when the estimated relative error of the image is at most E (0.01 or 1%%)")
     g.add_argument("--adaptive", action="store_true",
-                   help="after --min-spp, spend passes only on 8x8 tiles whose estimated error is high")
+                   help="after --min-spp, spend passes on the tiles (16 pixels of a row) whose estimated error "
+                        "is high")
     g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
     g.add_argument("--save-partial", action="store_true",
                    help="on Ctrl-C, write the image accumulated so far instead of nothing")
@@ -141,6 +143,11 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         aux = feature_buffers(dev, opts.camera, opts.width, opts.height, seed=opts.seed,
                               texture_filter=opts.texture_filter)
     spp = opts.spp if (b.spp_given or not (b.time_budget or b.target_error)) else None
+    # The render's deadline leaves room for what follows its last pass: saving the outputs and exiting.
+    reserve, render_budget = 0.0, None
+    if b.time_budget is not None:
+        reserve = finish_seconds(opts.out, opts.width, opts.height, opts.tonemap, 1 + bool(b.error_map) + bool(b.spp_map))
+        render_budget = max(b.time_budget - reserve, 1e-3)
 
     def on_pass(res) -> None:
         say(f"pass {res.stats.passes}: {_spp_text(res.spp)}, {res.stats.seconds:.1f} s, "
@@ -150,7 +157,7 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
 
     res = render_progressive(dev, opts.camera, width=opts.width, height=opts.height, spp=spp,
                              max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
-                             texture_filter=opts.texture_filter, time_budget=b.time_budget,
+                             texture_filter=opts.texture_filter, time_budget=render_budget,
                              target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
                              on_pass=on_pass, keep_partial=b.save_partial, started=started,
                              **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
@@ -168,6 +175,10 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         counts = res.spp.astype(np.float32)
         save_map(b.spp_map, np.repeat(counts[..., None], 3, axis=2), counts / max(1.0, float(counts.max())))
     s = res.stats
+    if render_budget is not None and s.pass_seconds and s.pass_seconds[0] > render_budget:
+        say(f"warning: --time-budget {b.time_budget:g} s is less than start-up ({s.setup_seconds:.1f} s: Python, Warp, "
+            f"loading, compiling) plus one pass ({s.pass_seconds[0] - s.setup_seconds:.1f} s) plus saving "
+            f"({reserve:.1f} s) here; the image has the first pass's {res.spp_total} spp")
     rate = s.pixel_samples / max(s.render_seconds, 1e-9)
     say(f"wrote {opts.out} ({_spp_text(res.spp)}, {s.seconds:.1f} s since start, {rate / 1e6:.2f} M samples/s, "
         f"stopped by {s.stopped_by})")
@@ -177,6 +188,35 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         say("interrupted: the partial image was saved (--save-partial)")
         return 130
     return 0
+
+
+EXIT_SECONDS = 0.1     # from the last file written to the end of the process (__main__._exit_now)
+
+
+def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int) -> float:
+    """Seconds the command needs after its last pass: writing ``images`` images like ``out`` and exiting.
+
+    Measured here by encoding an image of noise of the output's size in memory the way the writer
+    will (tone map and PNG/JPEG encode, or the float32 copy of .npy/.pfm/.exr; noise compresses
+    worst, so this errs long), plus EXIT_SECONDS.
+    """
+    import io
+
+    import numpy as np
+
+    from .film import tonemap_seed, tonemap_srgb
+
+    t = time.perf_counter()
+    blank = np.random.default_rng(0).random((height, width, 3), dtype=np.float32)
+    buf = io.BytesIO()
+    fmt = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}.get(Path(out).suffix.lower())
+    if fmt is None:
+        np.save(buf, blank)
+    else:
+        from PIL import Image
+
+        Image.fromarray((tonemap_srgb if tonemap == "srgb" else tonemap_seed)(blank)).save(buf, format=fmt)
+    return images * (time.perf_counter() - t) + EXIT_SECONDS
 
 
 def process_start() -> float:
@@ -235,10 +275,12 @@ def save_map(path: str, linear: np.ndarray, scalar: np.ndarray) -> None:
     """``.npy``/``.pfm``/``.exr``: the linear (H, W, 3) map; ``.png``: false colour of ``scalar`` (0 .. its max)."""
     import numpy as np
 
-    from .film import _write_png, atomic_write, save_image
+    from PIL import Image
+
+    from .film import atomic_write, save_image
 
     if Path(path).suffix.lower() == ".png":
         img8 = false_colour(scalar)
-        atomic_write(path, lambda f: _write_png(f, img8))
+        atomic_write(path, lambda f: Image.fromarray(img8).save(f, format="PNG"))
     else:
         save_image(path, np.asarray(linear, dtype=np.float32))     # NaN where there is no estimate yet

@@ -133,16 +133,16 @@ def render_passes(dev, camera: Camera, rs: RenderSettings, rows: tuple[int, int]
 
 def check_settings(rs: RenderSettings) -> None:
     """The renderer's own argument checks, run on the client before anything is submitted."""
-    from .renderer import _check_args
+    from .renderer import check_args
 
-    _check_args(rs)
+    check_args(rs)
 
 
 def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:
     """The renderer's progress adapter: takes increments, None closes the bar."""
-    from .renderer import _progress_reporter
+    from .renderer import progress_reporter as reporter
 
-    return _progress_reporter(progress, total)
+    return reporter(progress, total)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -511,7 +511,7 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
     (counted from ``started``, a ``time.perf_counter()`` value; default now) or ``target_error``
     (:func:`warp_spt.progressive.relative_error` of the estimate) is reached.
 
-    Returns a :class:`warp_spt.progressive.ProgressiveResult` (image, standard-error map, batch
+    Returns a :class:`warp_spt.RenderResult` (image, standard-error map, batch
     buffers, stats; ``stats.passes`` counts rounds). ``on_pass(result)`` is called after every
     round; True stops. Batch b's film is bit for bit ``warp_spt.render_film(scene, camera,
     seed=batch_seed(seed, b), spp=<its samples>)``, and a run stopped by a budget equals this
@@ -519,7 +519,8 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
     ``render_progressive`` image: that one launches each batch's pass as one float64 sum.)
     """
     from .framing import recentre
-    from .progressive import DEFAULT_BATCHES, ProgressiveStats, batch_seed
+    from .progressive import DEFAULT_BATCHES, batch_seed
+    from .renderer import RenderStats
 
     t0 = time.perf_counter() if started is None else started
     rs = cluster_settings(settings or RenderSettings())
@@ -535,7 +536,7 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
     workers = n_workers(client)
     rounds = _Rounds(rs, batches, time_budget, target_error, t0, max(batches, TASKS_PER_WORKER * workers))
     merge = _OrderedMerge(jobs)
-    stats = ProgressiveStats(threads=workers * rs.threads, integrator=rs.integrator, sampler=rs.sampler)
+    stats = RenderStats(threads=workers * rs.threads, integrator=rs.integrator, sampler=rs.sampler)
     result = None
     while True:
         n, why = rounds.next(result)
@@ -559,8 +560,8 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
 
 
 def _check_budget(rs: RenderSettings, time_budget, target_error, batches) -> None:
-    """progressive's own checks of the budget arguments (private there: to be made public), and ours."""
-    from .progressive import _check_budget as check_progressive_budget
+    """progressive's checks of the budget arguments, and the cluster's own."""
+    from .progressive import check_budget as check_progressive_budget
 
     if rs.sample_offset:
         raise ValueError("a budgeted render owns its sample indices: sample_offset is not taken")
@@ -605,7 +606,7 @@ class _Rounds:
 
 
 def _snapshot(merge: _OrderedMerge, rounds: _Rounds, stats, t0: float):
-    from .progressive import ProgressiveResult
+    from .renderer import RenderResult
 
     sums = np.stack([f.sum for f in merge.films])
     per_batch = batch_spp(rounds.units, rounds.spp, rounds.per_pass, rounds.B)
@@ -614,7 +615,7 @@ def _snapshot(merge: _OrderedMerge, rounds: _Rounds, stats, t0: float):
     stats.rays, stats.dropped_samples = sum(merge.rays), sum(merge.dropped)
     stats.pixel_samples = int(counts.sum())
     stats.seconds = time.perf_counter() - t0
-    result = ProgressiveResult.from_batches(sums, counts, stats)
+    result = RenderResult.from_batches(sums, counts, stats)
     stats.pass_errors.append(result.relative_error)
     stats.pass_seconds.append(stats.seconds)
     return result

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-from .progressive import ProgressiveResult, render_progressive
+from .progressive import render_progressive
+from .renderer import RenderResult
 
 
 def _png(image: np.ndarray, tonemap: str, zoom: int) -> bytes:
@@ -34,7 +35,7 @@ def _png(image: np.ndarray, tonemap: str, zoom: int) -> bytes:
     return buf.getvalue()
 
 
-def status_line(res: ProgressiveResult) -> str:
+def status_line(res: RenderResult) -> str:
     """'pass 3: 26 spp, 1.2 s, estimated relative error 4.1%' for a result."""
     lo, hi = int(res.spp.min()), int(res.spp.max())
     spp = f"{lo} spp" if lo == hi else f"{lo}..{hi} spp"
@@ -55,7 +56,7 @@ class LiveView:
         except ImportError:
             self._ipython = False
 
-    def __call__(self, res: ProgressiveResult) -> None:
+    def __call__(self, res: RenderResult) -> None:
         line = status_line(res)
         if not self._ipython:
             print(line)
@@ -72,7 +73,7 @@ class LiveView:
             self._text.update({"text/plain": line}, raw=True)
 
 
-def render_live(scene, camera=None, *, tonemap: str = "srgb", zoom: int = 1, **kw) -> ProgressiveResult:
+def render_live(scene, camera=None, *, tonemap: str = "srgb", zoom: int = 1, **kw) -> RenderResult:
     """:func:`warp_spt.progressive.render_progressive` with a live view; an interrupt keeps the partial image.
 
     Keyword arguments are render_progressive's (``time_budget``, ``target_error``, ``adaptive``, ...).
@@ -80,7 +81,7 @@ def render_live(scene, camera=None, *, tonemap: str = "srgb", zoom: int = 1, **k
     view = LiveView(tonemap, zoom)
     user = kw.pop("on_pass", None)
 
-    def on_pass(res: ProgressiveResult):
+    def on_pass(res: RenderResult):
         view(res)
         return user(res) if user is not None else None
 

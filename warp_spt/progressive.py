@@ -1,7 +1,8 @@
 """Progressive rendering with error you can see and control: error estimates, budgets, adaptive sampling.
 
-:func:`render_progressive` renders in passes and returns a :class:`ProgressiveResult`: the image, a
-per-pixel standard-error map, the per-pixel sample counts and stats. It stops at a sample count, a
+:func:`render_progressive` renders in passes and returns a :class:`warp_spt.renderer.RenderResult`
+(the one result type; ``ProgressiveResult`` is another name for it): the image, a per-pixel
+standard-error map, the per-pixel sample counts, the batch sums and stats. It stops at a sample count, a
 time budget or a target relative error, whichever comes first, and can spend later passes only where
 the estimated error is high (``adaptive=True``).
 
@@ -33,7 +34,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -42,17 +43,21 @@ import warp as wp
 from .camera import Camera
 from .device_scene import DeviceScene
 from .film import Film
+from .framing import recentre
 from .integrators import RenderParams, camera_params, get_kernel
 from .lights import light_table, sky_emits
 from .parallel import run_jobs
-from .renderer import TILE_PIXELS, RenderSettings, _check_args, _settings
+from .renderer import TILE_PIXELS, RenderResult, RenderSettings, RenderStats, check_args, settings_from
 from .scene import Scene
 from .sky import Sky
 
 DEFAULT_BATCHES = 8
 ERROR_FLOOR_FRACTION = 0.1   # relative error divides by max(value, 0.1 x mean of the image)
 PASS_WORK = 1 << 20          # pixel-samples per pass once the schedule has grown (about 4 s here)
-ADAPTIVE_TILE = 8            # adaptive decisions are made per 8x8 tile
+ADAPTIVE_TILE = (1, 16)      # adaptive decisions are made per run of 16 pixels of one row: one launch each
+ADAPTIVE_MIN_STEP = 2        # samples per batch below which a tile's adaptive increment waits (launch cost)
+ADAPTIVE_LAUNCH_RAYS = 512   # rays an adaptive launch should trace at least: a launch costs 30-40 us, 512 rays
+                             # take 0.3-3 ms on one thread here (docs/error.md)
 UNLIMITED_SPP = 1 << 20
 
 
@@ -130,62 +135,23 @@ def batch_statistics(sums: np.ndarray, counts: np.ndarray, batches: slice | None
 # Result
 
 
-@dataclass
-class ProgressiveStats:
-    """What a progressive render did."""
-
-    seconds: float = 0.0            # wall time since ``started`` (upload and compile included)
-    render_seconds: float = 0.0     # time spent in passes (launches only)
-    passes: int = 0
-    rays: int = 0                   # closest-hit queries
-    dropped_samples: int = 0        # non-finite samples discarded by the kernel (should be 0)
-    stopped_by: str = "spp"         # "spp", "time", "error", "samples", "adaptive" (no tile left), "callback",
-                                    # "interrupt"
-    pixel_samples: int = 0
-    threads: int = 1
-    integrator: str = ""
-    sampler: str = ""
-    pass_errors: list[float] = field(default_factory=list)   # estimated relative error after each pass
-    pass_seconds: list[float] = field(default_factory=list)  # elapsed time at the end of each pass
+# The one result type is renderer.RenderResult (with RenderStats); these names stay for existing callers.
+ProgressiveResult = RenderResult
+ProgressiveStats = RenderStats
 
 
-@dataclass
-class ProgressiveResult:
-    """A progressive render: image, per-pixel standard error, per-pixel sample counts, stats.
+def result_from_batches(sums: np.ndarray, counts: np.ndarray, stats: RenderStats,
+                        settings: RenderSettings | None = None) -> RenderResult:
+    """A :class:`RenderResult` from batch buffers: mean image, standard errors, counts, relative error.
 
-    ``image`` float32 (H, W, 3) linear radiance; ``std_error`` float32 (H, W, 3), the estimated
-    standard error of each pixel's mean (NaN where fewer than two batches have samples); ``spp``
-    int64 (H, W) samples per pixel; ``relative_error`` the estimate of :func:`relative_error`.
-    ``sums``/``counts`` are the batch buffers, (B, H, W, 3) and (B, H, W).
-    """
-
-    image: np.ndarray
-    std_error: np.ndarray
-    spp: np.ndarray
-    relative_error: float
-    stats: ProgressiveStats
-    sums: np.ndarray
-    counts: np.ndarray
-
-    @property
-    def spp_total(self) -> int:
-        """Samples per pixel when every pixel has the same count (a non-adaptive render), else the maximum."""
-        return int(self.spp.max())
-
-    def film(self) -> Film:
-        """The merged sums as a :class:`Film` (non-adaptive renders only: a Film has one spp)."""
-        if self.spp.min() != self.spp.max():
-            raise ValueError("an adaptive render has per-pixel sample counts; a Film holds one spp")
-        return Film(self.sums.sum(axis=0), int(self.spp.flat[0]))
-
-    @classmethod
-    def from_batches(cls, sums: np.ndarray, counts: np.ndarray, stats: ProgressiveStats) -> "ProgressiveResult":
-        mean, se, n = batch_statistics(sums, counts)
-        return cls(mean.astype(np.float32), se.astype(np.float32), n, relative_error(se, mean), stats,
-                   sums, counts)
+    ``film`` is the merged sums when every pixel has the same count (else None: adaptive sampling)."""
+    mean, se, n = batch_statistics(sums, counts)
+    film = Film(sums.sum(axis=0), int(n.flat[0])) if n.min() == n.max() else None
+    return RenderResult(film, stats, settings, mean.astype(np.float32), se.astype(np.float32), n,
+                        relative_error(se, mean), sums, counts)
 
 
-PassCallback = Callable[[ProgressiveResult], "bool | None"]
+PassCallback = Callable[[RenderResult], "bool | None"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -206,7 +172,7 @@ def render_progressive(
     keep_partial: bool = False,
     started: float | None = None,
     **settings,
-) -> ProgressiveResult:
+) -> RenderResult:
     """Render in passes until ``spp``, ``time_budget`` (seconds) or ``target_error`` is reached.
 
     ``settings`` are the fields of :class:`warp_spt.renderer.RenderSettings` (width, height, spp,
@@ -217,9 +183,11 @@ def render_progressive(
     so it includes the upload and kernel compile done here; the CLI passes its own start time so
     the budget also covers loading the scene. ``target_error`` is the relative error of
     :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
-    8x8 tiles with the fewest samples for their noise (estimated from the even batches), so that
-    samples end up proportional to each tile's noise, which minimises the relative error for the
-    work spent (see _Driver._adaptive_pass). ``sample_budget`` caps the total pixel-samples
+    tiles (runs of 16 pixels of a row) with the fewest samples for their noise (estimated from the
+    even batches), so that samples end up proportional to each tile's noise over the square root of
+    its cost, which minimises the relative error for the work spent (see _Driver._adaptive_pass).
+    A host :class:`Scene` far from the origin is recentred first, as :func:`render_scene` does (a
+    :class:`DeviceScene` is used as it is). ``sample_budget`` caps the total pixel-samples
     (equal-work comparisons). ``on_pass(result)`` is called after every pass; returning True stops
     the render. With ``keep_partial``, Ctrl-C returns what is accumulated so far
     (``stats.stopped_by == "interrupt"``) instead of raising KeyboardInterrupt.
@@ -231,11 +199,14 @@ def render_progressive(
     budgeted = time_budget is not None or target_error is not None or sample_budget is not None
     if settings.get("spp") is None:
         settings["spp"] = UNLIMITED_SPP if budgeted else RenderSettings.spp
-    rs = _settings(settings)
-    _check_args(rs)
-    _check_budget(time_budget, target_error, batches, min_spp)
+    rs = settings_from(settings)
+    check_args(rs)
+    (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
+    check_budget(time_budget, target_error, batches, min_spp)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
+    if not isinstance(scene, DeviceScene):      # far from the origin: shifted to it, as render_scene does
+        scene, camera, _ = recentre(scene, camera)
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
     driver = _Driver(dev, camera or Camera(), rs, batches)
     plan = _Plan(rs.spp, time_budget, target_error, adaptive,
@@ -243,7 +214,8 @@ def render_progressive(
     return driver.run(plan, on_pass, keep_partial)
 
 
-def _check_budget(time_budget, target_error, batches, min_spp) -> None:
+def check_budget(time_budget, target_error, batches, min_spp) -> None:
+    """Raise ValueError naming the first budget argument of :func:`render_progressive` that is not valid."""
     if time_budget is not None and not (math.isfinite(time_budget) and time_budget > 0):
         raise ValueError(f"time_budget must be a positive number of seconds, got {time_budget!r}")
     if target_error is not None and not (math.isfinite(target_error) and target_error > 0):
@@ -252,6 +224,8 @@ def _check_budget(time_budget, target_error, batches, min_spp) -> None:
         raise ValueError(f"batches must be an integer >= 2 (the error estimate needs two), got {batches!r}")
     if min_spp is not None and (not isinstance(min_spp, (int, np.integer)) or min_spp < 1):
         raise ValueError(f"min_spp must be a positive integer, got {min_spp!r}")
+
+
 
 
 @dataclass
@@ -278,6 +252,7 @@ class _Driver:
         sky = rs.sky or Sky.black()
         feats = rs.features or replace(dev.features, sky=sky_emits(sky))
         self.kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)   # compile on this thread
+        self.kernel_features = feats
         self.scene_inputs = [dev.geometry, dev.materials, dev.textures(rs.texture_filter),
                              light_table(dev, sky, camera.up), camera_params(camera, rs.width, rs.height)]
         self.seeds = [wp.uint32(batch_seed(rs.seed, b)) for b in range(batches)]
@@ -285,40 +260,59 @@ class _Driver:
         self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]
         self.counts = np.zeros((batches, self.n), dtype=np.int64)
         self.params_index = len(self.scene_inputs)
-        self.launches = [self._record(b) for b in range(batches)]       # one per batch: one task uses it
+        self.launches: dict = {}     # (batch, task slot) -> recorded launch
         self.threads = max(1, rs.threads or os.cpu_count() or 1)
         self.stop = threading.Event()
         self.ray_rate = 0.0          # rays per second in the last pass (adaptive passes' time estimate)
-        self.stats = ProgressiveStats(threads=self.threads, integrator=rs.integrator, sampler=rs.sampler)
+        self.adaptive_passes = 0     # which pair of batches the next adaptive pass feeds
+        self.after_pass = 0.0        # seconds of snapshot and callback after the last pass
+        self.stats = RenderStats(self.kernel_features, rs.integrator, rs.sampler, threads=self.threads, passes=0)
 
     # -- launching
 
-    def _launch(self, b: int, lo: int, hi: int, start: int, count: int) -> None:
+    def _launch(self, b: int, slot: int, lo: int, hi: int, start: int, count: int) -> None:
         if self.stop.is_set():
             return
         p = RenderParams()
         p.width, p.pixel_start, p.sample_start, p.sample_count = self.width, lo, start, count
         p.max_depth, p.roulette_depth, p.seed = self.rs.max_depth, self.rs.roulette_depth, self.seeds[b]
-        cmd = self.launches[b]
+        cmd = self._command(b, slot)
         cmd.set_dim(hi - lo)
         cmd.set_param_at_index(self.params_index, p)
         cmd.launch()
         self.counts[b, lo:hi] += count      # disjoint slices per launch: safe across threads
 
-    def _record(self, b: int):
-        """A recorded launch of batch b's film (replayed with new params: packing the scene's structs
-        afresh cost about 160 us per launch, which dominated adaptive passes of tile-wide runs)."""
-        p = RenderParams()
-        p.width, p.seed = self.width, self.seeds[b]
-        return wp.launch(self.kernel, dim=1, device=self.dev.device, record_cmd=True,
-                         inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
+    def _command(self, b: int, slot: int):
+        """A recorded launch of batch b's film, one per task slot, so that concurrent tasks never share
+        one (replayed with new params: packing the scene's structs afresh cost about 160 us per launch,
+        which dominated adaptive passes of tile-wide runs)."""
+        cmd = self.launches.get((b, slot))
+        if cmd is None:
+            p = RenderParams()
+            p.width, p.seed = self.width, self.seeds[b]
+            cmd = self.launches[b, slot] = wp.launch(self.kernel, dim=1, device=self.dev.device, record_cmd=True,
+                                                     inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
+        return cmd
 
     def _run_pass(self, inc: np.ndarray) -> None:
-        """Give pixel p ``inc[b, p]`` more samples in batch b: one task per batch, which launches
-        the batch's runs in turn (a task per run made adaptive passes, whose runs are only a tile
-        wide, pay the thread pool's overhead per launch)."""
-        tasks = [[(b, lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
-                 for b in range(self.B) if inc[b].any()]
+        """Give pixel p ``inc[b, p]`` more samples in batch b. A task launches a share of one batch's
+        runs in turn (a task per run made adaptive passes, whose runs are only a tile wide, pay the
+        thread pool's overhead per launch); a batch's runs are split into enough tasks to keep every
+        thread busy when a pass feeds fewer batches than there are threads. Tasks of one batch touch
+        disjoint pixels, so the sums do not depend on the split."""
+        fed = [b for b in range(self.B) if inc[b].any()]
+        shares = max(1, -(-4 * self.threads // max(1, len(fed)))) if self.threads > 1 else 1
+        tasks = []
+        for b in fed:
+            runs = [(lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
+            # contiguous shares of about equal work (pixel-samples), so no thread is left with the tail
+            work = np.cumsum([(hi - lo) * c for lo, hi, _, c in runs])
+            share = np.minimum((work - 0.5) * shares // max(int(work[-1]), 1), shares - 1).astype(int)
+            for slot in np.unique(share).tolist():
+                tasks.append([(b, slot, *r) for r, sh in zip(runs, share) if sh == slot])
+        self.stats.launches += sum(len(t) for t in tasks)
+        for task in tasks:
+            self._command(*task[0][:2])       # recorded here, not on the workers
         # The renderer's tile runner (parallel.run_jobs): a Ctrl-C only sets its stop flag, so it never
         # lands between a finished launch and its bookkeeping, nor inside a thread pool's locks.
         def work(task, stop, done) -> None:
@@ -335,15 +329,15 @@ class _Driver:
 
     # -- the loop
 
-    def snapshot(self) -> ProgressiveResult:
+    def snapshot(self) -> RenderResult:
         shape = (self.B, self.height, self.width)
         sums = np.stack([f.numpy() for f in self.films]).reshape(*shape, 3)
         c = np.stack([c.numpy().sum(axis=0) for c in self.counters]).sum(axis=0)
         self.stats.rays, self.stats.dropped_samples = int(c[0]), int(c[1])
         self.stats.pixel_samples = int(self.counts.sum())
-        return ProgressiveResult.from_batches(sums, self.counts.reshape(shape).copy(), self.stats)
+        return result_from_batches(sums, self.counts.reshape(shape).copy(), self.stats, self.rs)
 
-    def run(self, plan: _Plan, on_pass: PassCallback | None, keep_partial: bool) -> ProgressiveResult:
+    def run(self, plan: _Plan, on_pass: PassCallback | None, keep_partial: bool) -> RenderResult:
         result, k, rate = None, 0, None
         try:
             while True:
@@ -352,6 +346,9 @@ class _Driver:
                     self.stats.stopped_by = why
                     break
                 t_start = time.perf_counter()
+                if k == 0:
+                    self.stats.setup_seconds = t_start - plan.t0
+                result = None                     # launches under way: a new snapshot is needed
                 self._run_pass(inc)
                 dt = time.perf_counter() - t_start
                 self.stats.render_seconds += dt
@@ -367,11 +364,15 @@ class _Driver:
                 if on_pass is not None and on_pass(result):
                     self.stats.stopped_by = "callback"
                     break
+                # what follows every pass (snapshot, callback) is paid before the caller sees the image
+                self.after_pass = time.perf_counter() - t_start - dt
         except KeyboardInterrupt:
             if not keep_partial or not self.counts.any():
                 raise
             self.stats.stopped_by = "interrupt"
-        result = self.snapshot()
+            result = None
+        if result is None:
+            result = self.snapshot()
         self.stats.seconds = time.perf_counter() - plan.t0
         return result
 
@@ -413,7 +414,7 @@ class _Driver:
             n_total = min(n_total, spp_now + max(0, left_work))
         if plan.time_budget is None:
             return n_total
-        left = plan.deadline - time.perf_counter()
+        left = plan.deadline - time.perf_counter() - self.after_pass
         if rate is None:          # first pass (2 spp): no rate yet, and an image needs samples
             return n_total
         affordable = int(left * rate / max(1, pixels))
@@ -424,8 +425,8 @@ class _Driver:
         timed_out = plan.time_budget is not None and time.perf_counter() >= plan.deadline
         return "samples" if plan.sample_budget is not None and not timed_out else "time"
 
-    def _adaptive_pass(self, plan: _Plan, k: int, result: ProgressiveResult, rate):
-        """Distribute one pass's work over the 8x8 tiles so that samples approach the best allocation.
+    def _adaptive_pass(self, plan: _Plan, k: int, result: RenderResult, rate):
+        """Distribute one pass's work over the tiles so that samples approach the best allocation.
 
         The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p, with s_p a pixel's
         relative standard deviation per sample. For a given cost sum_p n_p c_p (c_p: rays per
@@ -434,6 +435,12 @@ class _Driver:
         gives every tile what it lacks of that target. (Cycles instead equalises the per-pixel
         error, n proportional to s^2, which spends more on the noisiest pixels than the RMS error
         repays.) Tiles whose samples are all equal (s = 0) get nothing more.
+
+        Launch cost shapes the rest (docs/error.md, "Adaptive sampling"): a tile is a run of
+        ADAPTIVE_TILE pixels of one row, so it is one launch (an 8x8 tile was 8); a pass feeds one
+        pair of batches (one even, one odd, in turn), so it makes 2 launches per tile instead of B,
+        each with B/2 times the samples; and a tile's increment below ADAPTIVE_MIN_STEP per batch
+        waits for a later pass.
         """
         # The decision uses the even batches only; the odd half of every pixel is therefore an
         # unbiased estimate given the decisions, and the image (all batches) carries only the even
@@ -441,12 +448,11 @@ class _Driver:
         mean, se, n_dec = batch_statistics(result.sums, result.counts, slice(0, None, 2))
         floor = max(ERROR_FLOOR_FRACTION * float(mean.mean()), 1e-12)
         s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
-        t = ADAPTIVE_TILE
-        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2), t))                   # per-sample relative std
-        tile_n = _tile_mean(result.spp.astype(np.float64), t)
-        npix = _tile_mean(np.ones((self.height, self.width)), t, total=True)
+        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2)))                      # per-sample relative std
+        tile_n = _tile_mean(result.spp.astype(np.float64))
+        npix = _tile_mean(np.ones((self.height, self.width)), total=True)
         rays = sum(c.numpy()[:, 0] for c in self.counters).reshape(self.height, self.width)
-        cost = np.maximum(_tile_mean(rays / np.maximum(result.spp, 1), t), 1.0)   # rays per sample
+        cost = np.maximum(_tile_mean(rays / np.maximum(result.spp, 1)), 1.0)   # rays per sample
         known = np.isfinite(tile_s)
         spent = float((npix * tile_n * cost).sum())
         step = self.B * pass_samples(k, self.n, self.B)
@@ -456,7 +462,13 @@ class _Driver:
                           / max(float((npix * weight).sum()), 1e-300), 0.0)
         inc = np.where(known, np.floor(target - tile_n), step)             # unknown noise: a uniform step
         inc = np.clip(inc, 0, plan.spp - tile_n).astype(np.int64)
-        per_pixel = np.repeat(np.repeat(inc, t, 0), t, 1)[: self.height, : self.width].reshape(-1)
+        # A tile's launch should trace at least ADAPTIVE_LAUNCH_RAYS rays; smaller increments wait for
+        # a later pass (unless nothing would be left to launch). Counted in rays, not seconds, so that
+        # the decisions, and the image, do not depend on timing when there is no time budget.
+        min_inc = 2 * np.maximum(ADAPTIVE_MIN_STEP, np.ceil(ADAPTIVE_LAUNCH_RAYS / np.maximum(npix * cost, 1.0)))
+        if (inc >= min_inc).any():
+            inc = np.where(inc >= min_inc, inc, 0)
+        per_pixel = _untile(inc, self.height, self.width)
         total = int(per_pixel.sum())
         if total == 0:
             return None, "spp"
@@ -464,22 +476,33 @@ class _Driver:
         # passes go to costly pixels, so pixel-samples per second would over-promise.
         fraction = self._limit_by_time(plan, None, 0, total, 1) / total
         if plan.time_budget is not None and self.ray_rate > 0:
-            pixel_cost = np.repeat(np.repeat(cost, t, 0), t, 1)[: self.height, : self.width].reshape(-1)
-            need = float((per_pixel * pixel_cost).sum()) / self.ray_rate
-            fraction = min(fraction, max(0.0, plan.deadline - time.perf_counter()) / need)
+            need = float((per_pixel * _untile(cost, self.height, self.width)).sum()) / self.ray_rate
+            left = plan.deadline - time.perf_counter() - self.after_pass
+            fraction = min(fraction, max(0.0, left) / need)
         if fraction < 1.0:
             per_pixel = (per_pixel * fraction).astype(np.int64)
             if not per_pixel.any():
                 return None, self._budget_reason(plan)
-        b = np.arange(self.B)[:, None]
-        return per_pixel[None, :] // self.B + (b < per_pixel[None, :] % self.B), None
+        # One pair of batches per pass, in turn: (0, 1), (2, 3), ...
+        even = 2 * (self.adaptive_passes % (self.B // 2))
+        self.adaptive_passes += 1
+        out = np.zeros((self.B, self.n), dtype=np.int64)
+        out[even], out[even + 1] = per_pixel - per_pixel // 2, per_pixel // 2
+        return out, None
 
 
-def _tile_mean(a: np.ndarray, t: int, total: bool = False) -> np.ndarray:
-    """Mean (or, with ``total``, sum) over t x t tiles; edge tiles use the pixels they have;
+def _untile(a: np.ndarray, height: int, width: int) -> np.ndarray:
+    """A per-tile array (rows, tiles per row) as a flat per-pixel array of height x width."""
+    th, tw = ADAPTIVE_TILE
+    return np.repeat(np.repeat(a, th, 0), tw, 1)[:height, :width].reshape(-1)
+
+
+def _tile_mean(a: np.ndarray, total: bool = False) -> np.ndarray:
+    """Mean (or, with ``total``, sum) over the adaptive tiles; edge tiles use the pixels they have;
     a tile with a non-finite value gets inf."""
+    th, tw = ADAPTIVE_TILE
     h, w = a.shape
-    hp, wp_ = -(-h // t) * t, -(-w // t) * t
+    hp, wp_ = -(-h // th) * th, -(-w // tw) * tw
     pad = np.zeros((hp, wp_))
     cnt = np.zeros((hp, wp_))
     finite = np.isfinite(a)
@@ -487,9 +510,9 @@ def _tile_mean(a: np.ndarray, t: int, total: bool = False) -> np.ndarray:
     cnt[:h, :w] = 1.0
     inf = np.zeros((hp, wp_), dtype=bool)
     inf[:h, :w] = ~finite
-    s = pad.reshape(hp // t, t, wp_ // t, t).sum(axis=(1, 3))
-    c = cnt.reshape(hp // t, t, wp_ // t, t).sum(axis=(1, 3))
-    anyinf = inf.reshape(hp // t, t, wp_ // t, t).any(axis=(1, 3))
+    s = pad.reshape(hp // th, th, wp_ // tw, tw).sum(axis=(1, 3))
+    c = cnt.reshape(hp // th, th, wp_ // tw, tw).sum(axis=(1, 3))
+    anyinf = inf.reshape(hp // th, th, wp_ // tw, tw).any(axis=(1, 3))
     return np.where(anyinf, np.inf, s if total else s / np.maximum(c, 1.0))
 
 

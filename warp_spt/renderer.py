@@ -71,31 +71,77 @@ class RenderSettings:
 
 @dataclass
 class RenderStats:
-    """What a render did."""
+    """What a render did (:func:`render_scene` and :func:`warp_spt.progressive.render_progressive`).
 
-    features: Features
-    integrator: str
-    sampler: str
-    seconds: float            # wall-clock time of the launches (kernel compile excluded)
-    rays: int                 # closest-hit rays traced (shadow rays not counted)
-    dropped_samples: int      # non-finite samples discarded (should always be 0)
-    tiles: int
-    threads: int
+    ``seconds`` is wall time: for render_scene the launches (kernel compile excluded), for
+    render_progressive the time since its ``started`` (upload and compile included);
+    ``render_seconds`` is the launches only, for both. ``passes``, ``stopped_by`` and the per-pass
+    lists describe progressive renders (a plain render is one pass stopped by its spp).
+    """
+
+    features: Features | None = None
+    integrator: str = ""
+    sampler: str = ""
+    seconds: float = 0.0
+    rays: int = 0             # closest-hit rays traced (shadow rays not counted)
+    dropped_samples: int = 0  # non-finite samples discarded (should always be 0)
+    tiles: int = 0
+    threads: int = 1
     nonfinite_textures: tuple[str, ...] = ()   # procedural textures found returning NaN/inf (see proctex)
+    passes: int = 1
+    pixel_samples: int = 0
+    render_seconds: float = 0.0
+    stopped_by: str = "spp"   # "spp", "time", "error", "samples", "callback", "interrupt"
+    setup_seconds: float = 0.0   # progressive: from ``started`` to the first launch (load, upload, compile)
+    launches: int = 0
+    pass_errors: list[float] = field(default_factory=list)   # estimated relative error after each pass
+    pass_seconds: list[float] = field(default_factory=list)  # ``seconds`` at the end of each pass
 
 
 @dataclass
 class RenderResult:
-    """A render's :class:`Film` (float64 sums, merges exactly), its image and its stats."""
+    """Every render's result: the image, per-pixel standard error and sample counts, the sums, stats.
 
-    film: Film
+    ``image`` float32 (H, W, 3) linear radiance; ``std_error`` float32 (H, W, 3), the estimated
+    standard error of each pixel's mean (NaN where there is no estimate: a plain :func:`render_scene`
+    has one random stream per pixel and gives none; render_progressive gives one wherever two batches
+    have samples); ``spp`` int64 (H, W) samples per pixel; ``relative_error`` the image's estimated
+    relative error (docs/error.md; NaN without an estimate). ``film`` holds the float64 sums and
+    sample count, which merge exactly (None when pixels have different counts: adaptive sampling).
+    ``sums``/``counts`` are render_progressive's batch buffers, (B, H, W, 3) and (B, H, W).
+    """
+
+    film: Film | None
     stats: RenderStats
-    settings: RenderSettings = field(repr=False, default=None)
+    settings: RenderSettings | None = field(repr=False, default=None)
+    image: np.ndarray | None = field(repr=False, default=None)
+    std_error: np.ndarray | None = field(repr=False, default=None)
+    spp: np.ndarray | None = field(repr=False, default=None)
+    relative_error: float = float("nan")
+    sums: np.ndarray | None = field(repr=False, default=None)
+    counts: np.ndarray | None = field(repr=False, default=None)
+
+    def __post_init__(self) -> None:
+        if self.image is None:
+            self.image = self.film.image()
+        h, w = self.image.shape[:2]
+        if self.spp is None:
+            self.spp = np.full((h, w), self.film.spp, dtype=np.int64)
+        if self.std_error is None:
+            self.std_error = np.full((h, w, 3), np.nan, dtype=np.float32)
 
     @property
-    def image(self) -> np.ndarray:
-        """Linear radiance, float32 (height, width, 3)."""
-        return self.film.image()
+    def spp_total(self) -> int:
+        """Samples per pixel when every pixel has the same count, else the largest count."""
+        return int(self.spp.max())
+
+    @classmethod
+    def from_batches(cls, sums: np.ndarray, counts: np.ndarray, stats: RenderStats,
+                     settings: RenderSettings | None = None) -> "RenderResult":
+        """A result from batch buffers (:func:`warp_spt.progressive.result_from_batches`)."""
+        from .progressive import result_from_batches      # progressive imports this module
+
+        return result_from_batches(sums, counts, stats, settings)
 
 
 _SETTING_NAMES = {f.name for f in fields(RenderSettings)}
@@ -109,17 +155,18 @@ def render(scene: Scene | DeviceScene, camera: Camera | None = None, *,
     or a callable ``(done, total)`` in samples x pixels, called on the calling thread. Ctrl-C stops the
     workers and re-raises KeyboardInterrupt. :func:`render_scene` returns the film and stats too.
     """
-    return render_scene(scene, camera, _settings(settings), progress=progress).image
+    return render_scene(scene, camera, settings_from(settings), progress=progress).image
 
 
 def render_film(scene: Scene | DeviceScene, camera: Camera | None = None, *,
                 progress: bool | ProgressFn = False, rows: tuple[int, int] | None = None, **settings) -> Film:
     """Like :func:`render`, but returns the :class:`Film` (float64 sums and sample count); ``rows``
     as in :func:`render_scene`."""
-    return render_scene(scene, camera, _settings(settings), progress=progress, rows=rows).film
+    return render_scene(scene, camera, settings_from(settings), progress=progress, rows=rows).film
 
 
-def _settings(kw: dict) -> RenderSettings:
+def settings_from(kw: dict) -> RenderSettings:
+    """A :class:`RenderSettings` from keyword arguments; a TypeError names any unknown ones."""
     unknown = set(kw) - _SETTING_NAMES
     if unknown:
         raise TypeError(f"unknown render setting(s): {', '.join(sorted(unknown))}")
@@ -136,7 +183,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     global pixel, passes on the whole image's size), which is what tile tasks stand on.
     """
     rs = settings or RenderSettings()
-    _check_args(rs)
+    check_args(rs)
     (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
     _check_rows(rows, rs.height)
     width, height, spp = rs.width, rs.height, rs.spp
@@ -173,7 +220,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
                 dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters])
             done(count * (hi - lo))
 
-    report = _progress_reporter(progress, (stop - first) * width * spp)
+    report = progress_reporter(progress, (stop - first) * width * spp)
     start = time.perf_counter()
     try:
         run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
@@ -181,7 +228,9 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
         report(None)
     seconds = time.perf_counter() - start
     c = keep[1].numpy().sum(axis=0)
-    stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads)
+    stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads,
+                        pixel_samples=(stop - first) * width * spp, render_seconds=seconds,
+                        launches=len(tiles) * -(-spp // per_pass))
     if stats.dropped_samples and feats.procedural:
         stats.nonfinite_textures = tuple(nonfinite_textures(dev.scene, dev.device))
         _warnings.warn(f"{stats.dropped_samples} non-finite samples dropped; procedural texture(s) returning "
@@ -191,7 +240,9 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     return RenderResult(Film(sums, spp), stats, rs)
 
 
-def _check_args(rs: RenderSettings) -> None:
+def check_args(rs: RenderSettings) -> None:
+    """Raise ValueError naming the first setting of ``rs`` a kernel must not see (sizes, sample indices,
+    seed, roulette depth, texture filter, integrator and sampler names)."""
     for name in ("width", "height", "spp", "max_depth", "tile_pixels"):
         v = getattr(rs, name)
         if not isinstance(v, (int, np.integer)) or v < 1:
@@ -233,8 +284,12 @@ def _window_arrays(lo: int, hi: int, device) -> tuple[wp.array, wp.array, tuple[
     return film_view, counters_view, (film, counters)
 
 
-def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:
-    """A function taking increments (None closes the bar), or a no-op."""
+def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:
+    """A progress sink for ``total`` units: a function taking increments (None closes it).
+
+    ``progress`` is False/None (a no-op), True (a tqdm bar) or a callable ``(done, total)``, which is
+    called with the running sum on the thread that reports.
+    """
     if progress is False or progress is None:
         return lambda inc: None
     bar = None
@@ -251,3 +306,4 @@ def _progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int
             state["done"] += inc
             progress(state["done"], total)
     return report
+

@@ -30,7 +30,7 @@ class SamplerState:
     seed: wp.uint32
     pixel: int
     index: int          # global sample index
-    rng: wp.uint32      # independent: the chain's state after draw ``next_dim - 1``
+    rng: wp.uint32      # independent: the chain's state after draw ``next_dim - 1``; sobol: the pixel key
     next_dim: int
 
 
@@ -81,17 +81,27 @@ def make_independent() -> Sampler:
 
 
 def _make_sobol() -> Sampler:
-    from .sobol import sobol_1d, sobol_2d
+    from .sobol import pixel_key, sobol_1d_keyed, sobol_2d_keyed
+
+    @wp.func
+    def start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+        st = SamplerState()
+        st.seed = seed
+        st.pixel = pixel
+        st.index = index
+        st.rng = pixel_key(seed, pixel)       # the requests' shared key part (no PCG chain)
+        st.next_dim = 0
+        return st
 
     @wp.func
     def next_1d(state: SamplerState, dim: int):
-        return sobol_1d(state.seed, state.pixel, state.index, dim), state
+        return sobol_1d_keyed(state.rng, state.index, dim), state
 
     @wp.func
     def next_2d(state: SamplerState, dim: int):
-        return sobol_2d(state.seed, state.pixel, state.index, dim), state
+        return sobol_2d_keyed(state.rng, state.index, dim), state
 
-    return Sampler("sobol", _start, next_1d, next_2d)
+    return Sampler("sobol", start, next_1d, next_2d)
 
 
 def _sobol_available() -> bool:

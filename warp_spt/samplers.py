@@ -46,14 +46,19 @@ class Sampler:
 
 
 @wp.func
-def _start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+def _state(seed: wp.uint32, pixel: int, index: int, rng: wp.uint32) -> SamplerState:
     st = SamplerState()
     st.seed = seed
     st.pixel = pixel
     st.index = index
-    st.rng = stream_state(seed, pixel, index)
+    st.rng = rng
     st.next_dim = 0
     return st
+
+
+@wp.func
+def _start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+    return _state(seed, pixel, index, stream_state(seed, pixel, index))
 
 
 def make_independent() -> Sampler:
@@ -85,13 +90,7 @@ def _make_sobol() -> Sampler:
 
     @wp.func
     def start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
-        st = SamplerState()
-        st.seed = seed
-        st.pixel = pixel
-        st.index = index
-        st.rng = pixel_key(seed, pixel)       # the requests' shared key part (no PCG chain)
-        st.next_dim = 0
-        return st
+        return _state(seed, pixel, index, pixel_key(seed, pixel))   # the requests' shared key part, no PCG chain
 
     @wp.func
     def next_1d(state: SamplerState, dim: int):

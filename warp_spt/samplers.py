@@ -43,6 +43,7 @@ class Sampler:
     start: object
     next_1d: object
     next_2d: object
+    random_access: bool = False    # any dimension costs the same, so unused ones are simply not drawn
 
 
 @wp.func
@@ -100,7 +101,7 @@ def _make_sobol() -> Sampler:
     def next_2d(state: SamplerState, dim: int):
         return sobol_2d_keyed(state.rng, state.index, dim), state
 
-    return Sampler("sobol", start, next_1d, next_2d)
+    return Sampler("sobol", start, next_1d, next_2d, random_access=True)
 
 
 def _sobol_available() -> bool:

@@ -107,7 +107,7 @@ def old_code(folder: Path, size: int, spp: int):
         subprocess.run(["tar", "-x", "-C", str(old)], input=tar, check=True)
         out = folder / f"old_{size}.npz"
         subprocess.run([sys.executable, "-c", OLD_RUN, str(folder), str(size), str(spp), str(out)], check=True,
-                       cwd=old, env=dict(os.environ, PYTHONPATH=str(old)))
+                       cwd=old, env=dict(os.environ, PYTHONPATH=str(old)), capture_output=True)   # Warp's banner
     except (OSError, subprocess.CalledProcessError) as e:
         print(f"(commit {OLD} not measured: {e})")
         return None

@@ -159,6 +159,21 @@ def pick_entry(lights: Lights, u: float) -> int:
     return lo
 
 
+@wp.func
+def reuse_pick(lights: Lights, u: float) -> float:
+    """The uniform number left in ``u`` once ``pick_entry`` has used it: (u - cdf before) / prob, again
+    uniform on [0, 1) for the chosen entry (pbrt-v4's "remapped" sample), or -1 where the entry's
+    probability is under 2**-12 and too few of u's 24 bits would be left."""
+    e = pick_entry(lights, u)
+    prob = lights.entry_prob[e]
+    if prob < 2.44140625e-4:
+        return -1.0
+    lo = float(0.0)
+    if e > 0:
+        lo = lights.cdf[e - 1]
+    return wp.clamp((u - lo) / prob, 0.0, 0.99999994)
+
+
 def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     """``sample``, ``pdf_hit`` and ``pdf_sky`` (choice included) for the light kinds these features have."""
     tris = features.emitters and features.meshes

@@ -422,3 +422,30 @@ def test_integrator_and_sampler_are_chosen_by_name():
         R.render_scene(None, None, R.RenderSettings(integrator="bidir"))    # checked before any upload
     with pytest.raises(ValueError, match="unknown sampler"):
         R.render_scene(None, None, R.RenderSettings(sampler="halton"))
+
+
+def test_reused_pick_number_is_uniform_per_light(light_scene):
+    # NEE with sobol picks the light and the point on it from one 2D request: what is left of the
+    # pick's number must be uniform on [0, 1) given the chosen light (an independent check: sorted
+    # leftovers of an even grid of picks against their uniform quantiles).
+    from warp_spt.lights import pick_entry, reuse_pick
+
+    @wp.kernel(module="unique")
+    def leftovers(lights: Lights, u: wp.array(dtype=float), entry: wp.array(dtype=int), rest: wp.array(dtype=float)):
+        i = wp.tid()
+        entry[i] = pick_entry(lights, u[i])
+        rest[i] = reuse_pick(lights, u[i])
+
+    lights = light_table(light_scene, Sky.gradient())
+    n = 1 << 18
+    u = (np.arange(n) + 0.5) / n
+    entry, rest = wp.zeros(n, dtype=int), wp.zeros(n, dtype=float)
+    wp.launch(leftovers, dim=n, inputs=[lights, wp.array(u.astype(np.float32), dtype=float), entry, rest])
+    entry, rest = entry.numpy(), rest.numpy().astype(np.float64)
+    prob = lights.entry_prob.numpy()
+    assert (prob >= 2.0**-12).all() and (rest >= 0).all() and (rest < 1).all()
+    for e in range(lights.num_entries):
+        r = np.sort(rest[entry == e])
+        assert abs(len(r) / n - prob[e]) < 2.0 / n + 1e-6                        # chosen with its probability
+        q = (np.arange(len(r)) + 0.5) / len(r)
+        assert np.abs(r - q).max() < 2.0 / len(r) + 1e-5, e                      # the leftover is uniform

@@ -141,7 +141,7 @@ def test_colour_gradients_match_finite_differences(room, integrator, sampler, na
 def test_nee_with_the_independent_sampler_is_refused(room):
     p = parameters(room, ROOM_CAM, ROOM_SKY)
     with pytest.raises(ValueError, match="sobol"):
-        render_gradients(p, replace(ROOM_RS, integrator="nee"), adjoint=_ones(ROOM_RS))
+        render_gradients(p, replace(ROOM_RS, integrator="nee", sampler="independent"), adjoint=_ones(ROOM_RS))
 
 
 def test_loss_gradient_is_the_adjoint_weighted_one(room):

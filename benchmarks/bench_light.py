@@ -3,6 +3,10 @@
     python benchmarks/bench_light.py             # 256^2 and 512^2 (about 10 minutes on 2 cores)
     python benchmarks/bench_light.py --quick     # 128^2 only
 
+The last row of each table is the renderer as it was when issue 8 was filed (commit 2f89ff6,
+extracted with ``git archive`` and timed in a subprocess the same way); its images must be
+bit-identical to today's seed + independent row.
+
 The scene is the classic layout: a 32-unit room open at the front, white/red/green walls, two white blocks, a
 small square light (8 x 8 units, 6% of the ceiling) 0.25 below the ceiling, black sky, depth 6,
 every surface diffuse. The reference is NEE + Sobol' at high spp, as the mean of two halves with
@@ -21,6 +25,8 @@ can reduce, and which dominates the whole image's MSE once the rest converges.
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -67,10 +73,49 @@ def cornell(folder: Path) -> DeviceScene:
     return DeviceScene(load_scene([str(folder / "cornell.obj")], [str(folder / "cornell.mtl")]))
 
 
-CAMERA = Camera(position=(S / 2, -38.0, S / 2), direction=(0.0, 1.0, 0.0), fov=40.0, aperture=0.0, focus=40.0)
+CAMERA_ARGS = dict(position=(S / 2, -38.0, S / 2), direction=(0.0, 1.0, 0.0), fov=40.0, aperture=0.0, focus=40.0)
+CAMERA = Camera(**CAMERA_ARGS)
+SEEDS = (7, 8, 9)
+OLD = "2f89ff6"       # main when issue 8 was filed
+# Run in a subprocess on an extracted copy of OLD (its package has the same name as ours)
+OLD_RUN = """
+import sys, time, numpy as np, warp as wp
+wp.config.quiet = True
+from warp_spt import Camera, Sky, load_scene, render
+from warp_spt.device_scene import DeviceScene
+folder, size, spp, out = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+scene = DeviceScene(load_scene([folder + '/cornell.obj'], [folder + '/cornell.mtl']))
+cam = Camera(**{cam!r})
+kw = dict(width=size, height=size, max_depth=6, sky=Sky.constant(0, 0, 0), threads=1)
+render(scene, cam, **dict(kw, width=8, height=8, spp=1))          # compile outside the timings
+imgs, secs = [], []
+for seed in {seeds!r}:
+    t = time.thread_time()
+    imgs.append(render(scene, cam, **dict(kw, spp=spp, seed=seed)))
+    secs.append(time.thread_time() - t)
+np.savez(out, images=np.stack(imgs), secs=np.array(secs))
+""".format(cam=CAMERA_ARGS, seeds=SEEDS)
 
 
-def run(scene: DeviceScene, size: int, ref_spp: int, spp: int) -> None:
+def old_code(folder: Path, size: int, spp: int):
+    """(images, CPU seconds) of the renderer at commit OLD, or None where git cannot provide it."""
+    root = Path(__file__).resolve().parents[1]
+    old = folder / "old"
+    old.mkdir(exist_ok=True)
+    try:
+        tar = subprocess.run(["git", "-C", str(root), "archive", OLD, "warp_spt"], check=True, capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(old)], input=tar, check=True)
+        out = folder / f"old_{size}.npz"
+        subprocess.run([sys.executable, "-c", OLD_RUN, str(folder), str(size), str(spp), str(out)], check=True,
+                       cwd=old, env=dict(os.environ, PYTHONPATH=str(old)), capture_output=True)   # Warp's banner
+    except (OSError, subprocess.CalledProcessError) as e:
+        print(f"(commit {OLD} not measured: {e})")
+        return None
+    z = np.load(out)
+    return z["images"], z["secs"]
+
+
+def run(scene: DeviceScene, size: int, ref_spp: int, spp: int, folder: Path) -> None:
     base = dict(width=size, height=size, max_depth=6, sky=Sky.constant(0, 0, 0))
 
     def go(integrator, sampler, n, seed, roulette=0, threads=None):
@@ -91,15 +136,30 @@ def run(scene: DeviceScene, size: int, ref_spp: int, spp: int) -> None:
     print("| integrator | sampler | roulette | CPU s | camera samples/CPU-s | RMSE | efficiency | vs seed+indep. "
           "| RMSE off-light | efficiency off-light | vs seed+indep. |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    first = None
-    for integrator, sampler, roulette in COMBOS:
+    ref_mse_off = float(np.mean(((a - b) ** 2)[~rim])) / 4
+
+    def errors(image):
+        sq = (image - ref) ** 2
+        return float(np.mean(sq)) - ref_mse, float(np.mean(sq[~rim])) - ref_mse_off
+
+    first, seed_images, same = None, None, True
+    old = old_code(folder, size, spp)
+    for integrator, sampler, roulette in COMBOS + [(f"commit {OLD}", "(seed)", 0)] * (old is not None):
         errs, secs = [], []
-        for seed in (7, 8, 9):          # three estimates: mean MSE, least time (others share the machine)
-            t = time.thread_time()
-            r = go(integrator, sampler, spp, seed, roulette, threads=1)   # launched from this thread
-            secs.append(time.thread_time() - t)
-            sq = (r.image - ref) ** 2
-            errs.append((float(np.mean(sq)) - ref_mse, float(np.mean(sq[~rim])) - float(np.mean(((a - b) ** 2)[~rim])) / 4))
+        for k, seed in enumerate(SEEDS):   # three estimates: mean MSE, least time (others share the machine)
+            if integrator.startswith("commit"):
+                image, sec = old[0][k], float(old[1][k])
+                same = same and np.array_equal(image, seed_images[k])
+            else:
+                t = time.thread_time()
+                image = go(integrator, sampler, spp, seed, roulette, threads=1).image   # launched from this thread
+                sec = time.thread_time() - t
+            secs.append(sec)
+            errs.append(errors(image))
+            if (integrator, sampler) == ("seed", "independent"):
+                seed_images = (seed_images or []) + [image]
+        if integrator.startswith("commit"):
+            sampler += " bit-identical to seed+independent" if same else " NOT identical to seed+independent"
         mse, mse_off = np.mean(errs, axis=0)
         sec = float(np.min(secs))
         eff, eff_off = 1.0 / (mse * sec), 1.0 / (mse_off * sec)
@@ -120,7 +180,7 @@ def main() -> None:
                                                        sampler=sampler, sky=Sky.constant(0, 0, 0)))
         plan = [(128, 256, 8)] if args.quick else [(256, 256, 8), (512, 64, 4)]
         for size, ref_spp, spp in plan:
-            run(scene, size, ref_spp, spp)
+            run(scene, size, ref_spp, spp, Path(tmp))
 
 
 if __name__ == "__main__":

@@ -3,8 +3,15 @@ kernel compile time (cold and cached) and what each kernel specialisation saves.
 
     python benchmarks/bench_render.py            # 512x512, 16 spp, depth 6 and 8 (a few minutes)
     python benchmarks/bench_render.py --quick    # 128x128, 4 spp: a smoke run
+    python benchmarks/bench_render.py --speed-only   # the speed and thread-scaling table alone
 
 Figures are from one run; compare ratios within a run, not absolute times across machines.
+
+Thread scaling on a shared machine: wall-clock speed-up measures the other jobs as much as the
+renderer, so the table also gives the process's CPU seconds (all threads) and the CPU-time scaling
+``threads x CPU(1 thread) / CPU(n threads)``: the speed-up the renderer would reach on idle cores if
+its tiles split evenly (64 tiles of 4096 pixels at 512^2), i.e. what parallel overhead costs. The
+load average at each run is printed beside it.
 """
 
 from __future__ import annotations
@@ -47,28 +54,32 @@ def scenes() -> dict[str, DeviceScene]:
 
 
 def timed_render(scene: DeviceScene, size: int, spp: int, depth: int, threads: int,
-                 features: Features | None = None) -> tuple[float, int]:
-    t = time.perf_counter()
+                 features: Features | None = None) -> tuple[float, int, float]:
+    """(wall seconds, closest-hit rays, CPU seconds of the whole process)."""
+    t, c = time.perf_counter(), time.process_time()
     res = R.render_scene(scene, settings=R.RenderSettings(width=size, height=size, spp=spp, max_depth=depth,
                                                           sky=Sky.gradient(), threads=threads, features=features))
-    return time.perf_counter() - t, res.stats.rays
+    return time.perf_counter() - t, res.stats.rays, time.process_time() - c
 
 
 def speed_table(all_scenes: dict[str, DeviceScene], size: int, spp: int) -> None:
     ncpu = os.cpu_count() or 1
     print(f"\n## Speed: {size}x{size}, {spp} spp (GradientSky), threads 1 and {ncpu}")
-    print("| scene | tris | depth | threads | seconds | camera samples/s | rays/s | speed-up |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| scene | tris | depth | threads | wall s | CPU s | camera samples/CPU-s | rays/CPU-s | wall speed-up "
+          "| CPU-time scaling | load avg |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, sc in all_scenes.items():
         get_kernel(sc.features)      # compile outside the timing
         timed_render(sc, 16, 1, 2, 1)
         for depth in (6, 8):
             base = None
             for threads in (1, ncpu):
-                secs, rays = timed_render(sc, size, spp, depth, threads)
-                base = base or secs
-                print(f"| {name} | {sc.scene.num_triangles} | {depth} | {threads} | {secs:.2f} | "
-                      f"{size * size * spp / secs:,.0f} | {rays / secs:,.0f} | {base / secs:.2f}x |")
+                load = os.getloadavg()[0]
+                secs, rays, cpu = timed_render(sc, size, spp, depth, threads)
+                base = base or (secs, cpu)
+                print(f"| {name} | {sc.scene.num_triangles} | {depth} | {threads} | {secs:.2f} | {cpu:.2f} | "
+                      f"{size * size * spp / cpu:,.0f} | {rays / cpu:,.0f} | {base[0] / secs:.2f}x | "
+                      f"{threads * base[1] / cpu:.2f}x | {load:.1f} |")
 
 
 def specialisation_table(name: str, sc: DeviceScene, size: int, spp: int) -> None:
@@ -76,7 +87,7 @@ def specialisation_table(name: str, sc: DeviceScene, size: int, spp: int) -> Non
     own = sc.features
     print(f"\n## What specialisation saves ({name}, {size}x{size}, {spp} spp, depth 8, all threads)")
     print(f"scene features: {own}")
-    print("| kernel | seconds | relative to specialised |")
+    print("| kernel | CPU seconds | relative to specialised |")
     print("|---|---|---|")
     variants = {"specialised": own, "general (every feature)": Features.general()}
     for field in ("meshes", "spheres", "textures", "checker", "refraction", "emitters", "smooth", "diffuse",
@@ -87,7 +98,7 @@ def specialisation_table(name: str, sc: DeviceScene, size: int, spp: int) -> Non
     for label, feats in variants.items():
         get_kernel(feats)
         timed_render(sc, 16, 1, 2, None, feats)
-        best = min(timed_render(sc, size, spp, 8, None, feats)[0] for _ in range(2))
+        best = min(timed_render(sc, size, spp, 8, None, feats)[2] for _ in range(2))   # CPU s
         base = base or best
         print(f"| {label} | {best:.3f} | {best / base:.3f} |")
 
@@ -111,12 +122,14 @@ def compile_times() -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="128x128, 4 spp")
+    ap.add_argument("--speed-only", action="store_true", help="only the speed and scaling table")
     args = ap.parse_args()
     size, spp = (128, 4) if args.quick else (512, 16)
-    compile_times()
+    if not args.speed_only:
+        compile_times()
     all_scenes = scenes()
     speed_table(all_scenes, size, spp)
-    for name, sc in all_scenes.items():
+    for name, sc in all_scenes.items() if not args.speed_only else ():
         specialisation_table(name, sc, size // 2, spp)
 
 

@@ -248,18 +248,45 @@ def light_scene(scene_dir):
     return scene_from_text(scene_dir, "lights_only", obj, mtl)
 
 
+def _solid_angles(dev, x) -> np.ndarray:
+    """Each emissive triangle's solid angle from x, in float64 (Van Oosterom-Strackee)."""
+    out = []
+    for m in dev.scene.meshes:
+        e = m.positions[m.indices].astype(np.float64) - np.asarray(x, np.float64)
+        n = np.linalg.norm(e, axis=2)
+        num = np.einsum("ij,ij->i", e[:, 0], np.cross(e[:, 1], e[:, 2]))
+        den = (n.prod(axis=1) + np.einsum("ij,ij->i", e[:, 0], e[:, 1]) * n[:, 2]
+               + np.einsum("ij,ij->i", e[:, 1], e[:, 2]) * n[:, 0] + np.einsum("ij,ij->i", e[:, 2], e[:, 0]) * n[:, 1])
+        out.append(np.abs(2 * np.arctan2(num, den)))
+    return np.concatenate(out)
+
+
+# Shading points: amid the emitters and 0.3 under the bright quad (its triangles sampled by solid angle,
+# the dim quad's by area); far away (every triangle sampled by area, the quadrature too coarse).
+POINTS = {"amid": (0.1, 0.2, -0.1), "near": (0.3, -0.2, 1.7), "far": (0.5, -0.3, 40.0)}
+
+
+@pytest.mark.parametrize("where", sorted(POINTS))
 @pytest.mark.parametrize("sky_", [Sky.gradient(), Sky.constant(0.0, 0.0, 0.0), Sky.gradient(up=(1, -2, 3))])
-def test_light_pdfs_integrate_to_one_and_match_sampling(light_scene, sky_):
+def test_light_pdfs_integrate_to_one_and_match_sampling(light_scene, sky_, where):
+    from warp_spt.lights import MAX_SPHERICAL, MIN_SPHERICAL
     k = _pdf_kernels()
-    dev, x = light_scene, wp.vec3(0.1, 0.2, -0.1)
+    dev, x = light_scene, wp.vec3(*POINTS[where])
+    omega = _solid_angles(dev, POINTS[where])            # the bright quad's two triangles, then the dim one's
+    if where == "far":
+        assert omega.max() < MIN_SPHERICAL
+    else:
+        assert MIN_SPHERICAL < omega[:2].min() and omega[:2].max() < MAX_SPHERICAL and omega[2:].max() < MIN_SPHERICAL
     lights = light_table(dev, sky_)
     assert lights.num_entries == 4 + 1 + int(sky_.kind == 1)       # 4 triangles, a sphere, the sky
-    # quadrature of the evaluated pdfs: emitters (none hides another) plus the sky everywhere
+    # quadrature of the evaluated pdfs: emitters (none hides another) plus the sky everywhere; from far
+    # away the emitters are too small for the quadrature (the sampling check below covers them)
     dirs = sphere_directions(400_000)
     out = wp.zeros(len(dirs), dtype=float)
     wp.launch(k["evaluate"], dim=len(dirs), inputs=[dev.geometry, lights, x, wp.array(dirs.astype(np.float32),
                                                                                     dtype=wp.vec3), out])
-    assert abs(out.numpy().astype(np.float64).sum() * 4 * np.pi / len(dirs) - 1) < 3e-3
+    if where != "far":
+        assert abs(out.numpy().astype(np.float64).sum() * 4 * np.pi / len(dirs) - 1) < 3e-3
     # sampling: the reported density is the evaluated one, and E[g / pdf] is the integral of g
     n = 200_000
     u = np.random.default_rng(0).random((n, 3)).astype(np.float32)
@@ -268,15 +295,26 @@ def test_light_pdfs_integrate_to_one_and_match_sampling(light_scene, sky_):
                                           wp.array(u, dtype=wp.vec3), *res])
     d, pdf, pdf_eval, vis = (r.numpy().astype(np.float64) for r in res)
     seen = vis > 0
-    assert seen.mean() > 0.8         # sky samples behind an emitter are hidden (the emitter covers them)
+    # sky samples behind an emitter are hidden (the emitter covers them; near the bright quad, much)
+    assert seen.mean() > (0.6 if where == "near" else 0.8)
     assert np.allclose(pdf[seen], pdf_eval[seen], rtol=2e-3)
-    g = 1 + d[:, 2] + d[:, 0] ** 2                          # integral over the sphere: 4 pi + 4 pi / 3
+    g = 2 + d[:, 2] + d[:, 0] ** 2                          # integral over the sphere: 8 pi + 4 pi / 3
     est = np.where(seen, g / np.where(pdf > 0, pdf, 1), 0)
-    covered = 4 * np.pi + 4 * np.pi / 3
-    if sky_.kind != 1:      # without a sky only the emitters' solid angles are covered: quadrature of g there
+    covered = 8 * np.pi + 4 * np.pi / 3
+    if sky_.kind != 1:
+        # without a sky only the emitters' solid angles are covered: quadrature of g there, or from far
+        # away g at each emitter's centre times its solid angle (g varies by < 0.2% over each)
         on = out.numpy() > 0
-        gd = 1 + dirs[:, 2] + dirs[:, 0] ** 2
+        gd = 2 + dirs[:, 2] + dirs[:, 0] ** 2
         covered = (gd * on).sum() * 4 * np.pi / len(dirs)
+        if where == "far":
+            tri = np.concatenate([m.positions[m.indices] for m in dev.scene.meshes]).astype(np.float64)
+            sph = dev.scene.spheres.reshape(-1, 4).astype(np.float64)
+            cen = np.concatenate([tri.mean(axis=1), sph[:, :3]]) - POINTS[where]
+            dist = np.linalg.norm(cen, axis=1)
+            c = cen / dist[:, None]
+            om = np.concatenate([omega, 2 * np.pi * (1 - np.sqrt(1 - (sph[:, 3] / dist[4:]) ** 2))])
+            covered = float(((2 + c[:, 2] + c[:, 0] ** 2) * om).sum())
     assert abs(est.mean() - covered) < 5 * est.std() / math.sqrt(n) + 2e-3 * covered, (est.mean(), covered)
 
 
@@ -384,3 +422,30 @@ def test_integrator_and_sampler_are_chosen_by_name():
         R.render_scene(None, None, R.RenderSettings(integrator="bidir"))    # checked before any upload
     with pytest.raises(ValueError, match="unknown sampler"):
         R.render_scene(None, None, R.RenderSettings(sampler="halton"))
+
+
+def test_reused_pick_number_is_uniform_per_light(light_scene):
+    # NEE with sobol picks the light and the point on it from one 2D request: what is left of the
+    # pick's number must be uniform on [0, 1) given the chosen light (an independent check: sorted
+    # leftovers of an even grid of picks against their uniform quantiles).
+    from warp_spt.lights import pick_entry, reuse_pick
+
+    @wp.kernel(module="unique")
+    def leftovers(lights: Lights, u: wp.array(dtype=float), entry: wp.array(dtype=int), rest: wp.array(dtype=float)):
+        i = wp.tid()
+        entry[i] = pick_entry(lights, u[i])
+        rest[i] = reuse_pick(lights, u[i])
+
+    lights = light_table(light_scene, Sky.gradient())
+    n = 1 << 18
+    u = (np.arange(n) + 0.5) / n
+    entry, rest = wp.zeros(n, dtype=int), wp.zeros(n, dtype=float)
+    wp.launch(leftovers, dim=n, inputs=[lights, wp.array(u.astype(np.float32), dtype=float), entry, rest])
+    entry, rest = entry.numpy(), rest.numpy().astype(np.float64)
+    prob = lights.entry_prob.numpy()
+    assert (prob >= 2.0**-12).all() and (rest >= 0).all() and (rest < 1).all()
+    for e in range(lights.num_entries):
+        r = np.sort(rest[entry == e])
+        assert abs(len(r) / n - prob[e]) < 2.0 / n + 1e-6                        # chosen with its probability
+        q = (np.arange(len(r)) + 0.5) / len(r)
+        assert np.abs(r - q).max() < 2.0 / len(r) + 1e-5, e                      # the leftover is uniform

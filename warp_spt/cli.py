@@ -212,7 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--integrator", metavar="NAME",
                      help="light transport: nee (light sampling with MIS, default) or seed (pure path tracing)")
     new.add_argument("--sampler", metavar="NAME",
-                     help="random numbers: independent (default) or sobol (Owen-scrambled Sobol')")
+                     help="random numbers: sobol (Owen-scrambled Sobol', default) or independent (PCG streams)")
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     add_flags(p, _int_at_least)

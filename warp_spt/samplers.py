@@ -30,7 +30,7 @@ class SamplerState:
     seed: wp.uint32
     pixel: int
     index: int          # global sample index
-    rng: wp.uint32      # independent: the chain's state after draw ``next_dim - 1``
+    rng: wp.uint32      # independent: the chain's state after draw ``next_dim - 1``; sobol: the pixel key
     next_dim: int
 
 
@@ -43,17 +43,23 @@ class Sampler:
     start: object
     next_1d: object
     next_2d: object
+    random_access: bool = False    # any dimension costs the same, so unused ones are simply not drawn
 
 
 @wp.func
-def _start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+def _state(seed: wp.uint32, pixel: int, index: int, rng: wp.uint32) -> SamplerState:
     st = SamplerState()
     st.seed = seed
     st.pixel = pixel
     st.index = index
-    st.rng = stream_state(seed, pixel, index)
+    st.rng = rng
     st.next_dim = 0
     return st
+
+
+@wp.func
+def _start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+    return _state(seed, pixel, index, stream_state(seed, pixel, index))
 
 
 def make_independent() -> Sampler:
@@ -81,17 +87,21 @@ def make_independent() -> Sampler:
 
 
 def _make_sobol() -> Sampler:
-    from .sobol import sobol_1d, sobol_2d
+    from .sobol import pixel_key, sobol_1d_keyed, sobol_2d_keyed
+
+    @wp.func
+    def start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+        return _state(seed, pixel, index, pixel_key(seed, pixel))   # the requests' shared key part, no PCG chain
 
     @wp.func
     def next_1d(state: SamplerState, dim: int):
-        return sobol_1d(state.seed, state.pixel, state.index, dim), state
+        return sobol_1d_keyed(state.rng, state.index, dim), state
 
     @wp.func
     def next_2d(state: SamplerState, dim: int):
-        return sobol_2d(state.seed, state.pixel, state.index, dim), state
+        return sobol_2d_keyed(state.rng, state.index, dim), state
 
-    return Sampler("sobol", _start, next_1d, next_2d)
+    return Sampler("sobol", start, next_1d, next_2d, random_access=True)
 
 
 def _sobol_available() -> bool:
@@ -103,7 +113,10 @@ SAMPLERS = {"independent": make_independent}
 if _sobol_available():
     SAMPLERS["sobol"] = _make_sobol
 
-DEFAULT_SAMPLER = "independent"
+# sobol: on bench_light's Cornell box, nee + sobol reaches a given whole-image error sooner than
+# nee + independent at 256^2 and 512^2 (README, "Speed and accuracy"); independent is the fallback
+# when the sobol module is absent.
+DEFAULT_SAMPLER = "sobol" if "sobol" in SAMPLERS else "independent"
 _built: dict[str, Sampler] = {}
 
 

@@ -76,7 +76,8 @@ Limits:
     supported (the ``int`` argument).
   * Beyond 2**15 samples per pixel, the fine digits (below 2**-15) of points sharing a 15-bit prefix
     share their flips: still unbiased and stratified, slightly less random than Owen's scrambling.
-  * Cost: per 2D request 17 hashes (3 for the key, 2 for the component seeds, 4 for the index
+  * Cost: per 2D request 17 hashes (3 for the key, 2 of them per pixel and shared by a sample's requests
+    through ``pixel_key`` and the ``*_keyed`` functions, 2 for the component seeds, 4 for the index
     shuffle, 4 per component), several times a PCG draw; benchmarks/bench_sampler.py prints both.
 """
 
@@ -182,12 +183,17 @@ def owen_scramble(v: wp.uint32, seed: wp.uint32) -> wp.uint32:
 
 
 @wp.func
+def pixel_key(seed: wp.uint32, pixel: int) -> wp.uint32:
+    """The part of every request key that depends on (seed, pixel) only: a sampler computes it once
+    per sample and passes it to the ``*_keyed`` functions."""
+    return mix32(mix32(seed ^ _SEED_SALT) ^ wp.uint32(pixel))
+
+
+@wp.func
 def request_seed(seed: wp.uint32, pixel: int, dim: int) -> wp.uint32:
     """The key of one (seed, pixel, dimension) request: it seeds the index shuffle, and, hashed with a
     salt, each component's value scramble."""
-    h = mix32(seed ^ _SEED_SALT)
-    h = mix32(h ^ wp.uint32(pixel))
-    return mix32(h ^ (wp.uint32(dim) * _DIM_MUL))
+    return mix32(pixel_key(seed, pixel) ^ (wp.uint32(dim) * _DIM_MUL))
 
 
 @wp.func
@@ -210,20 +216,32 @@ def shuffled_index(key: wp.uint32, index: int) -> wp.uint32:
 
 
 @wp.func
+def sobol_1d_keyed(pkey: wp.uint32, index: int, dim: int) -> float:
+    """``sobol_1d`` with its (seed, pixel) part given as ``pkey = pixel_key(seed, pixel)``."""
+    key = mix32(pkey ^ (wp.uint32(dim) * _DIM_MUL))
+    i = shuffled_index(key, index)
+    return to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT)))
+
+
+@wp.func
+def sobol_2d_keyed(pkey: wp.uint32, index: int, dim: int) -> wp.vec2:
+    """``sobol_2d`` with its (seed, pixel) part given as ``pkey = pixel_key(seed, pixel)``."""
+    key = mix32(pkey ^ (wp.uint32(dim) * _DIM_MUL))
+    i = shuffled_index(key, index)
+    x = owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT))
+    y = owen_scramble(sobol_dim1(i), mix32(key ^ _Y_SALT))
+    return wp.vec2(to_unit(x), to_unit(y))
+
+
+@wp.func
 def sobol_1d(seed: wp.uint32, pixel: int, index: int, dim: int) -> float:
     """Sample dimension ``dim`` of global sample ``index`` of ``pixel``: a shuffled, Owen-scrambled
     van der Corput value in [0, 1)."""
-    key = request_seed(seed, pixel, dim)
-    i = shuffled_index(key, index)
-    return to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT)))
+    return sobol_1d_keyed(pixel_key(seed, pixel), index, dim)
 
 
 @wp.func
 def sobol_2d(seed: wp.uint32, pixel: int, index: int, dim: int) -> wp.vec2:
     """Sample dimensions ``dim`` and ``dim + 1`` of global sample ``index`` of ``pixel``: a shuffled,
     Owen-scrambled point of the 2D Sobol' (0,2)-sequence in [0, 1)^2."""
-    key = request_seed(seed, pixel, dim)
-    i = shuffled_index(key, index)
-    x = owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT))
-    y = owen_scramble(sobol_dim1(i), mix32(key ^ _Y_SALT))
-    return wp.vec2(to_unit(x), to_unit(y))
+    return sobol_2d_keyed(pixel_key(seed, pixel), index, dim)

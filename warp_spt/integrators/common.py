@@ -118,8 +118,12 @@ def make_start_path(sampler: Sampler):
     @wp.func
     def start_path(cam: CameraParams, pix: int, width: int, seed: wp.uint32, index: int) -> PathState:
         st = sampler.start(seed, pix, index)
-        r12, st1 = sampler.next_2d(st, DIM_PIXEL)
-        r34, st2 = sampler.next_2d(st1, DIM_LENS)
+        r12, st2 = sampler.next_2d(st, DIM_PIXEL)
+        r34 = wp.vec2(0.0, 0.0)
+        if cam.lens_radius > 0.0 or wp.static(not sampler.random_access):
+            # a pinhole needs no lens dims; a chain (independent) draws them anyway: its later draws
+            # keep their values, and the differentiable kernel never replays a skipping loop
+            r34, st2 = sampler.next_2d(st2, DIM_LENS)
         o, d = camera_ray(cam, float(pix % width), float(pix // width), r12[0], r12[1], r34[0], r34[1])
         p = PathState()
         p.o = o

@@ -19,7 +19,7 @@ import warp as wp
 
 from ..device_scene import Features, Geometry, Materials, Textures
 from ..geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
-from ..lights import Lights, make_lights, sky_radiance
+from ..lights import Lights, make_lights, reuse_pick, sky_radiance
 from ..materials import make_materials
 from ..samplers import Sampler
 from ..surface import Surface, make_surface, offset_origin
@@ -94,9 +94,22 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
         st = p.sampler
         if mats.roughness[sf.mat] > 0.0:      # only the diffuse lobe has a density to sample lights for
             u_pick = float(0.0)
-            if lights.num_entries > 1:
-                u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
-            u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
+            u_pos = wp.vec2(0.0, 0.0)
+            if wp.static(sampler.random_access):
+                # one 2D request chooses the light and the point on it (the choice's leftover bits
+                # become the point's first coordinate), saving a request per vertex; the light
+                # dimension is drawn only where a light is too unlikely to leave enough bits
+                u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
+                u_pick = u_pos[0]
+                if lights.num_entries > 1:
+                    rest = reuse_pick(lights, u_pick)
+                    if rest < 0.0:
+                        rest, st = sampler.next_1d(st, base + OFF_LIGHT)
+                    u_pos = wp.vec2(rest, u_pos[1])
+            else:
+                if lights.num_entries > 1:
+                    u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
+                u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
             x = offset_origin(sf.p, sf.ng, 0, geo.extent)
             ls = light.sample(geo, mats, tex, lights, x, u_pick, u_pos)
             if ls.pdf > 0.0:

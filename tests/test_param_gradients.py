@@ -125,6 +125,8 @@ def test_loss_adjoints_match_finite_differences(make):
     # NEE: the light table's choice weights follow emission and sky power, so CRN differences of those
     # would also move the sampling; the colours below leave the table unchanged.
     ("nee", "sobol", ["wall.diffuse", "ball.diffuse", "wall.reflect"]),
+    # refused until the in-place write of p.sampler after light sampling was found (add_direct)
+    ("nee", "independent", ["wall.diffuse", "ball.diffuse", "wall.reflect"]),
 ])
 def test_colour_gradients_match_finite_differences(room, integrator, sampler, names):
     p = parameters(room, ROOM_CAM, ROOM_SKY)
@@ -136,12 +138,6 @@ def test_colour_gradients_match_finite_differences(room, integrator, sampler, na
             fd = _fd(p, rs, n, c, 1e-2)
             assert abs(r.grads[n][c]) > 1e-3, (n, c)
             assert r.grads[n][c] == pytest.approx(fd, rel=2e-3, abs=1e-3), (n, c)
-
-
-def test_nee_with_the_independent_sampler_is_refused(room):
-    p = parameters(room, ROOM_CAM, ROOM_SKY)
-    with pytest.raises(ValueError, match="sobol"):
-        render_gradients(p, replace(ROOM_RS, integrator="nee"), adjoint=_ones(ROOM_RS))
 
 
 def test_loss_gradient_is_the_adjoint_weighted_one(room):

@@ -21,7 +21,7 @@ from ..device_scene import Features, Geometry, Materials, Textures
 from ..geometry import KIND_MISS, NO_HIT, make_closest_hit, make_occluded
 from ..lights import Lights, make_lights, sky_radiance
 from ..materials import make_materials
-from ..samplers import Sampler
+from ..samplers import Sampler, SamplerState
 from ..surface import Surface, make_surface, offset_origin
 from .common import (DIM_BOUNCE, FULL_STRIDE, SEED_STRIDE, OFF_LIGHT, OFF_LIGHT_POS, OFF_ROULETTE, PathState,
                      RenderParams, continue_path, make_bsdf_dims)
@@ -34,6 +34,15 @@ def power_heuristic(pa: float, pb: float) -> float:
     """Weight of technique a when b could also have produced the sample (beta = 2)."""
     a2 = pa * pa
     return a2 / (a2 + pb * pb)
+
+
+@wp.func
+def add_direct(path: PathState, contrib: wp.vec3, st: SamplerState) -> PathState:
+    """``path`` with light sampling's contribution added and its sampler moved past the light dims."""
+    p = path
+    p.radiance += contrib
+    p.sampler = st
+    return p
 
 
 def make(features: Features, sampler: Sampler):
@@ -109,8 +118,10 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         if wp.static(sample_lights):
             contrib, st = direct(geo, mats, tex, lights, p, sf, base)
-            p.radiance += contrib
-            p.sampler = st
+            # a new path, not p.radiance/p.sampler written in place: Warp lowers a struct field write
+            # to an in-place store, so the adjoint of direct() would replay with the advanced sampler
+            # and draw other light samples than the forward pass (docs/gradients.md, NEE)
+            p = add_direct(p, contrib, st)
         p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
             if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:

@@ -172,7 +172,7 @@ def test_backward_memory_does_not_grow_with_spp(room):
     assert sizes[1] == sizes[16] > 0
 
 
-# --- the quad: texels, camera, fuzz, roughness -------------------------------------------------
+# --- the quad: texels, fuzz, roughness (camera: test_param_gradients2.py) -------------------------------------------------
 
 @pytest.mark.parametrize("texture_filter", ["nearest", "bilinear"])
 def test_texel_gradients_match_finite_differences(quad_scene, texture_filter):
@@ -194,13 +194,6 @@ def test_fuzz_gradient_matches_finite_differences(quad_scene):
     g = float(render_gradients(p, QUAD_RS, adjoint=_ones(QUAD_RS), wrt=["quad.fuzz"]).grads["quad.fuzz"])
     assert abs(g) > 0.1
     assert g == pytest.approx(_fd(p, QUAD_RS, "quad.fuzz", (), 1e-3), rel=0.02)
-
-
-def test_camera_is_settable_but_not_differentiated(quad_scene):
-    p = parameters(quad_scene, QUAD_CAM, Sky.gradient())
-    assert "camera.position" in p and "camera.position" not in p.differentiable()
-    with pytest.raises(ValueError, match="not differentiated"):
-        render_gradients(p, QUAD_RS, adjoint=_ones(QUAD_RS), wrt=["camera.position"])
 
 
 def test_roughness_gradient_is_the_derivative_of_the_expected_image(quad_scene):

@@ -56,7 +56,8 @@ class Lights:
     sphere_prob: wp.array(dtype=wp.float32)    # per sphere: choice probability (0: not in table)
     sky_prob: float                            # choice probability of the sky (0: it does not emit)
     sky_kind: int
-    sky_color: wp.vec3
+    sky_color: wp.vec3                         # constant sky: its colour; gradient sky: its mean
+    sky_slope: wp.vec3                         # gradient sky: radiance = sky_color + sky_slope * z
     sky_a: float                               # sky sampling density is (a + b z) / (4 pi a)
     sky_b: float
 
@@ -74,9 +75,9 @@ class LightSample:
 
 @wp.func
 def sky_radiance(lights: Lights, d: wp.vec3) -> wp.vec3:
-    """The seed's skies: SKY_GRADIENT on the Z component, anything else a constant colour."""
+    """The seed's skies: SKY_GRADIENT linear in the Z component, anything else a constant colour."""
     if lights.sky_kind == 1:
-        return wp.vec3(0.75 - 0.25 * d[2], 0.85 - 0.15 * d[2], 1.0)
+        return lights.sky_color + lights.sky_slope * d[2]
     return lights.sky_color
 
 
@@ -270,19 +271,28 @@ class _Weights:
 
 
 def sky_emits(sky: Sky) -> bool:
-    return sky.kind == SKY_GRADIENT or any(c > 0 for c in sky.color)
+    if sky.kind == SKY_GRADIENT:
+        return any(c > 0 for c in sky.zenith + sky.nadir)
+    return any(c > 0 for c in sky.color)
+
+
+def sky_terms(sky: Sky) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(colour or mean, slope) of the sky's radiance colour + slope * z."""
+    if sky.kind == SKY_GRADIENT:
+        return sky.gradient_terms()
+    return tuple(sky.color), (0.0, 0.0, 0.0)
 
 
 def sky_density(sky: Sky) -> tuple[float, float]:
-    """(a, b) with the RGB sum of the sky's radiance = a + b z (the sampling density's shape)."""
-    if sky.kind == SKY_GRADIENT:
-        return 2.6, -0.4
-    return float(sum(sky.color)), 0.0
+    """(a, b) with the RGB sum of the sky's radiance = a + b z (the sampling density's shape); the
+    seed's gradient sky gives exactly (2.6, -0.4)."""
+    mean, slope = sky_terms(sky)
+    return float(sum(mean)), float(sum(slope))
 
 
 def light_table(dev, sky: Sky) -> Lights:
     """The device light table of a DeviceScene under ``sky`` (built once per scene and sky)."""
-    key = (sky.kind, tuple(sky.color))
+    key = (sky.kind, tuple(sky.color), tuple(sky.zenith), tuple(sky.nadir))
     if key not in dev._lights:
         if "weights" not in dev._lights:
             dev._lights["weights"] = _emitter_weights(dev.scene)
@@ -363,6 +373,7 @@ def _upload(w: _Weights, scene: Scene, sky: Sky, device: str) -> Lights:
     L.face_pdf, L.sphere_prob = arr(face_pdf, wp.float32, np.float32), arr(sphere_prob, wp.float32, np.float32)
     L.sph_index = arr(w.sph_index, wp.int32, np.int32)
     L.sky_prob = float(prob[-1]) if sky_emits(sky) else 0.0
-    L.sky_kind, L.sky_color = int(sky.kind), wp.vec3(*sky.color)
+    mean, slope = sky_terms(sky)
+    L.sky_kind, L.sky_color, L.sky_slope = int(sky.kind), wp.vec3(*mean), wp.vec3(*slope)
     L.sky_a, L.sky_b = sky_density(sky) if sky_emits(sky) else (1.0, 0.0)
     return L

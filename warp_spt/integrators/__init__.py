@@ -22,7 +22,7 @@ INTEGRATORS = {"seed": seed.make, "nee": nee.make}
 DEFAULT_INTEGRATOR = "nee"      # see README, "Speed and accuracy": several times the seed's efficiency
 
 _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
-_steps: dict[tuple[str, str, Features], tuple] = {}
+_steps: dict[tuple[str, str, Features, bool], tuple] = {}
 _lock = threading.Lock()
 
 
@@ -31,14 +31,15 @@ def check_integrator(name: str) -> None:
         raise ValueError(f"unknown integrator {name!r}; choose from {', '.join(sorted(INTEGRATORS))}")
 
 
-def get_step(integrator: str, sampler: str, features: Features):
-    """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``."""
+def get_step(integrator: str, sampler: str, features: Features, differentiable: bool = False):
+    """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``;
+    ``differentiable`` for the differentiable kernel (hits carry derivatives in the camera ray)."""
     check_integrator(integrator)
-    key = (integrator, sampler, features)
+    key = (integrator, sampler, features, differentiable)
     with _lock:
         if key not in _steps:
             s = get_sampler(sampler)
-            _steps[key] = (INTEGRATORS[integrator](features, s), make_start_path(s))
+            _steps[key] = (INTEGRATORS[integrator](features, s, differentiable), make_start_path(s))
         return _steps[key]
 
 

@@ -45,15 +45,16 @@ def add_direct(path: PathState, contrib: wp.vec3, st: SamplerState) -> PathState
     return p
 
 
-def make(features: Features, sampler: Sampler):
-    """The bounce step of NEE + MIS for scenes with these features."""
-    return make_path_step(features, sampler, light_sampling=True)
+def make(features: Features, sampler: Sampler, differentiable: bool = False):
+    """The bounce step of NEE + MIS for scenes with these features (``differentiable``: for the
+    differentiable kernel, hits carry derivatives in the ray, ``geometry.make_closest_hit``)."""
+    return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 
-def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
+def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
     """A path-tracing bounce step; ``light_sampling`` False leaves pure BSDF sampling, no roulette,
     and the seed's four dimensions per bounce (``integrators.seed``)."""
-    closest_hit = make_closest_hit(features)
+    closest_hit = make_closest_hit(features, differentiable=differentiable)
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE

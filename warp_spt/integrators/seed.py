@@ -13,6 +13,6 @@ from ..samplers import Sampler
 from .nee import make_path_step
 
 
-def make(features: Features, sampler: Sampler):
+def make(features: Features, sampler: Sampler, differentiable: bool = False):
     """The bounce step of pure path tracing for scenes with these features."""
-    return make_path_step(features, sampler, light_sampling=False)
+    return make_path_step(features, sampler, light_sampling=False, differentiable=differentiable)

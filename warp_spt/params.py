@@ -237,13 +237,18 @@ def proc_slice(scene: Scene, p: ParamInfo) -> tuple[int, int]:
     return get_texture(scene.procedural[p.index].name).layout()[p.field]
 
 
+def non_negative(p: ParamInfo) -> bool:
+    """Colours, texels, roughness and fuzz (and a procedural texture's RGB triples) are >= 0; camera
+    vectors and a procedural texture's numbers may take any finite value."""
+    return p.kind in ("material", "texture", "sky") or (p.kind == "proc" and p.shape == (3,))
+
+
 def _check_value(p: ParamInfo, v: np.ndarray) -> None:
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{p.name}: values must be finite")
     if p.field == "roughness" and not 0.0 <= float(v) <= 1.0:
         raise ValueError(f"{p.name}: roughness must be in [0, 1], got {float(v)}")
-    colour = p.kind in ("material", "texture", "sky") or (p.kind == "proc" and p.shape == (3,))
-    if colour and p.field != "roughness" and np.any(v < 0):
+    if non_negative(p) and p.field != "roughness" and np.any(v < 0):
         raise ValueError(f"{p.name}: values must be >= 0")
     if p.field == "direction" and not np.any(v != 0):
         raise ValueError(f"{p.name}: the view direction must not be zero")

@@ -157,7 +157,7 @@ def test_loss_gradient_is_the_adjoint_weighted_one(room):
 
 def test_gradients_are_identical_on_one_and_two_threads(room):
     p = parameters(room, ROOM_CAM, ROOM_SKY)
-    names = ["wall.diffuse", "wall.roughness", "lamp.emission", "sky.color"]
+    names = ["wall.diffuse", "wall.roughness", "lamp.emission", "sky.color", "camera.position"]
     one = render_gradients(p, replace(ROOM_RS, threads=1), adjoint=_ones(ROOM_RS), wrt=names)
     two = render_gradients(p, replace(ROOM_RS, threads=2), adjoint=_ones(ROOM_RS), wrt=names)
     assert one.tiles == 5 and one.threads == 1 and two.threads == 2

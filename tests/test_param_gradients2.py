@@ -163,6 +163,23 @@ def test_camera_gradients_match_finite_differences(big_quad, integrator, sampler
             assert_matches_fit(float(g[c]), ref, se, float(np.abs(g).max()), (name, c))
 
 
+def test_camera_gradients_inside_a_sphere_match_finite_differences(scene_dir):
+    """The sphere's re-intersection (the far root, from inside): a camera inside a sphere whose
+    emission is Perlin noise sees no silhouette; depth 1, so the image is the emission at the hit."""
+    mtl = ("newmtl glow\nKd 0.5 0.5 0.5\nKe 1 1 1\n"
+           "map_Ke proc:noise scale=1.5 color1=0.1,0.2,0.3 color2=0.9,0.8,0.6\nRoughness 1\n")
+    scene = load_scene(*write_scene_files(scene_dir / "insphere", "insphere", "usemtl glow\nb 0 0 0 3\n", mtl))
+    cam = Camera(position=(0.3, -0.2, 0.1), direction=(0.2, 1.0, 0.1), fov=60.0, aperture=0.0, focus=2.0)
+    p = parameters(scene, cam, SKY)
+    rs = replace(RS, max_depth=1)
+    r = render_gradients(p, rs, adjoint=_ones(rs), wrt=["camera.position", "camera.direction"])
+    for name, h0 in (("camera.position", 2e-3), ("camera.direction", 1e-3)):
+        g = r.grads[name]
+        for c in range(3):
+            ref, se = fitted_difference(p, rs, name, c, h0)
+            assert_matches_fit(float(g[c]), ref, se, float(np.abs(g).max()), (name, c))
+
+
 def test_procedural_scale_gradient_matches_finite_differences(big_quad):
     p = parameters(big_quad, CAM, SKY)
     g = float(render_gradients(p, RS, adjoint=_ones(RS), wrt=["quad.diffuse_map.scale"])

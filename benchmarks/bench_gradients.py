@@ -58,7 +58,7 @@ def cornell(size: int, spp: int, depth: int):
     d = demo_dir()
     scene = warp_spt.load_scene([str(d / "cornell.obj")], [str(d / "demo.mtl")])
     params = parameters(scene, warp_spt.Camera(), warp_spt.Sky.black())
-    rs = RenderSettings(width=size, height=size, spp=spp, max_depth=depth, tile_pixels=1024)
+    rs = RenderSettings(width=size, height=size, spp=spp, max_depth=depth, tile_pixels=1024, integrator="seed")
     return params, rs
 
 
@@ -115,7 +115,7 @@ def bench_texels(size: int, spp: int) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             scene, camera = ir.textured_quad(Path(tmp), n)
         params = parameters(scene, camera, warp_spt.Sky.constant(1, 1, 1))
-        rs = RenderSettings(width=size, height=size, spp=spp, max_depth=2, tile_pixels=1024)
+        rs = RenderSettings(width=size, height=size, spp=spp, max_depth=2, tile_pixels=1024, integrator="seed")
         adj = np.ones((size, size, 3))
         out = {}
         for label, wrt in (("no texels", ["quad.diffuse"]), ("texels", ["quad.diffuse_map"])):

@@ -95,7 +95,9 @@ def fitted_difference(params, rs, name: str, index, h0: float, n: int = 8) -> tu
 
 
 def assert_matches_fit(g: float, ref: float, se: float, scale: float, what) -> None:
-    """``scale``: the gradient's size (its largest component), which the reference must resolve."""
+    """``scale``: the gradient's size (its largest component), which the reference must resolve.
+    Prints the comparison (``pytest -s`` shows the figures of docs/gradients.md)."""
+    print(f"{what}: gradient {g:.5f}, fitted FD {ref:.5f} +- {se:.5f} ({abs(g - ref) / se:.2f} se)")
     assert 6 * se < 0.01 * scale, (what, ref, se)
     assert abs(g - ref) <= 6 * se + 1e-5 * abs(g), (what, g, ref, se)
 
@@ -160,7 +162,7 @@ def test_camera_gradients_match_finite_differences(big_quad, integrator, sampler
         assert g.shape == (3,) and np.abs(g).max() > 0.5
         for c in range(3):
             ref, se = fitted_difference(p, rs, name, c, h0)
-            assert_matches_fit(float(g[c]), ref, se, float(np.abs(g).max()), (name, c))
+            assert_matches_fit(float(g[c]), ref, se, float(np.abs(g).max()), (integrator, name, c))
 
 
 def test_camera_gradients_inside_a_sphere_match_finite_differences(scene_dir):

@@ -116,8 +116,7 @@ class SceneParameters:
         elif p.kind == "proc":
             self._set_proc(p, v)
         elif p.kind == "sky":
-            self.sky = Sky.constant(*v) if p.field == "color" else Sky.gradient(**{
-                f: (v if f == p.field else getattr(self.sky, f)) for f in ("zenith", "nadir")})
+            self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
         else:
             self.camera = replace(self.camera, **{p.field: tuple(float(x) for x in v)})
 

@@ -12,7 +12,8 @@ backward passes over tiles from a thread pool:
   to a fixed depth (at most MAX_UNROLLED_DEPTH) with the path's ``alive`` flag instead of a dynamic
   loop (Warp differentiates a dynamic loop correctly only when the carried state is additive). It is
   launched directly (``wp.launch(adjoint=True)``; no ``wp.Tape``, which is one global in Warp 1.19
-  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions, the camera moves hits).
+  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions, the
+  camera moves hits).
 
 ``mode="auto"`` (the default) takes path replay unless a parameter needs the tape. Either way each
 tile accumulates into its own gradient buffers, aliased onto the parameter arrays, summed in tile
@@ -45,7 +46,8 @@ from .integrators import VERTICES, CameraParams, RenderParams, camera_params, ch
 from .lights import Lights, light_table, sky_emits
 from .losses import Loss
 from .parallel import run_jobs
-from .params import CAMERA_FIELDS, COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters, camera_jacobian, proc_slice
+from .params import (CAMERA_FIELDS, COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters,
+                     camera_jacobian, proc_slice)
 from .prb import get_replay_kernel
 from .renderer import RenderSettings, render_scene
 from .samplers import DEFAULT_SAMPLER, get_sampler
@@ -83,7 +85,7 @@ def _make_kernel(step, start_path, depth: int):
         lt = lights
         lt.sky_color = lights.sky_color + deltas[D_SKY]
         lt.sky_slope = lights.sky_slope + deltas[D_SKY_SLOPE]
-        c = cam                     # every field set before any call takes c (see the NEE copy in integrators.nee)
+        c = cam                     # every field set before any call takes c (see nee's vertex: a copy)
         c.origin = cam.origin + deltas[D_CAM]
         c.to_upper_left = cam.to_upper_left + deltas[D_CAM + 1]
         c.x_step = cam.x_step + deltas[D_CAM + 2]
@@ -189,8 +191,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     ``mode``: "prb" (path replay, ``warp_spt.prb``: any depth, about the cost of two forward
     passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
-    alone has the pathwise derivatives of fuzz and the camera), or "auto": "prb" unless a parameter in ``wrt``
-    needs the tape.
+    alone has the pathwise derivatives of fuzz and the camera), or "auto": "prb" unless a parameter
+    in ``wrt`` needs the tape.
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:

@@ -23,12 +23,15 @@ Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynami
 Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, which is unbiased for
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
 procedural-texture parameters, the sky's colours (constant, or the gradient's mean and slope),
-and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density. MIS weights: the light-sampling weight sees its diffuse density as the tape does,
-and the BSDF-side weight at the *next* vertex depends on this vertex's sampled density, so when that
-next vertex's adjoint reaches its incoming ``pdf`` the previous vertex is differentiated once more
-with that seed (``c``). Pathwise derivatives (``Fuzz``, which bends the sampled direction, and the
-camera) need the derivative of everything downstream with respect to a direction: not available
-in a forward replay, so they stay on the tape (``render_gradients(mode="tape")``).
+and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
+MIS weights: the light-sampling weight sees its diffuse density as the tape does, and the BSDF-side
+weight at the *next* vertex depends on this vertex's sampled density, so when that next vertex's
+adjoint reaches its incoming ``pdf`` the previous vertex is differentiated once more with that seed
+(``c``). Pathwise derivatives (``Fuzz``, which bends the sampled direction, and the camera, which
+moves every hit: the tape's closest hit is re-intersected in closed form for it) need the
+derivative of everything downstream with respect to a direction or a hit: not available in a
+forward replay, so they stay on the tape (``render_gradients(mode="tape")``, which ``"auto"``
+takes for them).
 
 Warp 1.19 notes: ``wp.grad(f)`` of a function returning ``float`` emits ``float(1)``, which the
 CPU build's ``float`` macro breaks; ``-> wp.float32`` compiles. A ``wp.grad`` call zero-initialises

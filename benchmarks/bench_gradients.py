@@ -147,7 +147,7 @@ def bench_texels(size: int, spp: int) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             scene, camera = ir.textured_quad(Path(tmp), n)
         params = parameters(scene, camera, warp_spt.Sky.constant(1, 1, 1))
-        rs = RenderSettings(width=size, height=size, spp=spp, max_depth=2, tile_pixels=1024)
+        rs = RenderSettings(width=size, height=size, spp=spp, max_depth=2, tile_pixels=1024, integrator="seed")
         adj = np.ones((size, size, 3))
         out = {}
         for label, wrt in (("no texels", ["quad.diffuse"]), ("texels", ["quad.diffuse_map"])):

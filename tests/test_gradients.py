@@ -19,7 +19,7 @@ from .scenes import box_obj, material, write_scene_files
 
 CAM = Camera(position=(0.0, -2.5, 0.3), direction=(0.0, 1.0, -0.1), fov=70.0, aperture=0.0, focus=2.0)
 SKY = Sky.constant(0.4, 0.5, 0.6)
-# The seed integrator: NEE's tape gradients are not verified yet (render_differentiable refuses it)
+# The seed integrator (NEE gradients are checked in test_param_gradients.py and test_param_gradients2.py)
 KW = dict(width=10, height=8, spp=4, max_depth=3, seed=11, sky=SKY, integrator="seed")
 
 

@@ -125,6 +125,7 @@ def test_loss_adjoints_match_finite_differences(make):
     # NEE: the light table's choice weights follow emission and sky power, so CRN differences of those
     # would also move the sampling; the colours below leave the table unchanged.
     ("nee", "sobol", ["wall.diffuse", "ball.diffuse", "wall.reflect"]),
+    # refused until the in-place write of p.sampler after light sampling was found (nee vertex copy)
     ("nee", "independent", ["wall.diffuse", "ball.diffuse", "wall.reflect"]),
 ])
 def test_colour_gradients_match_finite_differences(room, integrator, sampler, names):
@@ -156,7 +157,7 @@ def test_loss_gradient_is_the_adjoint_weighted_one(room):
 
 def test_gradients_are_identical_on_one_and_two_threads(room):
     p = parameters(room, ROOM_CAM, ROOM_SKY)
-    names = ["wall.diffuse", "wall.roughness", "lamp.emission", "sky.color"]
+    names = ["wall.diffuse", "wall.roughness", "lamp.emission", "sky.color", "camera.position"]
     one = render_gradients(p, replace(ROOM_RS, threads=1), adjoint=_ones(ROOM_RS), wrt=names)
     two = render_gradients(p, replace(ROOM_RS, threads=2), adjoint=_ones(ROOM_RS), wrt=names)
     assert one.tiles == 5 and one.threads == 1 and two.threads == 2
@@ -171,7 +172,7 @@ def test_backward_memory_does_not_grow_with_spp(room):
     assert sizes[1] == sizes[16] > 0
 
 
-# --- the quad: texels, camera, fuzz, roughness -------------------------------------------------
+# --- the quad: texels, fuzz, roughness (camera: test_param_gradients2.py) -------------------------------------------------
 
 @pytest.mark.parametrize("texture_filter", ["nearest", "bilinear"])
 def test_texel_gradients_match_finite_differences(quad_scene, texture_filter):
@@ -193,13 +194,6 @@ def test_fuzz_gradient_matches_finite_differences(quad_scene):
     g = float(render_gradients(p, QUAD_RS, adjoint=_ones(QUAD_RS), wrt=["quad.fuzz"]).grads["quad.fuzz"])
     assert abs(g) > 0.1
     assert g == pytest.approx(_fd(p, QUAD_RS, "quad.fuzz", (), 1e-3), rel=0.02)
-
-
-def test_camera_is_settable_but_not_differentiated(quad_scene):
-    p = parameters(quad_scene, QUAD_CAM, Sky.gradient())
-    assert "camera.position" in p and "camera.position" not in p.differentiable()
-    with pytest.raises(ValueError, match="not differentiated"):
-        render_gradients(p, QUAD_RS, adjoint=_ones(QUAD_RS), wrt=["camera.position"])
 
 
 def test_roughness_gradient_is_the_derivative_of_the_expected_image(quad_scene):

@@ -21,7 +21,7 @@ passes until a sample count, a time budget or a target error, optionally adaptiv
 :func:`relative_error` is the one definition of an image's relative error (docs/error.md).
 
 Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,
-``"quad.diffuse_map"``, ``"sky.color"``...); :func:`render_gradients` returns the image and the
+``"quad.diffuse_map"``, ``"sky.color"``, ``"camera.position"``...); :func:`render_gradients` returns the image and the
 gradients of a loss (``warp_spt.losses``) by name, on every core (docs/gradients.md).
 
 The names are imported on first use (PEP 562), so ``import warp_spt`` is cheap and the command line

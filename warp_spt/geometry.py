@@ -96,8 +96,13 @@ def sphere_hit(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_max: float) -> float:
     return NO_HIT
 
 
-def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE):
+def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differentiable: bool = False):
     """The closest-hit function for scenes with these features.
+
+    ``differentiable`` (the differentiable kernel only): the hit found by the traversal is
+    re-intersected in closed form (:func:`make_refine_hit`), so that its distance and barycentrics
+    carry derivatives with respect to the ray's origin and direction; the values stay those of the
+    traversal bit for bit.
 
     A scene of at most ``small_scene`` items (meshes + spheres) skips our top-level BVH and visits
     every item in turn, behind the root box test (0 forces the TLAS, for tests and benchmarks): one
@@ -195,7 +200,17 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE):
                     sp += 1
         return hit
 
-    return closest_hit
+    if not differentiable:
+        return closest_hit
+    refine_hit = make_refine_hit(features)
+
+    @wp.func
+    def closest_hit_diff(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> Hit:
+        # two calls, not one function: Warp's adjoint of a function skips its dynamic loops (the
+        # traversal), while a caller's adjoint replays the whole call and hands its result on
+        return refine_hit(s, closest_hit(s, o, d, t_max), o, d)
+
+    return closest_hit_diff
 
 
 def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
@@ -253,3 +268,99 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
         return False
 
     return occluded
+
+
+# ------------------------------------------------------------------------------------------------
+# Differentiable re-intersection (the differentiable kernel only)
+#
+# The traversal's result carries no derivative: it comes out of a dynamic loop, whose adjoint Warp
+# drops. The hit primitive is known once it is found, and for one triangle or sphere the distance
+# and barycentrics are closed-form, differentiable functions of the ray. ``with_derivative`` keeps
+# the traversal's value and takes its derivative from the closed form, so the differentiable
+# kernel's image stays bit-identical to the fast kernel's.
+
+
+@wp.func
+def detach(x: float) -> float:
+    """``x``, with a zero derivative."""
+    return x
+
+
+@wp.func_grad(detach)
+def adj_detach(x: float, adj_ret: float):
+    wp.adjoint[x] += 0.0
+
+
+@wp.func
+def with_derivative(value: float, smooth: float) -> float:
+    """``value`` (no derivative of its own), differentiated as ``smooth``, the same quantity in closed
+    form: value + (smooth - smooth) is value exactly when smooth is finite."""
+    if not wp.isfinite(smooth):
+        return detach(value)
+    return detach(value) + (smooth - detach(smooth))
+
+
+@wp.func
+def ray_triangle(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, o: wp.vec3, d: wp.vec3) -> wp.vec3:
+    """(t, u, v) where the line o + t d meets the triangle's plane (Moller-Trumbore), barycentrics as
+    wp.mesh_query_ray reports them (the point is u p0 + v p1 + (1 - u - v) p2); t is infinite for a
+    ray parallel to the plane."""
+    e1 = p1 - p0
+    e2 = p2 - p0
+    pv = wp.cross(d, e2)
+    det = wp.dot(e1, pv)
+    if det == 0.0:
+        return wp.vec3(wp.inf, 0.0, 0.0)
+    inv = 1.0 / det
+    tv = o - p0
+    b1 = wp.dot(tv, pv) * inv
+    qv = wp.cross(tv, e1)
+    b2 = wp.dot(d, qv) * inv
+    return wp.vec3(wp.dot(e2, qv) * inv, 1.0 - b1 - b2, b1)
+
+
+@wp.func
+def ray_sphere(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_near: float) -> float:
+    """The root of |o + t d - c| = r (unit d) closer to ``t_near``; infinite if the line misses."""
+    c = wp.vec3(sph[0], sph[1], sph[2])
+    oc = o - c
+    b = wp.dot(oc, d)
+    f = oc - d * b
+    disc = sph[3] * sph[3] - wp.dot(f, f)
+    if disc <= 0.0:
+        return wp.inf
+    s = wp.sqrt(disc)
+    t0 = -b - s
+    t1 = -b + s
+    if wp.abs(t1 - t_near) < wp.abs(t0 - t_near):
+        return t1
+    return t0
+
+
+def make_refine_hit(features: Features):
+    """``refine_hit(geo, hit, o, d) -> Hit``: ``hit`` with t, u, v differentiable in o and d (same values)."""
+
+    @wp.func
+    def refine_hit(s: Geometry, h: Hit, o: wp.vec3, d: wp.vec3) -> Hit:
+        r = Hit()
+        r.kind = h.kind
+        r.index = h.index
+        r.face = h.face
+        r.t = detach(h.t)
+        r.u = detach(h.u)
+        r.v = detach(h.v)
+        r.normal = wp.vec3(detach(h.normal[0]), detach(h.normal[1]), detach(h.normal[2]))
+        if h.kind == KIND_TRIANGLE:
+            if wp.static(features.meshes):
+                mesh = s.mesh_ids[h.index]
+                tuv = ray_triangle(wp.mesh_get_point(mesh, 3 * h.face), wp.mesh_get_point(mesh, 3 * h.face + 1),
+                                   wp.mesh_get_point(mesh, 3 * h.face + 2), o, d)
+                r.t = with_derivative(h.t, tuv[0])
+                r.u = with_derivative(h.u, tuv[1])
+                r.v = with_derivative(h.v, tuv[2])
+        elif h.kind == KIND_SPHERE:
+            if wp.static(features.spheres):
+                r.t = with_derivative(h.t, ray_sphere(s.spheres[h.index], o, d, h.t))
+        return r
+
+    return refine_hit

@@ -12,7 +12,8 @@ backward passes over tiles from a thread pool:
   to a fixed depth (at most MAX_UNROLLED_DEPTH) with the path's ``alive`` flag instead of a dynamic
   loop (Warp differentiates a dynamic loop correctly only when the carried state is additive). It is
   launched directly (``wp.launch(adjoint=True)``; no ``wp.Tape``, which is one global in Warp 1.19
-  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions).
+  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions, the
+  camera moves hits).
 
 ``mode="auto"`` (the default) takes path replay unless a parameter needs the tape. Either way each
 tile accumulates into its own gradient buffers, aliased onto the parameter arrays, summed in tile
@@ -23,9 +24,11 @@ backward pass allocates the adjoint image and per-tile buffers whatever the spp 
 What is differentiated (see docs/gradients.md): material colours and emission (exact: paths do not
 depend on them), texture texels (nearest and bilinear), ``Roughness`` (the lobe choice is discrete:
 ``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz`` (tape),
-the constant sky colour. Visibility is not differentiated (no edge sampling): silhouettes that move
-with a parameter bias its gradient. The camera is not differentiated: the closest hit comes out of
-the top-level BVH's ``while`` traversal, whose adjoint Warp drops, so hit points carry no gradient.
+the constant sky colour and the gradient sky's zenith and nadir colours, procedural-texture
+parameters, the camera's position and direction (tape only, through shading: the tape's kernel
+re-intersects each hit primitive in closed form, ``geometry.make_refine_hit``, because the
+traversal's dynamic loop drops its adjoint). Visibility is not differentiated (no edge sampling):
+silhouettes that move with a parameter bias its gradient.
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ from .integrators import VERTICES, CameraParams, RenderParams, camera_params, ch
 from .lights import Lights, light_table, sky_emits
 from .losses import Loss
 from .parallel import run_jobs
-from .params import COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters
+from .params import (CAMERA_FIELDS, COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters,
+                     camera_jacobian, proc_slice)
 from .prb import get_replay_kernel
 from .renderer import RenderSettings, render_scene
 from .samplers import DEFAULT_SAMPLER, get_sampler
@@ -52,12 +56,24 @@ from .textures import tile_view
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
 MODES = ("auto", "prb", "tape")
-# Parameters path replay differentiates (it holds sampled directions fixed, see warp_spt.prb); the
-# others (fuzz bends directions, the camera moves rays) need the tape's pathwise derivative.
-REPLAYABLE = {("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels"), ("sky", "color")}
-# deltas[k] shift values passed by value in structs (the sky colour); zero, they exist for their gradients
-D_SKY = 0
-NUM_DELTAS = 1
+# Parameters path replay differentiates (it holds sampled directions fixed and finds hits outside
+# the differentiated vertex, see warp_spt.prb); the others (fuzz bends directions, the camera moves
+# rays and hit points) need the tape's pathwise derivative.
+REPLAYABLE = ({("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels")}
+              | {("sky", f) for f in ("color", "zenith", "nadir")})
+
+
+def replayable(p: ParamInfo) -> bool:
+    """Path replay differentiates ``p`` (every procedural-texture parameter: it is read at the vertex)."""
+    return p.kind == "proc" or (p.kind, p.field) in REPLAYABLE
+
+
+# deltas[k] shift values passed by value in structs (the sky colour, the camera's frame); zero, they
+# exist for their gradients (path replay reads the sky's from its Lights adjoint into the same slots)
+D_SKY = 0                  # constant sky colour, or the gradient sky's mean
+D_SKY_SLOPE = 1            # the gradient sky's slope in z
+D_CAM = 2                  # CAMERA_FIELDS, in order
+NUM_DELTAS = D_CAM + len(CAMERA_FIELDS)
 
 
 def _make_kernel(step, start_path, depth: int):
@@ -68,9 +84,17 @@ def _make_kernel(step, start_path, depth: int):
         pix = rp.pixel_start + tid
         lt = lights
         lt.sky_color = lights.sky_color + deltas[D_SKY]
+        lt.sky_slope = lights.sky_slope + deltas[D_SKY_SLOPE]
+        c = cam                     # every field set before any call takes c (see nee's vertex: a copy)
+        c.origin = cam.origin + deltas[D_CAM]
+        c.to_upper_left = cam.to_upper_left + deltas[D_CAM + 1]
+        c.x_step = cam.x_step + deltas[D_CAM + 2]
+        c.y_step = cam.y_step + deltas[D_CAM + 3]
+        c.right = cam.right + deltas[D_CAM + 4]
+        c.up = cam.up + deltas[D_CAM + 5]
         inv_spp = 1.0 / float(rp.sample_count)
         for j in range(rp.sample_count):
-            path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
+            path = start_path(c, pix, rp.width, rp.seed, rp.sample_start + j)
             for _bounce in range(wp.static(depth)):      # unrolled: each step traces one ray
                 if path.alive != 0:
                     path = step(geo, mats, tex, lt, rp, path)
@@ -89,7 +113,7 @@ def get_diff_kernel(features: Features, depth: int, integrator: str = "seed", sa
     check_integrator(integrator)
     key = (integrator, sampler, features, depth)
     if key not in _kernels:
-        _kernels[key] = _make_kernel(*get_step(integrator, sampler, features), depth)
+        _kernels[key] = _make_kernel(*get_step(integrator, sampler, features, differentiable=True), depth)
     k = _kernels[key]
     wp.load_module(k.module, device=device)      # on this thread, before any worker launches it
     return k
@@ -100,7 +124,7 @@ def _check_estimator(integrator: str, sampler: str) -> None:
     now. NEE with the independent sampler was refused (gradients off by up to 4x) until the cause
     was found: ``nee``'s vertex updated the path's struct in place after passing it to ``direct``,
     whose adjoint then replayed the light sample with the updated sampler state (the Sobol' state
-    does not change, so it was exact); the vertex now updates a copy."""
+    does not change, so it was exact); the vertex now updates a copy (docs/gradients.md, NEE)."""
     check_integrator(integrator)
     get_sampler(sampler)
 
@@ -115,11 +139,11 @@ def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
     """"prb" or "tape" for these parameters: "auto" takes path replay when it covers them all."""
     if mode not in MODES:
         raise ValueError(f"unknown gradient mode {mode!r}; choose from {', '.join(MODES)}")
-    pathwise = [p.name for p in infos if (p.kind, p.field) not in REPLAYABLE]
-    replayable = not pathwise and integrator in VERTICES
+    pathwise = [p.name for p in infos if not replayable(p)]
+    ok = not pathwise and integrator in VERTICES
     if mode == "auto":
-        return "prb" if replayable else "tape"
-    if mode == "prb" and not replayable:
+        return "prb" if ok else "tape"
+    if mode == "prb" and not ok:
         why = (f"{', '.join(pathwise)} need(s) the pathwise derivative of the tape" if pathwise
                else f"integrator {integrator!r} has no vertex function")
         raise ValueError(f"path replay cannot differentiate this: {why}; use mode='tape' or 'auto'")
@@ -167,8 +191,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     ``mode``: "prb" (path replay, ``warp_spt.prb``: any depth, about the cost of two forward
     passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
-    alone has the pathwise derivatives of fuzz), or "auto": "prb" unless a parameter in ``wrt``
-    needs the tape.
+    alone has the pathwise derivatives of fuzz and the camera), or "auto": "prb" unless a parameter
+    in ``wrt`` needs the tape.
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -186,10 +210,6 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     _check_estimator(rs.integrator, rs.sampler)
     if mode == "tape":
         _check_depth(rs.max_depth)
-    for p in infos:
-        if p.kind == "camera":
-            raise ValueError(f"{p.name} is not differentiated (see docs/gradients.md); "
-                             f"differentiable parameters: {', '.join(params.differentiable())}")
     dev, sky, camera = params.scene, params.sky, params.camera
     rs = replace(rs, sky=sky, features=None)
     t0 = time.perf_counter()
@@ -207,10 +227,10 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
-    bw = _Backward(dev, camera, sky, brs, wants_texels=any(p.kind == "texture" for p in infos), mode=mode)
+    bw = _Backward(dev, camera, sky, brs, wants={p.kind for p in infos}, mode=mode)
     sums = bw.run(adj.reshape(-1, 3), rs.threads)
     backward_seconds = time.perf_counter() - t0
-    grads = {p.name: _pick(p, sums, dev) for p in infos}
+    grads = {p.name: _pick(p, sums, dev, camera, rs) for p in infos}
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
                           bw.threads, mode)
 
@@ -218,7 +238,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 class _Backward:
     """One backward pass: per-tile gradient buffers, adjoint launches from a pool, ordered reduction."""
 
-    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants_texels: bool,
+    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants: set,
                  mode: str = "tape"):
         self.dev, self.rs, self.mode = dev, rs, mode
         feats = replace(dev.features, sky=sky_emits(sky))
@@ -229,7 +249,8 @@ class _Backward:
         self.cam = camera_params(camera, rs.width, rs.height)
         self.lights = light_table(dev, sky, camera.up)
         self.tex = dev.textures(rs.texture_filter)
-        self.wants_texels = wants_texels
+        self.wants_texels = "texture" in wants
+        self.wants_proc = "proc" in wants
         n = rs.width * rs.height
         self.tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
         self.nbytes = 0
@@ -247,10 +268,14 @@ class _Backward:
             a = getattr(self.dev.materials, name)
             setattr(m, name, self._grad_alias(a) if name in MATERIAL_FIELDS else a)
         t = self.tex
-        if self.wants_texels:
+        if self.wants_texels or self.wants_proc:
             t = Textures()
-            t.texels, t.tiles, t.bilinear = self._grad_alias(self.tex.texels), self.tex.tiles, self.tex.bilinear
+            t.texels, t.tiles, t.bilinear = self.tex.texels, self.tex.tiles, self.tex.bilinear
             t.proc_kind, t.proc_params = self.tex.proc_kind, self.tex.proc_params
+            if self.wants_texels:
+                t.texels = self._grad_alias(t.texels)
+            if self.wants_proc:
+                t.proc_params = self._grad_alias(t.proc_params)
         deltas = wp.zeros(NUM_DELTAS, dtype=wp.vec3, device=self.dev.device, requires_grad=True)
         scratch = None      # the tape's forward output; path replay needs none
         if self.mode == "tape":
@@ -288,20 +313,33 @@ class _Backward:
             parts["deltas"] = deltas.grad
             if self.wants_texels:
                 parts["texels"] = t.texels.grad
+            if self.wants_proc:
+                parts["proc"] = t.proc_params.grad
             for key, g in parts.items():
                 v = g.numpy().astype(np.float64)
                 sums[key] = sums[key] + v if key in sums else v
         return sums
 
 
-def _pick(p, sums: dict, dev: DeviceScene) -> np.ndarray:
+def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -> np.ndarray:
     """The gradient of one named parameter from the reduced buffers."""
+    if p.kind == "camera":       # chain rule through the host's image-plane frame (float64)
+        jac = camera_jacobian(camera, p.field, rs.width, rs.height)
+        return np.einsum("fi,fij->j", sums["deltas"][D_CAM:D_CAM + len(CAMERA_FIELDS)], jac)
     if p.kind == "material":
         g = sums[p.field][p.index]
         return np.asarray(g, dtype=np.float64).reshape(p.shape)
     if p.kind == "texture":
         return tile_view(sums["texels"], dev._atlas[1].numpy()[p.index]).copy()
-    return sums["deltas"][D_SKY].copy()       # the sky colour
+    if p.kind == "proc":
+        off, size = proc_slice(dev.scene, p)
+        return sums["proc"][p.index][off:off + size].reshape(p.shape).copy()
+    g_mean, g_slope = sums["deltas"][D_SKY], sums["deltas"][D_SKY_SLOPE]
+    if p.field == "zenith":                   # mean = (zenith + nadir) / 2, slope = (zenith - nadir) / 2
+        return 0.5 * (g_mean + g_slope)
+    if p.field == "nadir":
+        return 0.5 * (g_mean - g_slope)
+    return g_mean.copy()                      # the constant sky's colour
 
 
 # ------------------------------------------------------------------------------------------------

@@ -67,7 +67,8 @@ class Lights:
     sphere_prob: wp.array(dtype=wp.float32)    # per sphere: choice probability (0: not in table)
     sky_prob: float                            # choice probability of the sky (0: it does not emit)
     sky_kind: int
-    sky_color: wp.vec3
+    sky_color: wp.vec3                         # constant sky: its colour; gradient sky: its mean
+    sky_slope: wp.vec3                         # gradient sky: radiance = sky_color + sky_slope * z
     sky_a: float                               # sky sampling density is (a + b z) / (4 pi a)
     sky_b: float
     sky_up: wp.vec3                            # z above is the direction's component along sky_up;
@@ -88,10 +89,11 @@ class LightSample:
 
 @wp.func
 def sky_radiance(lights: Lights, d: wp.vec3) -> wp.vec3:
-    """The seed's skies: SKY_GRADIENT on the component along the up axis, anything else a constant colour."""
+    """The seed's skies: SKY_GRADIENT linear in the component along the up axis, anything else a
+    constant colour."""
     if lights.sky_kind == 1:
         z = wp.dot(d, lights.sky_up)             # exactly d[2] for Z up: the seed's images do not change
-        return wp.vec3(0.75 - 0.25 * z, 0.85 - 0.15 * z, 1.0)
+        return lights.sky_color + lights.sky_slope * z
     return lights.sky_color
 
 
@@ -337,26 +339,35 @@ class _Weights:
 
 
 def sky_emits(sky: Sky) -> bool:
-    return sky.kind == SKY_GRADIENT or any(c > 0 for c in sky.color)
+    if sky.kind == SKY_GRADIENT:
+        return any(c > 0 for c in sky.zenith + sky.nadir)
+    return any(c > 0 for c in sky.color)
+
+
+def sky_terms(sky: Sky) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(colour or mean, slope) of the sky's radiance colour + slope * z."""
+    if sky.kind == SKY_GRADIENT:
+        return sky.gradient_terms()
+    return tuple(sky.color), (0.0, 0.0, 0.0)
 
 
 def sky_density(sky: Sky) -> tuple[float, float]:
-    """(a, b) with the RGB sum of the sky's radiance = a + b z (the sampling density's shape)."""
-    if sky.kind == SKY_GRADIENT:
-        return 2.6, -0.4
-    return float(sum(sky.color)), 0.0
+    """(a, b) with the RGB sum of the sky's radiance = a + b z (the sampling density's shape); the
+    seed's gradient sky gives exactly (2.6, -0.4)."""
+    mean, slope = sky_terms(sky)
+    return float(sum(mean)), float(sum(slope))
 
 
 def table_key(sky: Sky, camera_up=Z_UP) -> tuple:
     """The key under which a DeviceScene caches its light table for this sky and camera up."""
-    return sky.kind, tuple(sky.color), sky.up_axis(camera_up)
+    return sky.kind, tuple(sky.color), tuple(sky.zenith), tuple(sky.nadir), sky.up_axis(camera_up)
 
 
 def light_table(dev, sky: Sky, camera_up=Z_UP) -> Lights:
     """The device light table of a DeviceScene under ``sky`` (built once per scene and sky); the
     gradient sky follows ``sky.up``, else ``camera_up`` (pass the camera's ``up``)."""
     key = table_key(sky, camera_up)
-    up = key[2]
+    up = key[-1]
     if key not in dev._lights:
         if "weights" not in dev._lights:
             dev._lights["weights"] = _emitter_weights(dev.scene)
@@ -445,7 +456,8 @@ def _upload(w: _Weights, scene: Scene, sky: Sky, up: tuple[float, float, float],
     L.face_prob, L.sphere_prob = arr(face_prob, wp.float32, np.float32), arr(sphere_prob, wp.float32, np.float32)
     L.sph_index = arr(w.sph_index, wp.int32, np.int32)
     L.sky_prob = float(prob[-1]) if sky_emits(sky) else 0.0
-    L.sky_kind, L.sky_color = int(sky.kind), wp.vec3(*sky.color)
+    mean, slope = sky_terms(sky)
+    L.sky_kind, L.sky_color, L.sky_slope = int(sky.kind), wp.vec3(*mean), wp.vec3(*slope)
     L.sky_a, L.sky_b = sky_density(sky) if sky_emits(sky) else (1.0, 0.0)
     L.sky_t, L.sky_b_axis, L.sky_up = (wp.vec3(*v.astype(np.float32).tolist()) for v in sky_frame(up))
     return L

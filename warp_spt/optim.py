@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .params import SceneParameters
+from .params import SceneParameters, non_negative
 
 _UPPER = {"roughness": 1.0}
 FLOOR = 1e-4     # a path whose throughput is exactly 0 ends, so a colour of exactly 0 gets no gradient
@@ -18,7 +18,7 @@ FLOOR = 1e-4     # a path whose throughput is exactly 0 ends, so a colour of exa
 
 class Adam:
     """Adam (Kingma & Ba 2015) over ``names`` of ``params``, the step size multiplied by ``decay`` after
-    each step. Values are clipped to [FLOOR, inf) (roughness to [FLOOR, 1]) so that they stay valid
+    each step. Colours are clipped to [FLOOR, inf) (roughness to [FLOOR, 1]) so that they stay valid
     for ``params[name] = value`` and keep a gradient: at exactly 0 a colour kills its paths."""
 
     def __init__(self, params: SceneParameters, names: list[str], lr: float = 0.01, betas=(0.9, 0.999),
@@ -39,6 +39,8 @@ class Adam:
             m_hat = self.m[n] / (1 - b1 ** self.t)
             v_hat = self.v[n] / (1 - b2 ** self.t)
             value = self.params[n] - self.lr * m_hat / (np.sqrt(v_hat) + self.eps)
-            hi = _UPPER.get(self.params.info(n).field)
-            self.params[n] = np.clip(value, FLOOR, hi)
+            info = self.params.info(n)
+            if non_negative(info):       # camera vectors, a texture's numbers: any value
+                value = np.clip(value, FLOOR, _UPPER.get(info.field))
+            self.params[n] = value
         self.lr *= self.decay

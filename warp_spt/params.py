@@ -6,9 +6,14 @@
 * ``"<material>.roughness"`` (probability of the diffuse lobe, in [0, 1]) and ``.fuzz`` (>= 0), ();
 * ``"<material>.<slot>_map"`` for each image texture, named after the first material slot that uses
   it (slots diffuse, reflect, refract, emission): its texels (h, w, 3), row 0 the image's top row;
-* ``"sky.color"`` (3,) for a constant sky;
-* ``"camera.position"`` and ``"camera.direction"`` (3,): settable, not differentiated (see
-  ``warp_spt.gradients``); :meth:`SceneParameters.differentiable` lists the others.
+* ``"<material>.<slot>_map.<key>"`` for each numeric parameter of a procedural texture (named, as
+  image textures are, after the first slot using that instance; ``<key>`` as declared with
+  ``@warp_spt.texture``): () for a number, (3,) for an RGB triple;
+* ``"sky.color"`` (3,) for a constant sky; ``"sky.zenith"`` and ``"sky.nadir"`` (3,) for the
+  gradient sky (its colours straight up and straight down);
+* ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
+  points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
+  see docs/gradients.md).
 
 Values are validated before they reach a kernel (finite; colours and texels >= 0; roughness in
 [0, 1]; fuzz >= 0; a non-zero direction). Setting a material value updates both the host Scene and
@@ -24,7 +29,8 @@ import numpy as np
 
 from .camera import Camera
 from .device_scene import DeviceScene, _features
-from .scene import SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, Scene
+from .proctex import get_texture
+from .scene import SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, TEX_PROC_BASE, Scene
 from .sky import SKY_CONSTANT, Sky
 from .textures import tile_view
 
@@ -37,8 +43,9 @@ _SLOT_NAMES = {SLOT_DIFFUSE: "diffuse", SLOT_REFLECT: "reflect", SLOT_REFRACT: "
 
 @dataclass(frozen=True)
 class ParamInfo:
-    """Where a named parameter lives: ``kind`` is "material", "texture", "sky" or "camera";
-    ``field`` the material field / camera attribute; ``index`` the material row or texture index."""
+    """Where a named parameter lives: ``kind`` is "material", "texture", "proc" (a procedural
+    texture's parameter), "sky" or "camera"; ``field`` the material field / texture key / sky or
+    camera attribute; ``index`` the material row, texture index or procedural instance."""
 
     name: str
     kind: str
@@ -75,8 +82,8 @@ class SceneParameters:
         return name in self._info
 
     def differentiable(self) -> list[str]:
-        """The names :func:`warp_spt.gradients.render_gradients` differentiates."""
-        return [n for n, p in self._info.items() if p.kind != "camera"]
+        """The names :func:`warp_spt.gradients.render_gradients` differentiates (all of them)."""
+        return list(self._info)
 
     def info(self, name: str) -> ParamInfo:
         if name not in self._info:
@@ -90,8 +97,11 @@ class SceneParameters:
             return np.array(getattr(s.materials, p.field)[p.index], dtype=np.float32)
         if p.kind == "texture":
             return np.array(s.textures[p.index], dtype=np.float32)
+        if p.kind == "proc":
+            off, size = proc_slice(s, p)
+            return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
         if p.kind == "sky":
-            return np.array(self.sky.color, dtype=np.float32)
+            return np.array(getattr(self.sky, p.field), dtype=np.float32)
         return np.array(getattr(self.camera, p.field), dtype=np.float32)
 
     def __setitem__(self, name: str, value) -> None:
@@ -104,8 +114,10 @@ class SceneParameters:
             self._set_material(p, v)
         elif p.kind == "texture":
             self._set_texture(p, v)
+        elif p.kind == "proc":
+            self._set_proc(p, v)
         elif p.kind == "sky":
-            self.sky = Sky.constant(*v)
+            self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
         else:
             self.camera = replace(self.camera, **{p.field: tuple(float(x) for x in v)})
 
@@ -130,6 +142,18 @@ class SceneParameters:
         host = texels.numpy()
         tile_view(host, tiles.numpy()[p.index])[...] = v
         texels.assign(host)
+        self._refresh()
+
+    def _set_proc(self, p: ParamInfo, v: np.ndarray) -> None:
+        dev = self.scene
+        off, size = proc_slice(dev.scene, p)
+        ref = dev.scene.procedural[p.index]
+        vec = list(ref.params)
+        vec[off:off + size] = (float(np.float32(x)) for x in v.reshape(-1))
+        dev.scene.procedural[p.index] = replace(ref, params=tuple(vec))
+        host = dev.proc_params.numpy()
+        host[p.index, off:off + size] = v.reshape(-1)
+        dev.proc_params.assign(host)
         self._refresh()
 
     def _refresh(self) -> None:
@@ -159,11 +183,63 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
         else:
             n = f"texture{k}"
         info[n] = ParamInfo(n, "texture", "texels", k, tuple(np.shape(img)))
-    if sky.kind == SKY_CONSTANT:
-        info["sky.color"] = ParamInfo("sky.color", "sky", "color", 0, (3,))
+    for k, ref in enumerate(scene.procedural):
+        uses = np.argwhere(mt.tex == TEX_PROC_BASE - k)
+        if not len(uses):
+            continue                        # not used by any material: nothing to differentiate
+        row, slot = (int(x) for x in uses[0])
+        for key, (_, size) in get_texture(ref.name).layout().items():
+            n = f"{mt.names[row]}.{_SLOT_NAMES[slot]}_map.{key}"
+            info[n] = ParamInfo(n, "proc", key, k, () if size == 1 else (size,))
+    for f in ("color",) if sky.kind == SKY_CONSTANT else ("zenith", "nadir"):
+        info[f"sky.{f}"] = ParamInfo(f"sky.{f}", "sky", f, 0, (3,))
     for f in ("position", "direction"):
         info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
     return info
+
+
+# The kernel's camera frame (integrators.CameraParams), whose gradients render_gradients computes
+CAMERA_FIELDS = ("origin", "to_upper_left", "x_step", "y_step", "right", "up")
+
+
+def camera_frame(camera: Camera, width: int, height: int) -> np.ndarray:
+    """(6, 3) float64: the CameraParams vectors of ``camera`` in CAMERA_FIELDS order."""
+    f = camera.image_plane(width, height)
+    f["to_upper_left"] = f["upper_left"] - f["origin"]
+    return np.stack([np.asarray(f[k], dtype=np.float64) for k in CAMERA_FIELDS])
+
+
+def camera_jacobian(camera: Camera, field: str, width: int, height: int, h: float = 1e-6) -> np.ndarray:
+    """(6, 3, 3): d camera_frame / d ``camera.<field>`` ("position" or "direction").
+
+    The frame is a smooth float64 function of both (away from looking straight along ``up``, where
+    Camera.axes switches to a fixed reference), so central differences with h = 1e-6 give its
+    derivative to about 1e-9 relative. The position moves only the origin.
+    """
+    if field == "position":
+        jac = np.zeros((len(CAMERA_FIELDS), 3, 3))
+        jac[0] = np.eye(3)
+        return jac
+    v = np.asarray(getattr(camera, field), dtype=np.float64)
+    cols = []
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = h * max(1.0, float(np.linalg.norm(v)))
+        hi = camera_frame(replace(camera, **{field: tuple(v + e)}), width, height)
+        lo = camera_frame(replace(camera, **{field: tuple(v - e)}), width, height)
+        cols.append((hi - lo) / (2.0 * e[i]))
+    return np.stack(cols, axis=-1)
+
+
+def proc_slice(scene: Scene, p: ParamInfo) -> tuple[int, int]:
+    """(offset, size) of a procedural parameter in its instance's parameter vector."""
+    return get_texture(scene.procedural[p.index].name).layout()[p.field]
+
+
+def non_negative(p: ParamInfo) -> bool:
+    """Colours, texels, roughness and fuzz (and a procedural texture's RGB triples) are >= 0; camera
+    vectors and a procedural texture's numbers may take any finite value."""
+    return p.kind in ("material", "texture", "sky") or (p.kind == "proc" and p.shape == (3,))
 
 
 def _check_value(p: ParamInfo, v: np.ndarray) -> None:
@@ -171,7 +247,7 @@ def _check_value(p: ParamInfo, v: np.ndarray) -> None:
         raise ValueError(f"{p.name}: values must be finite")
     if p.field == "roughness" and not 0.0 <= float(v) <= 1.0:
         raise ValueError(f"{p.name}: roughness must be in [0, 1], got {float(v)}")
-    if p.kind in ("material", "texture", "sky") and p.field != "roughness" and np.any(v < 0):
+    if non_negative(p) and p.field != "roughness" and np.any(v < 0):
         raise ValueError(f"{p.name}: values must be >= 0")
     if p.field == "direction" and not np.any(v != 0):
         raise ValueError(f"{p.name}: the view direction must not be zero")

@@ -22,13 +22,16 @@ Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynami
 
 Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, which is unbiased for
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
-the sky colour, and ``Roughness`` through the score term (``materials.lobe_weight``) and the
-diffuse density. MIS weights: the light-sampling weight sees its diffuse density as the tape does,
-and the BSDF-side weight at the *next* vertex depends on this vertex's sampled density, so when that
-next vertex's adjoint reaches its incoming ``pdf`` the previous vertex is differentiated once more
-with that seed (``c``). Pathwise derivatives (``Fuzz``, which bends the sampled direction, and the
-camera) need the derivative of everything downstream with respect to a direction: not available
-in a forward replay, so they stay on the tape (``render_gradients(mode="tape")``).
+procedural-texture parameters, the sky's colours (constant, or the gradient's mean and slope),
+and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
+MIS weights: the light-sampling weight sees its diffuse density as the tape does, and the BSDF-side
+weight at the *next* vertex depends on this vertex's sampled density, so when that next vertex's
+adjoint reaches its incoming ``pdf`` the previous vertex is differentiated once more with that seed
+(``c``). Pathwise derivatives (``Fuzz``, which bends the sampled direction, and the camera, which
+moves every hit: the tape's closest hit is re-intersected in closed form for it) need the
+derivative of everything downstream with respect to a direction or a hit: not available in a
+forward replay, so they stay on the tape (``render_gradients(mode="tape")``, which ``"auto"``
+takes for them).
 
 Warp 1.19 notes: ``wp.grad(f)`` of a function returning ``float`` emits ``float(1)``, which the
 CPU build's ``float`` macro breaks; ``-> wp.float32`` compiles. A ``wp.grad`` call zero-initialises
@@ -94,7 +97,8 @@ def _make_kernel(vertex, start_path, closest_hit):
             return
         pix = rp.pixel_start + tid
         zero = wp.vec3(0.0, 0.0, 0.0)
-        sky = zero
+        sky = zero                               # d loss / d Lights.sky_color and .sky_slope
+        slope = zero
         for j in range(rp.sample_count):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
             q = start
@@ -117,14 +121,17 @@ def _make_kernel(vertex, start_path, closest_hit):
                 ag, am, at, al, arp, apath, ah, aa, ab, ac = wp.grad(objective)(
                     geo, mats, tex, lights, rp, q, h, a, b, 0.0)
                 sky += al.sky_color
+                slope += al.sky_slope
                 if k > 0 and apath.pdf != 0.0:   # this vertex's MIS weight uses the previous density
                     ag, am, at, al, arp, apath, ah, aa, ab, ac = wp.grad(objective)(
                         geo, mats, tex, lights, rp, prev, prev_h, zero, zero, apath.pdf)
                     sky += al.sky_color
+                    slope += al.sky_slope
                 prev = q
                 prev_h = h
                 q = nxt
         wp.atomic_add(sky_grad, 0, sky)
+        wp.atomic_add(sky_grad, 1, slope)
 
     return replay
 
@@ -133,8 +140,9 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
     """The path-replay kernel of (integrator, sampler) for these features, loaded on ``device``.
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
-    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, and a
-    one-element array receiving d loss / d sky colour."""
+    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, and an
+    array receiving d loss / d ``Lights.sky_color`` (element 0) and ``Lights.sky_slope`` (element 1:
+    the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``."""
     key = (integrator, sampler, features)
     if key not in _kernels:
         vertex, start_path = get_vertex(integrator, sampler, features)

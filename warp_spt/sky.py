@@ -19,10 +19,15 @@ SKY_GRADIENT = 1
 Z_UP = (0.0, 0.0, 1.0)
 
 
+ZENITH = (0.5, 0.7, 1.0)      # the seed's GradientSky, looking straight up
+NADIR = (1.0, 1.0, 1.0)       # and straight down
+
+
 @dataclass(frozen=True)
 class Sky:
-    """``kind`` SKY_CONSTANT returns ``color``; SKY_GRADIENT is (0.75-0.25z, 0.85-0.15z, 1) where z
-    is the direction's component along the up axis.
+    """``kind`` SKY_CONSTANT returns ``color``; SKY_GRADIENT blends linearly in z, the direction's
+    component along the up axis, from ``nadir`` (z = -1) to ``zenith`` (z = 1); the seed's is
+    (0.75-0.25z, 0.85-0.15z, 1).
 
     ``up`` is that axis (any non-zero 3-vector, stored normalised), or None to follow the camera's
     ``up`` (see :func:`warp_spt.lights.light_table`). A constant sky does not depend on it.
@@ -31,12 +36,19 @@ class Sky:
     kind: int = SKY_CONSTANT
     color: tuple[float, float, float] = (0.3, 0.6, 0.8)
     up: tuple[float, float, float] | None = None
+    zenith: tuple[float, float, float] = ZENITH
+    nadir: tuple[float, float, float] = NADIR
 
     def __post_init__(self) -> None:
         problem = sky_problem(self.kind, self.color, self.up)
+        for name in ("zenith", "nadir"):
+            problem = problem or colour_problem(f"sky {name}", getattr(self, name))
+        if not problem and self.kind == SKY_GRADIENT and max(self.zenith + self.nadir) <= 0.0:
+            problem = "a gradient sky needs some colour at its zenith or nadir"
         if problem:
             raise ValueError(problem)
-        object.__setattr__(self, "color", tuple(float(c) for c in self.color))
+        for name in ("color", "zenith", "nadir"):
+            object.__setattr__(self, name, tuple(float(c) for c in getattr(self, name)))
         if self.up is not None:
             object.__setattr__(self, "up", _unit(self.up))
 
@@ -46,10 +58,16 @@ class Sky:
         return Sky(SKY_CONSTANT, (0.3, 0.6, 0.8))
 
     @staticmethod
-    def gradient(up=None) -> "Sky":
+    def gradient(zenith=ZENITH, nadir=NADIR, up=None) -> "Sky":
         """The seed's GradientSky: white at the nadir to (0.5, 0.7, 1) at the zenith of ``up``
-        (default: the camera's up axis)."""
-        return Sky(SKY_GRADIENT, (0.0, 0.0, 0.0), None if up is None else tuple(up))
+        (default: the camera's up axis); both colours settable (in [0, MAX_RADIANCE], not both black)."""
+        return Sky(SKY_GRADIENT, (0.0, 0.0, 0.0), None if up is None else tuple(up), tuple(zenith), tuple(nadir))
+
+    def gradient_terms(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(mean, slope): the gradient sky's radiance is mean + slope * z (float64 sums)."""
+        mean = tuple(0.5 * (a + b) for a, b in zip(self.zenith, self.nadir))
+        slope = tuple(0.5 * (a - b) for a, b in zip(self.zenith, self.nadir))
+        return mean, slope
 
     @staticmethod
     def pink() -> "Sky":
@@ -73,7 +91,8 @@ class Sky:
     def radiance(self, z: float) -> tuple[float, float, float]:
         """Reference value in Python for a unit direction whose component along the up axis is ``z``."""
         if self.kind == SKY_GRADIENT:
-            return (0.75 - 0.25 * z, 0.85 - 0.15 * z, 1.0)
+            mean, slope = self.gradient_terms()
+            return tuple(m + k * z for m, k in zip(mean, slope))
         return self.color
 
 
@@ -81,12 +100,19 @@ def sky_problem(kind, color, up=None) -> str | None:
     """Why these sky values cannot be rendered exactly, or None."""
     if kind not in (SKY_CONSTANT, SKY_GRADIENT):
         return f"sky kind must be SKY_CONSTANT (0) or SKY_GRADIENT (1), got {kind!r}"
-    if not _numbers(color, 3) or not all(0.0 <= float(c) <= MAX_RADIANCE for c in color):   # NaN fails too
-        return f"sky colour values must be three numbers in [0, {MAX_RADIANCE:g}], got {color!r}"
+    problem = colour_problem("sky colour", color)
+    if problem:
+        return problem
     if up is not None and not (_numbers(up, 3) and all(math.isfinite(float(v)) for v in up)
                                and MIN_DIRECTION <= max(abs(float(v)) for v in up) <= MAX_COORDINATE):
         return (f"sky up must be a vector with components between {MIN_DIRECTION:g} and {MAX_COORDINATE:g} "
                 f"in size (not zero), got {up!r}")
+    return None
+
+
+def colour_problem(what: str, color) -> str | None:
+    if not _numbers(color, 3) or not all(0.0 <= float(c) <= MAX_RADIANCE for c in color):   # NaN fails too
+        return f"{what} values must be three numbers in [0, {MAX_RADIANCE:g}], got {color!r}"
     return None
 
 

@@ -26,7 +26,7 @@ VERTICES = {"seed": seed.make_vertex, "nee": nee.make_vertex}
 DEFAULT_INTEGRATOR = "nee"      # see README, "Speed and accuracy": several times the seed's efficiency
 
 _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
-_steps: dict[tuple, tuple] = {}      # (registry, integrator, sampler, features) -> functions
+_steps: dict[tuple, tuple] = {}      # (registry, integrator, sampler, features, differentiable) -> functions
 _lock = threading.Lock()
 
 
@@ -35,10 +35,11 @@ def check_integrator(name: str) -> None:
         raise ValueError(f"unknown integrator {name!r}; choose from {', '.join(sorted(INTEGRATORS))}")
 
 
-def get_step(integrator: str, sampler: str, features: Features):
-    """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``."""
+def get_step(integrator: str, sampler: str, features: Features, differentiable: bool = False):
+    """``(step, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``;
+    ``differentiable`` for the differentiable kernel (hits carry derivatives in the camera ray)."""
     check_integrator(integrator)
-    return _functions(INTEGRATORS, integrator, sampler, features)
+    return _functions(INTEGRATORS, integrator, sampler, features, differentiable)
 
 
 def get_vertex(integrator: str, sampler: str, features: Features):
@@ -50,13 +51,13 @@ def get_vertex(integrator: str, sampler: str, features: Features):
     return _functions(VERTICES, integrator, sampler, features)
 
 
-def _functions(registry: dict, integrator: str, sampler: str, features: Features) -> tuple:
-    """``(registry[integrator](features, sampler), start_path)``, built once per process."""
-    key = (id(registry), integrator, sampler, features)
+def _functions(registry: dict, integrator: str, sampler: str, features: Features, *flags) -> tuple:
+    """``(registry[integrator](features, sampler, *flags), start_path)``, built once per process."""
+    key = (id(registry), integrator, sampler, features, flags)
     with _lock:
         if key not in _steps:
             s = get_sampler(sampler)
-            _steps[key] = (registry[integrator](features, s), make_start_path(s))
+            _steps[key] = (registry[integrator](features, s, *flags), make_start_path(s))
         return _steps[key]
 
 

@@ -36,9 +36,10 @@ def power_heuristic(pa: float, pb: float) -> float:
     return a2 / (a2 + pb * pb)
 
 
-def make(features: Features, sampler: Sampler):
-    """The bounce step of NEE + MIS for scenes with these features."""
-    return make_path_step(features, sampler, light_sampling=True)
+def make(features: Features, sampler: Sampler, differentiable: bool = False):
+    """The bounce step of NEE + MIS for scenes with these features (``differentiable``: for the tape's
+    differentiable kernel, hits carry derivatives in the ray, ``geometry.make_closest_hit``)."""
+    return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 
 def make_vertex(features: Features, sampler: Sampler):
@@ -46,11 +47,12 @@ def make_vertex(features: Features, sampler: Sampler):
     return make_path_vertex(features, sampler, light_sampling=True)
 
 
-def make_path_step(features: Features, sampler: Sampler, light_sampling: bool):
+def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
     """A path-tracing bounce step: trace the path's ray, then ``make_path_vertex``'s vertex at what it
     meets. ``light_sampling`` False leaves pure BSDF sampling, no roulette, and the seed's four
-    dimensions per bounce (``integrators.seed``)."""
-    closest_hit = make_closest_hit(features)
+    dimensions per bounce (``integrators.seed``); ``differentiable`` re-intersects the hit in closed
+    form so that it carries derivatives in the ray (the tape kernel only)."""
+    closest_hit = make_closest_hit(features, differentiable=differentiable)
     vertex = make_path_vertex(features, sampler, light_sampling)
 
     @wp.func

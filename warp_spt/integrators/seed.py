@@ -13,9 +13,9 @@ from ..samplers import Sampler
 from .nee import make_path_step, make_path_vertex
 
 
-def make(features: Features, sampler: Sampler):
+def make(features: Features, sampler: Sampler, differentiable: bool = False):
     """The bounce step of pure path tracing for scenes with these features."""
-    return make_path_step(features, sampler, light_sampling=False)
+    return make_path_step(features, sampler, light_sampling=False, differentiable=differentiable)
 
 
 def make_vertex(features: Features, sampler: Sampler):

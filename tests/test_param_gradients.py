@@ -63,12 +63,14 @@ def _fd(params, rs, name: str, index, h: float) -> float:
     """Central difference of the image sum in one component of a named parameter (CRN)."""
     v0 = params[name].copy()
     out = []
-    for s in (h, -h):
-        v = v0.copy()
-        v[index] += s
-        params[name] = v
-        out.append(_image_sum(params, rs))
-    params[name] = v0
+    try:
+        for s in (h, -h):
+            v = v0.copy()
+            v[index] += s
+            params[name] = v
+            out.append(_image_sum(params, rs))
+    finally:
+        params[name] = v0
     return (out[0] - out[1]) / (2 * h)
 
 

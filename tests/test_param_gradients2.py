@@ -33,10 +33,12 @@ from warp_spt.camera import Camera
 from warp_spt.gradients import render_gradients
 from warp_spt.loader import load_scene
 from warp_spt.params import parameters
-from warp_spt.renderer import RenderSettings, render_scene
+from warp_spt.renderer import RenderSettings
 from warp_spt.sky import Sky
 
 from .scenes import quad_obj, write_scene_files
+from .test_param_gradients import _fd as central_difference
+from .test_param_gradients import _image_sum, _ones
 
 NOISE_MTL = ("newmtl quad\nKd 1 1 1\nmap_Kd proc:noise scale=1.5 color1=0.1,0.2,0.3 color2=0.9,0.8,0.6\n"
              "Roughness 0.5\nFuzz 0.2\n")
@@ -59,30 +61,6 @@ def noise_quad(folder, half: float):
 def big_quad(scene_dir):
     """4 x 4 units seen from 2 units up with a 60 degree view: its edges are well outside the image."""
     return noise_quad(scene_dir / "noisequad", 2.0)
-
-
-def _ones(rs):
-    return np.ones((rs.height, rs.width, 3))
-
-
-def _image_sum(params, rs) -> float:
-    return float(render_scene(params.scene, params.camera, replace(rs, sky=params.sky)).image
-                 .astype(np.float64).sum())
-
-
-def _shifted_sum(params, rs, name: str, index, step: float) -> float:
-    v0 = params[name].copy()
-    v = v0.copy()
-    v[index] += step
-    params[name] = v
-    try:
-        return _image_sum(params, rs)
-    finally:
-        params[name] = v0
-
-
-def central_difference(params, rs, name: str, index, h: float) -> float:
-    return (_shifted_sum(params, rs, name, index, h) - _shifted_sum(params, rs, name, index, -h)) / (2 * h)
 
 
 def fitted_difference(params, rs, name: str, index, h0: float, n: int = 8) -> tuple[float, float]:

@@ -27,6 +27,7 @@ launched from a pool of 2 Python threads (Warp releases the GIL in a launch), as
     python benchmarks/bench_rays.py              # 512x512 rays, 1 and 2 threads, 4 scenes
     python benchmarks/bench_rays.py --quick      # 128x128, a smoke run
     python benchmarks/bench_rays.py --small-scene --size 256   # where the item loop beats the TLAS
+    python benchmarks/bench_rays.py --integrator nee --sampler sobol   # path rows with the default estimator
 """
 
 from __future__ import annotations
@@ -70,7 +71,8 @@ DEPTH = 6             # rate counts every closest-hit ray (other rays than the b
 # Rays
 
 
-INTEGRATOR, SAMPLER = "seed", "independent"    # the renderer's defaults at the time of writing
+INTEGRATOR, SAMPLER = "seed", "independent"    # the path rows' estimator (--integrator, --sampler): the
+                                               # seed's traces only closest-hit rays, like the bare kernel
 SKY = Sky.gradient()
 
 
@@ -393,6 +395,7 @@ def small_scene_table(folder: Path, size: int, repeat: int) -> None:
 
 
 def main() -> None:
+    global INTEGRATOR, SAMPLER
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="128x128 rays, 2 repeats")
     ap.add_argument("--size", type=int, default=512, help="camera rays: size x size (default 512)")
@@ -401,10 +404,13 @@ def main() -> None:
     ap.add_argument("--scene", default="", help="only scenes whose name contains this")
     ap.add_argument("--small-scene", action="store_true",
                     help="only the table of item loop against TLAS by number of items (geometry.SMALL_SCENE)")
+    ap.add_argument("--integrator", default=INTEGRATOR, help=f"the path rows' integrator (default {INTEGRATOR})")
+    ap.add_argument("--sampler", default=SAMPLER, help=f"the path rows' sampler (default {SAMPLER})")
     args = ap.parse_args()
+    INTEGRATOR, SAMPLER = args.integrator, args.sampler
     size, repeat = (128, 2) if args.quick else (args.size, args.repeat)
     wp.init()
-    print(f"# bench_rays: {size}x{size} rays, best of {repeat}, threads {args.threads}, "
+    print(f"# bench_rays: {size}x{size} rays, best of {repeat}, threads {args.threads}, path rows {INTEGRATOR} + {SAMPLER}, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory() as tmp:
         if args.small_scene:

@@ -121,6 +121,38 @@ def test_nee_matches_polygon_irradiance(scene_dir):
     assert expected.max() > 3 * expected.min() > 0        # the lighting really varies over the image
 
 
+def test_nee_with_a_light_too_unlikely_to_share_its_pick_number(scene_dir):
+    # A tiny bright lamp (each triangle chosen with probability < 2**-12) beside a dim sky that the
+    # table weighs heavily (a 600-unit floor makes the scene's radius large): Sobol' NEE must then
+    # draw the lamp's point from a dimension of its own (lights.reuse_pick < 0). The lamp subtends
+    # ~1e-4 sr, so NEE, not BSDF sampling, carries its light (MIS weight ~1). It stands in the plane
+    # x = 0, which holds the camera, so no camera ray sees it (edge-on). A floor point receives
+    # S (pi - P) + L P, P the lamp's projected solid angle (Lambert's polygon formula, unit radiance).
+    # Checked by breaking it: the -1 sentinel used as the point's coordinate fails by 1e9 standard
+    # errors. Where on so small a lamp the point lands barely matters (the light's radiance hardly
+    # varies over it), so the distribution of the extra number is left to tests/test_sobol.py.
+    sky_l, lamp_l, half, z0 = 0.0045, 2.0e4, 0.005, 0.8
+    lamp = [(0.0, -half, z0), (0.0, half, z0), (0.0, half, z0 + 2 * half), (0.0, -half, z0 + 2 * half)]
+    obj = quads_obj([("floor", [(10 * x, 10 * y, z) for x, y, z in FLOOR]), ("lamp", lamp)])
+    mtl = material("floor", Kd=(ALBEDO,) * 3, Roughness=1) + material("lamp", Kd=(0, 0, 0), Kl=(lamp_l,) * 3)
+    dev = scene_from_text(scene_dir, "tiny_lamp_floor", obj, mtl)
+    prob = light_table(dev, sky(sky_l)).entry_prob.numpy()
+    assert len(prob) == 3 and (prob[:2] < 2.0**-12).all() and (prob[:2] > 2.0**-13).all()   # the branch under test
+    w, h, spp, batches = 4, 2, 1 << 15, 12
+
+    def expected_at(sub):
+        pts = floor_points(FLOOR_CAM, w, h, sub)
+        p = polygon_irradiance(pts.reshape(-1, 3), np.array([0.0, 0.0, 1.0]), np.array(lamp)).reshape(h, w, -1)
+        return (ALBEDO / np.pi * (sky_l * (np.pi - p) + lamp_l * p)).mean(axis=2)
+
+    e8, e4 = expected_at(8), expected_at(4)
+    assert e8.min() > 3 * ALBEDO * sky_l            # the lamp's light dominates every pixel
+    for sampler in sorted(SAMPLERS):
+        b = seed_batches(dev, FLOOR_CAM, batches, spp, 0, width=w, height=h, max_depth=2, sky=sky(sky_l),
+                         integrator="nee", sampler=sampler, features=GENERAL)
+        assert_matches_expected(b, np.repeat(e8[..., None], 3, axis=2), rel_slack=np.max(np.abs(e4 - e8) / e8))
+
+
 @pytest.mark.parametrize("integrator,sampler", COMBOS)
 def test_diffuse_plane_under_a_uniform_sky(scene_dir, integrator, sampler):
     # Every floor point sees the sky over its whole upper hemisphere: radiance = albedo * L exactly.

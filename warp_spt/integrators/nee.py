@@ -53,9 +53,12 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     dimensions per bounce (``integrators.seed``); ``differentiable`` re-intersects the hit in closed
     form so that it carries derivatives in the ray (the tape kernel only)."""
     closest_hit = make_closest_hit(features, differentiable=differentiable)
-    vertex = make_path_vertex(features, sampler, light_sampling)
+    # the fast kernel inlines the step and its vertex: called out of line, each bounce copied the scene
+    # structs they take by value (about 2 KB); the tape kernel, unrolled, keeps the compiler's choice
+    inline = None if differentiable else True
+    vertex = make_path_vertex(features, sampler, light_sampling, inline=inline)
 
-    @wp.func
+    @wp.func(inline=inline)
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
              path: PathState) -> PathState:
         p = path
@@ -66,11 +69,11 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     return step
 
 
-def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool):
+def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None):
     """``vertex(geo, mats, tex, lights, rp, path, hit) -> PathState``: everything a bounce does once
     its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The fast and
     tape kernels run it inside ``step``; path replay (``warp_spt.prb``) differentiates it alone, the
-    hit being found outside, so its adjoint never retraces a ray."""
+    hit being found outside, so its adjoint never retraces a ray. ``inline``: wp.func's inline hint."""
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
@@ -123,7 +126,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 
-    @wp.func
+    @wp.func(inline=inline)
     def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
                path: PathState, h: Hit) -> PathState:
         p = path

@@ -47,6 +47,7 @@ import warp as wp
 from .device_scene import Features, Geometry, Materials, Textures
 from .geometry import NO_HIT, Hit, make_closest_hit
 from .integrators import CameraParams, PathState, RenderParams, get_vertex
+from .integrators.nee import VIS_TRACE
 from .lights import Lights
 
 _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
@@ -70,8 +71,8 @@ def _skip_replay(vertex) -> None:
 
     @wp.func_replay(vertex)
     def replay_vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                      path: PathState, h: Hit):
-        return path
+                      path: PathState, h: Hit, vis: int):
+        return path, vis
 
     # Warp 1.19 names the replay after its own counter ("replay_<key>_0") but calls it after the
     # closure's ("replay_<key>_<n>"): give it the name the call site uses
@@ -81,10 +82,10 @@ def _skip_replay(vertex) -> None:
 def _make_kernel(vertex, start_path, closest_hit):
     @wp.func
     def objective(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                  path: PathState, h: Hit, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
+                  path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
         """What vertex ``path``/``h`` adds to the image, its throughput and density seeded with the
-        adjoints of what follows (constants here)."""
-        p = vertex(geo, mats, tex, lights, rp, path, h)
+        adjoints of what follows (constants here); ``vis`` the visibility its forward call found."""
+        p, seen = vertex(geo, mats, tex, lights, rp, path, h, vis)
         return wp.dot(p.radiance, a) + wp.dot(p.throughput, b) + p.pdf * c
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -103,32 +104,34 @@ def _make_kernel(vertex, start_path, closest_hit):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
             q = start
             while q.alive != 0:                  # pass 1: the sample's radiance, as the fast kernel
-                q = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT))
+                q, v = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
             total = q.radiance
             if not wp.isfinite(total):
                 continue                         # the fast kernel drops it: no gradient either
             q = start                            # pass 2: replay, one vertex's adjoint at a time
             prev = start
             prev_h = Hit()
+            prev_vis = int(VIS_TRACE)
             for k in range(rp.max_depth + 1):    # the bound is never reached: max_depth ends the path
                 if q.alive == 0:
                     break
                 h = closest_hit(geo, q.o, q.d, NO_HIT)
-                nxt = vertex(geo, mats, tex, lights, rp, q, h)
+                nxt, vis = vertex(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
                 b = zero
                 if nxt.alive != 0:
                     b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
-                ag, am, at, al, arp, apath, ah, aa, ab, ac = wp.grad(objective)(
-                    geo, mats, tex, lights, rp, q, h, a, b, 0.0)
+                ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
+                    geo, mats, tex, lights, rp, q, h, vis, a, b, 0.0)
                 sky += al.sky_color
                 slope += al.sky_slope
                 if k > 0 and apath.pdf != 0.0:   # this vertex's MIS weight uses the previous density
-                    ag, am, at, al, arp, apath, ah, aa, ab, ac = wp.grad(objective)(
-                        geo, mats, tex, lights, rp, prev, prev_h, zero, zero, apath.pdf)
+                    ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
+                        geo, mats, tex, lights, rp, prev, prev_h, prev_vis, zero, zero, apath.pdf)
                     sky += al.sky_color
                     slope += al.sky_slope
                 prev = q
                 prev_h = h
+                prev_vis = vis
                 q = nxt
         wp.atomic_add(sky_grad, 0, sky)
         wp.atomic_add(sky_grad, 1, slope)

@@ -55,12 +55,23 @@ _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
 
 @wp.func
 def remaining(total: wp.vec3, gathered: wp.vec3, throughput: wp.vec3) -> wp.vec3:
-    """(total - gathered) / throughput per channel, 0 where the throughput is 0 (nothing follows)."""
+    """(total - gathered) / throughput per channel, 0 where the throughput is 0 (see ``zeroed``)."""
     out = wp.vec3(0.0, 0.0, 0.0)
     for c in range(3):
         if throughput[c] != 0.0:
             out[c] = (total[c] - gathered[c]) / throughput[c]
     return out
+
+
+@wp.func
+def zeroed(before: wp.vec3, after: wp.vec3, a: wp.vec3) -> bool:
+    """A channel with an adjoint that this vertex's weight set to exactly 0: what follows is then
+    unknown from the ratio (L - R) / T, though its derivative through the weight is not 0."""
+    hit = False
+    for c in range(3):
+        if after[c] == 0.0 and before[c] != 0.0 and a[c] != 0.0:
+            hit = True
+    return hit
 
 
 def _skip_replay(vertex) -> None:
@@ -88,6 +99,32 @@ def _make_kernel(vertex, start_path, closest_hit):
         p, seen = vertex(geo, mats, tex, lights, rp, path, h, vis)
         return wp.dot(p.radiance, a) + wp.dot(p.throughput, b) + p.pdf * c
 
+    @wp.func
+    def finish(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+               path: PathState) -> PathState:
+        """The rest of the path, as the fast kernel traces it."""
+        q = path
+        while q.alive != 0:
+            q, v = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
+        return q
+
+    @wp.func
+    def arriving(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+                 total: wp.vec3, nxt: PathState, before: wp.vec3, a: wp.vec3) -> wp.vec3:
+        """Light arriving from beyond the vertex whose output is ``nxt``, per unit throughput: the
+        ratio, except in a channel the vertex set to 0 (``zeroed``), where the rest of the path is
+        traced again with unit throughput (same random numbers; only such vertices pay for it)."""
+        lo = remaining(total, nxt.radiance, nxt.throughput)
+        if zeroed(before, nxt.throughput, a):
+            unit = nxt
+            unit.throughput = wp.vec3(1.0, 1.0, 1.0)
+            unit.radiance = wp.vec3(0.0, 0.0, 0.0)
+            beyond = finish(geo, mats, tex, lights, rp, unit).radiance
+            for c in range(3):
+                if nxt.throughput[c] == 0.0:
+                    lo[c] = beyond[c]
+        return lo
+
     @wp.kernel(enable_backward=False, module="unique")
     def replay(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
                rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), sky_grad: wp.array(dtype=wp.vec3)):
@@ -102,10 +139,7 @@ def _make_kernel(vertex, start_path, closest_hit):
         slope = zero
         for j in range(rp.sample_count):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
-            q = start
-            while q.alive != 0:                  # pass 1: the sample's radiance, as the fast kernel
-                q, v = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
-            total = q.radiance
+            total = finish(geo, mats, tex, lights, rp, start).radiance    # pass 1: the sample's radiance
             if not wp.isfinite(total):
                 continue                         # the fast kernel drops it: no gradient either
             q = start                            # pass 2: replay, one vertex's adjoint at a time
@@ -119,7 +153,7 @@ def _make_kernel(vertex, start_path, closest_hit):
                 nxt, vis = vertex(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
                 b = zero
                 if nxt.alive != 0:
-                    b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
+                    b = wp.cw_mul(a, arriving(geo, mats, tex, lights, rp, total, nxt, q.throughput, a))
                 ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
                     geo, mats, tex, lights, rp, q, h, vis, a, b, 0.0)
                 sky += al.sky_color

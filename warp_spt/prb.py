@@ -17,8 +17,13 @@ Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynami
    ``objective = a . R_{k+1} + b . T_{k+1}`` of that one vertex, with ``a`` the pixel's adjoint per
    sample and ``b = a * Lo_{k+1}`` held constant. The vertex is the integrator's own ``vertex``
    function (``integrators.VERTICES``), the very code ``step`` runs after its closest hit: the hit
-   is found outside the differentiated function, so its adjoint never retraces a ray. The adjoints
+   is found outside the differentiated function, and the visibility of the light sample is passed
+   in (``vis``, what the forward call returned), so its adjoint never traces a ray. The adjoints
    of array reads land in the arrays' ``.grad`` buffers (per-tile aliases, as for the tape).
+
+Russian roulette replays its decisions; its survival probability carries no derivative
+(``integrators.nee.detached``). Where a vertex sets a channel of the throughput to exactly 0, ``Lo``
+of that channel is unknown from the ratio: it gets no gradient from later bounces (a limit).
 
 Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, which is unbiased for
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
@@ -55,23 +60,13 @@ _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
 
 @wp.func
 def remaining(total: wp.vec3, gathered: wp.vec3, throughput: wp.vec3) -> wp.vec3:
-    """(total - gathered) / throughput per channel, 0 where the throughput is 0 (see ``zeroed``)."""
+    """(total - gathered) / throughput per channel, 0 where the throughput is 0: a channel a vertex
+    set to exactly 0 then gets no gradient from later bounces (docs/gradients.md, Limits)."""
     out = wp.vec3(0.0, 0.0, 0.0)
     for c in range(3):
         if throughput[c] != 0.0:
             out[c] = (total[c] - gathered[c]) / throughput[c]
     return out
-
-
-@wp.func
-def zeroed(before: wp.vec3, after: wp.vec3, a: wp.vec3) -> bool:
-    """A channel with an adjoint that this vertex's weight set to exactly 0: what follows is then
-    unknown from the ratio (L - R) / T, though its derivative through the weight is not 0."""
-    hit = False
-    for c in range(3):
-        if after[c] == 0.0 and before[c] != 0.0 and a[c] != 0.0:
-            hit = True
-    return hit
 
 
 def _skip_replay(vertex) -> None:
@@ -83,7 +78,7 @@ def _skip_replay(vertex) -> None:
     @wp.func_replay(vertex)
     def replay_vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
                       path: PathState, h: Hit, vis: int):
-        return path, vis
+        return path
 
     # Warp 1.19 names the replay after its own counter ("replay_<key>_0") but calls it after the
     # closure's ("replay_<key>_<n>"): give it the name the call site uses
@@ -96,7 +91,7 @@ def _make_kernel(vertex, start_path, closest_hit):
                   path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
         """What vertex ``path``/``h`` adds to the image, its throughput and density seeded with the
         adjoints of what follows (constants here); ``vis`` the visibility its forward call found."""
-        p, seen = vertex(geo, mats, tex, lights, rp, path, h, vis)
+        p = vertex(geo, mats, tex, lights, rp, path, h, vis)
         return wp.dot(p.radiance, a) + wp.dot(p.throughput, b) + p.pdf * c
 
     @wp.func
@@ -105,25 +100,8 @@ def _make_kernel(vertex, start_path, closest_hit):
         """The rest of the path, as the fast kernel traces it."""
         q = path
         while q.alive != 0:
-            q, v = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
+            q = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
         return q
-
-    @wp.func
-    def arriving(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                 total: wp.vec3, nxt: PathState, before: wp.vec3, a: wp.vec3) -> wp.vec3:
-        """Light arriving from beyond the vertex whose output is ``nxt``, per unit throughput: the
-        ratio, except in a channel the vertex set to 0 (``zeroed``), where the rest of the path is
-        traced again with unit throughput (same random numbers; only such vertices pay for it)."""
-        lo = remaining(total, nxt.radiance, nxt.throughput)
-        if zeroed(before, nxt.throughput, a):
-            unit = nxt
-            unit.throughput = wp.vec3(1.0, 1.0, 1.0)
-            unit.radiance = wp.vec3(0.0, 0.0, 0.0)
-            beyond = finish(geo, mats, tex, lights, rp, unit).radiance
-            for c in range(3):
-                if nxt.throughput[c] == 0.0:
-                    lo[c] = beyond[c]
-        return lo
 
     @wp.kernel(enable_backward=False, module="unique")
     def replay(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
@@ -150,10 +128,11 @@ def _make_kernel(vertex, start_path, closest_hit):
                 if q.alive == 0:
                     break
                 h = closest_hit(geo, q.o, q.d, NO_HIT)
-                nxt, vis = vertex(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
+                nxt = vertex(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
+                vis = nxt.vis
                 b = zero
                 if nxt.alive != 0:
-                    b = wp.cw_mul(a, arriving(geo, mats, tex, lights, rp, total, nxt, q.throughput, a))
+                    b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
                 ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
                     geo, mats, tex, lights, rp, q, h, vis, a, b, 0.0)
                 sky += al.sky_color

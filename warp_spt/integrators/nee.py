@@ -80,18 +80,18 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
         p = path
         h = closest_hit(geo, p.o, p.d, NO_HIT)
         p.rays += 1
-        q, seen = vertex(geo, mats, tex, lights, rp, p, h, VIS_TRACE)
-        return q
+        return vertex(geo, mats, tex, lights, rp, p, h, VIS_TRACE)
 
     return step
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool):
-    """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> (PathState, vis)``: everything a bounce
-    does once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette).
-    The fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow
-    ray); path replay (``warp_spt.prb``) differentiates it alone, with the hit found outside and the
-    visibility its forward call returned passed in, so its adjoint never traces a ray."""
+    """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
+    once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
+    fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
+    path replay (``warp_spt.prb``) differentiates it alone, with the hit found outside and the
+    visibility its forward call found (the result's ``vis``) passed in, so its adjoint never traces
+    a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)"""
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
@@ -154,14 +154,14 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
 
     @wp.func
     def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-               path: PathState, h: Hit, vis: int):
+               path: PathState, h: Hit, vis: int) -> PathState:
         p = path
-        seen = int(VIS_TRACE)
+        p.vis = VIS_TRACE
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_sky(lights, p.d))
             p.radiance += wp.cw_mul(p.throughput, sky_radiance(lights, p.d)) * w
             p.alive = 0
-            return p, seen
+            return p
         p.depth += 1
         sf = surface_at(geo, h, p.o, p.d)
         if wp.static(features.emitters):
@@ -171,7 +171,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
                 p.radiance += wp.cw_mul(p.throughput, le) * w
         if p.depth >= rp.max_depth:     # max_depth counts hits, as in the seed
             p.alive = 0
-            return p, seen
+            return p
         base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         if wp.static(sample_lights):
@@ -182,6 +182,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
             lit = p
             lit.radiance += contrib
             lit.sampler = st
+            lit.vis = seen
             p = lit
         p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
@@ -193,6 +194,6 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool)
                     p.alive = 0
                 else:
                     p.throughput = p.throughput / q
-        return p, seen
+        return p
 
     return vertex

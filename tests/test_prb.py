@@ -9,6 +9,9 @@
 * NEE: emission and sky colour re-weight the light table, so finite differences move the light
   samples; with the table frozen they measure the derivative path replay computes (detached sampling).
 * Memory (array sizes, not wall time) does not grow with spp or depth; 1 and 2 threads agree bit for bit.
+* Russian roulette: the mean over seeds against finite differences of the roulette-free renderer.
+* A colour channel at exactly 0: the documented limit (no gradient from later bounces), shown
+  against one-sided finite differences.
 
 Parameters with a pathwise derivative (fuzz) stay on the tape: ``mode="auto"`` routes them there.
 """
@@ -35,7 +38,7 @@ SEED_NAMES = COLOURS + ["lamp.emission", "sky.color", "wall.roughness", "ball.ro
 NEE = dict(integrator="nee", sampler="independent")     # the default estimator
 
 
-@pytest.mark.parametrize("estimator", [{}, NEE], ids=["seed", "nee"])
+@pytest.mark.parametrize("estimator", [{}, NEE, dict(NEE, roulette_depth=1)], ids=["seed", "nee", "nee-roulette"])
 def test_path_replay_equals_the_tape(room, estimator):
     p = parameters(room, ROOM_CAM, ROOM_SKY)
     rs = replace(ROOM_RS, **estimator)
@@ -125,3 +128,55 @@ def test_mode_selection(quad_scene):
         render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.diffuse"], mode="fast")
     with pytest.raises(ValueError, match="tape"):
         render_gradients(p, replace(QUAD_RS, max_depth=9), adjoint=adj, wrt=["quad.diffuse"], mode="tape")
+
+
+def test_russian_roulette_is_replayed_with_an_unbiased_gradient(room):
+    """Roulette from the first hit (nee, depth 6). Path replay redraws the same survival decisions and
+    holds the survival probability ``q`` constant: on survival the sample is ``X / q``, so its
+    derivative ``X' / q`` has expectation ``X'``, the derivative of the expected image (differentiating
+    ``1 / q`` as well would add ``-X q' / q`` on average). Roulette leaves the expected image as it is,
+    so the reference is central finite differences of the fast renderer *without* roulette (CRN: the
+    difference is smooth); finite differences with roulette flip survival decisions as the throughput
+    moves, far noisier. Over 24 seeds, the mean of (gradient - difference) must be within 4 standard
+    errors of 0, and the derivative large against that error."""
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    rs = replace(ROOM_RS, max_depth=6, roulette_depth=1, **NEE)
+    name = "wall.diffuse"
+    diffs, grads = [], []
+    for seed in range(24):
+        r = replace(rs, seed=100 + seed)
+        g = render_gradients(p, r, adjoint=_ones(r), wrt=[name]).grads[name]
+        fd = np.array([_fd(p, replace(r, roulette_depth=0), name, c, 1e-2) for c in range(3)])
+        grads.append(g)
+        diffs.append(g - fd)
+    diffs, grads = np.array(diffs), np.array(grads)
+    mean, se = diffs.mean(0), diffs.std(0, ddof=1) / np.sqrt(len(diffs))
+    print("roulette: gradient", grads.mean(0), "gradient - FD", mean, "+-", se)
+    assert np.all(np.abs(mean) < 4 * se), (mean, se)
+    assert np.all(grads.mean(0) > 20 * se), (grads.mean(0), se)
+
+
+def test_a_colour_channel_at_zero_misses_the_gradient_of_later_bounces(room):
+    """A documented limit (docs/gradients.md, Limits): ``wall.diffuse`` green at exactly 0, seed
+    integrator, so every contribution of a path through the wall comes from a later bounce. Its
+    derivative (the light arriving at the wall) is nonzero by a second-order one-sided difference of
+    the fast renderer (CRN; the colour cannot go negative), but path replay's Lo = (L - R) / T is
+    unknown where T's channel is 0 and it gives exactly 0; a channel just above 0 is exact."""
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    name = "wall.diffuse"
+    v0 = p[name].copy()
+    try:
+        grads = {}
+        for g0 in (0.0, 1e-3):
+            p[name] = np.array([v0[0], g0, v0[2]])
+            grads[g0] = render_gradients(p, ROOM_RS, adjoint=_ones(ROOM_RS), wrt=[name]).grads[name][1]
+        h, sums = 1e-2, []
+        for s in (0.0, 1e-2, 2e-2):
+            p[name] = np.array([v0[0], s, v0[2]])
+            sums.append(_image_sum(p, ROOM_RS))
+    finally:
+        p[name] = v0
+    fd = (-3 * sums[0] + 4 * sums[1] - sums[2]) / (2 * h)
+    assert fd > 1.0
+    assert grads[0.0] == 0.0
+    assert grads[1e-3] == pytest.approx(fd, rel=2e-2)

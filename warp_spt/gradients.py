@@ -150,10 +150,11 @@ def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
     return mode
 
 
-def _render_params(width: int, lo: int, s0: int, spp: int, max_depth: int, seed: int) -> RenderParams:
+def _render_params(width: int, lo: int, s0: int, spp: int, max_depth: int, seed: int,
+                   roulette_depth: int = 0) -> RenderParams:
     rp = RenderParams()
     rp.width, rp.pixel_start, rp.sample_start, rp.sample_count = width, lo, s0, spp
-    rp.max_depth, rp.roulette_depth, rp.seed = max_depth, 0, wp.uint32(seed & 0xFFFFFFFF)
+    rp.max_depth, rp.roulette_depth, rp.seed = max_depth, roulette_depth, wp.uint32(seed & 0xFFFFFFFF)
     return rp
 
 
@@ -186,8 +187,9 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
                      mode: str = "auto") -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
-    ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``);
-    Russian roulette must be off.
+    ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``).
+    Russian roulette (``settings.roulette_depth``) is replayed: the same samples survive, and the
+    survival probability is held constant, which keeps the gradient unbiased (docs/gradients.md).
 
     ``mode``: "prb" (path replay, ``warp_spt.prb``: any depth, about the cost of two forward
     passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
@@ -202,8 +204,6 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     rs = settings or RenderSettings(width=64, height=64, spp=4, max_depth=4)
     if (loss is None) == (adjoint is None):
         raise ValueError("give exactly one of loss= and adjoint=")
-    if rs.roulette_depth != 0:
-        raise ValueError("Russian roulette is not differentiated: use roulette_depth=0")
     names = list(params.differentiable() if wrt is None else wrt)
     infos = [params.info(n) for n in names]
     mode = choose_mode(mode, infos, rs.integrator)
@@ -293,7 +293,7 @@ class _Backward:
         def work(k: int) -> None:
             lo, hi = self.tiles[k]
             m, t, deltas, scratch = inputs[k]
-            rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed)
+            rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed, rs.roulette_depth)
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
                 wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=[
                     dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad])

@@ -17,8 +17,13 @@ Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynami
    ``objective = a . R_{k+1} + b . T_{k+1}`` of that one vertex, with ``a`` the pixel's adjoint per
    sample and ``b = a * Lo_{k+1}`` held constant. The vertex is the integrator's own ``vertex``
    function (``integrators.VERTICES``), the very code ``step`` runs after its closest hit: the hit
-   is found outside the differentiated function, so its adjoint never retraces a ray. The adjoints
+   is found outside the differentiated function, and the visibility of the light sample is passed
+   in (``vis``, what the forward call returned), so its adjoint never traces a ray. The adjoints
    of array reads land in the arrays' ``.grad`` buffers (per-tile aliases, as for the tape).
+
+Russian roulette replays its decisions; its survival probability carries no derivative
+(``integrators.nee.detached``). Where a vertex sets a channel of the throughput to exactly 0, ``Lo``
+of that channel is unknown from the ratio: it gets no gradient from later bounces (a limit).
 
 Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, which is unbiased for
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
@@ -47,6 +52,7 @@ import warp as wp
 from .device_scene import Features, Geometry, Materials, Textures
 from .geometry import NO_HIT, Hit, make_closest_hit
 from .integrators import CameraParams, PathState, RenderParams, get_vertex
+from .integrators.nee import VIS_TRACE
 from .lights import Lights
 
 _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
@@ -54,7 +60,8 @@ _kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
 
 @wp.func
 def remaining(total: wp.vec3, gathered: wp.vec3, throughput: wp.vec3) -> wp.vec3:
-    """(total - gathered) / throughput per channel, 0 where the throughput is 0 (nothing follows)."""
+    """(total - gathered) / throughput per channel, 0 where the throughput is 0: a channel a vertex
+    set to exactly 0 then gets no gradient from later bounces (docs/gradients.md, Limits)."""
     out = wp.vec3(0.0, 0.0, 0.0)
     for c in range(3):
         if throughput[c] != 0.0:
@@ -70,7 +77,7 @@ def _skip_replay(vertex) -> None:
 
     @wp.func_replay(vertex)
     def replay_vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                      path: PathState, h: Hit):
+                      path: PathState, h: Hit, vis: int):
         return path
 
     # Warp 1.19 names the replay after its own counter ("replay_<key>_0") but calls it after the
@@ -81,11 +88,20 @@ def _skip_replay(vertex) -> None:
 def _make_kernel(vertex, start_path, closest_hit):
     @wp.func
     def objective(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                  path: PathState, h: Hit, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
+                  path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
         """What vertex ``path``/``h`` adds to the image, its throughput and density seeded with the
-        adjoints of what follows (constants here)."""
-        p = vertex(geo, mats, tex, lights, rp, path, h)
+        adjoints of what follows (constants here); ``vis`` the visibility its forward call found."""
+        p = vertex(geo, mats, tex, lights, rp, path, h, vis)
         return wp.dot(p.radiance, a) + wp.dot(p.throughput, b) + p.pdf * c
+
+    @wp.func
+    def finish(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+               path: PathState) -> PathState:
+        """The rest of the path, as the fast kernel traces it."""
+        q = path
+        while q.alive != 0:
+            q = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
+        return q
 
     @wp.kernel(enable_backward=False, module="unique")
     def replay(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
@@ -101,34 +117,34 @@ def _make_kernel(vertex, start_path, closest_hit):
         slope = zero
         for j in range(rp.sample_count):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
-            q = start
-            while q.alive != 0:                  # pass 1: the sample's radiance, as the fast kernel
-                q = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT))
-            total = q.radiance
+            total = finish(geo, mats, tex, lights, rp, start).radiance    # pass 1: the sample's radiance
             if not wp.isfinite(total):
                 continue                         # the fast kernel drops it: no gradient either
             q = start                            # pass 2: replay, one vertex's adjoint at a time
             prev = start
             prev_h = Hit()
+            prev_vis = int(VIS_TRACE)
             for k in range(rp.max_depth + 1):    # the bound is never reached: max_depth ends the path
                 if q.alive == 0:
                     break
                 h = closest_hit(geo, q.o, q.d, NO_HIT)
-                nxt = vertex(geo, mats, tex, lights, rp, q, h)
+                nxt = vertex(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
+                vis = nxt.vis
                 b = zero
                 if nxt.alive != 0:
                     b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
-                ag, am, at, al, arp, apath, ah, aa, ab, ac = wp.grad(objective)(
-                    geo, mats, tex, lights, rp, q, h, a, b, 0.0)
+                ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
+                    geo, mats, tex, lights, rp, q, h, vis, a, b, 0.0)
                 sky += al.sky_color
                 slope += al.sky_slope
                 if k > 0 and apath.pdf != 0.0:   # this vertex's MIS weight uses the previous density
-                    ag, am, at, al, arp, apath, ah, aa, ab, ac = wp.grad(objective)(
-                        geo, mats, tex, lights, rp, prev, prev_h, zero, zero, apath.pdf)
+                    ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
+                        geo, mats, tex, lights, rp, prev, prev_h, prev_vis, zero, zero, apath.pdf)
                     sky += al.sky_color
                     slope += al.sky_slope
                 prev = q
                 prev_h = h
+                prev_vis = vis
                 q = nxt
         wp.atomic_add(sky_grad, 0, sky)
         wp.atomic_add(sky_grad, 1, slope)

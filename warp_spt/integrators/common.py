@@ -84,6 +84,7 @@ class PathState:
     rays: int              # closest-hit queries traced
     pdf: float             # solid-angle density of the direction d was sampled with (MIS)
     singular: int          # 1: d came from the camera or a singular lobe (emitters hit count in full)
+    vis: int               # the last vertex's shadow ray: 1 visible, 0 occluded, -1 none (nee.VIS_*)
     sampler: SamplerState
 
 
@@ -135,6 +136,7 @@ def make_start_path(sampler: Sampler):
         p.rays = 0
         p.pdf = 0.0
         p.singular = 1
+        p.vis = -1
         p.sampler = st2
         return p
 

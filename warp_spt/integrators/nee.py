@@ -27,6 +27,11 @@ from .common import (DIM_BOUNCE, FULL_STRIDE, SEED_STRIDE, OFF_LIGHT, OFF_LIGHT_
                      RenderParams, continue_path, make_bsdf_dims)
 
 STRIDE = FULL_STRIDE
+# the ``vis`` argument of ``vertex``: the shadow ray's answer when the caller knows it (path replay's
+# adjoint, which must not trace), or VIS_TRACE: trace it (what ``vertex`` returns when it traced none)
+VIS_TRACE = wp.constant(-1)
+VIS_OCCLUDED = wp.constant(0)
+VIS_VISIBLE = wp.constant(1)
 
 
 @wp.func
@@ -34,6 +39,20 @@ def power_heuristic(pa: float, pb: float) -> float:
     """Weight of technique a when b could also have produced the sample (beta = 2)."""
     a2 = pa * pa
     return a2 / (a2 + pb * pb)
+
+
+@wp.func
+def detached(x: float) -> float:
+    """``x``, through which no derivative flows (its adjoint is 0): Russian roulette's survival
+    probability. The estimator ``X / q`` with probability ``q`` has expectation ``X`` whatever ``q``, so
+    the unbiased derivative is ``X' / q`` on survival; differentiating ``1 / q`` too would add
+    ``-X q' / q`` in expectation (docs/gradients.md, Russian roulette)."""
+    return x
+
+
+@wp.func_grad(detached)
+def adj_detached(x: float, adj_ret: float):
+    pass
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
@@ -64,16 +83,19 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
         p = path
         h = closest_hit(geo, p.o, p.d, NO_HIT)
         p.rays += 1
-        return vertex(geo, mats, tex, lights, rp, p, h)
+        return vertex(geo, mats, tex, lights, rp, p, h, VIS_TRACE)
 
     return step
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None):
-    """``vertex(geo, mats, tex, lights, rp, path, hit) -> PathState``: everything a bounce does once
-    its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The fast and
-    tape kernels run it inside ``step``; path replay (``warp_spt.prb``) differentiates it alone, the
-    hit being found outside, so its adjoint never retraces a ray. ``inline``: wp.func's inline hint."""
+    """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
+    once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
+    fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
+    path replay (``warp_spt.prb``) differentiates it alone, with the hit found outside and the
+    visibility its forward call found (the result's ``vis``) passed in, so its adjoint never traces
+    a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)
+    ``inline``: wp.func's inline hint (the fast kernel's step inlines it)."""
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
@@ -93,9 +115,12 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
 
     @wp.func
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
-               base: int):
-        """Light sampling at this vertex: (radiance to add, sampler state)."""
+               base: int, vis: int):
+        """Light sampling at this vertex: (radiance to add, sampler state, visibility of the light
+        sample: VIS_VISIBLE/VIS_OCCLUDED, VIS_TRACE if no shadow ray was needed). ``vis`` other than
+        VIS_TRACE is taken as the shadow ray's answer instead of tracing it."""
         contrib = wp.vec3(0.0, 0.0, 0.0)
+        seen = int(VIS_TRACE)
         st = p.sampler
         if mats.roughness[sf.mat] > 0.0:      # only the diffuse lobe has a density to sample lights for
             u_pick = float(0.0)
@@ -121,15 +146,21 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                 f = mat.eval(mats, tex, sf, ls.dir)
                 le = wp.cw_mul(f, ls.li)
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
-                    if not occluded(geo, x, ls.dir, ls.t_max):
+                    seen = vis
+                    if seen == VIS_TRACE:
+                        seen = VIS_VISIBLE
+                        if occluded(geo, x, ls.dir, ls.t_max):
+                            seen = VIS_OCCLUDED
+                    if seen == VIS_VISIBLE:
                         w = power_heuristic(ls.pdf, mat.pdf(mats, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
-        return contrib, st
+        return contrib, st, seen
 
     @wp.func(inline=inline)
     def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-               path: PathState, h: Hit) -> PathState:
+               path: PathState, h: Hit, vis: int) -> PathState:
         p = path
+        p.vis = VIS_TRACE
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_sky(lights, p.d))
             p.radiance += wp.cw_mul(p.throughput, sky_radiance(lights, p.d)) * w
@@ -148,20 +179,21 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         if wp.static(sample_lights):
-            contrib, st = direct(geo, mats, tex, lights, p, sf, base)
+            contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, vis)
             # a copy, not p's own fields: Warp assigns struct fields in place, and the adjoint of
             # ``direct`` (gradients) replays it with ``p`` as it is at that point; an updated
             # p.sampler there drew other light samples (independent sampler: gradients off by up to 4x)
             lit = p
             lit.radiance += contrib
             lit.sampler = st
+            lit.vis = seen
             p = lit
         p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
             if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:
                 u_rr, st = sampler.next_1d(p.sampler, base + OFF_ROULETTE)
                 p.sampler = st
-                q = wp.min(wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]), 1.0)
+                q = detached(wp.min(wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]), 1.0))
                 if u_rr >= q:
                     p.alive = 0
                 else:

@@ -146,7 +146,8 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
     # The render's deadline leaves room for what follows its last pass: saving the outputs and exiting.
     reserve, render_budget = 0.0, None
     if b.time_budget is not None:
-        reserve = finish_seconds(opts.out, opts.width, opts.height, opts.tonemap, 1 + bool(b.error_map) + bool(b.spp_map))
+        reserve = finish_seconds(opts.out, opts.width, opts.height, opts.tonemap, 1 + bool(b.error_map) + bool(b.spp_map),
+                                 denoise=b.denoise)
         render_budget = max(b.time_budget - reserve, 1e-3)
 
     def on_pass(res) -> None:
@@ -193,12 +194,14 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
 EXIT_SECONDS = 0.1     # from the last file written to the end of the process (__main__._exit_now)
 
 
-def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int) -> float:
-    """Seconds the command needs after its last pass: writing ``images`` images like ``out`` and exiting.
+def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int, denoise: bool = False) -> float:
+    """Seconds the command needs after its last pass: denoising (with ``denoise``), writing ``images``
+    images like ``out`` and exiting.
 
     Measured here by encoding an image of noise of the output's size in memory the way the writer
     will (tone map and PNG/JPEG encode, or the float32 copy of .npy/.pfm/.exr; noise compresses
-    worst, so this errs long), plus EXIT_SECONDS.
+    worst, so this errs long), plus EXIT_SECONDS, plus :func:`warp_spt.denoise.seconds` (measured
+    on a small probe when pyoidn is there, else a conservative figure).
     """
     import io
 
@@ -216,7 +219,12 @@ def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int)
         from PIL import Image
 
         Image.fromarray((tonemap_srgb if tonemap == "srgb" else tonemap_seed)(blank)).save(buf, format=fmt)
-    return images * (time.perf_counter() - t) + EXIT_SECONDS
+    seconds = images * (time.perf_counter() - t) + EXIT_SECONDS
+    if denoise:
+        from .denoise import seconds as denoise_seconds
+
+        seconds += denoise_seconds(width, height)
+    return seconds
 
 
 def process_start() -> float:

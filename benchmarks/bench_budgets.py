@@ -13,7 +13,8 @@ the target, and what does adaptive sampling gain at equal time?
 4. Adaptive at equal time: uniform and adaptive renders with the same time budget; RMSE and relative
    error against the reference (its noise removed); gain = uniform / adaptive. Also at equal work
    (the adaptive render given the uniform one's pixel-samples), which separates the allocation
-   from the throughput (adaptive passes launch tile-wide runs and go to costly pixels).
+   from the throughput (adaptive passes go to costly pixels).
+5. Sample cost (``--parts cost``): what a sample costs beyond its rays (progressive.SAMPLE_COST_RAYS).
 
 Scenes: the built-in demo (gradient sky, depth 8); a closed Cornell room with a small light, a glossy
 and a glass ball (tests/stability_scenes); an open scene (a floor and two balls under a uniform sky,
@@ -86,7 +87,7 @@ def cli_wall_time(files, cli_cam, size: int, budget: float, out: Path) -> tuple[
 def ceiling(ref) -> tuple[float, float]:
     """The most any allocation can gain at equal work: RMSE and relative-error ratio (uniform over optimal)
     for an oracle that knows every pixel's variance (from the reference's batches) and gives each pixel
-    samples in proportion to its standard deviation. Per pixel; adaptive sampling decides per tile."""
+    samples in proportion to its standard deviation (not its cost)."""
     var = np.nan_to_num(ref.std_error.astype(np.float64) ** 2 * ref.spp[..., None]).mean(axis=2)
     img = ref.image.astype(np.float64)
     rel = np.nan_to_num(ref.std_error.astype(np.float64) ** 2 * ref.spp[..., None]
@@ -94,10 +95,31 @@ def ceiling(ref) -> tuple[float, float]:
     return tuple(math.sqrt(v.mean()) / np.sqrt(v).mean() for v in (var, rel))
 
 
+def sample_cost(dev, cam: Camera, kw: dict) -> tuple[float, float, float, float]:
+    """What a sample costs beyond its rays: one thread, 64 spp, best of 3, of the scene's view and of a
+    view straight up (every sample one ray that misses, or one hit on the demo's sky box). Fits
+    seconds per sample = a x rays per sample + b through the two; returns (rays per sample of the
+    scene, us per sample of each view, b / a: the per-sample cost in rays that progressive.
+    SAMPLE_COST_RAYS stands for)."""
+    up = Camera(position=cam.position, direction=(0.0, 0.0, 1.0), fov=20.0, aperture=0.0, focus=7.0)   # Z is up
+    rows = []
+    for view in (up, cam):
+        best = math.inf
+        for rep in range(3):
+            r = render_progressive(dev, view, spp=64, seed=rep, **dict(kw, threads=1))
+            best = min(best, r.stats.render_seconds / r.stats.pixel_samples)
+        rows.append((r.stats.rays / r.stats.pixel_samples, best))
+    (r1, t1), (r2, t2) = rows
+    if r1 > 1.05 or r2 <= r1:          # a closed room: looking up hits the ceiling, no fit
+        return r2, t1 * 1e6, t2 * 1e6, math.nan
+    a = (t2 - t1) / (r2 - r1)
+    return r2, t1 * 1e6, t2 * 1e6, (t1 - a * r1) / a
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--parts", default="time,error,adaptive", help="comma-separated: time, error, adaptive")
+    ap.add_argument("--parts", default="time,error,adaptive", help="comma-separated: time, error, adaptive, cost")
     ap.add_argument("--scenes", default="demo,cornell,open")
     ap.add_argument("--seeds", type=int, default=2, help="seeds per adaptive comparison")
     ap.add_argument("--budgets", help="comma-separated time budgets in seconds (default 4,8,16; --quick 3,6)")
@@ -112,7 +134,7 @@ def main() -> None:
     adaptive_budget = args.adaptive_budget or max(budgets)
     tmp = Path(tempfile.mkdtemp())
     print(f"{size}x{size} pixels; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f} at the start\n")
-    rows_t, rows_e, rows_a = [], [], []
+    rows_t, rows_e, rows_a, rows_c = [], [], [], []
     for name, (files, cam, kw, cli_cam) in scenes(tmp).items():
         if name not in args.scenes.split(","):
             continue
@@ -153,6 +175,11 @@ def main() -> None:
             rows_e.append((name, target, rel_c / target, res.relative_error / target, res.spp_total))
             print(f"  target error {target:.2%}: estimated {res.relative_error:.2%}, measured {rel_c:.2%} "
                   f"({rel_c / target:.3f}x target), {res.spp_total} spp, {res.stats.seconds:.1f} s", flush=True)
+        if "cost" in parts:
+            rps, t_up, t_scene, per_sample = sample_cost(dev, cam or Camera(), kw)
+            rows_c.append((name, rps, t_up, t_scene, per_sample))
+            print(f"  a sample looking up {t_up:.2f} us (1 ray), of the view {t_scene:.2f} us ({rps:.2f} rays): "
+                  f"{per_sample:+.2f} rays per sample beyond its rays", flush=True)
         if "adaptive" not in parts:
             continue
         budget = adaptive_budget
@@ -187,6 +214,12 @@ def main() -> None:
         print("|---|---|---|---|---|")
         for r in rows_e:
             print(f"| {r[0]} | {r[1]:.2%} | {r[2]:.3f} | {r[3]:.3f} | {r[4]} |")
+    if rows_c:
+        print("\n| scene | rays per sample | us per sample, looking up (1 ray) | us per sample, the view | fitted cost "
+              "per sample beyond its rays, in rays |")
+        print("|---|---|---|---|---|")
+        for r in rows_c:
+            print(f"| {r[0]} | {r[1]:.2f} | {r[2]:.2f} | {r[3]:.2f} | {r[4]:+.2f} |")
     if rows_a:
         print("\n| scene | equal time: RMSE gain (uniform / adaptive) | relative-error gain | equal work: RMSE gain "
               "| relative-error gain | rays/s adaptive / uniform | oracle per pixel, equal work: RMSE | relative error |")

@@ -72,8 +72,8 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     g.add_argument("--target-error", type=_fraction, metavar="E",
                    help="stop when the estimated relative error of the image is at most E (0.01 or 1%%)")
     g.add_argument("--adaptive", action="store_true",
-                   help="after --min-spp, spend passes on the tiles (16 pixels of a row) whose estimated error "
-                        "is high")
+                   help="after --min-spp, spend passes on the pixels whose estimated error is high "
+                        "(opt-in: it lowers the relative error, not always the RMSE; docs/error.md)")
     g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
     g.add_argument("--save-partial", action="store_true",
                    help="on Ctrl-C, write the image accumulated so far instead of nothing")

@@ -54,7 +54,9 @@ from .sky import Sky
 DEFAULT_BATCHES = 8
 ERROR_FLOOR_FRACTION = 0.1   # relative error divides by max(value, 0.1 x mean of the image)
 PASS_WORK = 1 << 20          # pixel-samples per pass once the schedule has grown (about 4 s here)
-SAMPLE_COST_RAYS = 0.0      # an adaptive sample's cost beyond its rays, in rays (docs/error.md)
+SAMPLE_COST_RAYS = -0.6      # a sample's cost beyond its rays, in rays: negative, because a ray that misses
+                             # everything (the last of many paths) costs a fraction of one that hits and is
+                             # shaded (fitted -0.4 to -0.8 from timings, bench_budgets.py --parts cost)
 UNLIMITED_SPP = 1 << 20
 
 
@@ -180,9 +182,9 @@ def render_progressive(
     so it includes the upload and kernel compile done here; the CLI passes its own start time so
     the budget also covers loading the scene. ``target_error`` is the relative error of
     :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
-    tiles (runs of 16 pixels of a row) with the fewest samples for their noise (estimated from the
-    even batches), so that samples end up proportional to each tile's noise over the square root of
-    its cost, which minimises the relative error for the work spent (see _Driver._adaptive_pass).
+    pixels with the fewest samples for their noise (estimated from the even batches), so that samples
+    end up proportional to each pixel's relative noise over the square root of its cost, which
+    minimises the relative error for the work spent (see _Driver._adaptive_pass).
     A host :class:`Scene` far from the origin is recentred first, as :func:`render_scene` does (a
     :class:`DeviceScene` is used as it is). ``sample_budget`` caps the total pixel-samples
     (equal-work comparisons). ``on_pass(result)`` is called after every pass; returning True stops
@@ -288,8 +290,7 @@ class _Driver:
 
     def _command(self, b: int, slot: int):
         """A recorded launch of batch b's film, one per task slot, so that concurrent tasks never share
-        one (replayed with new params: packing the scene's structs afresh cost about 160 us per launch,
-        which dominated adaptive passes of tile-wide runs)."""
+        one (replayed with new params: packing the scene's structs afresh cost about 160 us per launch)."""
         cmd = self.launches.get((b, slot))
         if cmd is None:
             p = RenderParams()
@@ -324,8 +325,7 @@ class _Driver:
 
     def _run_pass(self, inc: np.ndarray, cost: np.ndarray | None = None) -> None:
         """Give pixel p ``inc[b, p]`` more samples in batch b. A task launches a share of one batch's
-        runs in turn (a task per run made adaptive passes, whose runs are only a tile wide, pay the
-        thread pool's overhead per launch); a batch's runs are split into enough tasks to keep every
+        runs (or pieces of its work list) in turn; a batch's runs are split into enough tasks to keep every
         thread busy when a pass feeds fewer batches than there are threads. Tasks of one batch touch
         disjoint pixels, and a pixel gets one launch per batch and pass, so the sums do not depend on
         the split (nor on the number of threads)."""
@@ -462,7 +462,9 @@ class _Driver:
 
         s_p^2 and c_p are averaged over the pixel's 3x3 neighbourhood (_box3): the even batches give
         s_p^2 only B/2 - 1 degrees of freedom, and a pixel whose noise is under-estimated by chance
-        would be starved. c_p is the pixel's rays per sample plus SAMPLE_COST_RAYS (docs/error.md).
+        would be starved. c_p is the pixel's rays per sample in the even batches plus SAMPLE_COST_RAYS
+        (docs/error.md): a path's length correlates with its radiance, so the odd batches' ray counts
+        stay out of the decisions too.
         A pixel's samples are spread over the batches as a render of that many samples spreads
         them (batch_counts), so the batches stay balanced; one launch per batch walks a compacted
         list of the pixels that get samples (one kernel for uniform and adaptive passes).
@@ -475,8 +477,8 @@ class _Driver:
         s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
         s = np.sqrt(_box3(s2.mean(axis=2))).reshape(-1)                    # per-sample relative std
         done = result.spp.reshape(-1).astype(np.int64)
-        rays = sum(c.numpy()[:, 0] for c in self.counters).reshape(self.height, self.width)
-        cost = _box3(rays / np.maximum(result.spp, 1)).reshape(-1) + SAMPLE_COST_RAYS
+        rays = sum(c.numpy()[:, 0] for c in self.counters[::2]).reshape(self.height, self.width)   # even too
+        cost = np.maximum(_box3(rays / np.maximum(n_dec, 1)).reshape(-1) + SAMPLE_COST_RAYS, 0.1)
         known = np.isfinite(s)
         step = self.B * pass_samples(k, self.n, self.B)
         budget = float((done * cost).sum()) + step * float(cost.sum())     # cost after a uniform pass

@@ -41,10 +41,13 @@ def test_flags_parse_and_validate():
     assert (b.time_budget, b.target_error, b.adaptive, b.min_spp, b.save_partial) == (2.5, 0.01, True, 8, True)
     assert b.active and not b.spp_given and not parse_args([]).budget.active
     for bad in (["--time-budget", "0"], ["--target-error", "-1"], ["--error-map", "e.jpg"], ["--min-spp", "0"],
-                ["--progressive", "p.txt"]):
+                ["--progressive", "p.txt"], ["--adaptive", "--adaptive-metric", "mse"]):
         with pytest.raises(Exception):
             parse_args(bad)
     assert main(["--time-budget", "nan"]) == 2
+    assert parse_args(["--adaptive", "--adaptive-metric", "rmse"]).budget.adaptive_metric == "rmse"
+    assert parse_args(["--adaptive"]).budget.adaptive_metric is None      # the API's default applies
+    assert main(["--adaptive-metric", "rmse"]) == 2                       # needs --adaptive
 
 
 def test_budgeted_render_writes_image_maps_and_the_error_line(tmp_path, lit_files, capsys):

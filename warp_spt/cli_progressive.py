@@ -39,6 +39,7 @@ class BudgetOptions:
     spp_map: str | None = None
     spp_given: bool = False
     denoise: bool = False
+    adaptive_metric: str | None = None
 
     @property
     def active(self) -> bool:
@@ -63,6 +64,14 @@ def _fraction(text: str) -> float:
     return value / 100 if percent else value
 
 
+def _metric(text: str) -> str:
+    from .progressive import ADAPTIVE_METRICS
+
+    if text not in ADAPTIVE_METRICS:
+        raise argparse.ArgumentTypeError(f"expected one of {', '.join(ADAPTIVE_METRICS)}, got {text!r}")
+    return text
+
+
 def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     """The issue-9 flags, as their own argument group."""
     g = parser.add_argument_group("error, budgets and adaptive sampling (docs/error.md)")
@@ -74,6 +83,9 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     g.add_argument("--adaptive", action="store_true",
                    help="after --min-spp, spend passes on the pixels whose estimated error is high "
                         "(opt-in: it lowers the relative error, not always the RMSE; docs/error.md)")
+    g.add_argument("--adaptive-metric", type=_metric, metavar="relative|rmse",
+                   help="what --adaptive minimises: the relative error (default) or the RMSE (samples in "
+                        "proportion to each pixel's absolute noise)")
     g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
     g.add_argument("--save-partial", action="store_true",
                    help="on Ctrl-C, write the image accumulated so far instead of nothing")
@@ -99,8 +111,10 @@ def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
             if importlib.util.find_spec("OpenEXR") is None:
                 raise usage_error(f"{flag} {path!r}: writing .exr needs the optional openexr package "
                                   "(pip install 'warp-spt[exr]')")
+    if ns.adaptive_metric is not None and not ns.adaptive:
+        raise usage_error("--adaptive-metric needs --adaptive")
     return BudgetOptions(ns.time_budget, ns.target_error, ns.adaptive, ns.min_spp, ns.save_partial, ns.progressive,
-                         ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise)
+                         ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise, ns.adaptive_metric)
 
 
 def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
@@ -160,6 +174,7 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
                              max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
                              texture_filter=opts.texture_filter, time_budget=render_budget,
                              target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
+                             **({"adaptive_metric": b.adaptive_metric} if b.adaptive_metric else {}),
                              on_pass=on_pass, keep_partial=b.save_partial, started=started,
                              **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
     image = res.image

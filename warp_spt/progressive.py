@@ -58,6 +58,8 @@ SAMPLE_COST_RAYS = -0.6      # a sample's cost beyond its rays, in rays: negativ
                              # everything (the last of many paths) costs a fraction of one that hits and is
                              # shaded (fitted -0.4 to -0.8 from timings, bench_budgets.py --parts cost)
 UNLIMITED_SPP = 1 << 20
+ADAPTIVE_METRICS = ("relative", "rmse")   # what adaptive sampling minimises (docs/error.md)
+DEFAULT_ADAPTIVE_METRIC = "relative"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -164,6 +166,7 @@ def render_progressive(
     time_budget: float | None = None,
     target_error: float | None = None,
     adaptive: bool = False,
+    adaptive_metric: str = DEFAULT_ADAPTIVE_METRIC,
     min_spp: int | None = None,
     batches: int = DEFAULT_BATCHES,
     sample_budget: int | None = None,
@@ -184,7 +187,10 @@ def render_progressive(
     :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
     pixels with the fewest samples for their noise (estimated from the even batches), so that samples
     end up proportional to each pixel's relative noise over the square root of its cost, which
-    minimises the relative error for the work spent (see _Driver._adaptive_pass).
+    minimises the relative error for the work spent (see _Driver._adaptive_pass). ``adaptive_metric``
+    chooses what adaptive sampling minimises: ``"relative"`` (the relative error above) or ``"rmse"``
+    (samples proportional to each pixel's absolute noise over the square root of its cost, which
+    minimises the RMSE for the work spent).
     A host :class:`Scene` far from the origin is recentred first, as :func:`render_scene` does (a
     :class:`DeviceScene` is used as it is). ``sample_budget`` caps the total pixel-samples
     (equal-work comparisons). ``on_pass(result)`` is called after every pass; returning True stops
@@ -201,7 +207,7 @@ def render_progressive(
     rs = settings_from(settings)
     check_args(rs)
     (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
-    check_budget(time_budget, target_error, batches, min_spp)
+    check_budget(time_budget, target_error, batches, min_spp, adaptive_metric)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
     if not isinstance(scene, DeviceScene):      # far from the origin: shifted to it, as render_scene does
@@ -209,11 +215,11 @@ def render_progressive(
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
     driver = _Driver(dev, camera or Camera(), rs, batches)
     plan = _Plan(rs.spp, time_budget, target_error, adaptive,
-                 min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget)
+                 min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget, adaptive_metric)
     return driver.run(plan, on_pass, keep_partial)
 
 
-def check_budget(time_budget, target_error, batches, min_spp) -> None:
+def check_budget(time_budget, target_error, batches, min_spp, adaptive_metric=DEFAULT_ADAPTIVE_METRIC) -> None:
     """Raise ValueError naming the first budget argument of :func:`render_progressive` that is not valid."""
     if time_budget is not None and not (math.isfinite(time_budget) and time_budget > 0):
         raise ValueError(f"time_budget must be a positive number of seconds, got {time_budget!r}")
@@ -223,6 +229,8 @@ def check_budget(time_budget, target_error, batches, min_spp) -> None:
         raise ValueError(f"batches must be an integer >= 2 (the error estimate needs two), got {batches!r}")
     if min_spp is not None and (not isinstance(min_spp, (int, np.integer)) or min_spp < 1):
         raise ValueError(f"min_spp must be a positive integer, got {min_spp!r}")
+    if adaptive_metric not in ADAPTIVE_METRICS:
+        raise ValueError(f"adaptive_metric must be one of {', '.join(ADAPTIVE_METRICS)}, got {adaptive_metric!r}")
 
 
 
@@ -236,6 +244,7 @@ class _Plan:
     min_spp: int
     t0: float
     sample_budget: int | None = None
+    adaptive_metric: str = DEFAULT_ADAPTIVE_METRIC
 
     @property
     def deadline(self) -> float:
@@ -452,7 +461,8 @@ class _Driver:
         """Distribute one pass's work over the pixels so that samples approach the best allocation.
 
         The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p, with s_p a pixel's
-        relative standard deviation per sample. For a given cost sum_p n_p c_p (c_p: the cost of
+        relative standard deviation per sample (``adaptive_metric="relative"``); its RMSE has the
+        same form with s_p the absolute standard deviation per sample (``"rmse"``). For a given cost sum_p n_p c_p (c_p: the cost of
         one of its samples) it is smallest when n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q) (a
         Lagrange multiplier). Each pass raises the cost C by what a uniform pass would spend and
         gives every pixel what it lacks of that target. (Cycles instead stops a pixel once its own
@@ -474,8 +484,9 @@ class _Driver:
         # half's stopping bias, which the tests measure (docs/error.md).
         mean, se, n_dec = batch_statistics(result.sums, result.counts, slice(0, None, 2))
         floor = max(ERROR_FLOOR_FRACTION * float(mean.mean()), 1e-12)
-        s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
-        s = np.sqrt(_box3(s2.mean(axis=2))).reshape(-1)                    # per-sample relative std
+        scale = np.maximum(mean, floor) if plan.adaptive_metric == "relative" else 1.0
+        s2 = np.nan_to_num((se / scale) ** 2, nan=np.inf) * n_dec[..., None]
+        s = np.sqrt(_box3(s2.mean(axis=2))).reshape(-1)                    # per-sample (relative) std
         done = result.spp.reshape(-1).astype(np.int64)
         rays = sum(c.numpy()[:, 0] for c in self.counters[::2]).reshape(self.height, self.width)   # even too
         cost = np.maximum(_box3(rays / np.maximum(n_dec, 1)).reshape(-1) + SAMPLE_COST_RAYS, 0.1)

@@ -82,10 +82,11 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
                    help="stop when the estimated relative error of the image is at most E (0.01 or 1%%)")
     g.add_argument("--adaptive", action="store_true",
                    help="after --min-spp, spend passes on the pixels whose estimated error is high "
-                        "(opt-in: it lowers the relative error, not always the RMSE; docs/error.md)")
+                        "(opt-in; it lowers the error --adaptive-metric names; docs/error.md)")
     g.add_argument("--adaptive-metric", type=_metric, metavar="relative|rmse",
-                   help="what --adaptive minimises: the relative error (default) or the RMSE (samples in "
-                        "proportion to each pixel's absolute noise)")
+                   help="what --adaptive minimises: the relative error of the image (default; what "
+                        "--target-error and the final line measure) or the RMSE (samples in proportion to "
+                        "each pixel's absolute noise)")
     g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
     g.add_argument("--save-partial", action="store_true",
                    help="on Ctrl-C, write the image accumulated so far instead of nothing")

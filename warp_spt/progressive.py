@@ -462,12 +462,13 @@ class _Driver:
 
         The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p, with s_p a pixel's
         relative standard deviation per sample (``adaptive_metric="relative"``); its RMSE has the
-        same form with s_p the absolute standard deviation per sample (``"rmse"``). For a given cost sum_p n_p c_p (c_p: the cost of
-        one of its samples) it is smallest when n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q) (a
-        Lagrange multiplier). Each pass raises the cost C by what a uniform pass would spend and
-        gives every pixel what it lacks of that target. (Cycles instead stops a pixel once its own
-        error estimate is below a threshold, which equalises the per-pixel error, n proportional to
-        s^2: that spends more on the noisiest pixels than the RMS error repays.) Pixels whose
+        same form with s_p the absolute standard deviation per sample (``"rmse"``). For a given
+        cost sum_p n_p c_p (c_p: the cost of one of its samples) either is smallest when
+        n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q) (a Lagrange multiplier). Each pass raises the
+        cost C by what a uniform pass would spend and gives every pixel what it lacks of that target.
+        (Cycles instead stops a pixel once its own error estimate is below a threshold, which
+        equalises the per-pixel error, n proportional to s^2: that spends more on the noisiest
+        pixels than the RMS error repays.) Pixels whose
         samples are all equal (s = 0) get nothing more.
 
         s_p^2 and c_p are averaged over the pixel's 3x3 neighbourhood (_box3): the even batches give

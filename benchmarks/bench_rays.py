@@ -240,7 +240,7 @@ def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
             p = RenderParams()
             p.width, p.pixel_start, p.sample_start, p.sample_count = size, lo, 0, 1
             p.max_depth, p.roulette_depth, p.seed = depth, 0, wp.uint32(0)
-            return [*fixed, p, film, counters]
+            return [*fixed, p, film, counters, None]
         return at
 
     rays = {f"render d=1, {SPP} spp *": n * SPP}

@@ -41,10 +41,13 @@ def test_flags_parse_and_validate():
     assert (b.time_budget, b.target_error, b.adaptive, b.min_spp, b.save_partial) == (2.5, 0.01, True, 8, True)
     assert b.active and not b.spp_given and not parse_args([]).budget.active
     for bad in (["--time-budget", "0"], ["--target-error", "-1"], ["--error-map", "e.jpg"], ["--min-spp", "0"],
-                ["--progressive", "p.txt"]):
+                ["--progressive", "p.txt"], ["--adaptive", "--adaptive-metric", "mse"]):
         with pytest.raises(Exception):
             parse_args(bad)
     assert main(["--time-budget", "nan"]) == 2
+    assert parse_args(["--adaptive", "--adaptive-metric", "rmse"]).budget.adaptive_metric == "rmse"
+    assert parse_args(["--adaptive"]).budget.adaptive_metric is None      # the API's default applies
+    assert main(["--adaptive-metric", "rmse"]) == 2                       # needs --adaptive
 
 
 def test_budgeted_render_writes_image_maps_and_the_error_line(tmp_path, lit_files, capsys):
@@ -111,6 +114,56 @@ def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatc
     monkeypatch.setattr(dn, "available", lambda: False)
     assert main(args) == 1
     assert "warp-spt[denoise]" in capsys.readouterr().err
+
+
+def fake_denoiser(monkeypatch, seconds_per_pixel: float) -> list:
+    """pyoidn stood in for: ``available()`` is True and ``denoise`` sleeps ``seconds_per_pixel`` per pixel,
+    checks its inputs and returns the colour. Returns the list of image shapes it was called with."""
+    from warp_spt import denoise as dn
+
+    calls = []
+
+    def denoise(color, albedo=None, normal=None):
+        assert color.shape[2] == 3 and albedo.shape == normal.shape == color.shape
+        calls.append(color.shape)
+        time.sleep(seconds_per_pixel * color.shape[0] * color.shape[1])
+        return np.asarray(color, np.float32)
+
+    monkeypatch.setattr(dn, "available", lambda: True)
+    monkeypatch.setattr(dn, "denoise", denoise)
+    return calls
+
+
+def test_the_save_reserve_counts_the_denoiser(tmp_path, monkeypatch):
+    from warp_spt import denoise as dn
+
+    monkeypatch.setattr(dn, "available", lambda: False)     # no pyoidn: the documented conservative figure
+    assert dn.seconds(200, 100) == dn.SECONDS_FIXED + dn.SECONDS_PER_PIXEL * 20000
+    calls = fake_denoiser(monkeypatch, 20e-6)               # pyoidn: measured on a probe, scaled per pixel
+    est = dn.seconds(200, 100)
+    assert calls == [(dn.PROBE_SIZE, dn.PROBE_SIZE, 3)] * 2 and est >= dn.FIRST_CALL_FACTOR * 20e-6 * 20000
+    monkeypatch.setattr(dn, "seconds", lambda w, h: 1000.0 + w * h)
+    assert finish_seconds(str(tmp_path / "o.png"), 200, 100, "seed", 1, denoise=True) >= 21000 + EXIT_SECONDS
+
+
+def test_a_time_budget_leaves_room_for_the_denoiser(tmp_path, lit_files, monkeypatch):
+    from warp_spt import aux_buffers, progressive
+
+    calls = fake_denoiser(monkeypatch, 1e-3)     # 0.19 s for 16 x 12: more than saving a small PNG
+    shape = (12, 16, 3)
+    monkeypatch.setattr(aux_buffers, "feature_buffers", lambda *a, **k: (np.full(shape, 0.5, np.float32),
+                                                                         np.zeros(shape, np.float32)))
+    budgets, real = [], progressive.render_progressive
+
+    def spy(*a, **kw):
+        budgets.append(kw["time_budget"])
+        return real(*a, **kw)
+
+    monkeypatch.setattr(progressive, "render_progressive", spy)
+    out = tmp_path / "d.npy"
+    assert main(lit_files + ["-res", "16", "12", "--time-budget", "20", "--denoise", "-out", str(out)]) == 0
+    assert calls[-1] == shape and np.load(out).shape == shape
+    assert budgets[0] <= 20 - 1.6 * 1e-3 * 16 * 12      # the render's deadline leaves the denoiser its time
 
 
 def test_denoiser_reduces_noise_on_a_smooth_image():

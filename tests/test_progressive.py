@@ -136,12 +136,14 @@ def test_target_error_stops_near_the_target(open_scene):
     assert 0.025 < res.relative_error <= 0.03      # aimed at the target, not far below it
 
 
-def test_adaptive_sampling_converges_to_the_same_image(open_scene):
+@pytest.mark.parametrize("metric", ["relative", "rmse"])
+def test_adaptive_sampling_converges_to_the_same_image(open_scene, metric):
     # 16 batches, so each image is 16 independent batch images; block t-tests (tests/stability_scenes).
+    # Both metrics use the kernel the other tests compile: only the allocation differs.
     kw = dict(KW, batches=16)
     plain = render_progressive(open_scene, CAMERA, spp=512, seed=7, **kw)
     adapt = render_progressive(open_scene, CAMERA, spp=2048, target_error=0.012, adaptive=True, min_spp=64,
-                               seed=8, **kw)
+                               adaptive_metric=metric, seed=8, **kw)
     assert adapt.spp.min() >= 64 and adapt.spp.max() > adapt.spp.min()      # it did adapt
     batches = lambda r: r.sums / r.counts[..., None]                          # noqa: E731
     c = assert_same_image(batches(plain), batches(adapt), "adaptive vs uniform", block=4)
@@ -228,6 +230,11 @@ def test_adaptive_renders_are_deterministic_without_a_time_budget(open_scene):
     b = render_progressive(open_scene, CAMERA, threads=2, **kw)
     assert a.spp.min() < a.spp.max() and a.stats.stopped_by == "samples"
     assert np.array_equal(a.sums, b.sums) and np.array_equal(a.counts, b.counts)
+    r = render_progressive(open_scene, CAMERA, threads=2, adaptive_metric="rmse", **kw)
+    assert np.array_equal(r.sums, render_progressive(open_scene, CAMERA, threads=1, adaptive_metric="rmse", **kw).sums)
+    assert not np.array_equal(r.counts, a.counts)        # the metric changes the allocation
+    with pytest.raises(ValueError, match="adaptive_metric"):
+        render_progressive(open_scene, CAMERA, adaptive_metric="mse", **kw)
 
 
 def test_a_result_from_batch_buffers(open_scene):

@@ -510,7 +510,8 @@ def check_budget_flags(opts) -> None:
 
 def run_cli(opts, err, started: float | None = None) -> int:
     """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
-    from .cli import EXIT_OK, PROG, _init_warp, check_files, one_line, scene_files
+    from .cli import EXIT_OK, PROG, check_files, one_line, scene_files
+    from .cli_common import init_warp
     from .film import _TONEMAPS, save_image
     from .progress import ProgressBar
 
@@ -521,7 +522,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
     seq = ObjSequence(objs, mtls)
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
-    _init_warp(opts)
+    init_warp(opts)
     start = time.perf_counter()
     first = seq.scene(frames[0])
     for warning in first.warnings:

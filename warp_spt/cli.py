@@ -8,12 +8,9 @@ validated :class:`Options` (pure: no files, no Warp), and :func:`run` loads, ren
 from __future__ import annotations
 
 import argparse
-import math
 import os
-import re
 import sys
 import time
-import unicodedata
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence, TextIO
@@ -21,6 +18,8 @@ from typing import TYPE_CHECKING, Sequence, TextIO
 # Only light modules here (stdlib, no numpy, no Warp): main() installs the SIGINT/SIGTERM handling
 # before anything heavy is imported, so a Ctrl-C during start-up gets the same one-line message.
 from . import __version__
+from .cli_common import (EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, PROG,  # noqa: F401
+                         Parser, RunError, UsageError, fail, finite_float, init_warp, int_at_least, one_line)
 from .cli_progressive import BudgetOptions, add_flags, check_outputs, options, process_start, render_and_save
 from .demo import PRESETS, demo_files
 from .progress import ProgressBar
@@ -31,10 +30,7 @@ from .sky import Sky
 if TYPE_CHECKING:
     from .camera import Camera
 
-PROG = "warp-spt"
 OUTPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".npy", ".pfm", ".exr")
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
-EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143     # 128 + the signal number (signals.exit_status)
 UP_AXES = ("x", "y", "z", "-x", "-y", "-z")       # camera.AXES, spelled here so the CLI starts without numpy
 
 # The seed's defaults (SEMANTICS §1); the output name follows its Readme, not its code (Q14).
@@ -69,14 +65,6 @@ the whole model in view, pinhole) when the seed's default camera would stand ins
 bounds, see almost none of it or be too close to see it whole, and whenever --up is not z;
 --frame always frames. The seed's own scenes are seen whole by the default camera and keep it.
 """
-
-
-class UsageError(Exception):
-    """A bad command line: reported as one line, exit status 2."""
-
-
-class RunError(Exception):
-    """A failure after parsing (unreadable input, output directory missing): exit status 1."""
 
 
 @dataclass(frozen=True)
@@ -128,42 +116,6 @@ class Options:
         return not self.objs
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises instead of printing the usage and exiting."""
-
-    def error(self, message: str):  # type: ignore[override]
-        raise UsageError(message)
-
-
-# Plain ASCII numbers only, as in OBJ files: int() and float() would also take "1_0", "inf", and
-# Arabic-Indic or full-width digits.
-_INT_RE = re.compile(r"[+-]?[0-9]+")
-_FLOAT_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-
-
-def _int_at_least(low: int, high: int | None = None):
-    def convert(text: str) -> int:
-        if not _INT_RE.fullmatch(text):
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
-        value = int(text)
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
-        if high is not None and value > high:
-            raise argparse.ArgumentTypeError(f"must be at most {high}, got {value}")
-        return value
-    convert.__name__ = "integer"
-    return convert
-
-
-def _finite_float(text: str) -> float:
-    if not _FLOAT_RE.fullmatch(text):
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
-    value = float(text)
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
-
-
 def _sky_index(text: str) -> int:
     # The seed mapped any unknown integer to BlackSky; a modern CLI reports the typo instead.
     if text not in ("0", "1", "2"):
@@ -173,21 +125,21 @@ def _sky_index(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser; single-dash multi-letter flags are the seed's, ``--`` flags are new."""
-    p = _Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
+    p = Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
                             "and the OBJ/MTL dialect of the seed, SimplePathTracer, and standard OBJ/MTL.")
     seed = p.add_argument_group("the seed's flags")
     seed.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable)")
     seed.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable, any order)")
-    seed.add_argument("-cam", nargs=9, type=_finite_float,
+    seed.add_argument("-cam", nargs=9, type=finite_float,
                       metavar=("PX", "PY", "PZ", "DX", "DY", "DZ", "FOV", "FOCUS", "APERTURE"),
                       help="camera: position, view direction, horizontal fov (degrees), focus distance, "
                            "lens radius (default 4 -55 16 0 1 0 38 27 0.001)")
-    seed.add_argument("-res", nargs=2, type=_int_at_least(1), metavar=("W", "H"), help="image size (default 500 500)")
-    seed.add_argument("-depth", type=_int_at_least(1, MAX_DEPTH), metavar="N",
+    seed.add_argument("-res", nargs=2, type=int_at_least(1), metavar=("W", "H"), help="image size (default 500 500)")
+    seed.add_argument("-depth", type=int_at_least(1, MAX_DEPTH), metavar="N",
                       help="maximum surface hits per path (default 6)")
-    seed.add_argument("-sr", type=_int_at_least(1, MAX_SPP), metavar="N", help="samples per pixel (default 16)")
+    seed.add_argument("-sr", type=int_at_least(1, MAX_SPP), metavar="N", help="samples per pixel (default 16)")
     seed.add_argument("-sky", type=_sky_index, metavar="0|1|2", help="0 BlackSky (default), 1 gradient, 2 pink")
     seed.add_argument("-out", metavar="PATH", help="output .png, .jpg, .npy, .pfm or .exr (default output.png)")
     new = p.add_argument_group("further options")
@@ -195,10 +147,10 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--version", action="store_true", help="print the version and exit")
     new.add_argument("--demo", choices=sorted(PRESETS), metavar="PRESET",
                      help="render the built-in demo like the seed's script: " + ", ".join(PRESETS))
-    new.add_argument("--threads", type=_int_at_least(1), metavar="N", help="worker threads (default: all cores)")
-    new.add_argument("--seed", type=_int_at_least(0, 2**32 - 1), default=0, metavar="N",
+    new.add_argument("--threads", type=int_at_least(1), metavar="N", help="worker threads (default: all cores)")
+    new.add_argument("--seed", type=int_at_least(0, 2**32 - 1), default=0, metavar="N",
                      help="random seed (default 0): the same seed gives the same image")
-    new.add_argument("--sky-color", nargs=3, type=_finite_float, metavar=("R", "G", "B"),
+    new.add_argument("--sky-color", nargs=3, type=finite_float, metavar=("R", "G", "B"),
                      help="a constant sky instead of -sky; 0 0 0 for none")
     new.add_argument("--tonemap", choices=("seed", "srgb"), default="seed",
                      help="PNG mapping: the seed's curve (default) or sRGB")
@@ -215,11 +167,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="random numbers: sobol (Owen-scrambled Sobol', default) or independent (PCG streams)")
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
-    add_flags(p, _int_at_least)
+    add_flags(p, int_at_least)
     _add_model_flags(p.add_argument_group("your own models"))
     more = p.add_argument_group("clusters and animation")
     more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
-    more.add_argument("--workers", type=_int_at_least(1, 1024), metavar="N",
+    more.add_argument("--workers", type=int_at_least(1, 1024), metavar="N",
                       help="render on a local cluster of N worker processes")
     more.add_argument("--frames", metavar="A:B[:STEP]", help="render frames A..B-1; -obj may name "
                       "'wave_{frame:04d}.obj' and -out 'frame_{frame:04d}.png'")
@@ -324,10 +276,10 @@ def _add_model_flags(g) -> None:
     g.add_argument("--up", choices=UP_AXES, default="z", metavar="AXIS",
                    help="the world's up axis: x, y, z (default, as the seed), -x, -y or -z; "
                         "most exported models need --up y")
-    g.add_argument("--look-at", nargs=3, type=_finite_float, metavar=("TX", "TY", "TZ"),
+    g.add_argument("--look-at", nargs=3, type=finite_float, metavar=("TX", "TY", "TZ"),
                    help="aim the camera (-cam's or the default position) at this point and focus on it")
-    g.add_argument("--fov", type=_finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
-    g.add_argument("--aperture", type=_finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
+    g.add_argument("--fov", type=finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
+    g.add_argument("--aperture", type=finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
     g.add_argument("--frame", action="store_true",
                    help="frame the scene: three-quarter view from the front, all of it in view, pinhole")
     g.add_argument("--studio", action="store_true",
@@ -540,7 +492,7 @@ def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = 
     check_files(objs, mtls, opts.out)
     check_outputs(opts.budget, RunError)
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
-    _init_warp(opts)
+    init_warp(opts)
     _check_registry_names(opts)
     import numpy as np
 
@@ -609,27 +561,6 @@ def _check_registry_names(opts: Options) -> None:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
 
 
-def _init_warp(opts: Options) -> None:
-    """Warp's banner, module-load lines and missing-CUDA-driver line only with ``--verbose``."""
-    try:
-        from .warp_runtime import init_warp
-        init_warp(opts.verbose, quiet=opts.quiet)
-    except ImportError:  # Warp missing: the renderer's import will report the real problem
-        pass
-
-
-def one_line(text: str) -> str:
-    """``text`` with control characters and line separators escaped (\\n, \\x85, \\u2028...), so that
-    a message stays one line whatever the file names and file contents it quotes hold."""
-    return "".join(ch.encode("unicode_escape").decode("ascii") if unicodedata.category(ch) in ("Cc", "Zl", "Zp")
-                   else ch for ch in text)
-
-
-def _fail(message: str, status: int, stderr: TextIO) -> int:
-    print(f"{PROG}: error: {one_line(message)}", file=stderr)
-    return status
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``warp-spt`` and ``python -m warp_spt``; returns the exit status.
 
@@ -677,15 +608,15 @@ def _report(err: BaseException, stderr: TextIO) -> int:
         print(interruption_line(signal_err, PROG), file=stderr)
         return exit_status(signal_err)
     if isinstance(err, UsageError):
-        return _fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
+        return fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
     if isinstance(err, (RunError, SceneError)):
-        return _fail(str(err), EXIT_FAILURE, stderr)
+        return fail(str(err), EXIT_FAILURE, stderr)
     if isinstance(err, MemoryError):
-        return _fail("out of memory: try a smaller -res or fewer --threads", EXIT_FAILURE, stderr)
+        return fail("out of memory: try a smaller -res or fewer --threads", EXIT_FAILURE, stderr)
     if isinstance(err, OSError):
         where = f" {err.filename!r}" if err.filename else ""
-        return _fail(f"{err.strerror or err}{where}", EXIT_FAILURE, stderr)
+        return fail(f"{err.strerror or err}{where}", EXIT_FAILURE, stderr)
     if not isinstance(err, Exception) or os.environ.get("WARP_SPT_TRACEBACK"):
         raise err                       # SystemExit and the like; or a bug with its traceback asked for
-    return _fail(f"internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
+    return fail(f"internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
                  EXIT_FAILURE, stderr)

@@ -39,6 +39,7 @@ class BudgetOptions:
     spp_map: str | None = None
     spp_given: bool = False
     denoise: bool = False
+    adaptive_metric: str | None = None
 
     @property
     def active(self) -> bool:
@@ -63,6 +64,14 @@ def _fraction(text: str) -> float:
     return value / 100 if percent else value
 
 
+def _metric(text: str) -> str:
+    from .progressive import ADAPTIVE_METRICS
+
+    if text not in ADAPTIVE_METRICS:
+        raise argparse.ArgumentTypeError(f"expected one of {', '.join(ADAPTIVE_METRICS)}, got {text!r}")
+    return text
+
+
 def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     """The issue-9 flags, as their own argument group."""
     g = parser.add_argument_group("error, budgets and adaptive sampling (docs/error.md)")
@@ -72,8 +81,12 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     g.add_argument("--target-error", type=_fraction, metavar="E",
                    help="stop when the estimated relative error of the image is at most E (0.01 or 1%%)")
     g.add_argument("--adaptive", action="store_true",
-                   help="after --min-spp, spend passes on the tiles (16 pixels of a row) whose estimated error "
-                        "is high")
+                   help="after --min-spp, spend passes on the pixels whose estimated error is high "
+                        "(opt-in; it lowers the error --adaptive-metric names; docs/error.md)")
+    g.add_argument("--adaptive-metric", type=_metric, metavar="relative|rmse",
+                   help="what --adaptive minimises: the relative error of the image (default; what "
+                        "--target-error and the final line measure) or the RMSE (samples in proportion to "
+                        "each pixel's absolute noise)")
     g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
     g.add_argument("--save-partial", action="store_true",
                    help="on Ctrl-C, write the image accumulated so far instead of nothing")
@@ -99,8 +112,10 @@ def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
             if importlib.util.find_spec("OpenEXR") is None:
                 raise usage_error(f"{flag} {path!r}: writing .exr needs the optional openexr package "
                                   "(pip install 'warp-spt[exr]')")
+    if ns.adaptive_metric is not None and not ns.adaptive:
+        raise usage_error("--adaptive-metric needs --adaptive")
     return BudgetOptions(ns.time_budget, ns.target_error, ns.adaptive, ns.min_spp, ns.save_partial, ns.progressive,
-                         ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise)
+                         ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise, ns.adaptive_metric)
 
 
 def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
@@ -146,7 +161,8 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
     # The render's deadline leaves room for what follows its last pass: saving the outputs and exiting.
     reserve, render_budget = 0.0, None
     if b.time_budget is not None:
-        reserve = finish_seconds(opts.out, opts.width, opts.height, opts.tonemap, 1 + bool(b.error_map) + bool(b.spp_map))
+        reserve = finish_seconds(opts.out, opts.width, opts.height, opts.tonemap, 1 + bool(b.error_map) + bool(b.spp_map),
+                                 denoise=b.denoise)
         render_budget = max(b.time_budget - reserve, 1e-3)
 
     def on_pass(res) -> None:
@@ -159,6 +175,7 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
                              max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
                              texture_filter=opts.texture_filter, time_budget=render_budget,
                              target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
+                             **({"adaptive_metric": b.adaptive_metric} if b.adaptive_metric else {}),
                              on_pass=on_pass, keep_partial=b.save_partial, started=started,
                              **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
     image = res.image
@@ -193,12 +210,14 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
 EXIT_SECONDS = 0.1     # from the last file written to the end of the process (__main__._exit_now)
 
 
-def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int) -> float:
-    """Seconds the command needs after its last pass: writing ``images`` images like ``out`` and exiting.
+def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int, denoise: bool = False) -> float:
+    """Seconds the command needs after its last pass: denoising (with ``denoise``), writing ``images``
+    images like ``out`` and exiting.
 
     Measured here by encoding an image of noise of the output's size in memory the way the writer
     will (tone map and PNG/JPEG encode, or the float32 copy of .npy/.pfm/.exr; noise compresses
-    worst, so this errs long), plus EXIT_SECONDS.
+    worst, so this errs long), plus EXIT_SECONDS, plus :func:`warp_spt.denoise.seconds` (measured
+    on a small probe when pyoidn is there, else a conservative figure).
     """
     import io
 
@@ -216,7 +235,12 @@ def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int)
         from PIL import Image
 
         Image.fromarray((tonemap_srgb if tonemap == "srgb" else tonemap_seed)(blank)).save(buf, format=fmt)
-    return images * (time.perf_counter() - t) + EXIT_SECONDS
+    seconds = images * (time.perf_counter() - t) + EXIT_SECONDS
+    if denoise:
+        from .denoise import seconds as denoise_seconds
+
+        seconds += denoise_seconds(width, height)
+    return seconds
 
 
 def process_start() -> float:

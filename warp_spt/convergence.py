@@ -271,16 +271,16 @@ def write_plot(path: str | Path, rows: Sequence[Row], fits: dict[str, Fit], titl
 
 
 def _parser() -> argparse.ArgumentParser:
-    from .cli import _Parser, _int_at_least
+    from .cli_common import Parser, int_at_least
 
-    p = _Parser(prog=PROG, add_help=False, allow_abbrev=False,
+    p = Parser(prog=PROG, add_help=False, allow_abbrev=False,
                 description="Convergence report: error against samples and time, per configuration. "
                             "Takes the usual scene flags (-obj, -mtl, -cam, -res, -depth, -sky, --demo, ...).")
     p.add_argument("-h", "--help", action="store_true")
-    p.add_argument("--max-spp", type=_int_at_least(1, 1 << 16), default=64, metavar="N",
+    p.add_argument("--max-spp", type=int_at_least(1, 1 << 16), default=64, metavar="N",
                    help="render 1, 2, 4, ... N spp (default 64)")
     p.add_argument("--reference", metavar="PATH", help="reference image (.npy/.pfm, linear) instead of rendering one")
-    p.add_argument("--reference-spp", type=_int_at_least(2, 1 << 20), metavar="N",
+    p.add_argument("--reference-spp", type=int_at_least(2, 1 << 20), metavar="N",
                    help="samples per pixel of the rendered reference (default 16 x --max-spp)")
     p.add_argument("--configs", metavar="LIST",
                    help="comma-separated INTEGRATOR/SAMPLER[+adaptive|+denoised] (default: every integrator "
@@ -294,7 +294,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str]) -> int:
     """``warp-spt convergence ...``: returns the exit status; errors are one line, as in the main CLI."""
-    from .cli import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_USAGE, RunError, UsageError, _fail, parse_args
+    from .cli import parse_args
+    from .cli_common import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_USAGE, RunError, UsageError, fail
 
     err = sys.stderr
     try:
@@ -314,16 +315,17 @@ def main(argv: Sequence[str]) -> int:
         opts = parse_args(rest)
         return _run(ns, opts, configs, err)
     except UsageError as e:
-        return _fail(f"{e} (see {PROG} --help)", EXIT_USAGE, err)
+        return fail(f"{e} (see {PROG} --help)", EXIT_USAGE, err)
     except (RunError, ValueError, RuntimeError, OSError) as e:
-        return _fail(str(e), EXIT_FAILURE, err)
+        return fail(str(e), EXIT_FAILURE, err)
     except KeyboardInterrupt:
         print(f"\n{PROG}: interrupted", file=err)
         return EXIT_INTERRUPTED
 
 
 def _run(ns, opts, configs: list[str], err) -> int:
-    from .cli import _init_warp, scene_files
+    from .cli import scene_files
+    from .cli_common import init_warp
     from .film import load_image
     from .loader import load_scene
 
@@ -337,7 +339,7 @@ def _run(ns, opts, configs: list[str], err) -> int:
             import matplotlib  # noqa: F401
         except ImportError:
             raise RuntimeError('the PNG plot needs matplotlib: pip install "warp-spt[plot]", or pass --no-plot') from None
-    _init_warp(opts)
+    init_warp(opts)
     objs, mtls = scene_files(opts)
     scene = load_scene(objs, mtls, warn=lambda message: None)
     reference = None if ns.reference is None else load_image(ns.reference).astype(np.float64)

@@ -11,6 +11,8 @@ pass them. :func:`denoise` also works on colour alone.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 INSTALL_HINT = 'denoising needs Intel Open Image Denoise: pip install "warp-spt[denoise]" (the pyoidn package)'
@@ -23,6 +25,36 @@ def available() -> bool:
     except ImportError:
         return False
     return True
+
+
+# What a denoise costs, for the CLI's --time-budget reserve. Measured with pyoidn 2.5.1 (OIDN's RT
+# filter, colour + albedo + normal) on this project's 2-core machine under load: 7-8 us per pixel once
+# warm at 64x64 to 512x512, the first call at a new size 1.3-1.6x that (the filter's set-up), the first
+# call in a process 0.15 s more (the device). Without a measurement we assume twice that.
+SECONDS_PER_PIXEL = 16e-6
+SECONDS_FIXED = 0.3
+PROBE_SIZE = 64          # the measured probe: 64 x 64 pixels
+FIRST_CALL_FACTOR = 1.6  # a first call at a new size over a warm one, as measured at 512 x 512
+
+
+def seconds(width: int, height: int) -> float:
+    """Seconds that denoising a ``width`` x ``height`` image with feature buffers will take here.
+
+    With pyoidn, measured: a warm-up denoise of a PROBE_SIZE square of noise (it also creates OIDN's
+    device, so the real call does not pay for that), then a timed one, scaled by pixels and by
+    FIRST_CALL_FACTOR. About 0.1 s spent. Without pyoidn, the conservative SECONDS_FIXED +
+    SECONDS_PER_PIXEL x pixels."""
+    pixels = width * height
+    if not available():
+        return SECONDS_FIXED + SECONDS_PER_PIXEL * pixels
+    rng = np.random.default_rng(0)
+    probe = [rng.random((PROBE_SIZE, PROBE_SIZE, 3), dtype=np.float32) for _ in range(3)]
+    probe[2] = probe[2] * 2.0 - 1.0                     # normals in [-1, 1]
+    denoise(*probe)
+    t = time.perf_counter()
+    denoise(*probe)
+    per_pixel = (time.perf_counter() - t) / PROBE_SIZE**2
+    return FIRST_CALL_FACTOR * per_pixel * max(pixels, PROBE_SIZE**2)
 
 
 def require() -> None:

@@ -54,11 +54,12 @@ from .sky import Sky
 DEFAULT_BATCHES = 8
 ERROR_FLOOR_FRACTION = 0.1   # relative error divides by max(value, 0.1 x mean of the image)
 PASS_WORK = 1 << 20          # pixel-samples per pass once the schedule has grown (about 4 s here)
-ADAPTIVE_TILE = (1, 16)      # adaptive decisions are made per run of 16 pixels of one row: one launch each
-ADAPTIVE_MIN_STEP = 2        # samples per batch below which a tile's adaptive increment waits (launch cost)
-ADAPTIVE_LAUNCH_RAYS = 512   # rays an adaptive launch should trace at least: a launch costs 30-40 us, 512 rays
-                             # take 0.3-3 ms on one thread here (docs/error.md)
+SAMPLE_COST_RAYS = -0.6      # a sample's cost beyond its rays, in rays: negative, because a ray that misses
+                             # everything (the last of many paths) costs a fraction of one that hits and is
+                             # shaded (fitted -0.4 to -0.8 from timings, bench_budgets.py --parts cost)
 UNLIMITED_SPP = 1 << 20
+ADAPTIVE_METRICS = ("relative", "rmse")   # what adaptive sampling minimises (docs/error.md)
+DEFAULT_ADAPTIVE_METRIC = "relative"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -165,6 +166,7 @@ def render_progressive(
     time_budget: float | None = None,
     target_error: float | None = None,
     adaptive: bool = False,
+    adaptive_metric: str = DEFAULT_ADAPTIVE_METRIC,
     min_spp: int | None = None,
     batches: int = DEFAULT_BATCHES,
     sample_budget: int | None = None,
@@ -183,9 +185,12 @@ def render_progressive(
     so it includes the upload and kernel compile done here; the CLI passes its own start time so
     the budget also covers loading the scene. ``target_error`` is the relative error of
     :func:`relative_error`. ``adaptive`` spends passes after ``min_spp`` (default 2 x batches) on the
-    tiles (runs of 16 pixels of a row) with the fewest samples for their noise (estimated from the
-    even batches), so that samples end up proportional to each tile's noise over the square root of
-    its cost, which minimises the relative error for the work spent (see _Driver._adaptive_pass).
+    pixels with the fewest samples for their noise (estimated from the even batches), so that samples
+    end up proportional to each pixel's relative noise over the square root of its cost, which
+    minimises the relative error for the work spent (see _Driver._adaptive_pass). ``adaptive_metric``
+    chooses what adaptive sampling minimises: ``"relative"`` (the relative error above) or ``"rmse"``
+    (samples proportional to each pixel's absolute noise over the square root of its cost, which
+    minimises the RMSE for the work spent).
     A host :class:`Scene` far from the origin is recentred first, as :func:`render_scene` does (a
     :class:`DeviceScene` is used as it is). ``sample_budget`` caps the total pixel-samples
     (equal-work comparisons). ``on_pass(result)`` is called after every pass; returning True stops
@@ -202,7 +207,7 @@ def render_progressive(
     rs = settings_from(settings)
     check_args(rs)
     (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
-    check_budget(time_budget, target_error, batches, min_spp)
+    check_budget(time_budget, target_error, batches, min_spp, adaptive_metric)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
     if not isinstance(scene, DeviceScene):      # far from the origin: shifted to it, as render_scene does
@@ -210,11 +215,11 @@ def render_progressive(
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
     driver = _Driver(dev, camera or Camera(), rs, batches)
     plan = _Plan(rs.spp, time_budget, target_error, adaptive,
-                 min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget)
+                 min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget, adaptive_metric)
     return driver.run(plan, on_pass, keep_partial)
 
 
-def check_budget(time_budget, target_error, batches, min_spp) -> None:
+def check_budget(time_budget, target_error, batches, min_spp, adaptive_metric=DEFAULT_ADAPTIVE_METRIC) -> None:
     """Raise ValueError naming the first budget argument of :func:`render_progressive` that is not valid."""
     if time_budget is not None and not (math.isfinite(time_budget) and time_budget > 0):
         raise ValueError(f"time_budget must be a positive number of seconds, got {time_budget!r}")
@@ -224,6 +229,8 @@ def check_budget(time_budget, target_error, batches, min_spp) -> None:
         raise ValueError(f"batches must be an integer >= 2 (the error estimate needs two), got {batches!r}")
     if min_spp is not None and (not isinstance(min_spp, (int, np.integer)) or min_spp < 1):
         raise ValueError(f"min_spp must be a positive integer, got {min_spp!r}")
+    if adaptive_metric not in ADAPTIVE_METRICS:
+        raise ValueError(f"adaptive_metric must be one of {', '.join(ADAPTIVE_METRICS)}, got {adaptive_metric!r}")
 
 
 
@@ -237,6 +244,7 @@ class _Plan:
     min_spp: int
     t0: float
     sample_budget: int | None = None
+    adaptive_metric: str = DEFAULT_ADAPTIVE_METRIC
 
     @property
     def deadline(self) -> float:
@@ -263,14 +271,16 @@ class _Driver:
         self.launches: dict = {}     # (batch, task slot) -> recorded launch
         self.threads = max(1, rs.threads or os.cpu_count() or 1)
         self.stop = threading.Event()
-        self.ray_rate = 0.0          # rays per second in the last pass (adaptive passes' time estimate)
-        self.adaptive_passes = 0     # which pair of batches the next adaptive pass feeds
+        self.cost_rate = 0.0         # cost (rays + SAMPLE_COST_RAYS per sample) per second in the last pass
         self.after_pass = 0.0        # seconds of snapshot and callback after the last pass
         self.stats = RenderStats(self.kernel_features, rs.integrator, rs.sampler, threads=self.threads, passes=0)
 
     # -- launching
 
-    def _launch(self, b: int, slot: int, lo: int, hi: int, start: int, count: int) -> None:
+    def _launch(self, b: int, slot: int, lo: int, hi: int, start: int, count: int, work=None) -> None:
+        """Launch batch b over pixels lo..hi-1 from sample ``start``, ``count`` samples each; or, with
+        ``work`` (a device array of (pixel, first sample, samples) and its host copy), over its items
+        lo..hi-1."""
         if self.stop.is_set():
             return
         p = RenderParams()
@@ -279,37 +289,58 @@ class _Driver:
         cmd = self._command(b, slot)
         cmd.set_dim(hi - lo)
         cmd.set_param_at_index(self.params_index, p)
+        cmd.set_param_at_index(self.params_index + 3, None if work is None else work[0][lo:hi])
         cmd.launch()
-        self.counts[b, lo:hi] += count      # disjoint slices per launch: safe across threads
+        # disjoint pixels per launch: safe across threads; counted once launched (Ctrl-C, keep_partial)
+        if work is None:
+            self.counts[b, lo:hi] += count
+        else:
+            self.counts[b, work[1][lo:hi, 0]] += work[1][lo:hi, 2]
 
     def _command(self, b: int, slot: int):
         """A recorded launch of batch b's film, one per task slot, so that concurrent tasks never share
-        one (replayed with new params: packing the scene's structs afresh cost about 160 us per launch,
-        which dominated adaptive passes of tile-wide runs)."""
+        one (replayed with new params: packing the scene's structs afresh cost about 160 us per launch)."""
         cmd = self.launches.get((b, slot))
         if cmd is None:
             p = RenderParams()
             p.width, p.seed = self.width, self.seeds[b]
-            cmd = self.launches[b, slot] = wp.launch(self.kernel, dim=1, device=self.dev.device, record_cmd=True,
-                                                     inputs=[*self.scene_inputs, p, self.films[b], self.counters[b]])
+            cmd = self.launches[b, slot] = wp.launch(
+                self.kernel, dim=1, device=self.dev.device, record_cmd=True,
+                inputs=[*self.scene_inputs, p, self.films[b], self.counters[b], None])
         return cmd
 
-    def _run_pass(self, inc: np.ndarray) -> None:
+    def _batch_tasks(self, b: int, inc: np.ndarray, shares: int, cost: np.ndarray | None) -> list:
+        """Batch b's launches for a pass, split into at most ``shares`` tasks of about equal work.
+
+        When every pixel gets the same samples from the same index (uniform passes), the launches
+        are runs of consecutive pixels; otherwise one compacted work list of the pixels that get
+        samples, each with its own first index and count (adaptive passes), cut into contiguous
+        pieces of about equal estimated cost (``cost``: per sample and pixel)."""
+        done = self.counts[b]
+        if inc.min() == inc.max() and done.min() == done.max():
+            runs = [(lo, hi, int(done[lo]), int(inc[lo]), None) for lo, hi in _runs(inc, done)]
+            work = np.cumsum([(hi - lo) * c for lo, hi, _, c, _ in runs])
+        else:
+            pix = np.flatnonzero(inc > 0)
+            items = np.stack([pix, done[pix], inc[pix]], axis=1).astype(np.int32)
+            arr = (wp.array(items, dtype=wp.vec3i, device=self.dev.device), items)
+            per_item = np.cumsum(inc[pix] * (1.0 if cost is None else cost[pix]))
+            cuts = np.searchsorted(per_item, per_item[-1] * np.arange(1, shares) / shares, side="right")
+            edges = np.unique(np.concatenate(([0], cuts, [len(pix)])))
+            runs = [(int(lo), int(hi), 0, 0, arr) for lo, hi in zip(edges[:-1], edges[1:]) if hi > lo]
+            work = per_item[[hi - 1 for _, hi, _, _, _ in runs]]
+        share = np.minimum((work - 0.5) * shares // max(float(work[-1]), 1), shares - 1).astype(int)
+        return [[(b, slot, *r) for r, sh in zip(runs, share) if sh == slot] for slot in np.unique(share).tolist()]
+
+    def _run_pass(self, inc: np.ndarray, cost: np.ndarray | None = None) -> None:
         """Give pixel p ``inc[b, p]`` more samples in batch b. A task launches a share of one batch's
-        runs in turn (a task per run made adaptive passes, whose runs are only a tile wide, pay the
-        thread pool's overhead per launch); a batch's runs are split into enough tasks to keep every
+        runs (or pieces of its work list) in turn; a batch's runs are split into enough tasks to keep every
         thread busy when a pass feeds fewer batches than there are threads. Tasks of one batch touch
-        disjoint pixels, so the sums do not depend on the split."""
+        disjoint pixels, and a pixel gets one launch per batch and pass, so the sums do not depend on
+        the split (nor on the number of threads)."""
         fed = [b for b in range(self.B) if inc[b].any()]
         shares = max(1, -(-4 * self.threads // max(1, len(fed)))) if self.threads > 1 else 1
-        tasks = []
-        for b in fed:
-            runs = [(lo, hi, int(self.counts[b, lo]), int(inc[b, lo])) for lo, hi in _runs(inc[b], self.counts[b])]
-            # contiguous shares of about equal work (pixel-samples), so no thread is left with the tail
-            work = np.cumsum([(hi - lo) * c for lo, hi, _, c in runs])
-            share = np.minimum((work - 0.5) * shares // max(int(work[-1]), 1), shares - 1).astype(int)
-            for slot in np.unique(share).tolist():
-                tasks.append([(b, slot, *r) for r, sh in zip(runs, share) if sh == slot])
+        tasks = [t for b in fed for t in self._batch_tasks(b, inc[b], shares, cost)]
         self.stats.launches += sum(len(t) for t in tasks)
         for task in tasks:
             self._command(*task[0][:2])       # recorded here, not on the workers
@@ -349,7 +380,8 @@ class _Driver:
                 if k == 0:
                     self.stats.setup_seconds = t_start - plan.t0
                 result = None                     # launches under way: a new snapshot is needed
-                self._run_pass(inc)
+                inc, cost = inc if isinstance(inc, tuple) else (inc, None)
+                self._run_pass(inc, cost)
                 dt = time.perf_counter() - t_start
                 self.stats.render_seconds += dt
                 rate = int(inc.sum()) / max(dt, 1e-6)          # pixel-samples per second
@@ -357,7 +389,7 @@ class _Driver:
                 self.stats.passes = k
                 rays_before = self.stats.rays
                 result = self.snapshot()
-                self.ray_rate = (self.stats.rays - rays_before) / max(dt, 1e-6)
+                self.cost_rate = (self.stats.rays - rays_before + SAMPLE_COST_RAYS * int(inc.sum())) / max(dt, 1e-6)
                 self.stats.seconds = time.perf_counter() - plan.t0
                 self.stats.pass_errors.append(result.relative_error)
                 self.stats.pass_seconds.append(self.stats.seconds)
@@ -426,94 +458,79 @@ class _Driver:
         return "samples" if plan.sample_budget is not None and not timed_out else "time"
 
     def _adaptive_pass(self, plan: _Plan, k: int, result: RenderResult, rate):
-        """Distribute one pass's work over the tiles so that samples approach the best allocation.
+        """Distribute one pass's work over the pixels so that samples approach the best allocation.
 
         The image's relative error is an RMS over pixels, sum_p s_p^2 / n_p, with s_p a pixel's
-        relative standard deviation per sample. For a given cost sum_p n_p c_p (c_p: rays per
-        sample, counted by the kernel) it is smallest when n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q)
-        (a Lagrange multiplier). Each pass raises the cost C by what a uniform pass would spend and
-        gives every tile what it lacks of that target. (Cycles instead equalises the per-pixel
-        error, n proportional to s^2, which spends more on the noisiest pixels than the RMS error
-        repays.) Tiles whose samples are all equal (s = 0) get nothing more.
+        relative standard deviation per sample (``adaptive_metric="relative"``); its RMSE has the
+        same form with s_p the absolute standard deviation per sample (``"rmse"``). For a given
+        cost sum_p n_p c_p (c_p: the cost of one of its samples) either is smallest when
+        n_p = C s_p / sqrt(c_p) / sum_q s_q sqrt(c_q) (a Lagrange multiplier). Each pass raises the
+        cost C by what a uniform pass would spend and gives every pixel what it lacks of that target.
+        (Cycles instead stops a pixel once its own error estimate is below a threshold, which
+        equalises the per-pixel error, n proportional to s^2: that spends more on the noisiest
+        pixels than the RMS error repays.) Pixels whose
+        samples are all equal (s = 0) get nothing more.
 
-        Launch cost shapes the rest (docs/error.md, "Adaptive sampling"): a tile is a run of
-        ADAPTIVE_TILE pixels of one row, so it is one launch (an 8x8 tile was 8); a pass feeds one
-        pair of batches (one even, one odd, in turn), so it makes 2 launches per tile instead of B,
-        each with B/2 times the samples; and a tile's increment below ADAPTIVE_MIN_STEP per batch
-        waits for a later pass.
+        s_p^2 and c_p are averaged over the pixel's 3x3 neighbourhood (_box3): the even batches give
+        s_p^2 only B/2 - 1 degrees of freedom, and a pixel whose noise is under-estimated by chance
+        would be starved. c_p is the pixel's rays per sample in the even batches plus SAMPLE_COST_RAYS
+        (docs/error.md): a path's length correlates with its radiance, so the odd batches' ray counts
+        stay out of the decisions too.
+        A pixel's samples are spread over the batches as a render of that many samples spreads
+        them (batch_counts), so the batches stay balanced; one launch per batch walks a compacted
+        list of the pixels that get samples (one kernel for uniform and adaptive passes).
         """
         # The decision uses the even batches only; the odd half of every pixel is therefore an
         # unbiased estimate given the decisions, and the image (all batches) carries only the even
         # half's stopping bias, which the tests measure (docs/error.md).
         mean, se, n_dec = batch_statistics(result.sums, result.counts, slice(0, None, 2))
         floor = max(ERROR_FLOOR_FRACTION * float(mean.mean()), 1e-12)
-        s2 = np.nan_to_num((se / np.maximum(mean, floor)) ** 2, nan=np.inf) * n_dec[..., None]
-        tile_s = np.sqrt(_tile_mean(s2.mean(axis=2)))                      # per-sample relative std
-        tile_n = _tile_mean(result.spp.astype(np.float64))
-        npix = _tile_mean(np.ones((self.height, self.width)), total=True)
-        rays = sum(c.numpy()[:, 0] for c in self.counters).reshape(self.height, self.width)
-        cost = np.maximum(_tile_mean(rays / np.maximum(result.spp, 1)), 1.0)   # rays per sample
-        known = np.isfinite(tile_s)
-        spent = float((npix * tile_n * cost).sum())
+        scale = np.maximum(mean, floor) if plan.adaptive_metric == "relative" else 1.0
+        s2 = np.nan_to_num((se / scale) ** 2, nan=np.inf) * n_dec[..., None]
+        s = np.sqrt(_box3(s2.mean(axis=2))).reshape(-1)                    # per-sample (relative) std
+        done = result.spp.reshape(-1).astype(np.int64)
+        rays = sum(c.numpy()[:, 0] for c in self.counters[::2]).reshape(self.height, self.width)   # even too
+        cost = np.maximum(_box3(rays / np.maximum(n_dec, 1)).reshape(-1) + SAMPLE_COST_RAYS, 0.1)
+        known = np.isfinite(s)
         step = self.B * pass_samples(k, self.n, self.B)
-        budget = spent + step * float((npix * cost).sum())                  # cost after a uniform pass
-        weight = np.where(known, tile_s * np.sqrt(cost), 0.0)
-        target = np.where(known, budget * np.where(known, tile_s, 0.0) / np.sqrt(cost)
-                          / max(float((npix * weight).sum()), 1e-300), 0.0)
-        inc = np.where(known, np.floor(target - tile_n), step)             # unknown noise: a uniform step
-        inc = np.clip(inc, 0, plan.spp - tile_n).astype(np.int64)
-        # A tile's launch should trace at least ADAPTIVE_LAUNCH_RAYS rays; smaller increments wait for
-        # a later pass (unless nothing would be left to launch). Counted in rays, not seconds, so that
-        # the decisions, and the image, do not depend on timing when there is no time budget.
-        min_inc = 2 * np.maximum(ADAPTIVE_MIN_STEP, np.ceil(ADAPTIVE_LAUNCH_RAYS / np.maximum(npix * cost, 1.0)))
-        if (inc >= min_inc).any():
-            inc = np.where(inc >= min_inc, inc, 0)
-        per_pixel = _untile(inc, self.height, self.width)
-        total = int(per_pixel.sum())
+        budget = float((done * cost).sum()) + step * float(cost.sum())     # cost after a uniform pass
+        weight = float((np.where(known, s, 0.0) * np.sqrt(cost)).sum())
+        target = np.where(known, budget * np.where(known, s, 0.0) / np.sqrt(cost) / max(weight, 1e-300), 0.0)
+        inc = np.where(known, np.floor(target - done), step)               # unknown noise: a uniform step
+        inc = np.clip(inc, 0, plan.spp - done).astype(np.int64)
+        total = int(inc.sum())
         if total == 0:
             return None, "spp"
-        # Cut to the sample budget, and to the deadline at the last pass's rays per second: adaptive
+        # Cut to the sample budget, and to the deadline at the last pass's cost per second: adaptive
         # passes go to costly pixels, so pixel-samples per second would over-promise.
         fraction = self._limit_by_time(plan, None, 0, total, 1) / total
-        if plan.time_budget is not None and self.ray_rate > 0:
-            need = float((per_pixel * _untile(cost, self.height, self.width)).sum()) / self.ray_rate
+        if plan.time_budget is not None and self.cost_rate > 0:
             left = plan.deadline - time.perf_counter() - self.after_pass
-            fraction = min(fraction, max(0.0, left) / need)
+            fraction = min(fraction, max(0.0, left) / (float((inc * cost).sum()) / self.cost_rate))
         if fraction < 1.0:
-            per_pixel = (per_pixel * fraction).astype(np.int64)
-            if not per_pixel.any():
+            inc = (inc * fraction).astype(np.int64)
+            if not inc.any():
                 return None, self._budget_reason(plan)
-        # One pair of batches per pass, in turn: (0, 1), (2, 3), ...
-        even = 2 * (self.adaptive_passes % (self.B // 2))
-        self.adaptive_passes += 1
-        out = np.zeros((self.B, self.n), dtype=np.int64)
-        out[even], out[even + 1] = per_pixel - per_pixel // 2, per_pixel // 2
-        return out, None
+        out = batch_counts_per_pixel(done + inc, self.B) - self.counts
+        return (out, cost), None
 
 
-def _untile(a: np.ndarray, height: int, width: int) -> np.ndarray:
-    """A per-tile array (rows, tiles per row) as a flat per-pixel array of height x width."""
-    th, tw = ADAPTIVE_TILE
-    return np.repeat(np.repeat(a, th, 0), tw, 1)[:height, :width].reshape(-1)
+def batch_counts_per_pixel(spp: np.ndarray, batches: int) -> np.ndarray:
+    """:func:`batch_counts` for each pixel's own sample count: (batches, pixels)."""
+    b = np.arange(batches)[:, None]
+    return spp[None, :] // batches + (b < spp[None, :] % batches).astype(np.int64)
 
 
-def _tile_mean(a: np.ndarray, total: bool = False) -> np.ndarray:
-    """Mean (or, with ``total``, sum) over the adaptive tiles; edge tiles use the pixels they have;
-    a tile with a non-finite value gets inf."""
-    th, tw = ADAPTIVE_TILE
+def _box3(a: np.ndarray) -> np.ndarray:
+    """The mean over each pixel's 3x3 neighbourhood (edges use the pixels they have); inf spreads."""
     h, w = a.shape
-    hp, wp_ = -(-h // th) * th, -(-w // tw) * tw
-    pad = np.zeros((hp, wp_))
-    cnt = np.zeros((hp, wp_))
-    finite = np.isfinite(a)
-    pad[:h, :w] = np.where(finite, a, 0.0)
-    cnt[:h, :w] = 1.0
-    inf = np.zeros((hp, wp_), dtype=bool)
-    inf[:h, :w] = ~finite
-    s = pad.reshape(hp // th, th, wp_ // tw, tw).sum(axis=(1, 3))
-    c = cnt.reshape(hp // th, th, wp_ // tw, tw).sum(axis=(1, 3))
-    anyinf = inf.reshape(hp // th, th, wp_ // tw, tw).any(axis=(1, 3))
-    return np.where(anyinf, np.inf, s if total else s / np.maximum(c, 1.0))
+    pad = np.zeros((h + 2, w + 2))
+    cnt = np.zeros((h + 2, w + 2))
+    pad[1:-1, 1:-1] = a
+    cnt[1:-1, 1:-1] = 1.0
+    s = sum(pad[i:i + h, j:j + w] for i in range(3) for j in range(3))
+    c = sum(cnt[i:i + h, j:j + w] for i in range(3) for j in range(3))
+    return s / c
 
 
 def _runs(inc: np.ndarray, done: np.ndarray) -> list[tuple[int, int]]:

@@ -217,7 +217,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
                 return
             count = min(per_pass, spp - s0)
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
-                dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters])
+                dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters, None])
             done(count * (hi - lo))
 
     report = progress_reporter(progress, (stop - first) * width * spp)

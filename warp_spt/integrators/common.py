@@ -189,18 +189,32 @@ def continue_path(path: PathState, sf: Surface, bs: BsdfSample, extent: float) -
 
 
 def make_kernel(step, start_path):
-    """The fast forward kernel: each thread renders ``sample_count`` samples of one pixel, summed in
-    float64 and added to the film, so a large sample count never drifts."""
+    """The fast forward kernel: each thread renders some samples of one pixel, summed in float64 and
+    added to the film, so a large sample count never drifts.
+
+    Which pixel and samples: with an empty (None) ``work``, thread t renders ``rp.sample_count``
+    samples from index ``rp.sample_start`` of pixel ``rp.pixel_start + t`` (a run of pixels); else
+    ``work[t]`` = (pixel, first sample index, samples), a compacted list of any pixels each with its own
+    count (adaptive passes: one launch covers the active pixels of a whole image). One kernel serves
+    both, so adaptive sampling compiles no variant of its own."""
 
     @wp.kernel(enable_backward=False, module="unique")
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
-              rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64)):
+              rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64),
+              work: wp.array(dtype=wp.vec3i)):
         pix = rp.pixel_start + wp.tid()
+        first = rp.sample_start
+        count = rp.sample_count
+        if work.shape[0] > 0:
+            item = work[wp.tid()]
+            pix = item[0]
+            first = item[1]
+            count = item[2]
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         bad = int(0)
         rays = int(0)
-        for j in range(rp.sample_count):
-            path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
+        for j in range(count):
+            path = start_path(cam, pix, rp.width, rp.seed, first + j)
             while path.alive != 0:
                 path = step(geo, mats, tex, lights, rp, path)
             rays += path.rays

@@ -61,9 +61,9 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 
-def make_vertex(features: Features, sampler: Sampler):
+def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
     """The NEE + MIS vertex (``make_path_vertex``): what path replay differentiates."""
-    return make_path_vertex(features, sampler, light_sampling=True)
+    return make_path_vertex(features, sampler, light_sampling=True, inline=inline, inline_callees=inline)
 
 
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
@@ -88,14 +88,16 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     return step
 
 
-def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None):
+def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
+                     inline_callees: bool | None = None):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
     path replay (``warp_spt.prb``) differentiates it alone, with the hit found outside and the
     visibility its forward call found (the result's ``vis``) passed in, so its adjoint never traces
     a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)
-    ``inline``: wp.func's inline hint (the fast kernel's step inlines it)."""
+    ``inline``: wp.func's inline hint (the fast kernel's step inlines it); ``inline_callees``: the
+    hint of its own helpers (``direct``, ``mis_bsdf``; path replay inlines them with the vertex)."""
     surface_at = make_surface(features)
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
@@ -104,7 +106,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     occluded = make_occluded(features)
     light = make_lights(features, surface_at, mat.emission)
 
-    @wp.func
+    @wp.func(inline=inline_callees)
     def mis_bsdf(p: PathState, pdf_light: float) -> float:
         """MIS weight of an emitter reached by BSDF sampling."""
         if wp.static(not sample_lights):
@@ -113,7 +115,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             return 1.0
         return power_heuristic(p.pdf, pdf_light)
 
-    @wp.func
+    @wp.func(inline=inline_callees)
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
                base: int, vis: int):
         """Light sampling at this vertex: (radiance to add, sampler state, visibility of the light

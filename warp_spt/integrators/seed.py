@@ -20,4 +20,4 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
 
 def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
     """The vertex of pure path tracing (``nee.make_path_vertex``): what path replay differentiates."""
-    return make_path_vertex(features, sampler, light_sampling=False, inline=inline, inline_callees=inline)
+    return make_path_vertex(features, sampler, light_sampling=False, inline=inline, replay=True)

@@ -42,6 +42,7 @@ import warp as wp
 
 from .camera import Camera
 from .device_scene import DeviceScene, Features, Geometry, Materials, Textures
+from .film import Film
 from .integrators import VERTICES, CameraParams, RenderParams, camera_params, check_integrator, get_step
 from .lights import Lights, light_table, sky_emits
 from .losses import Loss
@@ -49,7 +50,7 @@ from .parallel import run_jobs
 from .params import (CAMERA_FIELDS, COLOR_FIELDS, MATERIAL_FIELDS, ParamInfo, SceneParameters,
                      camera_jacobian, proc_slice)
 from .prb import get_replay_kernel
-from .renderer import RenderSettings, render_scene
+from .renderer import RenderSettings, check_args, render_scene
 from .samplers import DEFAULT_SAMPLER, get_sampler
 from .sky import Sky
 from .textures import tile_view
@@ -164,9 +165,11 @@ def _render_params(width: int, lo: int, s0: int, spp: int, max_depth: int, seed:
 
 @dataclass
 class GradientResult:
-    """``image`` (H, W, 3) float32 linear radiance from the fast kernel; ``loss`` its value (None when
-    an adjoint image was given); ``grads`` d loss / d parameter by name (float64, the parameter's
-    shape); ``backward_seconds`` and ``forward_seconds`` wall-clock; ``backward_bytes`` what the
+    """``image`` (H, W, 3) float32 linear radiance, the fast kernel's (path replay with an adjoint
+    image and no ``gradient_seed`` takes it from its first pass, the same sums); ``loss`` its value
+    (None when an adjoint image was given); ``grads`` d loss / d parameter by name (float64, the
+    parameter's shape); ``forward_seconds`` wall-clock of the separate forward render (0 when path
+    replay gave the image) and ``backward_seconds`` of the rest; ``backward_bytes`` what the
     backward pass allocated (adjoint image, per-tile gradient buffers, scratch); ``mode`` "prb" or
     "tape", the backward pass that ran."""
 
@@ -212,23 +215,30 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
         _check_depth(rs.max_depth)
     dev, sky, camera = params.scene, params.sky, params.camera
     rs = replace(rs, sky=sky, features=None)
-    t0 = time.perf_counter()
-    fwd = render_scene(dev, camera, rs)
-    image = fwd.image
-    forward_seconds = time.perf_counter() - t0
-    value = None
-    if loss is not None:
-        value, adj = loss(image)
-    else:
+    # path replay's first pass traces the very paths of the forward render: when the adjoint is known
+    # before the image (no loss) and the seeds are the same, its radiance sums are the image
+    replay_image = mode == "prb" and loss is None and gradient_seed is None
+    image, value, forward_seconds = None, None, 0.0
+    shape = (rs.height, rs.width, 3)
+    if replay_image:
+        check_args(rs)
+        camera.validate(rs.width, rs.height)
         adj = adjoint
+    else:
+        t0 = time.perf_counter()
+        image = render_scene(dev, camera, rs).image
+        forward_seconds = time.perf_counter() - t0
+        value, adj = loss(image) if loss is not None else (None, adjoint)
     adj = np.asarray(adj, dtype=np.float32)
-    if adj.shape != image.shape or not np.all(np.isfinite(adj)):
-        raise ValueError(f"the adjoint image must be finite with shape {image.shape}, got {adj.shape}")
+    if adj.shape != shape or not np.all(np.isfinite(adj)):
+        raise ValueError(f"the adjoint image must be finite with shape {shape}, got {adj.shape}")
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
     bw = _Backward(dev, camera, sky, brs, wants={p.kind for p in infos}, mode=mode)
-    sums = bw.run(adj.reshape(-1, 3), rs.threads)
+    sums = bw.run(adj.reshape(-1, 3), rs.threads, want_image=replay_image)
+    if replay_image:
+        image = Film(sums.pop("film").reshape(shape), rs.spp).image()
     backward_seconds = time.perf_counter() - t0
     grads = {p.name: _pick(p, sums, dev, camera, rs) for p in infos}
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
@@ -284,10 +294,13 @@ class _Backward:
         self.nbytes += 2 * deltas.capacity
         return m, t, deltas, scratch
 
-    def run(self, adj: np.ndarray, threads: int | None) -> dict:
+    def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
+        """The reduced gradient buffers by name; with ``want_image`` (path replay only) also
+        ``"film"``, the radiance sums of pass 1 (H*W, 3) float64."""
         rs, dev = self.rs, self.dev
         adj_image = wp.array(adj, dtype=wp.vec3, device=dev.device)
         self.nbytes += adj_image.capacity
+        film = wp.zeros(len(adj) if want_image else 1, dtype=wp.vec3d, device=dev.device)
         inputs = [self._tile_inputs(lo, hi) for lo, hi in self.tiles]
 
         def work(k: int) -> None:
@@ -296,7 +309,8 @@ class _Backward:
             rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed, rs.roulette_depth)
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
                 wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=[
-                    dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad])
+                    dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad,
+                    int(want_image), film[lo:hi] if want_image else film])
                 return
             args = [dev.geometry, m, t, self.lights, self.cam, rp, deltas, scratch]
             adj_structs = [_ADJ.get_adjoint(a) for a in args[:6]]   # mirrors holding each array's .grad
@@ -318,6 +332,8 @@ class _Backward:
             for key, g in parts.items():
                 v = g.numpy().astype(np.float64)
                 sums[key] = sums[key] + v if key in sums else v
+        if want_image:
+            sums["film"] = film.numpy()
         return sums
 
 

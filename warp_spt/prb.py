@@ -12,7 +12,9 @@ nothing is stored per vertex, the depth is unbounded, and memory does not depend
 
 Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynamic loop):
 
-1. traces the path as the fast kernel does (closest hit + the integrator's ``vertex``) to get ``L``;
+1. traces the path as the fast kernel does (closest hit + the integrator's ``vertex``) to get ``L``,
+   and sums it into the pixel's film, so that ``render_gradients`` needs no separate forward render
+   for the image when it knows the adjoint image beforehand;
 2. traces it again with the same random numbers; at each vertex it calls ``wp.grad`` of a scalar
    ``objective = a . R_{k+1} + b . T_{k+1}`` of that one vertex, with ``a`` the pixel's adjoint per
    sample and ``b = a * Lo_{k+1}`` held constant. The vertex is the integrator's own ``vertex``
@@ -55,7 +57,7 @@ from .integrators import CameraParams, PathState, RenderParams, get_vertex
 from .integrators.nee import VIS_TRACE
 from .lights import Lights
 
-_kernels: dict[tuple[str, str, Features], wp.Kernel] = {}
+_kernels: dict[tuple, wp.Kernel] = {}
 
 
 @wp.func
@@ -85,8 +87,8 @@ def _skip_replay(vertex) -> None:
     vertex.custom_replay_func.native_func = "replay_" + vertex.native_func
 
 
-def _make_kernel(vertex, start_path, closest_hit):
-    @wp.func
+def _make_kernel(vertex, start_path, closest_hit, inline):
+    @wp.func(inline=inline)
     def objective(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
                   path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
         """What vertex ``path``/``h`` adds to the image, its throughput and density seeded with the
@@ -105,21 +107,28 @@ def _make_kernel(vertex, start_path, closest_hit):
 
     @wp.kernel(enable_backward=False, module="unique")
     def replay(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
-               rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), sky_grad: wp.array(dtype=wp.vec3)):
-        """Each thread replays the samples of one pixel of the tile."""
+               rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), sky_grad: wp.array(dtype=wp.vec3),
+               want_image: int, film: wp.array(dtype=wp.vec3d)):
+        """Each thread replays the samples of one pixel of the tile; with ``want_image`` it also adds
+        the pass-1 radiance sums to ``film`` (the fast kernel's sums: same paths, same order)."""
         tid = wp.tid()
         a = adj_image[tid] / float(rp.sample_count)       # d loss / d (one sample's radiance)
-        if a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0:
+        replay_it = not (a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0)
+        if not replay_it and want_image == 0:
             return
         pix = rp.pixel_start + tid
         zero = wp.vec3(0.0, 0.0, 0.0)
         sky = zero                               # d loss / d Lights.sky_color and .sky_slope
         slope = zero
+        acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         for j in range(rp.sample_count):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
             total = finish(geo, mats, tex, lights, rp, start).radiance    # pass 1: the sample's radiance
             if not wp.isfinite(total):
                 continue                         # the fast kernel drops it: no gradient either
+            acc += wp.vec3d(wp.float64(total[0]), wp.float64(total[1]), wp.float64(total[2]))
+            if not replay_it:
+                continue
             q = start                            # pass 2: replay, one vertex's adjoint at a time
             prev = start
             prev_h = Hit()
@@ -146,29 +155,35 @@ def _make_kernel(vertex, start_path, closest_hit):
                 prev_h = h
                 prev_vis = vis
                 q = nxt
+        if want_image != 0:
+            film[tid] = film[tid] + acc
         wp.atomic_add(sky_grad, 0, sky)
         wp.atomic_add(sky_grad, 1, slope)
 
     return replay
 
 
-def get_replay_kernel(features: Features, integrator: str, sampler: str, device: str = "cpu") -> wp.Kernel:
+def get_replay_kernel(features: Features, integrator: str, sampler: str, device: str = "cpu",
+                      inline: bool | None = True) -> wp.Kernel:
     """The path-replay kernel of (integrator, sampler) for these features, loaded on ``device``.
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
-    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, and an
+    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, an
     array receiving d loss / d ``Lights.sky_color`` (element 0) and ``Lights.sky_slope`` (element 1:
-    the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``."""
-    key = (integrator, sampler, features)
+    the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``, and ``want_image``
+    (0 or 1) with the tile's float64 film, to which the radiance sums are added when it is 1.
+    ``inline``: the wp.func inline hint of the vertex, its helpers and ``objective``
+    (docs/gradients.md, Cost)."""
+    key = (integrator, sampler, features, inline)
     if key not in _kernels:
-        vertex, start_path = get_vertex(integrator, sampler, features)
+        vertex, start_path = get_vertex(integrator, sampler, features, inline)
         # Warp 1.19: wp.grad flags its function for adjoint code, and a function passes the flag to
         # its callees when it is built; but pass 1 builds ``vertex`` first, without the flag, so its
         # callees got empty adjoints (all gradients 0). Flag it before the build. (get_vertex's
         # functions are path replay's own: the fast and tape kernels build theirs in get_step.)
         vertex.adj.force_adjoint_codegen = True
         _skip_replay(vertex)
-        _kernels[key] = _make_kernel(vertex, start_path, make_closest_hit(features))
+        _kernels[key] = _make_kernel(vertex, start_path, make_closest_hit(features), inline)
     k = _kernels[key]
     wp.load_module(k.module, device=device)     # on this thread, before any worker launches it
     return k

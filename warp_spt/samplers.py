@@ -62,6 +62,22 @@ def _start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
     return _state(seed, pixel, index, stream_state(seed, pixel, index))
 
 
+def _detach(next_1d, next_2d) -> None:
+    """Give a sampler's requests zero adjoints: their numbers depend on integers only (seed, pixel,
+    sample, dimension), so no derivative flows through them. Without this, Warp's adjoint of a
+    request re-runs its forward and then its callees' adjoints, each re-running their own forwards
+    (a Sobol' request's hashes several times per differentiated vertex); only the differentiable
+    kernels (tape, path replay) have adjoint code, so the fast kernels do not change."""
+
+    @wp.func_grad(next_1d)
+    def adj_next_1d(state: SamplerState, dim: int, adj_ret_0: float, adj_ret_1: SamplerState):
+        pass
+
+    @wp.func_grad(next_2d)
+    def adj_next_2d(state: SamplerState, dim: int, adj_ret_0: wp.vec2, adj_ret_1: SamplerState):
+        pass
+
+
 def make_independent() -> Sampler:
     @wp.func
     def next_1d(state: SamplerState, dim: int):
@@ -83,6 +99,7 @@ def make_independent() -> Sampler:
         b, s2 = next_1d(s1, dim + 1)
         return wp.vec2(a, b), s2
 
+    _detach(next_1d, next_2d)
     return Sampler("independent", _start, next_1d, next_2d)
 
 
@@ -101,6 +118,7 @@ def _make_sobol() -> Sampler:
     def next_2d(state: SamplerState, dim: int):
         return sobol_2d_keyed(state.rng, state.index, dim), state
 
+    _detach(next_1d, next_2d)
     return Sampler("sobol", start, next_1d, next_2d, random_access=True)
 
 

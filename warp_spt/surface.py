@@ -127,3 +127,15 @@ def make_surface(features: Features):
         return sf
 
     return surface_at
+
+
+def detach_surface(surface_at) -> None:
+    """Give ``surface_at`` (from :func:`make_surface`) a zero adjoint: no derivative reaches the hit,
+    the ray or the geometry through it. Path replay's own functions only (``warp_spt.prb``): it takes
+    no pathwise derivatives (the hit and the sampled directions stay put), so the adjoint of the
+    surface was computed and then dropped, after re-running the surface's forward code for it; the
+    tape, whose camera gradients move the hits, keeps the full adjoint."""
+
+    @wp.func_grad(surface_at)
+    def adj_surface_at(s: Geometry, h: Hit, o: wp.vec3, d: wp.vec3, adj_ret: Surface):
+        pass

@@ -42,13 +42,14 @@ def get_step(integrator: str, sampler: str, features: Features, differentiable: 
     return _functions(INTEGRATORS, integrator, sampler, features, differentiable)
 
 
-def get_vertex(integrator: str, sampler: str, features: Features):
+def get_vertex(integrator: str, sampler: str, features: Features, inline: bool | None = None):
     """``(vertex, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``
-    (ValueError when the integrator has no vertex function: no path replay for it)."""
+    (ValueError when the integrator has no vertex function: no path replay for it); ``inline``: the
+    vertex's wp.func inline hint."""
     check_integrator(integrator)
     if integrator not in VERTICES:
         raise ValueError(f"integrator {integrator!r} has no vertex function for path replay")
-    return _functions(VERTICES, integrator, sampler, features)
+    return _functions(VERTICES, integrator, sampler, features, inline)
 
 
 def _functions(registry: dict, integrator: str, sampler: str, features: Features, *flags) -> tuple:

@@ -22,7 +22,7 @@ from ..geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
 from ..lights import Lights, make_lights, reuse_pick, sky_radiance
 from ..materials import make_materials
 from ..samplers import Sampler
-from ..surface import Surface, make_surface, offset_origin
+from ..surface import Surface, detach_surface, make_surface, offset_origin
 from .common import (DIM_BOUNCE, FULL_STRIDE, SEED_STRIDE, OFF_LIGHT, OFF_LIGHT_POS, OFF_ROULETTE, PathState,
                      RenderParams, continue_path, make_bsdf_dims)
 
@@ -61,9 +61,9 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 
-def make_vertex(features: Features, sampler: Sampler):
+def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
     """The NEE + MIS vertex (``make_path_vertex``): what path replay differentiates."""
-    return make_path_vertex(features, sampler, light_sampling=True)
+    return make_path_vertex(features, sampler, light_sampling=True, inline=inline, replay=True)
 
 
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
@@ -88,15 +88,21 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     return step
 
 
-def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None):
+def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
+                     replay: bool = False):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
     path replay (``warp_spt.prb``) differentiates it alone, with the hit found outside and the
     visibility its forward call found (the result's ``vis``) passed in, so its adjoint never traces
     a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)
-    ``inline``: wp.func's inline hint (the fast kernel's step inlines it)."""
+    ``inline``: wp.func's inline hint (the fast kernel's step inlines it). ``replay``: for path
+    replay, which differentiates the vertex alone: its helpers (``direct``, ``mis_bsdf``) take the
+    vertex's hint too, and the surface's adjoint is zero (``surface.detach_surface``)."""
     surface_at = make_surface(features)
+    if replay:
+        detach_surface(surface_at)
+    inline_callees = inline if replay else None
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
     bsdf_dims = make_bsdf_dims(sampler, stride, features)
@@ -104,7 +110,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     occluded = make_occluded(features)
     light = make_lights(features, surface_at, mat.emission)
 
-    @wp.func
+    @wp.func(inline=inline_callees)
     def mis_bsdf(p: PathState, pdf_light: float) -> float:
         """MIS weight of an emitter reached by BSDF sampling."""
         if wp.static(not sample_lights):
@@ -113,7 +119,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             return 1.0
         return power_heuristic(p.pdf, pdf_light)
 
-    @wp.func
+    @wp.func(inline=inline_callees)
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
                base: int, vis: int):
         """Light sampling at this vertex: (radiance to add, sampler state, visibility of the light

@@ -18,6 +18,6 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     return make_path_step(features, sampler, light_sampling=False, differentiable=differentiable)
 
 
-def make_vertex(features: Features, sampler: Sampler):
+def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
     """The vertex of pure path tracing (``nee.make_path_vertex``): what path replay differentiates."""
-    return make_path_vertex(features, sampler, light_sampling=False)
+    return make_path_vertex(features, sampler, light_sampling=False, inline=inline, replay=True)

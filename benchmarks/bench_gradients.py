@@ -39,13 +39,15 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-import warp_spt
-from warp_spt.demo import demo_dir
-from warp_spt.gradients import enable_material_gradients, render_differentiable, render_gradients
-from warp_spt.integrators import DEFAULT_INTEGRATOR
-from warp_spt.params import parameters
-from warp_spt.renderer import RenderSettings, render_scene
-from warp_spt.samplers import DEFAULT_SAMPLER
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))    # run from a checkout, like the others
+
+import warp_spt  # noqa: E402
+from warp_spt.demo import demo_dir  # noqa: E402
+from warp_spt.gradients import enable_material_gradients, render_differentiable, render_gradients  # noqa: E402
+from warp_spt.integrators import DEFAULT_INTEGRATOR  # noqa: E402
+from warp_spt.params import parameters  # noqa: E402
+from warp_spt.renderer import RenderSettings, render_scene  # noqa: E402
+from warp_spt.samplers import DEFAULT_SAMPLER  # noqa: E402
 
 
 def _rss_kb(field: str) -> int:

@@ -164,7 +164,7 @@ def _make_kernel(vertex, start_path, closest_hit, inline):
 
 
 def get_replay_kernel(features: Features, integrator: str, sampler: str, device: str = "cpu",
-                      inline: bool | None = True) -> wp.Kernel:
+                      inline: bool | None = None) -> wp.Kernel:
     """The path-replay kernel of (integrator, sampler) for these features, loaded on ``device``.
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
@@ -172,8 +172,9 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
     array receiving d loss / d ``Lights.sky_color`` (element 0) and ``Lights.sky_slope`` (element 1:
     the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``, and ``want_image``
     (0 or 1) with the tile's float64 film, to which the radiance sums are added when it is 1.
-    ``inline``: the wp.func inline hint of the vertex, its helpers and ``objective``
-    (docs/gradients.md, Cost)."""
+    ``inline``: the wp.func inline hint of the vertex, its helpers and ``objective``. Off by default:
+    True saves about 0.2x the forward time per backward but doubles the replay kernel's cold compile
+    (docs/gradients.md, Cost), which the test suite's six replay kernels could not afford."""
     key = (integrator, sampler, features, inline)
     if key not in _kernels:
         vertex, start_path = get_vertex(integrator, sampler, features, inline)

@@ -31,7 +31,7 @@ import numpy as np
 import warp as wp
 
 from .device_scene import Features, Geometry, Materials, Textures
-from .geometry import KIND_SPHERE, KIND_TRIANGLE, NO_HIT, Hit, sphere_hit
+from .geometry import KIND_MISS, KIND_SPHERE, KIND_TRIANGLE, NO_HIT, Hit, sphere_hit
 from .sampling import TWO_PI, orthonormal_basis, spherical_triangle_sample, triangle_solid_angle
 from .scene import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from .sky import SKY_GRADIENT, Z_UP, Sky
@@ -85,6 +85,7 @@ class LightSample:
     li: wp.vec3
     pdf: float
     t_max: float
+    h: Hit            # the point on the emitter (kind KIND_MISS: the sky), where ``radiance`` looks
 
 
 @wp.func
@@ -186,8 +187,8 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     spheres = features.emitters and features.spheres
 
     @wp.func
-    def sample_triangle(geo: Geometry, m: Materials, t: Textures, lights: Lights, entry: int, prob: float,
-                        x: wp.vec3, u: wp.vec2) -> LightSample:
+    def sample_triangle(geo: Geometry, lights: Lights, entry: int, prob: float, x: wp.vec3,
+                        u: wp.vec2) -> LightSample:
         ls = LightSample()
         ls.pdf = 0.0
         mesh = lights.tri_mesh[entry]
@@ -226,11 +227,10 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
             return ls
         ls.dir = (pl - x) / dist
         h.t = dist
-        sf = surface_at(geo, h, x, ls.dir)
         cos_l = wp.abs(wp.dot(n, ls.dir))
         if cos_l < 1.0e-7:
             return ls
-        ls.li = emission(m, t, sf)
+        ls.h = h
         if spherical:
             ls.pdf = prob / omega
         else:
@@ -239,8 +239,8 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
         return ls
 
     @wp.func
-    def sample_sphere(geo: Geometry, m: Materials, t: Textures, lights: Lights, entry: int, prob: float,
-                      x: wp.vec3, u: wp.vec2) -> LightSample:
+    def sample_sphere(geo: Geometry, lights: Lights, entry: int, prob: float, x: wp.vec3,
+                      u: wp.vec2) -> LightSample:
         ls = LightSample()
         ls.pdf = 0.0
         j = lights.sph_index[entry]
@@ -263,16 +263,15 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
         h.kind = KIND_SPHERE
         h.index = j
         h.t = th
-        sf = surface_at(geo, h, x, ls.dir)
-        ls.li = emission(m, t, sf)
+        ls.h = h
         ls.pdf = prob / (TWO_PI * omc)
-        ls.t_max = th - offset_eps(sf.p, geo.extent) * 2.0
+        on = c + wp.normalize(x + ls.dir * th - c) * sph[3]     # surface_at's point: back onto the sphere
+        ls.t_max = th - offset_eps(on, geo.extent) * 2.0
         return ls
 
     @wp.func
-    def sample(geo: Geometry, m: Materials, t: Textures, lights: Lights, x: wp.vec3, u_pick: float,
-               u: wp.vec2) -> LightSample:
-        """Choose a light with ``u_pick`` and a point on it with ``u``, as seen from ``x``."""
+    def sample_point(geo: Geometry, lights: Lights, x: wp.vec3, u_pick: float, u: wp.vec2) -> LightSample:
+        """``sample`` without the radiance: the direction, density, shadow-ray length and point."""
         ls = LightSample()
         ls.pdf = 0.0
         if lights.num_entries == 0:
@@ -281,17 +280,34 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
         prob = lights.entry_prob[e]
         if wp.static(tris):
             if e < lights.num_triangles:
-                return sample_triangle(geo, m, t, lights, e, prob, x, u)
+                return sample_triangle(geo, lights, e, prob, x, u)
         if wp.static(spheres):
             s = e - lights.num_triangles
             if s >= 0 and s < lights.num_spheres:
-                return sample_sphere(geo, m, t, lights, s, prob, x, u)
+                return sample_sphere(geo, lights, s, prob, x, u)
         if wp.static(features.sky):
             if lights.sky_prob > 0.0 and e == lights.num_entries - 1:
                 ls.dir = sample_sky(lights, u)
-                ls.li = sky_radiance(lights, ls.dir)
                 ls.pdf = prob * sky_pdf(lights, ls.dir)
                 ls.t_max = NO_HIT
+                ls.h.kind = KIND_MISS
+        return ls
+
+    @wp.func
+    def radiance(geo: Geometry, m: Materials, t: Textures, lights: Lights, ls: LightSample, x: wp.vec3) -> wp.vec3:
+        """The radiance arriving at ``x`` from the sampled point ``ls`` (unoccluded)."""
+        if ls.h.kind == KIND_MISS:
+            return sky_radiance(lights, ls.dir)
+        return emission(m, t, surface_at(geo, ls.h, x, ls.dir))
+
+    @wp.func
+    def sample(geo: Geometry, m: Materials, t: Textures, lights: Lights, x: wp.vec3, u_pick: float,
+               u: wp.vec2) -> LightSample:
+        """Choose a light with ``u_pick`` and a point on it with ``u``, as seen from ``x``: the
+        direction, incident radiance ``li`` (0 where ``pdf`` is 0), density and shadow-ray length."""
+        ls = sample_point(geo, lights, x, u_pick, u)
+        if ls.pdf > 0.0:
+            ls.li = radiance(geo, m, t, lights, ls, x)
         return ls
 
     @wp.func
@@ -320,7 +336,31 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
                 return lights.sky_prob * sky_pdf(lights, d)
         return 0.0
 
-    return SimpleNamespace(sample=sample, pdf_hit=pdf_hit, pdf_sky=pdf_sky)
+    return SimpleNamespace(sample=sample, sample_point=sample_point, radiance=radiance, pdf_hit=pdf_hit,
+                           pdf_sky=pdf_sky)
+
+
+def detach_lights(light: SimpleNamespace) -> None:
+    """Give the geometric half of ``light`` (from :func:`make_lights`: ``sample_point``, ``pdf_hit``,
+    ``pdf_sky``) zero adjoints. Path replay's own lights only (``warp_spt.prb``): its light samples
+    stay put (detached sampling) and its MIS weights carry no derivative, so these adjoints were
+    computed and dropped, each after re-running its function's forward code (the spherical triangle
+    sampler's several times per vertex, once per nesting level); ``radiance``, which carries the
+    emission and sky gradients, keeps its adjoint. The tape, whose camera gradients move the
+    shading points, keeps them all."""
+
+    @wp.func_grad(light.sample_point)
+    def adj_sample_point(geo: Geometry, lights: Lights, x: wp.vec3, u_pick: float, u: wp.vec2,
+                         adj_ret: LightSample):
+        pass
+
+    @wp.func_grad(light.pdf_hit)
+    def adj_pdf_hit(geo: Geometry, lights: Lights, h: Hit, o: wp.vec3, d: wp.vec3, adj_ret: float):
+        pass
+
+    @wp.func_grad(light.pdf_sky)
+    def adj_pdf_sky(lights: Lights, d: wp.vec3, adj_ret: float):
+        pass
 
 
 # ---------------------------------------------------------------------------------------------

@@ -12,9 +12,9 @@ nothing is stored per vertex, the depth is unbounded, and memory does not depend
 
 Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynamic loop):
 
-1. traces the path as the fast kernel does (closest hit + the integrator's ``vertex``) to get ``L``,
-   and sums it into the pixel's film, so that ``render_gradients`` needs no separate forward render
-   for the image when it knows the adjoint image beforehand;
+1. traces the path as the fast kernel does (closest hit + the integrator's ``vertex``, inlined as
+   there) to get ``L``, and sums it into the pixel's film, so that ``render_gradients`` needs no
+   separate forward render for the image when it knows the adjoint image beforehand;
 2. traces it again with the same random numbers; at each vertex it calls ``wp.grad`` of a scalar
    ``objective = a . R_{k+1} + b . T_{k+1}`` of that one vertex, with ``a`` the pixel's adjoint per
    sample and ``b = a * Lo_{k+1}`` held constant. The vertex is the integrator's own ``vertex``
@@ -31,20 +31,26 @@ Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, wh
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
 procedural-texture parameters, the sky's colours (constant, or the gradient's mean and slope),
 and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
-MIS weights: the light-sampling weight sees its diffuse density as the tape does, and the BSDF-side
-weight at the *next* vertex depends on this vertex's sampled density, so when that next vertex's
-adjoint reaches its incoming ``pdf`` the previous vertex is differentiated once more with that seed
-(``c``). Pathwise derivatives (``Fuzz``, which bends the sampled direction, and the camera, which
-moves every hit: the tape's closest hit is re-intersected in closed form for it) need the
-derivative of everything downstream with respect to a direction or a hit: not available in a
-forward replay, so they stay on the tape (``render_gradients(mode="tape")``, which ``"auto"``
-takes for them).
+The sampling itself carries no derivative either: the light sample's point, direction and density
+(``lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
+two techniques' weights still sum to 1 at every point, so their derivatives would only add terms
+whose expectation is 0; dropping them keeps the gradient unbiased, and each vertex's adjoint is one
+call (the BSDF-side weight of the next vertex would otherwise need this vertex's density
+differentiated again) whose callees do not re-run the light sampler's forward code for adjoints
+that were then thrown away. The tape differentiates the weights (its camera moves the points where
+they are evaluated, and there the cancellation does not hold), so the two agree in expectation on
+``Roughness`` under NEE and exactly elsewhere.
+
+Pathwise derivatives (``Fuzz``, which bends the sampled direction, and the camera, which moves
+every hit: the tape's closest hit is re-intersected in closed form for it) need the derivative of
+everything downstream with respect to a direction or a hit: not available in a forward replay, so
+they stay on the tape (``render_gradients(mode="tape")``, which ``"auto"`` takes for them).
 
 Warp 1.19 notes: ``wp.grad(f)`` of a function returning ``float`` emits ``float(1)``, which the
 CPU build's ``float`` macro breaks; ``-> wp.float32`` compiles. A ``wp.grad`` call zero-initialises
 the adjoints of its struct arguments, whose arrays then fall back to ``array.grad``. The flag that
 makes ``wp.grad`` generate adjoint code reaches a function's callees only if it is set before that
-function is built (see ``get_replay_kernel``).
+function is built, and the module hash does not include it (see ``get_replay_kernel``).
 """
 
 from __future__ import annotations
@@ -87,14 +93,14 @@ def _skip_replay(vertex) -> None:
     vertex.custom_replay_func.native_func = "replay_" + vertex.native_func
 
 
-def _make_kernel(vertex, start_path, closest_hit, inline):
+def _make_kernel(vertex, forward, start_path, closest_hit, inline):
     @wp.func(inline=inline)
     def objective(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                  path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3, c: float) -> wp.float32:
-        """What vertex ``path``/``h`` adds to the image, its throughput and density seeded with the
-        adjoints of what follows (constants here); ``vis`` the visibility its forward call found."""
+                  path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3) -> wp.float32:
+        """What vertex ``path``/``h`` adds to the image, and its throughput seeded with the adjoint
+        of what follows (constants here); ``vis`` the visibility its forward call found."""
         p = vertex(geo, mats, tex, lights, rp, path, h, vis)
-        return wp.dot(p.radiance, a) + wp.dot(p.throughput, b) + p.pdf * c
+        return wp.dot(p.radiance, a) + wp.dot(p.throughput, b)
 
     @wp.func
     def finish(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
@@ -102,7 +108,7 @@ def _make_kernel(vertex, start_path, closest_hit, inline):
         """The rest of the path, as the fast kernel traces it."""
         q = path
         while q.alive != 0:
-            q = vertex(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
+            q = forward(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
         return q
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -130,30 +136,16 @@ def _make_kernel(vertex, start_path, closest_hit, inline):
             if not replay_it:
                 continue
             q = start                            # pass 2: replay, one vertex's adjoint at a time
-            prev = start
-            prev_h = Hit()
-            prev_vis = int(VIS_TRACE)
-            for k in range(rp.max_depth + 1):    # the bound is never reached: max_depth ends the path
-                if q.alive == 0:
-                    break
+            while q.alive != 0:
                 h = closest_hit(geo, q.o, q.d, NO_HIT)
-                nxt = vertex(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
-                vis = nxt.vis
+                nxt = forward(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
                 b = zero
                 if nxt.alive != 0:
                     b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
-                ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
-                    geo, mats, tex, lights, rp, q, h, vis, a, b, 0.0)
+                ag, am, at, al, arp, apath, ah, av, aa, ab = wp.grad(objective)(
+                    geo, mats, tex, lights, rp, q, h, nxt.vis, a, b)
                 sky += al.sky_color
                 slope += al.sky_slope
-                if k > 0 and apath.pdf != 0.0:   # this vertex's MIS weight uses the previous density
-                    ag, am, at, al, arp, apath, ah, av, aa, ab, ac = wp.grad(objective)(
-                        geo, mats, tex, lights, rp, prev, prev_h, prev_vis, zero, zero, apath.pdf)
-                    sky += al.sky_color
-                    slope += al.sky_slope
-                prev = q
-                prev_h = h
-                prev_vis = vis
                 q = nxt
         if want_image != 0:
             film[tid] = film[tid] + acc
@@ -164,7 +156,7 @@ def _make_kernel(vertex, start_path, closest_hit, inline):
 
 
 def get_replay_kernel(features: Features, integrator: str, sampler: str, device: str = "cpu",
-                      inline: bool | None = None) -> wp.Kernel:
+                      inline: bool | None = True) -> wp.Kernel:
     """The path-replay kernel of (integrator, sampler) for these features, loaded on ``device``.
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
@@ -172,19 +164,27 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
     array receiving d loss / d ``Lights.sky_color`` (element 0) and ``Lights.sky_slope`` (element 1:
     the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``, and ``want_image``
     (0 or 1) with the tile's float64 film, to which the radiance sums are added when it is 1.
-    ``inline``: the wp.func inline hint of the vertex, its helpers and ``objective``. Off by default:
-    True saves about 0.2x the forward time per backward but doubles the replay kernel's cold compile
-    (docs/gradients.md, Cost), which the test suite's six replay kernels could not afford."""
+    ``inline``: the wp.func inline hint of the differentiated vertex, its helpers and ``objective``
+    (the forward passes always inline the vertex). On by default: Warp's adjoint of a function re-runs
+    its forward, and of every out-of-line callee once more per nesting level; inlined, the compiler
+    shares those re-runs with the caller's. It took the backward from about 2.8x to 2.0x the forward
+    (kernel time, nee + sobol) for +4 s of cold compile (15 to 19 s; docs/gradients.md, Cost)."""
     key = (integrator, sampler, features, inline)
     if key not in _kernels:
         vertex, start_path = get_vertex(integrator, sampler, features, inline)
-        # Warp 1.19: wp.grad flags its function for adjoint code, and a function passes the flag to
-        # its callees when it is built; but pass 1 builds ``vertex`` first, without the flag, so its
-        # callees got empty adjoints (all gradients 0). Flag it before the build. (get_vertex's
-        # functions are path replay's own: the fast and tape kernels build theirs in get_step.)
+        # the forward passes run the vertex inlined (the fast kernel's choice, nee.make_path_step): called
+        # out of line, each bounce copied the scene structs, and pass 1 took 1.2-1.4x the fast kernel
+        forward = get_vertex(integrator, sampler, features, True)[0]    # ``vertex`` itself by default
+        # Warp 1.19: wp.grad flags its function for adjoint code, and a function passes the flag to its
+        # callees only while it is being built. The kernel builds ``forward`` first (pass 1), and with it
+        # the callees it shares with ``vertex`` (texture lookups, the materials' helpers): unflagged, they
+        # got empty adjoints (texel gradients 0). So both are flagged before the build. (Warp's module
+        # hash does not include the flags: a kernel once built without them stays wrong in the cache.)
+        # get_vertex's functions are path replay's own: the fast and tape kernels build theirs in get_step.
         vertex.adj.force_adjoint_codegen = True
+        forward.adj.force_adjoint_codegen = True
         _skip_replay(vertex)
-        _kernels[key] = _make_kernel(vertex, start_path, make_closest_hit(features), inline)
+        _kernels[key] = _make_kernel(vertex, forward, start_path, make_closest_hit(features), inline)
     k = _kernels[key]
     wp.load_module(k.module, device=device)     # on this thread, before any worker launches it
     return k

@@ -19,7 +19,7 @@ import warp as wp
 
 from ..device_scene import Features, Geometry, Materials, Textures
 from ..geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
-from ..lights import Lights, make_lights, reuse_pick, sky_radiance
+from ..lights import Lights, detach_lights, make_lights, reuse_pick, sky_radiance
 from ..materials import make_materials
 from ..samplers import Sampler
 from ..surface import Surface, detach_surface, make_surface, offset_origin
@@ -44,9 +44,10 @@ def power_heuristic(pa: float, pb: float) -> float:
 @wp.func
 def detached(x: float) -> float:
     """``x``, through which no derivative flows (its adjoint is 0): Russian roulette's survival
-    probability. The estimator ``X / q`` with probability ``q`` has expectation ``X`` whatever ``q``, so
-    the unbiased derivative is ``X' / q`` on survival; differentiating ``1 / q`` too would add
-    ``-X q' / q`` in expectation (docs/gradients.md, Russian roulette)."""
+    probability, and in path replay the MIS weights (``mis_weight``). For roulette: the estimator
+    ``X / q`` with probability ``q`` has expectation ``X`` whatever ``q``, so the unbiased derivative
+    is ``X' / q`` on survival; differentiating ``1 / q`` too would add ``-X q' / q`` in expectation
+    (docs/gradients.md, Russian roulette)."""
     return x
 
 
@@ -109,6 +110,18 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     sample_lights = light_sampling and (features.emitters or features.sky) and features.diffuse
     occluded = make_occluded(features)
     light = make_lights(features, surface_at, mat.emission)
+    if replay:
+        detach_lights(light)
+
+    @wp.func
+    def mis_weight(pa: float, pb: float) -> float:
+        """The power heuristic; in path replay without derivative: the two techniques' weights sum to
+        1 for every parameter value, so with the samples held still (detached sampling) the weights'
+        derivatives cancel in expectation. (Not so on the tape: its camera moves the points where the
+        weights are evaluated, so it keeps their derivatives.)"""
+        if wp.static(replay):
+            return detached(power_heuristic(pa, pb))
+        return power_heuristic(pa, pb)
 
     @wp.func(inline=inline_callees)
     def mis_bsdf(p: PathState, pdf_light: float) -> float:
@@ -117,7 +130,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             return 1.0
         if p.singular != 0:
             return 1.0
-        return power_heuristic(p.pdf, pdf_light)
+        return mis_weight(p.pdf, pdf_light)
 
     @wp.func(inline=inline_callees)
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
@@ -147,10 +160,11 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                     u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
                 u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
             x = offset_origin(sf.p, sf.ng, 0, geo.extent)
-            ls = light.sample(geo, mats, tex, lights, x, u_pick, u_pos)
+            # light.sample in two halves, the geometric one having no adjoint in path replay
+            ls = light.sample_point(geo, lights, x, u_pick, u_pos)
             if ls.pdf > 0.0:
                 f = mat.eval(mats, tex, sf, ls.dir)
-                le = wp.cw_mul(f, ls.li)
+                le = wp.cw_mul(f, light.radiance(geo, mats, tex, lights, ls, x))
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
                     seen = vis
                     if seen == VIS_TRACE:
@@ -158,7 +172,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                         if occluded(geo, x, ls.dir, ls.t_max):
                             seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
-                        w = power_heuristic(ls.pdf, mat.pdf(mats, sf, ls.dir))
+                        w = mis_weight(ls.pdf, mat.pdf(mats, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st, seen
 

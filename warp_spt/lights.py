@@ -293,9 +293,10 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
                 ls.h.kind = KIND_MISS
         return ls
 
-    @wp.func
+    @wp.func(inline=True)
     def radiance(geo: Geometry, m: Materials, t: Textures, lights: Lights, ls: LightSample, x: wp.vec3) -> wp.vec3:
-        """The radiance arriving at ``x`` from the sampled point ``ls`` (unoccluded)."""
+        """The radiance arriving at ``x`` from the sampled point ``ls`` (unoccluded). Inlined: called out
+        of line, it copied the four scene structs it takes by value (the fast kernel 5% slower)."""
         if ls.h.kind == KIND_MISS:
             return sky_radiance(lights, ls.dir)
         return emission(m, t, surface_at(geo, ls.h, x, ls.dir))

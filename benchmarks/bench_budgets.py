@@ -43,14 +43,20 @@ import warp as wp  # noqa: E402
 wp.config.quiet = True
 
 from warp_spt import Camera, Sky, load_scene  # noqa: E402
+from warp_spt.core.device_scene import DeviceScene  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
-from warp_spt.device_scene import DeviceScene  # noqa: E402
-from warp_spt.progressive import relative_error, render_progressive  # noqa: E402
+from warp_spt.rendering.progressive import render_progressive  # noqa: E402
+from warp_spt.rendering.result import relative_error  # noqa: E402
 
 
 def scenes(tmp: Path):
     from tests.scenes import material
-    from tests.stability_scenes import cornell_camera, cornell_files, quads_obj, write_scene_files
+    from tests.stability_scenes import (
+        cornell_camera,
+        cornell_files,
+        quads_obj,
+        write_scene_files,
+    )
 
     demo = (demo_files(), None, dict(max_depth=8, sky=Sky.gradient()), [])
     cornell = (cornell_files(tmp), cornell_camera(), dict(max_depth=6, sky=Sky.constant(0, 0, 0)),

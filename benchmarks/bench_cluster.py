@@ -34,9 +34,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import warp_spt  # noqa: E402
 from warp_spt import cluster  # noqa: E402
+from warp_spt.rendering.schedule import pass_ranges  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
-from warp_spt.film import Film  # noqa: E402
-from warp_spt.renderer import RenderSettings  # noqa: E402
+from warp_spt.rendering.film import Film  # noqa: E402
+from warp_spt.rendering.settings import RenderSettings  # noqa: E402
 
 
 def _noop(x):
@@ -115,7 +116,7 @@ def overheads(scene, kw: dict) -> dict[str, float]:
                                     - out["schedule"]) / big
         # one pass of this benchmark's render, on a worker: the rate of useful work
         shared = cluster.share_scene(client, scene)
-        passes = tuple(cluster.pass_ranges(rs)[:1])
+        passes = tuple(pass_ranges(rs.spp, rs.width, rs.height)[:1])
         cam = warp_spt.Camera()
 
         def one_pass():
@@ -155,7 +156,7 @@ def animation_uploads(objs: list[str], mtls: list[str]) -> dict[str, float]:
 
     from warp_spt.animation import ObjSequence
     from warp_spt.cluster import _array_key
-    from warp_spt.device_scene import DeviceScene, mesh_key
+    from warp_spt.core.device_scene import DeviceScene, mesh_key
 
     seq = ObjSequence(objs, mtls)
     scenes = [seq.scene(k) for k in range(4)]
@@ -216,14 +217,14 @@ def main() -> None:
     load = os.getloadavg()
     print(f"# built-in demo, depth {args.depth}; {os.cpu_count()} cores; load average at start "
           f"{load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1 / 5 / 15 min)")
-    print(f"# passes: {args.size}x{args.size} at {args.spp} spp = {len(cluster.pass_ranges(rs))} passes of "
-          f"{cluster.pass_ranges(rs)[0][1]} spp, default tasks; {t}x{t} at {tile_kw['spp']} spp = one pass, "
+    print(f"# passes: {args.size}x{args.size} at {args.spp} spp = {len(pass_ranges(rs.spp, rs.width, rs.height))} passes of "
+          f"{pass_ranges(rs.spp, rs.width, rs.height)[0][1]} spp, default tasks; {t}x{t} at {tile_kw['spp']} spp = one pass, "
           "split into row tiles only (default tiles: 4 tasks per worker)")
     times = scaling(scene, camera, {"passes": kw, "tiles": tile_kw}, args.workers, args.repeat)
     o = overheads(scene, kw)
     px = args.size * args.size
     per_px = o["pass_seconds"] / px
-    passes = len(cluster.pass_ranges(rs))
+    passes = len(pass_ranges(rs.spp, rs.width, rs.height))
     cores = os.cpu_count() or 1
     print(f"\nload average after the scaling runs: {os.getloadavg()[0]:.1f}")
     print("\n| worker processes | sample ranges: seconds | speed-up vs 1 thread in-process | model (capped at "

@@ -25,8 +25,8 @@ import warp as wp  # noqa: E402
 wp.config.quiet = True
 
 from warp_spt import Sky, load_scene, render  # noqa: E402
+from warp_spt.core.device_scene import DeviceScene  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
-from warp_spt.device_scene import DeviceScene  # noqa: E402
 
 
 def main() -> None:

@@ -7,7 +7,7 @@ Scene: the demo Cornell box (cornell.obj, demo.mtl); by default the renderer's d
 and sampler (nee + sobol). Modes:
 
 * ``forward``: the fast renderer (enable_backward=False), all cores;
-* ``render_gradients prb``: path replay per tile (warp_spt.prb; 1 and all threads); given an adjoint
+* ``render_gradients prb``: path replay per tile (warp_spt.diff.prb; 1 and all threads); given an adjoint
   image, it takes the image from its own first pass and runs no separate forward render;
 * ``render_gradients tape``: the fast renderer's image, then Warp's adjoint of the unrolled step per tile;
 * ``tape``: ``render_differentiable`` + ``wp.Tape.backward`` (one thread, the first approach).
@@ -43,10 +43,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))    # run from a che
 
 import warp_spt  # noqa: E402
 from warp_spt.demo import demo_dir  # noqa: E402
-from warp_spt.gradients import enable_material_gradients, render_differentiable, render_gradients  # noqa: E402
+from warp_spt.diff.gradients import (  # noqa: E402
+    enable_material_gradients,
+    render_differentiable,
+    render_gradients,
+)
+from warp_spt.diff.params import parameters  # noqa: E402
 from warp_spt.integrators import DEFAULT_INTEGRATOR  # noqa: E402
-from warp_spt.params import parameters  # noqa: E402
-from warp_spt.renderer import RenderSettings, render_scene  # noqa: E402
+from warp_spt.rendering.settings import RenderSettings  # noqa: E402
+from warp_spt.rendering.tiles import render_scene  # noqa: E402
 from warp_spt.samplers import DEFAULT_SAMPLER  # noqa: E402
 
 

@@ -21,8 +21,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from warp_spt.loader import load_scene
-from warp_spt.obj import load_obj, write_obj
+from warp_spt.io.loader import load_scene
+from warp_spt.io.obj import load_obj, write_obj
 
 
 def grid_mesh(triangles: int, form: str) -> dict:

@@ -26,13 +26,14 @@ import warp as wp  # noqa: E402
 wp.config.quiet = True
 wp.config.log_level = wp.LOG_WARNING
 
-from warp_spt.camera import Camera  # noqa: E402
-from warp_spt.device_scene import DeviceScene  # noqa: E402
+from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.core.lights import sky_emits  # noqa: E402
 from warp_spt.integrators import get_kernel  # noqa: E402
-from warp_spt.lights import sky_emits  # noqa: E402
-from warp_spt.loader import load_scene  # noqa: E402
-from warp_spt.renderer import RenderSettings, render_scene  # noqa: E402
-from warp_spt.sky import Sky  # noqa: E402
+from warp_spt.io.loader import load_scene  # noqa: E402
+from warp_spt.rendering.settings import RenderSettings  # noqa: E402
+from warp_spt.rendering.tiles import render_scene  # noqa: E402
+from warp_spt.scene.camera import Camera  # noqa: E402
+from warp_spt.scene.sky import Sky  # noqa: E402
 
 VARIANTS = {"constant": "Kd 0.6 0.5 0.4", "seed checker (built-in material)": None}
 VARIANTS.update({f"proc:{n}": f"map_Kd proc:{n}" for n in ("checker", "noise", "marble", "wood", "grid")})

@@ -50,16 +50,22 @@ import warp as wp  # noqa: E402
 
 wp.config.quiet = True
 
-import warp_spt.renderer as R  # noqa: E402
-from warp_spt.camera import Camera  # noqa: E402
+import warp_spt.rendering.tiles as R
+from warp_spt.core.device_scene import DeviceScene, Features, Geometry  # noqa: E402
+from warp_spt.core.geometry import KIND_MISS, NO_HIT, make_closest_hit  # noqa: E402
+from warp_spt.core.lights import light_table, sky_emits  # noqa: E402
+from warp_spt.core.surface import make_surface  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
-from warp_spt.device_scene import DeviceScene, Features, Geometry  # noqa: E402
-from warp_spt.geometry import KIND_MISS, NO_HIT, make_closest_hit  # noqa: E402
-from warp_spt.integrators import CameraParams, RenderParams, camera_params, get_kernel, get_step  # noqa: E402
-from warp_spt.lights import light_table, sky_emits  # noqa: E402
-from warp_spt.loader import load_scene  # noqa: E402
-from warp_spt.sky import Sky  # noqa: E402
-from warp_spt.surface import make_surface  # noqa: E402
+from warp_spt.integrators import (  # noqa: E402
+    CameraParams,
+    RenderParams,
+    camera_params,
+    get_kernel,
+    get_step,
+)
+from warp_spt.io.loader import load_scene  # noqa: E402
+from warp_spt.scene.camera import Camera  # noqa: E402
+from warp_spt.scene.sky import Sky  # noqa: E402
 
 CHUNK = 4096          # rays per launch in the threaded runs (the renderer's TILE_PIXELS)
 SPP = 8               # "... 8 spp *" rows: samples 0..7 of each pixel, 8 per launch as render() does; the

@@ -32,12 +32,12 @@ import warp as wp  # noqa: E402
 
 wp.config.quiet = True
 
-import warp_spt.renderer as R  # noqa: E402
+import warp_spt.rendering.tiles as R
+from warp_spt.core.device_scene import DeviceScene, Features  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
-from warp_spt.device_scene import DeviceScene, Features  # noqa: E402
 from warp_spt.integrators import get_kernel  # noqa: E402
-from warp_spt.loader import load_scene  # noqa: E402
-from warp_spt.sky import Sky  # noqa: E402
+from warp_spt.io.loader import load_scene  # noqa: E402
+from warp_spt.scene.sky import Sky  # noqa: E402
 
 SEED_DEMO = REPO.parent / "shared" / "seed" / "demo"
 
@@ -107,8 +107,8 @@ def compile_times() -> None:
     """Cold compile in a fresh process with an empty kernel cache, then a cached load in another."""
     print("\n## Kernel compile (builtin demo's kernel), fresh processes")
     code = ("import time,warp as wp; wp.config.quiet=True; wp.init(); t=time.perf_counter();"
-            "from warp_spt.demo import demo_files; from warp_spt.loader import load_scene;"
-            "from warp_spt.device_scene import DeviceScene; from warp_spt.integrators import get_kernel;"
+            "from warp_spt.demo import demo_files; from warp_spt.io.loader import load_scene;"
+            "from warp_spt.core.device_scene import DeviceScene; from warp_spt.integrators import get_kernel;"
             "o,m=demo_files(); s=DeviceScene(load_scene(o,m)); t=time.perf_counter();"
             "get_kernel(s.features); print(time.perf_counter()-t)")
     with tempfile.TemporaryDirectory() as cache:

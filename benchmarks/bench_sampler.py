@@ -29,8 +29,8 @@ import warp as wp  # noqa: E402
 
 wp.config.quiet = True
 
-from warp_spt.sampling import stream_state  # noqa: E402
-from warp_spt.sobol import sobol_2d  # noqa: E402
+from warp_spt.core.sampling import stream_state  # noqa: E402
+from warp_spt.samplers.sobol import sobol_2d  # noqa: E402
 
 vec8 = wp.types.vector(length=8, dtype=float)
 HALF_PI = math.pi / 2

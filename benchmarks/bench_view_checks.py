@@ -1,4 +1,4 @@
-"""What the CLI's view checks cost (issue 10): probe, camera-inside test, recentring, framing.
+"""What the CLI's view checks cost (issue 10): probe, camera-inside test, recentring, view_checks.
 
 For a closed, welded blob of about 10k, 100k and 1M triangles (tests/models.py), times each check
 the CLI runs before a render that has no ``-cam`` (the probe's kernel is compiled once beforehand)
@@ -20,12 +20,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 from bench_parse import best_time as best  # noqa: E402  (this folder is on sys.path when run as a script)
+
 from tests.models import _sphere_grid  # noqa: E402
-from warp_spt import framing  # noqa: E402
-from warp_spt.camera import Camera  # noqa: E402
-from warp_spt.device_scene import DeviceScene  # noqa: E402
-from warp_spt.scene import MaterialTable, MeshData, Scene  # noqa: E402
-from warp_spt.mtl import builtin_clay  # noqa: E402
+from warp_spt.cli import view_checks  # noqa: E402
+from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.io.mtl import builtin_clay  # noqa: E402
+from warp_spt.scene.camera import Camera  # noqa: E402
+from warp_spt.scene.model import MaterialTable, MeshData, Scene  # noqa: E402
+from warp_spt.scene.recentre import recentre  # noqa: E402
 
 
 def blob_scene(triangles: int) -> Scene:
@@ -45,16 +47,16 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    framing.probe(blob_scene(1000), Camera())          # compile the probe kernel once
+    view_checks.probe(blob_scene(1000), Camera())          # compile the probe kernel once
     print(f"{'triangles':>10} {'upload s':>9} {'probe s':>8} {'inside s':>9} {'recentre s':>10} "
           f"{'frame s':>8} {'checks / upload':>16}")
     for size in args.sizes:
         scene = blob_scene(size)
         outside = Camera.frame(scene)
         t_up = best(lambda: DeviceScene(scene), args.repeat)
-        t_probe = best(lambda: framing.probe(scene, outside), args.repeat)
-        t_in = best(lambda: framing.enclosing_object(scene, (0.0, 0.0, 0.0)), args.repeat)
-        t_rc = best(lambda: framing.recentre(scene, outside), args.repeat)
+        t_probe = best(lambda: view_checks.probe(scene, outside), args.repeat)
+        t_in = best(lambda: view_checks.enclosing_object(scene, (0.0, 0.0, 0.0)), args.repeat)
+        t_rc = best(lambda: recentre(scene, outside), args.repeat)
         t_fr = best(lambda: Camera.frame(scene), args.repeat)
         checks = t_probe + t_in + t_rc + t_fr
         print(f"{scene.num_triangles:>10,} {t_up:>9.3f} {t_probe:>8.3f} {t_in:>9.3f} {t_rc:>10.4f} "

@@ -29,9 +29,10 @@ from pathlib import Path
 import numpy as np
 
 import warp_spt
-from warp_spt.gradients import render_gradients
-from warp_spt.params import parameters
-from warp_spt.renderer import RenderSettings, render_scene
+from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.params import parameters
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.tiles import render_scene
 
 
 def glossy_quad(folder: Path):

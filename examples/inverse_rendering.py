@@ -3,7 +3,7 @@
     PYTHONPATH=. python examples/inverse_rendering.py
 
 Each run renders a target with the true value (more samples, another seed), starts from grey and
-runs Adam (``warp_spt.optim``) on the L2 loss, with a fresh seed per iteration (stochastic gradient
+runs Adam (``warp_spt.diff.optim``) on the L2 loss, with a fresh seed per iteration (stochastic gradient
 descent on the expected loss, not a fit to one noise pattern). The reported value is the mean of the
 last iterates. notebooks/inverse_rendering.ipynb runs both and plots the loss curves; the converged
 errors are in docs/gradients.md.
@@ -21,11 +21,11 @@ from PIL import Image, ImageDraw
 
 import warp_spt
 from warp_spt.demo import demo_dir
-from warp_spt.gradients import render_gradients
+from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.optim import Adam
+from warp_spt.diff.params import parameters
 from warp_spt.losses import l2
-from warp_spt.optim import Adam
-from warp_spt.params import parameters
-from warp_spt.renderer import RenderSettings
+from warp_spt.rendering.settings import RenderSettings
 
 
 @dataclass

@@ -21,7 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from tests.models import write_model  # noqa: E402
-from warp_spt.cli import parse_args, run  # noqa: E402
+from warp_spt.cli.options import parse_args  # noqa: E402
+from warp_spt.cli.render import run  # noqa: E402
 
 
 def main() -> None:

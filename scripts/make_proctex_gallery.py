@@ -19,13 +19,13 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from warp_spt.camera import Camera  # noqa: E402  (after the path set-up, to use this checkout)
-from warp_spt.film import save_image  # noqa: E402
-from warp_spt.loader import load_scene  # noqa: E402
-from warp_spt.renderer import render  # noqa: E402
-from warp_spt.sky import Sky  # noqa: E402
-
 import warp  # noqa: E402
+
+from warp_spt.io.images import save_image  # noqa: E402
+from warp_spt.io.loader import load_scene  # noqa: E402
+from warp_spt.rendering.tiles import render  # noqa: E402
+from warp_spt.scene.camera import Camera  # noqa: E402  (after the path set-up, to use this checkout)
+from warp_spt.scene.sky import Sky  # noqa: E402
 
 warp.config.log_level = warp.LOG_WARNING
 

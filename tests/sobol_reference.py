@@ -1,4 +1,4 @@
-"""A numpy reference for warp_spt.sobol, written from the textbook definitions, not from the kernel.
+"""A numpy reference for warp_spt.samplers.sobol, written from the textbook definitions, not from the kernel.
 
 * Sobol' points: a 32x32 generator matrix over GF(2) per dimension, built from the direction numbers
   m_k of the dimension (dimension 0: m_k = 1; dimension 1: primitive polynomial x + 1, so
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_spt import sobol as S
+from warp_spt.samplers import sobol as S
 
 M32 = np.uint64(0xFFFFFFFF)
 
@@ -130,7 +130,7 @@ def _request(seed, pixel, index, dim):
 
 
 def sobol_2d(seed, pixel, index, dim) -> np.ndarray:
-    """[..., 2] float32 points, as warp_spt.sobol.sobol_2d for broadcast (seed, pixel, index, dim)."""
+    """[..., 2] float32 points, as warp_spt.samplers.sobol.sobol_2d for broadcast (seed, pixel, index, dim)."""
     key, i = _request(seed, pixel, index, dim)
     x = owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)))
     y = owen(sobol_u32(i, 1), mix32(key ^ np.uint64(S.Y_SALT)))
@@ -138,6 +138,6 @@ def sobol_2d(seed, pixel, index, dim) -> np.ndarray:
 
 
 def sobol_1d(seed, pixel, index, dim) -> np.ndarray:
-    """Float32 values, as warp_spt.sobol.sobol_1d: the scrambled van der Corput dimension alone."""
+    """Float32 values, as warp_spt.samplers.sobol.sobol_1d: the scrambled van der Corput dimension alone."""
     key, i = _request(seed, pixel, index, dim)
     return to_unit(owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT))))

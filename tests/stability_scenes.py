@@ -13,14 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_spt import renderer as R
-from warp_spt.camera import Camera
-from warp_spt.device_scene import DeviceScene, Features
-from warp_spt.loader import load_scene
-from warp_spt.sky import Sky
+from warp_spt.core.device_scene import DeviceScene, Features
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering import tiles as R
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 from .scenes import material, write_scene_files
-
 
 GENERAL = Features.general()     # one kernel serves every scene of the suite (one compile)
 
@@ -124,7 +124,7 @@ def render_checked(scene: DeviceScene, camera: Camera, **kw) -> np.ndarray:
     """
     kw.setdefault("features", GENERAL)
     kw.setdefault("integrator", "seed")
-    res = R.render_scene(scene, camera, R.RenderSettings(**kw))
+    res = R.render_scene(scene, camera, RenderSettings(**kw))
     img = res.image
     assert res.stats.dropped_samples == 0, f"{res.stats.dropped_samples} non-finite samples dropped"
     assert np.isfinite(img).all(), "non-finite pixel"

@@ -10,9 +10,10 @@ import pytest
 from PIL import Image
 
 import warp_spt
-from warp_spt.animation import (CameraPath, ObjSequence, frame_path, parse_frames, render_animation,
-                                save_gif, slerp)
-from warp_spt.errors import SceneError
+from warp_spt.animation import CameraPath, ObjSequence, render_animation, slerp
+from warp_spt.io.images import save_gif
+from warp_spt.io.templates import frame_path, parse_frames
+from warp_spt.scene.errors import SceneError
 
 from .scenes import write_ball_sequence
 
@@ -128,7 +129,7 @@ def test_unchanged_meshes_are_uploaded_once_and_render_the_same(tmp_path, monkey
     """Frames share a static mesh's wp.Mesh; a changed mesh is built anew; images equal fresh uploads."""
     import warp as wp
 
-    from warp_spt.device_scene import DeviceScene
+    from warp_spt.core.device_scene import DeviceScene
 
     from .scenes import box_obj, material
 
@@ -218,13 +219,14 @@ def test_save_gif_writes_every_frame(tmp_path):
     (["--frames", "0:2", "-out", "f_{frame}.tif"], r"\.png, \.jpg, \.npy, \.pfm or \.exr"),
 ])
 def test_animation_flags_are_validated(argv, message):
-    from warp_spt.cli import UsageError, parse_args
+    from warp_spt.cli.common import UsageError
+    from warp_spt.cli.options import parse_args
     with pytest.raises(UsageError, match=message):
         parse_args(argv)
 
 
 def test_animation_defaults():
-    from warp_spt.cli import parse_args
+    from warp_spt.cli.options import parse_args
     opts = parse_args(["-obj", "w_{frame:03d}.obj", "--frames", "2:8:2"])
     assert opts.animated and opts.frames == range(2, 8, 2) and opts.out == "frame_{frame:04d}.png"
     assert parse_args(["--frames", "0:3", "--gif", "a.gif"]).out == ""          # only the GIF
@@ -233,7 +235,7 @@ def test_animation_defaults():
 
 
 def test_cli_writes_every_frame_and_a_gif(tmp_path, capsys):
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
     objs, mtls = write_ball_sequence(tmp_path, range(3))
     path = tmp_path / "path.json"
     path.write_text(json.dumps(KEYS))
@@ -250,7 +252,7 @@ def test_cli_writes_every_frame_and_a_gif(tmp_path, capsys):
 
 
 def test_cli_missing_frame_file_is_one_line(tmp_path, capsys):
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
     objs, mtls = write_ball_sequence(tmp_path, range(2))
     status = main(["-mtl", mtls[0], "-obj", objs[0], "-obj", objs[1], "--frames", "0:3", "--quiet",
                    "-out", str(tmp_path / "f_{frame}.png")])

@@ -1,4 +1,4 @@
-"""Albedo and normal feature images for the denoiser (warp_spt.aux_buffers), checked against the
+"""Albedo and normal feature images for the denoiser (warp_spt.rendering.aux_buffers), checked against the
 materials written in the scene: what a pixel shows, directly or through a mirror, has a known colour."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt.aux_buffers import feature_buffers
-from warp_spt.camera import Camera
+from warp_spt.rendering.aux_buffers import feature_buffers
+from warp_spt.scene.camera import Camera
 
 from .scenes import material
 from .stability_scenes import GENERAL, quads_obj, scene_from_text
@@ -53,7 +53,7 @@ def test_normals_are_unit_or_zero_and_the_floor_faces_up(buffers):
 
 
 def test_bad_spp_is_rejected(buffers, tmp_path):
-    from warp_spt.device_scene import DeviceScene  # noqa: F401
+    from warp_spt.core.device_scene import DeviceScene  # noqa: F401
 
     with pytest.raises(ValueError):
         feature_buffers(None, None, 4, 4, spp=0)

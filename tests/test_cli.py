@@ -5,14 +5,17 @@ from __future__ import annotations
 import io
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
-from warp_spt.camera import Camera
-from warp_spt.cli import PRESETS, ProgressBar, UsageError, main, parse_args
-from warp_spt.sky import Sky
+from warp_spt.cli.common import UsageError
+from warp_spt.cli.main import main
+from warp_spt.cli.options import PRESETS, parse_args
+from warp_spt.cli.render import ProgressBar
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 REPO = Path(__file__).resolve().parents[1]
 SEED_DEMO_ARGS = ["-mtl", "testMiku.mtl", "-obj", "cornell_export.obj", "-obj", "baller.obj",

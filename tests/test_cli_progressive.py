@@ -13,9 +13,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from warp_spt.cli import main, parse_args
-from warp_spt.cli_progressive import EXIT_SECONDS, false_colour, finish_seconds, process_start
-from warp_spt.film import load_image
+from warp_spt.cli.main import main
+from warp_spt.cli.options import parse_args
+from warp_spt.cli.progressive import (
+    EXIT_SECONDS,
+    false_colour,
+    finish_seconds,
+    process_start,
+)
+from warp_spt.io.images import load_image
 
 from .scenes import material
 from .stability_scenes import quads_obj
@@ -103,7 +109,7 @@ def test_save_partial_leaves_a_valid_image_on_sigint(tmp_path, lit_files):
 
 
 def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatch):
-    from warp_spt import denoise as dn
+    from warp_spt.rendering import denoise as dn
 
     out = tmp_path / "d.npy"
     args = lit_files + ["-res", "16", "12", "-sr", "8", "--denoise", "-out", str(out)]
@@ -119,7 +125,7 @@ def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatc
 def fake_denoiser(monkeypatch, seconds_per_pixel: float) -> list:
     """pyoidn stood in for: ``available()`` is True and ``denoise`` sleeps ``seconds_per_pixel`` per pixel,
     checks its inputs and returns the colour. Returns the list of image shapes it was called with."""
-    from warp_spt import denoise as dn
+    from warp_spt.rendering import denoise as dn
 
     calls = []
 
@@ -135,7 +141,7 @@ def fake_denoiser(monkeypatch, seconds_per_pixel: float) -> list:
 
 
 def test_the_save_reserve_counts_the_denoiser(tmp_path, monkeypatch):
-    from warp_spt import denoise as dn
+    from warp_spt.rendering import denoise as dn
 
     monkeypatch.setattr(dn, "available", lambda: False)     # no pyoidn: the documented conservative figure
     assert dn.seconds(200, 100) == dn.SECONDS_FIXED + dn.SECONDS_PER_PIXEL * 20000
@@ -147,7 +153,7 @@ def test_the_save_reserve_counts_the_denoiser(tmp_path, monkeypatch):
 
 
 def test_a_time_budget_leaves_room_for_the_denoiser(tmp_path, lit_files, monkeypatch):
-    from warp_spt import aux_buffers, progressive
+    from warp_spt.rendering import aux_buffers, progressive
 
     calls = fake_denoiser(monkeypatch, 1e-3)     # 0.19 s for 16 x 12: more than saving a small PNG
     shape = (12, 16, 3)
@@ -167,7 +173,7 @@ def test_a_time_budget_leaves_room_for_the_denoiser(tmp_path, lit_files, monkeyp
 
 
 def test_denoiser_reduces_noise_on_a_smooth_image():
-    from warp_spt import denoise as dn
+    from warp_spt.rendering import denoise as dn
 
     if not dn.available():
         pytest.skip("pyoidn is not installed (extra [denoise])")

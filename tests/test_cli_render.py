@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from warp_spt.cli import main
-from warp_spt.sky import Sky
+from warp_spt.cli.main import main
+from warp_spt.scene.sky import Sky
 
 from .fakes import fake_renderer
 from .reference import literal_seed_search
@@ -126,7 +126,7 @@ def test_the_seeds_demo_command_renders(tmp_path, monkeypatch):
 
 def stub_view(monkeypatch) -> None:
     """No framing, probes or upload for a stubbed engine: the CLI renders its own camera and sky."""
-    monkeypatch.setattr("warp_spt.cli.prepare_view", lambda opts, scene, say, **kw: (scene, opts.camera, opts.sky))
+    monkeypatch.setattr("warp_spt.cli.render.prepare_view", lambda opts, scene, say, **kw: (scene, opts.camera, opts.sky))
 
 
 class FakeEngine:
@@ -139,9 +139,9 @@ class FakeEngine:
                                       bounds=np.zeros((2, 3)))
         stub_view(monkeypatch)
         fakes = {
-            "warp_spt.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),
-            "warp_spt.renderer": fake_renderer(self._render),
-            "warp_spt.film": types.SimpleNamespace(save_image=self._save),
+            "warp_spt.io.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),
+            "warp_spt.rendering.tiles": fake_renderer(self._render),
+            "warp_spt.io.images": types.SimpleNamespace(save_image=self._save),
         }
         for name, module in fakes.items():
             monkeypatch.setitem(sys.modules, name, module)
@@ -216,14 +216,14 @@ def test_a_failed_render_leaves_no_file_and_keeps_an_old_one(tmp_path, monkeypat
 
 
 def test_scene_errors_are_one_line(tmp_path, monkeypatch, capsys):
-    from warp_spt.errors import SceneError
+    from warp_spt.scene.errors import SceneError
 
     FakeEngine(monkeypatch)
 
     def bad_load(objs, mtls, **kw):
         raise SceneError("room.obj", 12, "expected 3 numbers after 'v'")
 
-    monkeypatch.setattr(sys.modules["warp_spt.loader"], "load_scene", bad_load)
+    monkeypatch.setattr(sys.modules["warp_spt.io.loader"], "load_scene", bad_load)
     assert main(["-res", "4", "4", "-out", str(tmp_path / "o.png")]) == 1
     assert capsys.readouterr().err == "warp-spt: error: room.obj:12: expected 3 numbers after 'v'\n"
     assert not (tmp_path / "o.png").exists()
@@ -231,14 +231,14 @@ def test_scene_errors_are_one_line(tmp_path, monkeypatch, capsys):
 
 def test_real_interrupt_during_save_leaves_no_partial_file(tmp_path, monkeypatch):
     """With the real film writer: a Ctrl-C while the file is written leaves nothing behind."""
-    import warp_spt.film as film
+    import warp_spt.io.images as film
 
     real_save = film.save_image
-    monkeypatch.setitem(sys.modules, "warp_spt.loader",
+    monkeypatch.setitem(sys.modules, "warp_spt.io.loader",
                         types.SimpleNamespace(load_scene=lambda o, m, **kw: types.SimpleNamespace(
                             warnings=[], num_triangles=0, spheres=np.zeros((0, 4)), bounds=np.zeros((2, 3)))))
     stub_view(monkeypatch)
-    monkeypatch.setitem(sys.modules, "warp_spt.renderer",
+    monkeypatch.setitem(sys.modules, "warp_spt.rendering.tiles",
                         fake_renderer(lambda scene, camera, **kw: np.full((kw["height"], kw["width"], 3), 0.5, np.float32)))
 
     def interrupted_write(*args, **kwargs):

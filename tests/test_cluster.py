@@ -19,7 +19,8 @@ pytest.importorskip("distributed")
 
 import warp_spt  # noqa: E402
 from warp_spt import cluster  # noqa: E402
-from warp_spt.renderer import RenderSettings  # noqa: E402
+from warp_spt.rendering.schedule import pass_ranges  # noqa: E402
+from warp_spt.rendering.settings import RenderSettings  # noqa: E402
 
 from .scenes import box_obj, material, write_scene_files  # noqa: E402
 
@@ -52,7 +53,7 @@ def _reference(scene, **kw) -> warp_spt.Film:
 
 def test_tasks_cover_every_row_and_pass_once_in_order():
     s = RenderSettings(width=16, height=16, spp=1000, sample_offset=5)
-    passes = cluster.pass_ranges(s)
+    passes = pass_ranges(s.spp, s.width, s.height, s.sample_offset)
     assert sum(c for _, c in passes) == 1000 and passes[0][0] == 5
     assert [a for a, _ in passes] == list(np.cumsum([5] + [c for _, c in passes[:-1]]))
     for task_spp in (None, 1, 256, 700, 5000):
@@ -93,7 +94,7 @@ def test_cluster_render_is_bit_identical_to_one_process(client, small_scene):
     seen = []
     film = cluster.render_film(client, small_scene, CAMERA, task_spp=1, tile_rows=5, timeout=TIMEOUT,
                                progress=lambda done, total: seen.append((done, total)), **kw)
-    assert len(cluster.pass_ranges(RenderSettings(20, 12, 700))) >= 3     # really several passes x 3 tiles
+    assert len(pass_ranges(700, 20, 12)) >= 3     # really several passes x 3 tiles
     assert film.spp == ref.spp == 700
     assert np.array_equal(film.sum, ref.sum)
     assert seen[-1] == (20 * 12 * 700, 20 * 12 * 700) and [d for d, _ in seen] == sorted(d for d, _ in seen)
@@ -166,7 +167,7 @@ def test_missing_dask_gives_an_install_hint(monkeypatch):
 
 def test_cli_cluster_and_workers_write_the_single_process_image(client, small_scene, tmp_path, scene_dir):
     """--cluster ADDRESS (this module's cluster) and --workers 1 give the same .npy as a plain render."""
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
 
     from .scenes import write_ball_sequence
 
@@ -189,7 +190,7 @@ def test_cli_cluster_and_workers_write_the_single_process_image(client, small_sc
 def test_cli_unreachable_cluster_is_one_line(tmp_path, capsys, monkeypatch):
     from functools import partial
 
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
 
     monkeypatch.setattr(cluster, "connect", partial(cluster.connect, timeout=2))
     out = tmp_path / "x.png"
@@ -215,7 +216,7 @@ def test_a_second_render_keeps_the_workers_scene_caches(client, small_scene):
 def _batch_films_are_plain_renders(scene, result, seed: int, **kw) -> None:
     """Batch b of a budgeted cluster render is the plain single-process render of its samples with
     seed batch_seed(seed, b): an independent reference, bit for bit."""
-    from warp_spt.progressive import batch_seed
+    from warp_spt.rendering.schedule import batch_seed
 
     assert (result.counts[:, :1, :1] == result.counts).all()
     for b, n in enumerate(result.counts[:, 0, 0]):
@@ -258,7 +259,7 @@ def test_time_budget_on_the_cluster(client, small_scene):
 
 def test_cli_target_error_on_the_cluster(client, tmp_path, capsys):
     """--target-error with --cluster: rounds until the estimate is met; other budget flags are refused."""
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
 
     from .scenes import write_ball_sequence
 

@@ -9,14 +9,20 @@ import sys
 import numpy as np
 import pytest
 
-from warp_spt.cli import main
-from warp_spt.convergence import COLUMNS, fit_slope, levels, parse_config, default_configs
+from warp_spt.cli.main import main
+from warp_spt.rendering.convergence import (
+    COLUMNS,
+    default_configs,
+    fit_slope,
+    levels,
+    parse_config,
+)
 
 from .test_cli_progressive import lit_files  # noqa: F401  (fixture)
 
 
 def test_config_names():
-    from warp_spt.renderer import DEFAULT_INTEGRATOR, DEFAULT_SAMPLER
+    from warp_spt.rendering.settings import DEFAULT_INTEGRATOR, DEFAULT_SAMPLER
 
     assert parse_config("nee/sobol+adaptive") == ("nee", "sobol", {"adaptive"})
     assert parse_config("uniform") == (DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, set())

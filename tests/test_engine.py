@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt import renderer as R
-from warp_spt.camera import Camera
-from warp_spt.device_scene import DeviceScene, Features
-from warp_spt.loader import load_scene
-from warp_spt.sky import Sky
+from warp_spt.core.device_scene import DeviceScene, Features
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering import tiles as R
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 from .scenes import box_obj, material, quad_obj, write_scene_files
 
@@ -139,6 +140,6 @@ def test_specialised_and_general_kernels_agree(scene_dir):
     cam = Camera(position=(0, -6, 0), direction=(0, 1, 0), fov=40.0, aperture=0.0, focus=6.0)
     kw = dict(width=12, height=12, spp=4, max_depth=4, seed=3, sky=Sky.gradient())
     a = R.render(scene, cam, **kw)
-    res = R.render_scene(scene, cam, R.RenderSettings(features=Features.general(), **kw))
+    res = R.render_scene(scene, cam, RenderSettings(features=Features.general(), **kw))
     assert np.array_equal(a, res.image)
     assert res.stats.dropped_samples == 0

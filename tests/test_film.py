@@ -8,8 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_spt import film as film_mod
-from warp_spt.film import Film, load_image, read_pfm, save_image, tonemap_seed, tonemap_srgb
+from warp_spt.io import images as film_mod
+from warp_spt.io.images import (
+    load_image,
+    read_pfm,
+    save_image,
+    tonemap_seed,
+    tonemap_srgb,
+)
+from warp_spt.rendering.film import Film
 
 from .reference import literal_seed_search
 

@@ -23,12 +23,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from warp_spt.camera import Camera
-from warp_spt.cli import main
-from warp_spt.errors import SceneError
-from warp_spt.loader import load_scene
-from warp_spt.sky import Sky
-from warp_spt.validate import MAX_RADIANCE
+from warp_spt.cli.main import main
+from warp_spt.io.loader import load_scene
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.sky import Sky
+from warp_spt.scene.validate import MAX_RADIANCE
 
 from .test_parse_fuzz import MTL_SEED, OBJ_SEED, PIECES, mutated
 
@@ -93,8 +93,9 @@ def check_scene(obj: bytes, mtl: bytes, png: bytes, sky: float, capsys) -> str:
             assert len(lines) == 1 and lines[0].startswith("warp-spt: error: "), err
             assert any(lines[0].startswith(f"warp-spt: error: {f}") for f in files), err
             return "error"
-    from warp_spt.device_scene import Features
-    from warp_spt.renderer import RenderSettings, render_scene
+    from warp_spt.core.device_scene import Features
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render_scene
 
     res = render_scene(scene, CAMERA, RenderSettings(width=8, height=8, spp=1, max_depth=2,
                                                      sky=Sky.constant(sky, sky, sky), threads=1,

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt import renderer as R
-from warp_spt.camera import Camera
-from warp_spt.device_scene import DeviceScene
-from warp_spt.gradients import enable_material_gradients, render_differentiable
-from warp_spt.loader import load_scene
-from warp_spt.sky import Sky
+from warp_spt.core.device_scene import DeviceScene
+from warp_spt.diff.gradients import enable_material_gradients, render_differentiable
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering import tiles as R
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 from .scenes import box_obj, material, write_scene_files
 

@@ -13,13 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import warp_spt.tokens as tokens
-from warp_spt.cli import UsageError, main, parse_args
-from warp_spt.errors import SceneError
-from warp_spt.film import save_image
-from warp_spt.loader import load_scene
-from warp_spt.sky import SKY_CONSTANT, Sky
-from warp_spt.validate import MAX_RADIANCE
+import warp_spt.io.tokens as tokens
+from warp_spt.cli.common import UsageError
+from warp_spt.cli.main import main
+from warp_spt.cli.options import parse_args
+from warp_spt.io.images import save_image
+from warp_spt.io.loader import load_scene
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.sky import SKY_CONSTANT, Sky
+from warp_spt.scene.validate import MAX_RADIANCE
 
 from .fakes import fake_renderer
 
@@ -181,8 +183,8 @@ def test_camera_overrides_beyond_float32_are_refused_in_one_line(argv, message, 
 def test_the_api_camera_refuses_what_the_cli_refuses(tmp_path, changes, message):
     from dataclasses import replace
 
-    from warp_spt.camera import Camera
-    from warp_spt.renderer import render
+    from warp_spt.rendering.tiles import render
+    from warp_spt.scene.camera import Camera
 
     cam = replace(Camera(), **changes)            # a frozen dataclass: construction itself does not check
     ball = load_scene([str(write(tmp_path, "b.obj", "b 0 0 0 1\n"))], warn=lambda m: None)
@@ -197,7 +199,7 @@ def test_the_api_camera_refuses_what_the_cli_refuses(tmp_path, changes, message)
 
 
 def test_a_tall_image_bounds_the_image_plane_too():
-    from warp_spt.camera import Camera
+    from warp_spt.scene.camera import Camera
 
     cam = Camera(fov=179.99999, focus=1e10)     # half-width 1.1e17: fine for a wide image
     cam.image_plane(100, 10)
@@ -287,8 +289,8 @@ def thin_texture_scene(tmp_path: Path, n: int) -> Path:
 
 @pytest.mark.parametrize("n", [20000, 40000])
 def test_thin_textures_take_the_sum_of_their_areas_and_sample_right(tmp_path, n):
-    from warp_spt.device_scene import DeviceScene
-    from warp_spt.textures import Atlas, sample_texture_np
+    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.core.textures import Atlas, sample_texture_np
 
     from .test_textures import run_sample
 
@@ -308,7 +310,7 @@ def test_thin_textures_take_the_sum_of_their_areas_and_sample_right(tmp_path, n)
 
 
 def test_textures_beyond_the_budget_are_refused_from_the_header_naming_them(tmp_path, monkeypatch):
-    import warp_spt.loader as loader
+    import warp_spt.io.loader as loader
 
     monkeypatch.setattr(loader, "TEXEL_BUDGET", 30000)      # 1x20000 + 20000x1 fit 2**26, not this
     read = []
@@ -340,7 +342,7 @@ def test_a_16_bit_grey_texture_keeps_its_values(tmp_path):
 
 
 def test_out_of_memory_while_loading_names_the_scene(tmp_path, monkeypatch, capsys):
-    import warp_spt.loader as loader
+    import warp_spt.io.loader as loader
 
     def no_memory(*args, **kwargs):
         raise MemoryError
@@ -367,9 +369,8 @@ def test_an_unwritable_directory_names_the_output_not_the_temp_file(tmp_path, mo
 
 
 def test_dropped_samples_are_reported_even_with_quiet(tmp_path, monkeypatch, capsys):
-    import types
 
-    monkeypatch.setitem(sys.modules, "warp_spt.renderer", fake_renderer(
+    monkeypatch.setitem(sys.modules, "warp_spt.rendering.tiles", fake_renderer(
         lambda scene, camera, **kw: np.zeros((kw["height"], kw["width"], 3), np.float32), dropped_samples=3))
     obj = write(tmp_path, "a.obj", TRI)
     assert main(["-obj", str(obj), "--quiet", "-res", "2", "2", "-out", str(tmp_path / "o.npy")]) == 0

@@ -1,6 +1,6 @@
 """Ctrl-C and SIGTERM: cancellation that does not depend on where the signal lands (issue 11, part 1).
 
-Unit tests of :mod:`warp_spt.parallel` and :mod:`warp_spt.signals`, then real CLI processes
+Unit tests of :mod:`warp_spt.runtime.threads` and :mod:`warp_spt.runtime.signals`, then real CLI processes
 interrupted at random moments (a short run of the trials that ``benchmarks/soak_interrupt.py``
 repeats hundreds of times).
 """
@@ -14,8 +14,8 @@ import time
 
 import pytest
 
-from warp_spt.parallel import run_jobs
-from warp_spt.signals import Interrupted, deferred_signals, exit_status
+from warp_spt.runtime.signals import Interrupted, deferred_signals, exit_status
+from warp_spt.runtime.threads import run_jobs
 
 from . import interrupt_trials as T
 
@@ -132,7 +132,7 @@ def test_an_interruption_that_library_code_wraps_is_still_reported_as_one(tmp_pa
     import sys
     import types
 
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
 
     def wrapping_load(objs, mtls, **kw):
         try:
@@ -141,7 +141,7 @@ def test_an_interruption_that_library_code_wraps_is_still_reported_as_one(tmp_pa
         except KeyboardInterrupt as err:
             raise ImportError("Importing the numpy C-extensions failed.") from err
 
-    monkeypatch.setitem(sys.modules, "warp_spt.loader", types.SimpleNamespace(load_scene=wrapping_load))
+    monkeypatch.setitem(sys.modules, "warp_spt.io.loader", types.SimpleNamespace(load_scene=wrapping_load))
     obj = tmp_path / "a.obj"
     obj.write_text("b 0 0 0 1\n")
     assert main(["-obj", str(obj), "--quiet", "-out", str(tmp_path / "o.png")]) == 143
@@ -153,9 +153,9 @@ def test_the_entry_points_import_nothing_heavy_before_the_handlers():
     import subprocess
     import sys
 
-    code = ("import sys, signal; import warp_spt.__main__, warp_spt.cli; "
+    code = ("import sys, signal; import warp_spt.__main__, warp_spt.cli.main; "
             "heavy = [m for m in ('numpy', 'warp', 'PIL', 'tqdm') if m in sys.modules]; "
-            "warp_spt.signals.install_cli_handlers(); "
+            "warp_spt.runtime.signals.install_cli_handlers(); "
             "print(heavy, signal.getsignal(signal.SIGTERM).__name__)")
     env = dict(os.environ, PYTHONPATH=str(T.REPO))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
@@ -169,7 +169,7 @@ def test_an_interruption_swallowed_by_a_callback_is_raised_again(tmp_path, monke
     import types
     import weakref
 
-    from warp_spt.cli import main
+    from warp_spt.cli.main import main
 
     reached = []
 
@@ -185,11 +185,11 @@ def test_an_interruption_swallowed_by_a_callback_is_raised_again(tmp_path, monke
         reached.append("after the callback")
 
     fake_loader = types.SimpleNamespace(load_scene=load_with_a_swallowing_callback)
-    monkeypatch.setitem(sys.modules, "warp_spt.loader", fake_loader)
+    monkeypatch.setitem(sys.modules, "warp_spt.io.loader", fake_loader)
     obj = tmp_path / "a.obj"
     obj.write_text("b 0 0 0 1\n")
     assert main(["-obj", str(obj), "--quiet", "-out", str(tmp_path / "o.png")]) == 143
     assert capsys.readouterr().err == "warp-spt: terminated\n"
     assert reached == []                                  # the load itself was interrupted
-    from warp_spt.signals import _cli_unraisable
+    from warp_spt.runtime.signals import _cli_unraisable
     assert sys.unraisablehook is not _cli_unraisable      # the caller's hook is back

@@ -6,12 +6,11 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.device_scene import DeviceScene, Features, Geometry
-from warp_spt.geometry import SMALL_SCENE, make_closest_hit, make_occluded
-from warp_spt.loader import load_scene
+from warp_spt.core.device_scene import DeviceScene, Features, Geometry
+from warp_spt.core.geometry import SMALL_SCENE, make_closest_hit, make_occluded
+from warp_spt.io.loader import load_scene
 
 from .scenes import box_obj, write_scene_files
-
 
 _closest = make_closest_hit(Features.general())
 _occluded = make_occluded(Features.general())

@@ -22,19 +22,31 @@ import pytest
 import warp as wp
 from PIL import Image
 
-from warp_spt.camera import Camera
-from warp_spt.device_scene import Geometry, Materials, Textures
-from warp_spt.geometry import KIND_MISS, NO_HIT, make_closest_hit
+from warp_spt.core.device_scene import Geometry, Materials, Textures
+from warp_spt.core.geometry import KIND_MISS, NO_HIT, make_closest_hit
+from warp_spt.core.lights import Lights, light_table, make_lights
+from warp_spt.core.materials import make_materials
+from warp_spt.core.surface import Surface, make_surface
 from warp_spt.integrators import INTEGRATORS
-from warp_spt.lights import Lights, light_table, make_lights
-from warp_spt.materials import make_materials
+from warp_spt.rendering.settings import RenderSettings
 from warp_spt.samplers import SAMPLERS
-from warp_spt.sky import Sky
-from warp_spt.surface import Surface, make_surface
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 from .scenes import box_obj, material
-from .stability_scenes import (GENERAL, R, assert_same_image, cornell_camera, cornell_files, load, quads_obj,
-                               render_checked, scene_from_text, sky, t_quantile)
+from .stability_scenes import (
+    GENERAL,
+    R,
+    assert_same_image,
+    cornell_camera,
+    cornell_files,
+    load,
+    quads_obj,
+    render_checked,
+    scene_from_text,
+    sky,
+    t_quantile,
+)
 
 COMBOS = [(i, s) for i in sorted(INTEGRATORS) for s in sorted(SAMPLERS)]
 
@@ -301,7 +313,7 @@ POINTS = {"amid": (0.1, 0.2, -0.1), "near": (0.3, -0.2, 1.7), "far": (0.5, -0.3,
 @pytest.mark.parametrize("where", sorted(POINTS))
 @pytest.mark.parametrize("sky_", [Sky.gradient(), Sky.constant(0.0, 0.0, 0.0), Sky.gradient(up=(1, -2, 3))])
 def test_light_pdfs_integrate_to_one_and_match_sampling(light_scene, sky_, where):
-    from warp_spt.lights import MAX_SPHERICAL, MIN_SPHERICAL
+    from warp_spt.core.lights import MAX_SPHERICAL, MIN_SPHERICAL
     k = _pdf_kernels()
     dev, x = light_scene, wp.vec3(*POINTS[where])
     omega = _solid_angles(dev, POINTS[where])            # the bright quad's two triangles, then the dim one's
@@ -443,7 +455,9 @@ def test_integrators_and_samplers_converge_to_the_same_image(references, scene, 
 
 
 def test_integrator_and_sampler_are_chosen_by_name():
-    from warp_spt.cli import EXIT_USAGE, main, parse_args
+    from warp_spt.cli.common import EXIT_USAGE
+    from warp_spt.cli.main import main
+    from warp_spt.cli.options import parse_args
     opts = parse_args(["--integrator", "seed", "--sampler", "sobol"])
     assert (opts.integrator, opts.sampler) == ("seed", "sobol")
     assert (parse_args([]).integrator, parse_args([]).sampler) == (None, None)     # the renderer's defaults
@@ -451,16 +465,16 @@ def test_integrator_and_sampler_are_chosen_by_name():
     assert main(["--integrator", "bidir", "--quiet", "-res", "2", "2"]) == EXIT_USAGE
     assert main(["--sampler", "halton", "--quiet", "-res", "2", "2"]) == EXIT_USAGE
     with pytest.raises(ValueError, match="unknown integrator"):
-        R.render_scene(None, None, R.RenderSettings(integrator="bidir"))    # checked before any upload
+        R.render_scene(None, None, RenderSettings(integrator="bidir"))    # checked before any upload
     with pytest.raises(ValueError, match="unknown sampler"):
-        R.render_scene(None, None, R.RenderSettings(sampler="halton"))
+        R.render_scene(None, None, RenderSettings(sampler="halton"))
 
 
 def test_reused_pick_number_is_uniform_per_light(light_scene):
     # NEE with sobol picks the light and the point on it from one 2D request: what is left of the
     # pick's number must be uniform on [0, 1) given the chosen light (an independent check: sorted
     # leftovers of an even grid of picks against their uniform quantiles).
-    from warp_spt.lights import pick_entry, reuse_pick
+    from warp_spt.core.lights import pick_entry, reuse_pick
 
     @wp.kernel(module="unique")
     def leftovers(lights: Lights, u: wp.array(dtype=float), entry: wp.array(dtype=int), rest: wp.array(dtype=float)):

@@ -9,9 +9,17 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from warp_spt.errors import SceneError
-from warp_spt.loader import load_scene, validate_scene
-from warp_spt.scene import CHECKER_NAME, SLOT_DIFFUSE, SLOT_EMISSION, SLOT_REFLECT, SLOT_REFRACT, TEX_CHECKER, TEX_NONE
+from warp_spt.io.loader import load_scene, validate_scene
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import (
+    CHECKER_NAME,
+    SLOT_DIFFUSE,
+    SLOT_EMISSION,
+    SLOT_REFLECT,
+    SLOT_REFRACT,
+    TEX_CHECKER,
+    TEX_NONE,
+)
 
 TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
 

@@ -17,11 +17,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_spt import framing, renderer
-from warp_spt.camera import Camera
-from warp_spt.cli import parse_args, run
+from warp_spt.cli import view_checks
+from warp_spt.cli.main import run
+from warp_spt.cli.options import parse_args
 from warp_spt.demo import demo_files
-from warp_spt.loader import load_scene
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering import tiles
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.recentre import recentre
 
 from .models import MARKER_MTL, write_model
 
@@ -116,7 +119,7 @@ def test_look_at_and_up_axes():
 
 
 def warnings_for(scene, camera, width=64):
-    return framing.view_warnings(scene, camera, width, width)
+    return view_checks.view_warnings(scene, camera, width, width)
 
 
 @pytest.fixture(scope="module")
@@ -136,18 +139,18 @@ def test_an_open_sheet_or_a_room_seen_from_inside_is_not_reported(scene_dir):
     sheet = scene_dir / "quad.obj"
     sheet.write_text("v -9 -9 0\nv 9 -9 0\nv 9 9 0\nv -9 9 0\nf 1 2 3 4\n")
     for below in ((0, 0, -1), (0, 0, 1)):
-        assert framing.enclosing_object(load_scene([str(sheet)]), below) is None
+        assert view_checks.enclosing_object(load_scene([str(sheet)]), below) is None
     # The stability suite's closed room has its faces pointing inwards: a camera inside it is an interior
     # view, not a camera stuck inside a solid. Turned inside out (faces outwards), it is a solid.
     objs, mtls = cornell_files(scene_dir)
     room = load_scene(objs, mtls, warn=lambda m: None)
     cam = cornell_camera()
-    assert framing.enclosing_object(room, cam.position) is None
+    assert view_checks.enclosing_object(room, cam.position) is None
     flipped = room.meshes[0].indices[:, ::-1].copy()
     from dataclasses import replace
     solid = replace(room, meshes=[replace(room.meshes[0], indices=flipped)], spheres=room.spheres[:0],
                     sphere_material=room.sphere_material[:0])
-    assert framing.enclosing_object(solid, cam.position) == room.meshes[0].name
+    assert view_checks.enclosing_object(solid, cam.position) == room.meshes[0].name
 
 
 def test_camera_seeing_nothing_warns(blob):
@@ -174,9 +177,9 @@ def test_the_demos_raise_no_warning(seed_demo):
     assert not [w for w in seed.warnings if "not supported" in w or "albedo" in w]
     assert warnings_for(seed, Camera(), 512) == []
     for scene in (builtin, seed):
-        pr = framing.probe(scene, Camera())
-        assert not framing.should_frame(scene, Camera(), pr.coverage)
-        assert not framing.recentre(scene, Camera())[2].any()
+        pr = view_checks.probe(scene, Camera())
+        assert not view_checks.should_frame(scene, Camera(), pr.coverage)
+        assert not recentre(scene, Camera())[2].any()
 
 
 def test_mtl_reports_unsupported_tags_once_per_file(scene_dir):
@@ -192,7 +195,7 @@ def test_mtl_reports_unsupported_tags_once_per_file(scene_dir):
     row = scene.materials.names.index("a")
     assert math.isclose(scene.materials.roughness[row], 0.8 / 1.3, rel_tol=1e-6)          # Ks: specular share
     assert math.isclose(scene.materials.fuzz[row], math.sqrt(5 / 100), rel_tol=1e-6)      # Ns 98
-    from warp_spt.mtl import load_mtl
+    from warp_spt.io.mtl import load_mtl
     b = load_mtl(str(mtl))["b"]
     assert b.roughness == 0.0 and b.fuzz == 0.3                                           # Pm 1, Pr 0.3
 
@@ -245,7 +248,7 @@ def test_the_builtin_demo_is_bit_identical_to_main(tmp_path):
 
 
 def test_model_flags_parse():
-    from warp_spt.cli import UsageError
+    from warp_spt.cli.common import UsageError
     o = parse_args(["-obj", "m.obj", "--up", "-y", "--look-at", "4", "-52", "20", "--fov", "50", "--aperture", "0"])
     assert o.up == "-y" and o.camera.up == (0.0, -1.0, 0.0) and o.cam_given
     assert np.allclose(o.camera.direction, (0, 0.6, 0.8)) and math.isclose(o.camera.focus, 5.0)
@@ -278,8 +281,8 @@ def test_a_cold_kernel_cache_is_announced_once(scene_dir, tmp_path):
 
 @pytest.mark.parametrize("up", ["y", "z"])
 def test_studio_adds_a_ground_under_the_model_and_a_key_light_above(scene_dir, up):
-    from warp_spt.studio import add_studio
-    from warp_spt.camera import up_vector
+    from warp_spt.scene.camera import up_vector
+    from warp_spt.scene.studio import add_studio
     scene = load_scene([model(scene_dir, f"studio cow {up}", shape="cow", up=up)], default_material="clay")
     before = [m.positions.copy() for m in scene.meshes]
     studio = add_studio(scene, up=up)
@@ -296,8 +299,8 @@ def test_studio_adds_a_ground_under_the_model_and_a_key_light_above(scene_dir, u
     assert light[:3] @ u - light[3] > high, "the key light is entirely above the model"
     assert studio.materials.emission[studio.sphere_material[0]].min() > 0
     # Under a black sky the key light is the only source: without it the image is exactly black.
-    from warp_spt.sky import Sky
+    from warp_spt.scene.sky import Sky
     cam, kw = Camera.frame(scene, up=up), dict(width=24, height=24, spp=4, max_depth=3, sky=Sky.constant(0, 0, 0))
-    assert renderer.render(scene, cam, **kw).max() == 0.0
-    lit = renderer.render(studio, cam, **kw)
+    assert tiles.render(scene, cam, **kw).max() == 0.0
+    lit = tiles.render(studio, cam, **kw)
     assert np.isfinite(lit).all() and lit.mean() > 0.01

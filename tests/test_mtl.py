@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from warp_spt.errors import SceneError
-from warp_spt.mtl import builtin_checker, load_mtl, parse_mtl_bytes
-from warp_spt.scene import CHECKER_NAME, TextureRef
+from warp_spt.io.mtl import builtin_checker, load_mtl, parse_mtl_bytes
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import CHECKER_NAME, TextureRef
 
 # SEMANTICS §6.2, written out independently of the Material defaults
 SEED_DIFFUSE = (0x9F / 256, 0x8F / 256, 0x7C / 256)

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt.errors import SceneError
-from warp_spt.obj import load_obj, parse_obj_bytes, write_obj
-from warp_spt.scene import CHECKER_NAME
+from warp_spt.io.obj import load_obj, parse_obj_bytes, write_obj
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import CHECKER_NAME
 
 SCANNERS = [pytest.param(True, id="fast"), pytest.param(False, id="lines")]
 SQUARE = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
@@ -254,7 +254,7 @@ def test_scanners_agree_on_mixed_files(tmp_path, seed):
 
 
 def test_fast_scanner_handles_bulk_files():
-    from warp_spt.obj_fast import scan_bulk
+    from warp_spt.io.obj_bulk import scan_bulk
 
     text = SQUARE * 3 + "vt 0 0\nvn 0 0 1\n" + "f 1/1/1 2/1/1 3/1/1 4/1/1\n" * 5 + "usemtl m\nb 0 0 0 1\n"
     assert scan_bulk(text.encode(), "x") is not None

@@ -22,12 +22,13 @@ import pytest
 from PIL import Image
 
 from warp_spt import losses
-from warp_spt.camera import Camera
-from warp_spt.gradients import render_gradients
-from warp_spt.loader import load_scene
-from warp_spt.params import parameters
-from warp_spt.renderer import RenderSettings, render_scene
-from warp_spt.sky import Sky
+from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.params import parameters
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.tiles import render_scene
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 from .scenes import material, quad_obj, write_scene_files
 from .test_gradients import CAM as ROOM_CAM

@@ -29,16 +29,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from warp_spt.camera import Camera
-from warp_spt.gradients import render_gradients
-from warp_spt.loader import load_scene
-from warp_spt.params import parameters
-from warp_spt.renderer import RenderSettings
-from warp_spt.sky import Sky
+from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.params import parameters
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.sky import Sky
 
 from .scenes import quad_obj, write_scene_files
-from .test_param_gradients import _fd as central_difference
 from .test_param_gradients import _assert_colours_match_fd, _image_sum, _ones
+from .test_param_gradients import _fd as central_difference
 
 NOISE_MTL = ("newmtl quad\nKd 1 1 1\nmap_Kd proc:noise scale=1.5 color1=0.1,0.2,0.3 color2=0.9,0.8,0.6\n"
              "Roughness 0.5\nFuzz 0.2\n")

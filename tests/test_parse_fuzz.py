@@ -10,9 +10,9 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from warp_spt.errors import SceneError
-from warp_spt.mtl import parse_mtl_bytes
-from warp_spt.obj import parse_obj_bytes
+from warp_spt.io.mtl import parse_mtl_bytes
+from warp_spt.io.obj import parse_obj_bytes
+from warp_spt.scene.errors import SceneError
 
 OBJ_SEED = (b"# c\nmtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 1.5e-3\nvt 0 0\nvt 1 0 0\nvn 0 0 1\n"
             b"o name\nusemtl red\nf 1/1/1 2/2/1 3/1/1\nf -4//1 -3//1 -2//1 -1//1\nf 1 2 4\ng g\ns 1\n"

@@ -1,4 +1,4 @@
-"""Path-replay backpropagation (warp_spt.prb) against independent references.
+"""Path-replay backpropagation (warp_spt.diff.prb) against independent references.
 
 * The tape (Warp's adjoint of the step unrolled to the depth) computes the same derivative another
   way: the two agree to float32 rounding for every replayable kind, including roughness (score
@@ -25,15 +25,23 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from warp_spt.gradients import render_gradients
-from warp_spt.lights import Lights, light_table, table_key
-from warp_spt.params import parameters
-from warp_spt.sky import Sky
+from warp_spt.core.lights import Lights, light_table, table_key
+from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.params import parameters
+from warp_spt.scene.sky import Sky
 
 from .test_gradients import CAM as ROOM_CAM
 from .test_gradients import room  # noqa: F401  (fixture)
-from .test_param_gradients import QUAD_CAM, QUAD_RS, ROOM_RS, ROOM_SKY, _fd, _image_sum, _ones
-from .test_param_gradients import quad_scene  # noqa: F401  (fixture)
+from .test_param_gradients import (
+    QUAD_CAM,
+    QUAD_RS,
+    ROOM_RS,
+    ROOM_SKY,
+    _fd,
+    _image_sum,
+    _ones,
+    quad_scene,  # noqa: F401  (fixture)
+)
 
 COLOURS = ["wall.diffuse", "ball.diffuse", "wall.reflect"]
 SEED_NAMES = COLOURS + ["lamp.emission", "sky.color", "wall.roughness", "ball.roughness"]

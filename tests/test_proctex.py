@@ -1,9 +1,8 @@
-"""Procedural textures (warp_spt.proctex): MTL syntax, analytic renders, the seed's checker through
+"""Procedural textures (warp_spt.core.proctex): MTL syntax, analytic renders, the seed's checker through
 the new path, user modules from the CLI, compile errors and NaN named, kernel specialisation."""
 
 from __future__ import annotations
 
-import textwrap
 from dataclasses import replace
 
 import numpy as np
@@ -11,18 +10,19 @@ import pytest
 import warp as wp
 
 import warp_spt
-from warp_spt import proctex
-from warp_spt.camera import Camera
-from warp_spt.cli import main
-from warp_spt.device_scene import DeviceScene, Features
-from warp_spt.errors import SceneError
+from warp_spt.cli.main import main
+from warp_spt.core import proctex
+from warp_spt.core.device_scene import DeviceScene, Features
+from warp_spt.core.textures import checker_np
 from warp_spt.integrators import get_step, make_kernel
-from warp_spt.loader import load_scene
-from warp_spt.mtl import parse_mtl_bytes
-from warp_spt.renderer import RenderSettings, render_scene
-from warp_spt.scene import TEX_PROC_BASE
-from warp_spt.sky import Sky
-from warp_spt.textures import checker_np
+from warp_spt.io.loader import load_scene
+from warp_spt.io.mtl import parse_mtl_bytes
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.tiles import render_scene
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import TEX_PROC_BASE
+from warp_spt.scene.sky import Sky
 
 from .scenes import material, quad_obj, write_scene_files
 
@@ -240,7 +240,7 @@ def test_parameter_gradients_match_finite_differences(tmp_path):
 
     ``noise`` (one octave, smooth) rather than marble: marble's 32x octave makes central differences
     need steps below float32's resolution of the image sum."""
-    from warp_spt.gradients import render_differentiable
+    from warp_spt.diff.gradients import render_differentiable
     objs, mtls = write_scene_files(tmp_path, "grad", quad_obj(_quad(-10, 10)),
                                    _emitter("quad", "noise scale=0.35 color1=0.1,0.2,0.3"))
     dev = DeviceScene(load_scene(objs, mtls))

@@ -11,14 +11,26 @@ import math
 import numpy as np
 import pytest
 
-from warp_spt.camera import Camera
-from warp_spt.progressive import (ProgressiveStats, ProgressiveResult, batch_counts, batch_seed, batch_statistics,
-                                  relative_error, render_progressive)
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering.progressive import render_progressive
+from warp_spt.rendering.result import (
+    ProgressiveResult,
+    ProgressiveStats,
+    batch_statistics,
+    relative_error,
+)
+from warp_spt.rendering.schedule import batch_counts, batch_seed
+from warp_spt.scene.camera import Camera
 
 from .scenes import material
-from warp_spt.loader import load_scene
-
-from .stability_scenes import GENERAL, assert_same_image, quads_obj, scene_from_text, sky, write_scene_files
+from .stability_scenes import (
+    GENERAL,
+    assert_same_image,
+    quads_obj,
+    scene_from_text,
+    sky,
+    write_scene_files,
+)
 
 KW = dict(width=12, height=12, max_depth=4, sky=sky(1.0), features=GENERAL)
 
@@ -189,7 +201,9 @@ def test_live_view_outside_jupyter_prints_each_pass(open_scene, capsys):
 
 
 def test_one_result_type(open_scene):
-    from warp_spt.renderer import RenderResult, RenderSettings, render_scene
+    from warp_spt.rendering.result import RenderResult
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render_scene
 
     plain = render_scene(open_scene, CAMERA, RenderSettings(spp=4, seed=1, **KW))
     prog = render_progressive(open_scene, CAMERA, spp=4, seed=1, **KW)
@@ -206,8 +220,8 @@ def test_one_result_type(open_scene):
 def test_a_host_scene_far_from_the_origin_is_recentred(tmp_path):
     # Budget renders given a host Scene get render_scene's recentring: bit-identical to rendering the
     # recentred scene (a DeviceScene is used as it is).
-    from warp_spt.device_scene import DeviceScene
-    from warp_spt.framing import recentre
+    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.scene.recentre import recentre
 
     far = (1e5, -2e5, 3e4)
     obj = quads_obj([("floor", [(x + far[0], y + far[1], far[2]) for x, y in ((-8, -8), (8, -8), (8, 8), (-8, 8))])],

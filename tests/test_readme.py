@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from warp_spt.cli import build_parser
+from warp_spt.cli.options import build_parser
 
 from .conftest import REPO
 

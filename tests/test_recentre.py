@@ -10,11 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_spt import framing
-from warp_spt.device_scene import DeviceScene
-from warp_spt.loader import load_scene
+from warp_spt.core.device_scene import DeviceScene
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering.tiles import render
+from warp_spt.scene.recentre import recentre
 
-from .stability_scenes import assert_same_image, cornell_camera, cornell_files, render_batches, sky
+from .stability_scenes import (
+    assert_same_image,
+    cornell_camera,
+    cornell_files,
+    render_batches,
+    sky,
+)
 
 SCALE, SHIFT = 1.0 / 32.0, 1e5
 BATCHES, BATCH_SPP, SIZE = 32, 16, 24
@@ -23,7 +30,7 @@ KW = dict(width=SIZE, height=SIZE, max_depth=6, sky=sky(50.0))
 
 def recentred(folder, shift):
     scene = load_scene(*cornell_files(folder, SCALE, shift), warn=lambda m: None)
-    local, cam, offset = framing.recentre(scene, cornell_camera(SCALE, shift))
+    local, cam, offset = recentre(scene, cornell_camera(SCALE, shift))
     return DeviceScene(local), cam, offset
 
 
@@ -46,5 +53,4 @@ def test_the_render_wrapper_recentres(scene_dir):
     scene = load_scene(*cornell_files(scene_dir, SCALE, SHIFT), warn=lambda m: None)
     dev, cam, _ = recentred(scene_dir, SHIFT)
     kw = dict(width=8, height=8, spp=2, max_depth=3, sky=sky(50.0))
-    from warp_spt import renderer
-    assert np.array_equal(renderer.render(scene, cornell_camera(SCALE, SHIFT), **kw), renderer.render(dev, cam, **kw))
+    assert np.array_equal(render(scene, cornell_camera(SCALE, SHIFT), **kw), render(dev, cam, **kw))

@@ -1,4 +1,4 @@
-"""The Owen-scrambled Sobol' sampler (warp_spt.sobol) against published points, an independent numpy
+"""The Owen-scrambled Sobol' sampler (warp_spt.samplers.sobol) against published points, an independent numpy
 reference (tests/sobol_reference.py), the net property, and statistics with stated error rates.
 
 Statistical tests: each has a false-failure probability of at most 1e-6 under the hypothesis being
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt import sobol as S
+from warp_spt.samplers import sobol as S
 
 from . import sobol_reference as R
 

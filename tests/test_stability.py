@@ -13,13 +13,27 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt.camera import Camera
-from warp_spt.device_scene import DeviceScene
-from warp_spt.loader import load_scene
+from warp_spt.core.device_scene import DeviceScene
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.scene.camera import Camera
 
 from .scenes import box_obj, material, write_scene_files
-from .stability_scenes import (GENERAL, R, assert_same_image, compare, cornell_camera, cornell_files, furnace_value, load,
-                               quads_obj, render_batches, render_checked, scene_from_text, sky)
+from .stability_scenes import (
+    GENERAL,
+    R,
+    assert_same_image,
+    compare,
+    cornell_camera,
+    cornell_files,
+    furnace_value,
+    load,
+    quads_obj,
+    render_batches,
+    render_checked,
+    scene_from_text,
+    sky,
+)
 from .test_intersect import cast
 
 # --------------------------------------------------------------------------------------------
@@ -338,7 +352,7 @@ def test_clear_glass_never_creates_energy(scene_dir, ior):
 def test_ior_one_plus_1e6_renders_like_ior_one(scene_dir):
     # The smallest index contrast must behave continuously (no special case at exactly 1 that the
     # next float misses). A gradient sky makes refraction visible.
-    from warp_spt.sky import Sky
+    from warp_spt.scene.sky import Sky
     imgs = []
     for ior in (1.0, 1.0 + 1e-6):
         dev = scene_from_text(scene_dir, f"ior_{ior!r}".replace(".", "p"), "usemtl g\nb 0 0 0 2\n",
@@ -386,7 +400,7 @@ def test_million_samples_accumulate_without_drift(scene_dir):
     n = 1 << 20
     dev = scene_from_text(scene_dir, "behind", "b 0 -50 0 1\n")
     cam = Camera(position=(0, 0, 0), direction=(0, 1, 0), fov=20.0, aperture=0.0, focus=1.0)
-    res = R.render_scene(dev, cam, R.RenderSettings(width=1, height=1, spp=n, max_depth=1, sky=sky(0.1),
+    res = R.render_scene(dev, cam, RenderSettings(width=1, height=1, spp=n, max_depth=1, sky=sky(0.1),
                                                     features=GENERAL))
     film = res.film
     assert res.stats.dropped_samples == 0

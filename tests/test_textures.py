@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.textures import checker, checker_np, pack_atlas, sample_texture, sample_texture_np, tile_view
+from warp_spt.core.textures import (
+    checker,
+    checker_np,
+    pack_atlas,
+    sample_texture,
+    sample_texture_np,
+    tile_view,
+)
 
 DEVICE = "cpu"
 GREEN = (0.25, 0.75, 0.25)

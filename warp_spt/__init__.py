@@ -8,14 +8,14 @@ The public surface, in the order data flows::
 
 :meth:`Camera.frame` fits a camera to a scene (``Camera.frame(scene, up="y")`` for a Y-up model) and
 :meth:`Camera.look_at` aims one at a point. :func:`render` recentres scenes far from the origin
-(:func:`warp_spt.framing.recentre`) before rendering. :func:`load_obj` and :func:`load_mtl` read
+(:func:`warp_spt.scene.recentre.recentre`) before rendering. :func:`load_obj` and :func:`load_mtl` read
 single files; :class:`SceneError` is the one exception for bad scene input (it names the file and
 line); :class:`Film` holds float64 sums so renders of separate sample ranges merge exactly;
 :func:`render_film` returns one. :func:`render_scene` takes a :class:`RenderSettings` (integrator
 and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
 :class:`RenderResult`, the one result type of every render (image, per-pixel standard error and sample
 counts, film, stats). :func:`texture` registers a procedural texture written as a Warp function
-(:mod:`warp_spt.proctex`), usable as ``map_Kd proc:NAME``. :func:`render_progressive` renders in
+(:mod:`warp_spt.core.proctex`), usable as ``map_Kd proc:NAME``. :func:`render_progressive` renders in
 passes until a sample count, a time budget or a target error, optionally adaptively, and returns a
 :class:`RenderResult` with a per-pixel standard error (``ProgressiveResult`` is another name for it);
 :func:`relative_error` is the one definition of an image's relative error (docs/error.md).
@@ -38,38 +38,38 @@ __version__ = "0.1.0"
 
 # public name -> submodule that defines it
 _EXPORTS = {
-    "Camera": "camera",
-    "Film": "film",
-    "GradientResult": "gradients",
+    "Camera": "scene.camera",
+    "Film": "rendering.film",
+    "GradientResult": "diff.gradients",
     "INTEGRATORS": "integrators",
-    "RenderResult": "renderer",
-    "RenderSettings": "renderer",
-    "RenderStats": "renderer",
+    "RenderResult": "rendering.result",
+    "RenderSettings": "rendering.settings",
+    "RenderStats": "rendering.result",
     "SAMPLERS": "samplers",
-    "Material": "scene",
-    "ProcParams": "proctex",
-    "ProgressiveResult": "progressive",
-    "ObjData": "scene",
-    "Scene": "scene",
-    "SceneParameters": "params",
-    "SceneError": "errors",
-    "Sky": "sky",
-    "load_mtl": "mtl",
-    "load_obj": "obj",
-    "load_scene": "loader",
-    "parameters": "params",
-    "proc_texture": "proctex",
-    "register_texture": "proctex",
-    "relative_error": "progressive",
-    "render": "renderer",
-    "render_film": "renderer",
-    "render_gradients": "gradients",
-    "render_progressive": "progressive",
-    "render_scene": "renderer",
-    "save_image": "film",
-    "texture": "proctex",
-    "tonemap_seed": "film",
-    "tonemap_srgb": "film",
+    "Material": "scene.model",
+    "ProcParams": "core.proctex",
+    "ProgressiveResult": "rendering.result",
+    "ObjData": "scene.model",
+    "Scene": "scene.model",
+    "SceneParameters": "diff.params",
+    "SceneError": "scene.errors",
+    "Sky": "scene.sky",
+    "load_mtl": "io.mtl",
+    "load_obj": "io.obj",
+    "load_scene": "io.loader",
+    "parameters": "diff.params",
+    "proc_texture": "core.proctex",
+    "register_texture": "core.proctex",
+    "relative_error": "rendering.result",
+    "render": "rendering.tiles",
+    "render_film": "rendering.tiles",
+    "render_gradients": "diff.gradients",
+    "render_progressive": "rendering.progressive",
+    "render_scene": "rendering.tiles",
+    "save_image": "io.images",
+    "texture": "core.proctex",
+    "tonemap_seed": "io.images",
+    "tonemap_srgb": "io.images",
 }
 
 _SUBMODULES = ("demo", "losses")    # reached as warp_spt.losses.l2 etc.
@@ -77,22 +77,35 @@ _SUBMODULES = ("demo", "losses")    # reached as warp_spt.losses.l2 etc.
 __all__ = sorted(_EXPORTS) + list(_SUBMODULES) + ["__version__"]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
-    from . import demo, losses
-    from .camera import Camera
-    from .errors import SceneError
-    from .film import Film, save_image, tonemap_seed, tonemap_srgb
-    from .loader import load_scene
-    from .mtl import load_mtl
-    from .obj import load_obj
-    from .gradients import GradientResult, render_gradients
-    from .integrators import INTEGRATORS
-    from .params import SceneParameters, parameters
-    from .proctex import ProcParams, proc_texture, register_texture, texture
-    from .progressive import ProgressiveResult, relative_error, render_progressive
-    from .renderer import RenderResult, RenderSettings, RenderStats, render, render_film, render_scene
-    from .samplers import SAMPLERS
-    from .scene import Material, ObjData, Scene
-    from .sky import Sky
+    from warp_spt import demo, losses
+    from warp_spt.core.proctex import (
+        ProcParams,
+        proc_texture,
+        register_texture,
+        texture,
+    )
+    from warp_spt.diff.gradients import GradientResult, render_gradients
+    from warp_spt.diff.params import SceneParameters, parameters
+    from warp_spt.integrators import INTEGRATORS
+    from warp_spt.io.images import save_image, tonemap_seed, tonemap_srgb
+    from warp_spt.io.loader import load_scene
+    from warp_spt.io.mtl import load_mtl
+    from warp_spt.io.obj import load_obj
+    from warp_spt.rendering.film import Film
+    from warp_spt.rendering.progressive import render_progressive
+    from warp_spt.rendering.result import (
+        ProgressiveResult,
+        RenderResult,
+        RenderStats,
+        relative_error,
+    )
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render, render_film, render_scene
+    from warp_spt.samplers import SAMPLERS
+    from warp_spt.scene.camera import Camera
+    from warp_spt.scene.errors import SceneError
+    from warp_spt.scene.model import Material, ObjData, Scene
+    from warp_spt.scene.sky import Sky
 
 
 def __getattr__(name: str):

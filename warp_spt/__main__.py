@@ -9,14 +9,20 @@ import atexit
 import os
 import sys
 
-from .signals import cli_interruption, exit_status, finish_cli_handlers, install_cli_handlers, interruption_line
+from warp_spt.runtime.signals import (
+    cli_interruption,
+    exit_status,
+    finish_cli_handlers,
+    install_cli_handlers,
+    interruption_line,
+)
 
 
 def main() -> int:
     """Entry point of the ``warp-spt`` console script."""
     install_cli_handlers()
     try:
-        from .cli import main as cli_main
+        from warp_spt.cli.main import main as cli_main
 
         status = cli_main()
     except BaseException as err:            # interrupted while importing (the CLI reports the rest)

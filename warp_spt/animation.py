@@ -24,53 +24,16 @@ from __future__ import annotations
 
 import json
 import math
-import time
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator, Sequence
 
 import numpy as np
 
-from .camera import Camera
-from .errors import SceneError
-from .scene import ObjData, Scene
-
-FRAME_FIELD = "{frame"
-
-
-def parse_frames(text: str) -> range:
-    """``a:b[:step]`` -> range(a, b, step) (b excluded, as in Python); ``k`` alone is frame k only."""
-    parts = text.split(":")
-    try:
-        nums = [int(p) for p in parts]
-    except ValueError:
-        raise ValueError(f"frames {text!r}: expected START:STOP[:STEP] or one frame number, "
-                         "all integers") from None
-    if len(nums) == 1:
-        nums = [nums[0], nums[0] + 1]
-    if len(nums) not in (2, 3):
-        raise ValueError(f"frames {text!r}: expected START:STOP[:STEP]")
-    start, stop, step = nums[0], nums[1], nums[2] if len(nums) == 3 else 1
-    if start < 0 or step < 1 or stop <= start:
-        raise ValueError(f"frames {text!r}: need 0 <= START < STOP and STEP >= 1")
-    return range(start, stop, step)
-
-
-def is_template(path: str) -> bool:
-    """True for an OBJ path that names one file per frame, e.g. ``wave_{frame:04d}.obj``."""
-    return FRAME_FIELD in str(path)
-
-
-def frame_path(template: str, frame: int) -> str:
-    """The file name of ``frame`` (``template.format(frame=frame)``); a plain path is returned as is."""
-    if not is_template(template):
-        return str(template)
-    try:
-        return str(template).format(frame=frame)
-    except (KeyError, IndexError, ValueError) as err:
-        raise ValueError(f"cannot format {template!r} with frame={frame}: {err}") from None
-
+from warp_spt.io.templates import frame_path, is_template
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import ObjData, Scene
 
 # ---------------------------------------------------------------------------------------------
 # Camera paths
@@ -249,8 +212,8 @@ class ObjSequence:
 
     def scene(self, frame: int) -> Scene:
         """The validated scene of ``frame`` (the same object while no file name changes)."""
-        from .loader import load_scene
-        from .obj import load_obj
+        from warp_spt.io.loader import load_scene
+        from warp_spt.io.obj import load_obj
 
         paths = tuple(self.paths(frame))
         if self._last_scene is not None and self._last_scene[0] == paths:
@@ -275,7 +238,7 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
                      progress=False, **kw) -> Iterator[tuple[int, np.ndarray]]:
     """Render ``frames``; yield ``(frame, float32 (H, W, 3) image)`` as each frame finishes.
 
-    ``settings`` is a :class:`warp_spt.renderer.RenderSettings`, or its fields are given as keywords.
+    ``settings`` is a :class:`warp_spt.rendering.settings.RenderSettings`, or its fields are given as keywords.
     Without ``client`` frames render here, in order, and a mesh that does not change between frames
     is uploaded once. With a ``dask.distributed`` Client every frame's sample ranges become cluster
     tasks (``options``: a :class:`warp_spt.cluster.ClusterOptions`; see :mod:`warp_spt.cluster`),
@@ -284,7 +247,7 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
     every frame). ``progress`` (True or a callable ``(done, total)``) counts samples x pixels of the
     whole run.
     """
-    from .renderer import RenderSettings
+    from warp_spt.rendering.settings import RenderSettings
 
     seq = objs if isinstance(objs, ObjSequence) else ObjSequence(objs, mtls)
     frames = list(frames)
@@ -300,15 +263,15 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
 def frame_scene(seq: ObjSequence, frame: int, camera: Camera | CameraPath | None) -> tuple[Scene, Camera]:
     """The scene and camera of ``frame``, recentred as a single render recentres them (a no-op for a
     scene near the origin, so its static meshes stay the same arrays)."""
-    from .framing import recentre
+    from warp_spt.scene.recentre import recentre
 
     scene, cam, _ = recentre(seq.scene(frame), camera_at(camera, frame))
     return scene, cam
 
 
 def _render_here(seq: ObjSequence, frames: list[int], camera, rs, progress):
-    from .device_scene import DeviceScene
-    from .renderer import render_scene
+    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.rendering.tiles import render_scene
 
     frame_total = rs.width * rs.height * rs.spp
     report = _frames_progress(progress, len(frames) * frame_total)
@@ -334,7 +297,7 @@ def _frames_progress(progress, total: int):
         return None
     bar = None
     if not callable(progress):
-        from .progress import ProgressBar
+        from warp_spt.runtime.progress import ProgressBar
         bar = progress = ProgressBar(total, delay=0.0)
 
     def report(done):
@@ -347,7 +310,7 @@ def _frames_progress(progress, total: int):
 
 
 def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, rs, options, progress):
-    from . import cluster
+    from warp_spt import cluster
 
     rs = cluster.cluster_settings(rs)
     shared: dict[str, object] = {}           # what is on the cluster already: static meshes go once
@@ -359,216 +322,7 @@ def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, rs, 
         yield frames[j], result.image
 
 
-def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.0, tonemap: str = "seed") -> None:
-    """Write images as an animated GIF preview, one adaptive palette per frame, atomically.
-
-    Linear float images are tone mapped with ``tonemap``; uint8 ones are taken as they are.
-    """
-    from PIL import Image
-
-    from .film import _TONEMAPS, atomic_write
-
-    if not images:
-        raise ValueError("a GIF needs at least one frame")
-    if tonemap not in _TONEMAPS:
-        raise ValueError(f"unknown tone map {tonemap!r}; expected one of {', '.join(_TONEMAPS)}")
-    pictures = [Image.fromarray(im if im.dtype == np.uint8 else _TONEMAPS[tonemap](np.asarray(im, np.float32))
-                                ).convert("P", palette=Image.Palette.ADAPTIVE, colors=256) for im in images]
-    duration = max(20, round(1000.0 / fps))
-
-    def write(f) -> None:
-        pictures[0].save(f, format="GIF", save_all=True, append_images=pictures[1:], duration=duration,
-                         loop=0, optimize=True)
-
-    atomic_write(path, write)
-
-
 # ---------------------------------------------------------------------------------------------
-# Command line: the flags --frames, --camera-path, --gif, --cluster, --workers (see warp_spt.cli)
-
-DEFAULT_FRAME_OUT = "frame_{frame:04d}.png"
+# Command line: the flags --frames, --camera-path, --gif, --cluster, --workers (see warp_spt.cli.main)
 
 
-def with_animation_options(opts, ns, *, explicit_out: bool):
-    """Add the cluster and animation flags of the parsed namespace ``ns`` to ``opts``, validated.
-
-    Without an explicit ``-out`` an animation writes ``frame_{frame:04d}.png``, or only the GIF when
-    ``--gif`` is given (then ``opts.out`` is empty).
-    """
-    from .cli import OUTPUT_SUFFIXES, UsageError
-
-    if ns.cluster and ns.workers:
-        raise UsageError("give either --cluster or --workers, not both")
-    if ns.camera_path and ns.cam:
-        raise UsageError("give either -cam or --camera-path, not both")
-    if ns.gif is not None and Path(ns.gif).suffix.lower() != ".gif":
-        raise UsageError(f"--gif {ns.gif!r}: the file name must end in .gif")
-    try:
-        frames = parse_frames(ns.frames) if ns.frames is not None else None
-    except ValueError as err:
-        raise UsageError(f"argument --frames: {err}") from None
-    opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
-                   gif=ns.gif)
-    check_budget_flags(opts)
-    if not opts.animated:
-        return opts
-    templates = [p for p in opts.objs if is_template(p)]
-    if templates and frames is None and not opts.camera_path:
-        raise UsageError(f"-obj {templates[0]!r} names one file per frame: give --frames A:B")
-    out = opts.out if explicit_out else ("" if opts.gif else DEFAULT_FRAME_OUT)
-    several = frames is None or len(frames) > 1
-    if out and several and not is_template(out):
-        raise UsageError(f"-out {out!r}: an animation writes one file per frame; "
-                         "put {frame} in the name, e.g. frame_{frame:04d}.png")
-    for name in templates + ([out] if out else []):
-        try:
-            frame_path(name, 0)
-        except ValueError as err:
-            raise UsageError(str(err)) from None
-    if out and Path(frame_path(out, 0)).suffix.lower() not in OUTPUT_SUFFIXES:
-        raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
-    return replace(opts, out=out)
-
-
-def _run_budgeted(opts, scene, say, started: float | None) -> int:
-    """One image on the cluster until --time-budget or --target-error (-sr: the maximum) is met."""
-    from .cli import EXIT_OK
-    from .film import save_image
-    from .progressive import UNLIMITED_SPP
-
-    b = opts.budget
-    rs = replace(settings_of(opts), spp=opts.spp if b.spp_given else UNLIMITED_SPP)
-
-    def on_pass(res) -> None:
-        say(f"round {res.stats.passes}: {res.spp_total} spp, {res.stats.seconds:.1f} s, "
-            f"estimated relative error {100 * res.relative_error:.2f}%")
-
-    with cluster_client(opts) as client:
-        from . import cluster
-        res = cluster.render_progressive(client, scene, opts.camera, rs, time_budget=b.time_budget,
-                                         target_error=b.target_error, on_pass=on_pass, started=started)
-    save_image(opts.out, res.image, tonemap=opts.tonemap)
-    say(f"wrote {opts.out} ({res.spp_total} spp, {res.stats.seconds:.1f} s since start, stopped by "
-        f"{res.stats.stopped_by}); estimated relative error of the image: {100 * res.relative_error:.2f}%")
-    return EXIT_OK
-
-
-@contextmanager
-def cluster_client(opts):
-    """The Dask client that ``--cluster`` or ``--workers`` asks for (closed after), or None."""
-    if not (opts.cluster or opts.workers):
-        yield None
-        return
-    from .cli import RunError
-    try:
-        from . import cluster
-    except ImportError as err:
-        raise RunError(str(err)) from None
-    if opts.workers:
-        with cluster.local_client(opts.workers) as client:
-            yield client
-        return
-    try:
-        context = cluster.connect(opts.cluster)
-        client = context.__enter__()
-    except (OSError, TimeoutError, ValueError) as err:
-        raise RunError(f"cannot connect to the cluster at {opts.cluster}: {err}") from None
-    try:
-        yield client
-    finally:
-        context.__exit__(None, None, None)
-
-
-def settings_of(opts):
-    """The RenderSettings the command line asks for."""
-    from .renderer import RenderSettings
-
-    chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
-    return RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
-                          seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
-
-
-BUDGET_FLAGS = (("adaptive", "--adaptive"), ("min_spp", "--min-spp"), ("save_partial", "--save-partial"),
-                ("progressive", "--progressive"), ("error_map", "--error-map"), ("spp_map", "--spp-map"),
-                ("denoise", "--denoise"))
-
-
-def check_budget_flags(opts) -> None:
-    """On a cluster only --time-budget and --target-error of the budget flags apply, and to one image."""
-    from .cli import UsageError
-
-    b = opts.budget
-    if not (opts.cluster or opts.workers or opts.animated) or not b.active:
-        return
-    where = "an animation" if opts.animated else "a cluster"
-    if opts.animated:
-        raise UsageError(f"budget and error flags are not supported for {where}: render frames with -sr")
-    for name, flag in BUDGET_FLAGS:
-        if getattr(b, name):
-            raise UsageError(f"{flag} is not supported on {where} (--time-budget and --target-error are)")
-
-
-def run_cli(opts, err, started: float | None = None) -> int:
-    """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
-    from .cli import EXIT_OK, PROG, check_files, one_line, scene_files
-    from .cli_common import init_warp
-    from .film import _TONEMAPS, save_image
-    from .progress import ProgressBar
-
-    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
-    objs, mtls = scene_files(opts)
-    path = CameraPath.load(opts.camera_path) if opts.camera_path else None
-    frames = opts.frames or (path.frames if path is not None else range(0, 1))
-    seq = ObjSequence(objs, mtls)
-    for k in frames:                       # every frame's inputs and outputs, before any rendering
-        check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
-    init_warp(opts)
-    start = time.perf_counter()
-    first = seq.scene(frames[0])
-    for warning in first.warnings:
-        say(f"warning: {warning}")
-    where = (f"the cluster at {opts.cluster}" if opts.cluster else
-             f"{opts.workers} local worker processes" if opts.workers else "this machine")
-    b = opts.budget
-    spp = (f"{opts.spp} spp" if not b.active else
-           f"until {' or '.join(f for f, v in (('--time-budget', b.time_budget), ('--target-error', b.target_error)) if v)}"
-           + (f" (at most {opts.spp} spp)" if b.spp_given else ""))
-    say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
-        f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
-        f"{spp}, depth {opts.depth} on {where}")
-    if opts.animated:
-        def images(client, progress):
-            return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
-                                    progress=progress)
-    else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
-        from .cli import CompileNotice, _view
-        with CompileNotice(say):
-            scene, camera, sky = _view(opts, first, say)
-        opts = replace(opts, camera=camera, sky=sky)
-        if opts.budget.active:
-            return _run_budgeted(opts, scene, say, started)
-
-        def images(client, progress):
-            from .cluster import render_scene
-            return [(frames[0], render_scene(client, scene, camera, settings_of(opts), progress=progress).image)]
-    bar = None if opts.quiet else ProgressBar(len(frames) * opts.width * opts.height * opts.spp, file=err)
-    previews: dict[int, np.ndarray] = {}
-    start = time.perf_counter()
-    try:
-        with cluster_client(opts) as client:
-            for k, image in images(client, bar or False):
-                if opts.out:
-                    save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap)
-                if opts.gif:
-                    previews[k] = _TONEMAPS[opts.tonemap](image)
-    finally:
-        if bar is not None:
-            from .signals import deferred_signals
-            with deferred_signals():    # never interrupt tqdm while it holds its lock (as cli.run)
-                bar.close()
-    if opts.gif:
-        save_gif(opts.gif, [previews[k] for k in sorted(previews)])
-    seconds = time.perf_counter() - start
-    written = ", ".join(x for x in (opts.out, opts.gif) if x)
-    say(f"wrote {written} ({len(frames)} frame(s), {seconds:.1f} s)")
-    return EXIT_OK

@@ -10,7 +10,7 @@
         result = warp_spt.cluster.render_scene(client, scene, camera, RenderSettings(...), ClusterOptions(...))
 
 The image is **bit-identical** to ``warp_spt.render`` with the same scene, camera and
-:class:`~warp_spt.renderer.RenderSettings`. Why that holds: the renderer adds each pixel's samples
+:class:`~warp_spt.rendering.settings.RenderSettings`. Why that holds: the renderer adds each pixel's samples
 to its float64 film one *pass* at a time (a pass is a fixed number of samples that depends on the
 image size only), so a single-process film is ``((0 + P0) + P1) + P2 ...`` over the per-pass sums
 ``Pk``. Every ``Pk`` depends only on (seed, pixel, sample index): the random streams key on the
@@ -19,7 +19,7 @@ rows of the full render. A task renders a run of whole passes of some rows and r
 *separately*; the client adds them in pass order, row tile by row tile. Float64 addition is not
 associative, so summing a task's passes on the worker would not do.
 
-What travels: the parsed :class:`~warp_spt.scene.Scene` (numpy arrays, textures included), each
+What travels: the parsed :class:`~warp_spt.scene.model.Scene` (numpy arrays, textures included), each
 mesh apart, keyed by content hashes, never file paths (they need not exist on workers). Each
 worker uploads a scene once (:class:`SceneCache`, a worker plugin) and reuses it for all its tasks;
 meshes are cached by content too, so an animation's static meshes are shipped and uploaded once
@@ -27,7 +27,7 @@ per worker. A worker that dies costs only its tasks: Dask reruns them elsewhere,
 task's result depends only on its inputs, the image is unchanged.
 
 With a time budget or a target error, :func:`render_progressive` schedules rounds of passes until
-either is met, with warp_spt.progressive's error estimate (batch buffers with independent seeds).
+either is met, with warp_spt.rendering.progressive's error estimate (batch buffers with independent seeds).
 """
 
 from __future__ import annotations
@@ -46,11 +46,14 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from .camera import Camera
-from .film import Film
-from .renderer import RenderResult, RenderSettings
-from .scene import Scene
-from .sky import Sky
+from warp_spt.rendering.film import Film
+from warp_spt.rendering.result import RenderResult
+from warp_spt.rendering.schedule import pass_ranges, samples_per_pass
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.runtime.progress import ProgressFn, progress_reporter
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.model import Scene
+from warp_spt.scene.sky import Sky
 
 INSTALL_HINT = 'distributed rendering needs dask.distributed: pip install "warp-spt[cluster]"'
 
@@ -61,7 +64,6 @@ except ImportError as _err:  # the [cluster] extra is optional
     raise ImportError(INSTALL_HINT) from _err
 
 PLUGIN_NAME = "warp_spt-scenes"
-ProgressFn = Callable[[int, int], None]
 TASKS_PER_WORKER = 4            # default tasks per worker: a slow or lost worker delays the end little
 TASK_FILM_BYTES = 32 << 20      # a task returns at most about this much film per pass: larger images get row tiles
 FILM_PIXEL_BYTES = 24           # float64 RGB
@@ -69,7 +71,7 @@ FILM_PIXEL_BYTES = 24           # float64 RGB
 
 @dataclass(frozen=True)
 class ClusterOptions:
-    """How a render is cut into tasks (what is rendered is a :class:`~warp_spt.renderer.RenderSettings`).
+    """How a render is cut into tasks (what is rendered is a :class:`~warp_spt.rendering.settings.RenderSettings`).
 
     ``task_spp``: samples per task, rounded to the renderer's passes (default: about
     ``TASKS_PER_WORKER`` tasks per worker). ``tile_rows``: image rows per task (default: the whole
@@ -97,19 +99,6 @@ class ClusterOptions:
 # samples into passes and reports progress.
 
 
-def samples_per_pass(width: int, height: int) -> int:
-    """The renderer's pass size for a width x height image (it depends on the image size only)."""
-    from .renderer import PASS_SAMPLES, PASS_WORK
-
-    return max(PASS_SAMPLES, PASS_WORK // (width * height))
-
-
-def pass_ranges(rs: RenderSettings) -> list[tuple[int, int]]:
-    """The renderer's passes as (first sample index, sample count), in the order it adds them to the film."""
-    per_pass = samples_per_pass(rs.width, rs.height)
-    return [(rs.sample_offset + s, min(per_pass, rs.spp - s)) for s in range(0, rs.spp, per_pass)]
-
-
 @dataclass
 class TaskResult:
     """What a task sends back: per-pass float64 sums (passes, rows, W, 3) and the renderer's counters."""
@@ -123,7 +112,7 @@ class TaskResult:
 def render_passes(dev, camera: Camera, rs: RenderSettings, rows: tuple[int, int],
                   passes: Sequence[tuple[int, int]]) -> TaskResult:
     """Image rows ``rows``, one ``render_scene`` call per pass, the sums of each pass kept apart."""
-    from .renderer import render_scene
+    from warp_spt.rendering.tiles import render_scene
 
     results = [render_scene(dev, camera, replace(rs, spp=count, sample_offset=start), rows=tuple(rows))
                for start, count in passes]
@@ -133,16 +122,9 @@ def render_passes(dev, camera: Camera, rs: RenderSettings, rows: tuple[int, int]
 
 def check_settings(rs: RenderSettings) -> None:
     """The renderer's own argument checks, run on the client before anything is submitted."""
-    from .renderer import check_args
+    from warp_spt.rendering.settings import check_args
 
     check_args(rs)
-
-
-def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:
-    """The renderer's progress adapter: takes increments, None closes the bar."""
-    from .renderer import progress_reporter as reporter
-
-    return reporter(progress, total)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -152,7 +134,7 @@ def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int 
 class SceneCache(WorkerPlugin):
     """Per-worker cache of uploaded scenes, keyed by content hash (least recently used goes first).
 
-    Meshes are cached apart, by their own content (:func:`warp_spt.device_scene.mesh_key`), so the
+    Meshes are cached apart, by their own content (:func:`warp_spt.core.device_scene.mesh_key`), so the
     frames of an animation upload their static meshes once per worker. ``builds`` counts scene
     uploads and ``mesh_builds`` mesh uploads (tests check both); ``token`` tells one cache from its
     replacement.
@@ -175,7 +157,7 @@ class SceneCache(WorkerPlugin):
 
     def setup(self, worker) -> None:
         """Initialise Warp quietly (no banner or module-load lines on the worker's stdout)."""
-        from .warp_runtime import init_warp
+        from warp_spt.runtime.warp_init import init_warp
 
         init_warp()
 
@@ -186,9 +168,9 @@ class SceneCache(WorkerPlugin):
         Under one lock, so a worker running several task threads uploads once, and compiles or
         loads a kernel module from one thread at a time (Warp's concurrent module loads are unsafe).
         """
-        from .device_scene import DeviceScene
-        from .integrators import get_kernel
-        from .lights import sky_emits
+        from warp_spt.core.device_scene import DeviceScene
+        from warp_spt.core.lights import sky_emits
+        from warp_spt.integrators import get_kernel
 
         with self._lock:
             dev = self._scenes.pop(key, None)
@@ -250,7 +232,7 @@ def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -
 
     A DeviceScene is accepted too: its host-side Scene is what travels.
     """
-    from .device_scene import mesh_key
+    from warp_spt.core.device_scene import mesh_key
 
     scene = getattr(scene, "scene", scene)
     shared = {} if shared is None else shared
@@ -316,7 +298,7 @@ def plan(rs: RenderSettings, n_workers: int, options: ClusterOptions = ClusterOp
 
     Submitted in this order: every tile of the first passes, then of the next, and so on.
     """
-    passes = pass_ranges(rs)
+    passes = pass_ranges(rs.spp, rs.width, rs.height, rs.sample_offset)
     if options.task_spp is None:
         per_task = max(1, math.ceil(len(passes) / (TASKS_PER_WORKER * max(1, n_workers))))
     else:
@@ -406,7 +388,7 @@ def run_jobs(client, jobs: Sequence[Job], options: ClusterOptions = ClusterOptio
     merged in pass order, whatever order its tasks finish in. ``progress`` counts finished samples
     x pixels across all workers.
     """
-    from .renderer import RenderStats
+    from warp_spt.rendering.result import RenderStats
 
     for job in jobs:
         check_settings(job.settings)
@@ -447,9 +429,9 @@ def cluster_settings(rs: RenderSettings) -> RenderSettings:
 
 def render_scene(client, scene: Scene, camera: Camera | None = None, settings: RenderSettings | None = None,
                  options: ClusterOptions | None = None, *, progress: bool | ProgressFn = False) -> RenderResult:
-    """Like :func:`warp_spt.renderer.render_scene`, on the cluster behind ``client``: the same film bit
+    """Like :func:`warp_spt.rendering.tiles.render_scene`, on the cluster behind ``client``: the same film bit
     for bit (a host Scene far from the origin is recentred here first, as the renderer does)."""
-    from .framing import recentre
+    from warp_spt.scene.recentre import recentre
 
     rs = cluster_settings(settings or RenderSettings())
     if isinstance(scene, Scene):
@@ -477,7 +459,7 @@ def render(client, scene: Scene, camera: Camera | None = None, **kwargs) -> np.n
 # ---------------------------------------------------------------------------------------------
 # Budgets and target errors: rounds of passes until the budget or the error is met
 #
-# The error estimate is warp_spt.progressive's: ``batches`` films with independent seeds
+# The error estimate is warp_spt.rendering.progressive's: ``batches`` films with independent seeds
 # ``batch_seed(seed, b)``, whose spread estimates each pixel's standard error. Work is cut into
 # *units*, one renderer pass of one batch each, batches in turn; a round submits some units (x row
 # tiles), waits for them, and decides the next round from the merged estimate and the measured rate.
@@ -509,7 +491,7 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
                        on_pass: Callable | None = None, started: float | None = None):
     """Render on the cluster in rounds until ``settings.spp`` (the maximum), ``time_budget`` seconds
     (counted from ``started``, a ``time.perf_counter()`` value; default now) or ``target_error``
-    (:func:`warp_spt.progressive.relative_error` of the estimate) is reached.
+    (:func:`warp_spt.rendering.result.relative_error` of the estimate) is reached.
 
     Returns a :class:`warp_spt.RenderResult` (image, standard-error map, batch
     buffers, stats; ``stats.passes`` counts rounds). ``on_pass(result)`` is called after every
@@ -518,9 +500,9 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
     function asked for ``result.spp_total`` samples without one. (It is not the in-process
     ``render_progressive`` image: that one launches each batch's pass as one float64 sum.)
     """
-    from .framing import recentre
-    from .progressive import DEFAULT_BATCHES, batch_seed
-    from .renderer import RenderStats
+    from warp_spt.rendering.result import RenderStats
+    from warp_spt.rendering.schedule import DEFAULT_BATCHES, batch_seed
+    from warp_spt.scene.recentre import recentre
 
     t0 = time.perf_counter() if started is None else started
     rs = cluster_settings(settings or RenderSettings())
@@ -561,7 +543,7 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
 
 def _check_budget(rs: RenderSettings, time_budget, target_error, batches) -> None:
     """progressive's checks of the budget arguments, and the cluster's own."""
-    from .progressive import check_budget as check_progressive_budget
+    from warp_spt.rendering.progressive import check_budget as check_progressive_budget
 
     if rs.sample_offset:
         raise ValueError("a budgeted render owns its sample indices: sample_offset is not taken")
@@ -606,7 +588,7 @@ class _Rounds:
 
 
 def _snapshot(merge: _OrderedMerge, rounds: _Rounds, stats, t0: float):
-    from .renderer import RenderResult
+    from warp_spt.rendering.result import RenderResult
 
     sums = np.stack([f.sum for f in merge.films])
     per_batch = batch_spp(rounds.units, rounds.spp, rounds.per_pass, rounds.B)

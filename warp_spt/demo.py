@@ -55,6 +55,6 @@ def demo_dir() -> Path:
 
 
 def demo_files() -> tuple[list[str], list[str]]:
-    """The demo's (OBJ paths, MTL paths), ready for :func:`warp_spt.loader.load_scene`."""
+    """The demo's (OBJ paths, MTL paths), ready for :func:`warp_spt.io.loader.load_scene`."""
     root = demo_dir()
     return [str(root / name) for name in DEMO_OBJS], [str(root / name) for name in DEMO_MTLS]

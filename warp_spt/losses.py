@@ -1,7 +1,7 @@
 """Image losses for inverse rendering: each returns ``(value, adjoint)`` for an image.
 
 A loss is any callable ``loss(image) -> (float, d loss / d image)`` on float (H, W, 3) arrays;
-:func:`warp_spt.gradients.render_gradients` takes one. The helpers here compare against a target
+:func:`warp_spt.diff.gradients.render_gradients` takes one. The helpers here compare against a target
 image, as means over all pixels and channels (so the value does not scale with the resolution).
 """
 

@@ -17,14 +17,14 @@ import math
 
 import numpy as np
 
-from .progressive import render_progressive
-from .renderer import RenderResult
+from warp_spt.rendering.progressive import render_progressive
+from warp_spt.rendering.result import RenderResult
 
 
 def _png(image: np.ndarray, tonemap: str, zoom: int) -> bytes:
     from PIL import Image
 
-    from .film import tonemap_seed, tonemap_srgb
+    from warp_spt.io.images import tonemap_seed, tonemap_srgb
 
     img8 = (tonemap_srgb if tonemap == "srgb" else tonemap_seed)(image)
     pil = Image.fromarray(img8)
@@ -74,7 +74,7 @@ class LiveView:
 
 
 def render_live(scene, camera=None, *, tonemap: str = "srgb", zoom: int = 1, **kw) -> RenderResult:
-    """:func:`warp_spt.progressive.render_progressive` with a live view; an interrupt keeps the partial image.
+    """:func:`warp_spt.rendering.progressive.render_progressive` with a live view; an interrupt keeps the partial image.
 
     Keyword arguments are render_progressive's (``time_budget``, ``target_error``, ``adaptive``, ...).
     """

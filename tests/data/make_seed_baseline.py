@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from warp_spt import Sky, load_scene, render
-from warp_spt.cli import parse_args
+from warp_spt.cli.options import parse_args
 from warp_spt.demo import demo_files
 
 SPHERES_OBJ = """usemtl glass

@@ -12,15 +12,23 @@ import threading
 
 import warp as wp
 
-from ..device_scene import Features
-from ..proctex import explain_compile_failure
-from ..samplers import DEFAULT_SAMPLER, get_sampler
-from . import nee, seed
-from .common import CameraParams, PathState, RenderParams, camera_params, camera_ray, make_kernel, make_start_path
+from warp_spt.core.device_scene import Features
+from warp_spt.core.proctex import explain_compile_failure
+from warp_spt.integrators import nee, seed
+from warp_spt.integrators.common import (
+    CameraParams,
+    PathState,
+    RenderParams,
+    camera_params,
+    camera_ray,
+    make_kernel,
+    make_start_path,
+)
+from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 
 INTEGRATORS = {"seed": seed.make, "nee": nee.make}
 # Optional: ``make_vertex(features, sampler) -> vertex``, the bounce after its ray was traced
-# (``step`` = closest hit + vertex). Path-replay gradients (warp_spt.prb) need it; an integrator
+# (``step`` = closest hit + vertex). Path-replay gradients (warp_spt.diff.prb) need it; an integrator
 # without one gets gradients through the tape only.
 VERTICES = {"seed": seed.make_vertex, "nee": nee.make_vertex}
 DEFAULT_INTEGRATOR = "nee"      # see README, "Speed and accuracy": several times the seed's efficiency

@@ -2,7 +2,7 @@
 
 An integrator is a ``make(features, sampler) -> step`` function; ``step`` is ONE bounce as a
 ``wp.func`` taking and returning a :class:`PathState`. The fast kernel runs it in a dynamic loop;
-the differentiable kernel (``warp_spt.gradients``) runs the same function in an unrolled loop,
+the differentiable kernel (``warp_spt.diff.gradients``) runs the same function in an unrolled loop,
 because Warp differentiates only unrolled loops with multiplicative carried state.
 
 Sample dimensions are assigned here, explicitly: the pixel offset (dims 0-1), the lens (2-3), then
@@ -17,13 +17,13 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..camera import Camera
-from ..device_scene import Features, Geometry, Materials, Textures
-from ..lights import Lights
-from ..materials import BsdfSample
-from ..sampling import concentric_disk
-from ..samplers import Sampler, SamplerState
-from ..surface import Surface, offset_origin
+from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.lights import Lights
+from warp_spt.core.materials import BsdfSample
+from warp_spt.core.sampling import concentric_disk
+from warp_spt.core.surface import Surface, offset_origin
+from warp_spt.samplers import Sampler, SamplerState
+from warp_spt.scene.camera import Camera
 
 DIM_PIXEL = 0          # 2 dims: offset inside the pixel
 DIM_LENS = 2           # 2 dims: point on the lens

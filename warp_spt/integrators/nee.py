@@ -1,7 +1,7 @@
 """Next-event estimation with multiple importance sampling (power heuristic), and Russian roulette.
 
 At every vertex whose material has a diffuse lobe (the only lobe with a density), one light is
-sampled from the light table (``warp_spt.lights``) and joined by an any-hit shadow ray; the BSDF
+sampled from the light table (``warp_spt.core.lights``) and joined by an any-hit shadow ray; the BSDF
 sample that continues the path may hit an emitter too, and each of the two estimates is weighted by
 the power heuristic, so their sum counts each light path once. Singular lobes (fuzzy mirror, glass)
 continue by sampling only and the emitter they hit counts in full. Camera rays count emitters in
@@ -17,14 +17,36 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..device_scene import Features, Geometry, Materials, Textures
-from ..geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
-from ..lights import Lights, detach_lights, make_lights, reuse_pick, sky_radiance
-from ..materials import make_materials
-from ..samplers import Sampler
-from ..surface import Surface, detach_surface, make_surface, offset_origin
-from .common import (DIM_BOUNCE, FULL_STRIDE, SEED_STRIDE, OFF_LIGHT, OFF_LIGHT_POS, OFF_ROULETTE, PathState,
-                     RenderParams, continue_path, make_bsdf_dims)
+from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.geometry import (
+    KIND_MISS,
+    NO_HIT,
+    Hit,
+    make_closest_hit,
+    make_occluded,
+)
+from warp_spt.core.lights import (
+    Lights,
+    detach_lights,
+    make_lights,
+    reuse_pick,
+    sky_radiance,
+)
+from warp_spt.core.materials import make_materials
+from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
+from warp_spt.integrators.common import (
+    DIM_BOUNCE,
+    FULL_STRIDE,
+    OFF_LIGHT,
+    OFF_LIGHT_POS,
+    OFF_ROULETTE,
+    SEED_STRIDE,
+    PathState,
+    RenderParams,
+    continue_path,
+    make_bsdf_dims,
+)
+from warp_spt.samplers import Sampler
 
 STRIDE = FULL_STRIDE
 # the ``vis`` argument of ``vertex``: the shadow ray's answer when the caller knows it (path replay's
@@ -94,7 +116,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
-    path replay (``warp_spt.prb``) differentiates it alone, with the hit found outside and the
+    path replay (``warp_spt.diff.prb``) differentiates it alone, with the hit found outside and the
     visibility its forward call found (the result's ``vis``) passed in, so its adjoint never traces
     a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)
     ``inline``: wp.func's inline hint (the fast kernel's step inlines it). ``replay``: for path

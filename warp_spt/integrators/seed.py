@@ -8,9 +8,9 @@ It is the NEE step with light sampling (and roulette) compiled out: MIS weights 
 
 from __future__ import annotations
 
-from ..device_scene import Features
-from ..samplers import Sampler
-from .nee import make_path_step, make_path_vertex
+from warp_spt.core.device_scene import Features
+from warp_spt.integrators.nee import make_path_step, make_path_vertex
+from warp_spt.samplers import Sampler
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):

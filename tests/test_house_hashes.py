@@ -1,0 +1,40 @@
+"""Images of a fixed set of commands and API calls, bit for bit as the commit before the restructure
+made them (issue 20). The hashes were made from that commit by tests/data/make_house_hashes.py,
+which this test imports for the cases, so old and new run exactly the same calls.
+
+The two seams fixed on purpose (--frames/--workers rendering what a single render renders, and
+positions kept in float64 until recentring) change no image here: their own tests cover them
+(tests/test_seams.py).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).parent / "data"
+_spec = importlib.util.spec_from_file_location("make_house_hashes", DATA / "make_house_hashes.py")
+hashes = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(hashes)
+EXPECTED = json.loads((DATA / "house_hashes.json").read_text())
+
+
+@pytest.mark.parametrize("name,fn", hashes.cli_cases(), ids=[n for n, _ in hashes.cli_cases()])
+def test_cli_images_unchanged(name, fn, tmp_path):
+    got = fn(tmp_path)
+    if got is None:
+        pytest.skip("needs ../shared/seed/demo")
+    assert got == EXPECTED[name], f"{name}: the image changed"
+
+
+@pytest.mark.parametrize("name,fn", hashes.api_cases(), ids=[n for n, _ in hashes.api_cases()])
+def test_api_images_unchanged(name, fn):
+    if name == "api_cluster":
+        pytest.importorskip("dask.distributed")
+    got = fn()
+    if got is None:
+        pytest.skip("needs dask.distributed")
+    assert got == EXPECTED[name], f"{name}: the image changed"

@@ -1,0 +1,144 @@
+"""The runner of ``--frames`` / ``--camera-path`` / ``--gif`` and of ``--cluster`` / ``--workers`` renders.
+
+The library half (camera paths, OBJ sequences, :func:`warp_spt.animation.render_animation`) lives in
+:mod:`warp_spt.animation`; this module turns options into calls of it and writes the files.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from warp_spt.animation import CameraPath, ObjSequence, render_animation
+from warp_spt.cli.options import settings_of
+from warp_spt.io.images import save_gif
+from warp_spt.io.templates import frame_path
+
+if TYPE_CHECKING:
+    pass
+
+
+def _run_budgeted(opts, scene, say, started: float | None) -> int:
+    """One image on the cluster until --time-budget or --target-error (-sr: the maximum) is met."""
+    from warp_spt.cli.common import EXIT_OK
+    from warp_spt.io.images import save_image
+    from warp_spt.rendering.progressive import UNLIMITED_SPP
+
+    b = opts.budget
+    rs = replace(settings_of(opts), spp=opts.spp if b.spp_given else UNLIMITED_SPP)
+
+    def on_pass(res) -> None:
+        say(f"round {res.stats.passes}: {res.spp_total} spp, {res.stats.seconds:.1f} s, "
+            f"estimated relative error {100 * res.relative_error:.2f}%")
+
+    with cluster_client(opts) as client:
+        from warp_spt import cluster
+        res = cluster.render_progressive(client, scene, opts.camera, rs, time_budget=b.time_budget,
+                                         target_error=b.target_error, on_pass=on_pass, started=started)
+    save_image(opts.out, res.image, tonemap=opts.tonemap)
+    say(f"wrote {opts.out} ({res.spp_total} spp, {res.stats.seconds:.1f} s since start, stopped by "
+        f"{res.stats.stopped_by}); estimated relative error of the image: {100 * res.relative_error:.2f}%")
+    return EXIT_OK
+
+
+@contextmanager
+def cluster_client(opts):
+    """The Dask client that ``--cluster`` or ``--workers`` asks for (closed after), or None."""
+    if not (opts.cluster or opts.workers):
+        yield None
+        return
+    from warp_spt.cli.common import RunError
+    try:
+        from warp_spt import cluster
+    except ImportError as err:
+        raise RunError(str(err)) from None
+    if opts.workers:
+        with cluster.local_client(opts.workers) as client:
+            yield client
+        return
+    try:
+        context = cluster.connect(opts.cluster)
+        client = context.__enter__()
+    except (OSError, TimeoutError, ValueError) as err:
+        raise RunError(f"cannot connect to the cluster at {opts.cluster}: {err}") from None
+    try:
+        yield client
+    finally:
+        context.__exit__(None, None, None)
+
+
+def run_cli(opts, err, started: float | None = None) -> int:
+    """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
+    from warp_spt.cli.common import (
+        EXIT_OK,
+        PROG,
+        check_files,
+        init_warp,
+        one_line,
+        scene_files,
+    )
+    from warp_spt.io.images import _TONEMAPS, save_image
+    from warp_spt.runtime.progress import ProgressBar
+
+    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
+    objs, mtls = scene_files(opts)
+    path = CameraPath.load(opts.camera_path) if opts.camera_path else None
+    frames = opts.frames or (path.frames if path is not None else range(0, 1))
+    seq = ObjSequence(objs, mtls)
+    for k in frames:                       # every frame's inputs and outputs, before any rendering
+        check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
+    init_warp(opts)
+    start = time.perf_counter()
+    first = seq.scene(frames[0])
+    for warning in first.warnings:
+        say(f"warning: {warning}")
+    where = (f"the cluster at {opts.cluster}" if opts.cluster else
+             f"{opts.workers} local worker processes" if opts.workers else "this machine")
+    b = opts.budget
+    spp = (f"{opts.spp} spp" if not b.active else
+           f"until {' or '.join(f for f, v in (('--time-budget', b.time_budget), ('--target-error', b.target_error)) if v)}"
+           + (f" (at most {opts.spp} spp)" if b.spp_given else ""))
+    say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
+        f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
+        f"{spp}, depth {opts.depth} on {where}")
+    if opts.animated:
+        def images(client, progress):
+            return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
+                                    progress=progress)
+    else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
+        from warp_spt.cli.common import CompileNotice
+        from warp_spt.cli.view_checks import _view
+        with CompileNotice(say):
+            scene, camera, sky = _view(opts, first, say)
+        opts = replace(opts, camera=camera, sky=sky)
+        if opts.budget.active:
+            return _run_budgeted(opts, scene, say, started)
+
+        def images(client, progress):
+            from warp_spt.cluster import render_scene
+            return [(frames[0], render_scene(client, scene, camera, settings_of(opts), progress=progress).image)]
+    bar = None if opts.quiet else ProgressBar(len(frames) * opts.width * opts.height * opts.spp, file=err)
+    previews: dict[int, np.ndarray] = {}
+    start = time.perf_counter()
+    try:
+        with cluster_client(opts) as client:
+            for k, image in images(client, bar or False):
+                if opts.out:
+                    save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap)
+                if opts.gif:
+                    previews[k] = _TONEMAPS[opts.tonemap](image)
+    finally:
+        if bar is not None:
+            from warp_spt.runtime.signals import deferred_signals
+            with deferred_signals():    # never interrupt tqdm while it holds its lock (as cli.run)
+                bar.close()
+    if opts.gif:
+        save_gif(opts.gif, [previews[k] for k in sorted(previews)])
+    seconds = time.perf_counter() - start
+    written = ", ".join(x for x in (opts.out, opts.gif) if x)
+    say(f"wrote {written} ({len(frames)} frame(s), {seconds:.1f} s)")
+    return EXIT_OK

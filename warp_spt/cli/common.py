@@ -1,0 +1,174 @@
+"""What the ``warp-spt`` commands share (the render CLI in :mod:`warp_spt.cli.main`, the convergence report in
+:mod:`warp_spt.rendering.convergence`, the animation runner): the program name, exit statuses, the two error
+types, an argparse parser that raises, strict number converters, the one-line error report, and Warp's
+quiet start-up.
+
+Only the standard library here: ``main()`` installs its signal handling before anything heavy is
+imported, so that a Ctrl-C during start-up gets the same one-line message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import unicodedata
+from pathlib import Path
+from typing import Sequence, TextIO
+
+from warp_spt.demo import demo_files
+
+PROG = "warp-spt"
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143     # 128 + the signal number (signals.exit_status)
+
+
+class UsageError(Exception):
+    """A bad command line: reported as one line, exit status 2."""
+
+
+class RunError(Exception):
+    """A failure after parsing (unreadable input, output directory missing): exit status 1."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that raises :class:`UsageError` instead of printing the usage and exiting."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(message)
+
+
+# Plain ASCII numbers only, as in OBJ files: int() and float() would also take "1_0", "inf", and
+# Arabic-Indic or full-width digits.
+_INT_RE = re.compile(r"[+-]?[0-9]+")
+_FLOAT_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def int_at_least(low: int, high: int | None = None):
+    """An argparse ``type``: a plain decimal integer in [low, high] (no upper bound when ``high`` is None)."""
+    def convert(text: str) -> int:
+        if not _INT_RE.fullmatch(text):
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
+        value = int(text)
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        if high is not None and value > high:
+            raise argparse.ArgumentTypeError(f"must be at most {high}, got {value}")
+        return value
+    convert.__name__ = "integer"
+    return convert
+
+
+def finite_float(text: str) -> float:
+    """An argparse ``type``: a plain decimal number, finite."""
+    if not _FLOAT_RE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def one_line(text: str) -> str:
+    """``text`` with control characters and line separators escaped (\\n, \\x85, \\u2028...), so that
+    a message stays one line whatever the file names and file contents it quotes hold."""
+    return "".join(ch.encode("unicode_escape").decode("ascii") if unicodedata.category(ch) in ("Cc", "Zl", "Zp")
+                   else ch for ch in text)
+
+
+def fail(message: str, status: int, stderr: TextIO) -> int:
+    """Print ``warp-spt: error: message`` as one line on ``stderr`` and return ``status``."""
+    print(f"{PROG}: error: {one_line(message)}", file=stderr)
+    return status
+
+
+def init_warp(opts) -> None:
+    """Warp's banner, module-load lines and missing-CUDA-driver line only with ``opts.verbose``."""
+    try:
+        from warp_spt.runtime.warp_init import init_warp as init
+        init(opts.verbose, quiet=opts.quiet)
+    except ImportError:  # Warp missing: the renderer's import will report the real problem
+        pass
+
+
+COMPILE_MESSAGE = "compiling kernels for this scene... (first run only)"
+
+
+class CompileNotice:
+    """Says COMPILE_MESSAGE once if a step inside ``with notice:`` takes longer than ``after`` seconds.
+
+    Loading a kernel from Warp's cache takes about 0.02 s, compiling it seconds, so a slow kernel load
+    means a cold cache; the line appears while the compiler runs, before the progress bar.
+    """
+
+    def __init__(self, say, after: float = 0.5) -> None:
+        self.say, self.after, self.said = say, after, False
+        self._timer = None
+
+    def _fire(self) -> None:
+        if not self.said:
+            self.said = True
+            self.say(COMPILE_MESSAGE)
+
+    def __enter__(self) -> "CompileNotice":
+        import threading
+
+        self._timer = threading.Timer(self.after, self._fire)
+        self._timer.daemon = True
+        self._timer.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._timer.cancel()
+
+
+def warm_up(render, scene, camera, settings: dict) -> None:
+    """Load (on a cold cache: compile) the exact kernel of ``render(scene, camera, **settings)`` by
+    rendering one pixel with one sample through the same public call."""
+    render(scene, camera, **{**settings, "width": 1, "height": 1, "spp": 1}, progress=False)
+
+
+def scene_files(opts) -> tuple[list[str], list[str]]:
+    """The OBJ and MTL files to load: the user's, or the built-in demo's."""
+    if opts.uses_demo_scene:
+        try:
+            return demo_files()
+        except FileNotFoundError as err:
+            raise RunError(str(err)) from None
+    return list(opts.objs), list(opts.mtls)
+
+
+def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
+    """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place.
+
+    Inputs must be regular files (a FIFO or a device is refused without being opened, so nothing
+    blocks); the output must not be an existing non-regular file (a symlink is written through).
+    """
+    from warp_spt.io.tokens import file_problem
+
+    for flag, paths in (("-obj", objs), ("-mtl", mtls)):
+        for path in paths:
+            problem = file_problem(path)
+            if problem is None and not os.access(path, os.R_OK):
+                problem = "permission denied"
+            if problem:
+                raise RunError(f"cannot read {flag} file {path!r}: {problem}")
+    target = Path(os.path.realpath(out)) if Path(out).is_symlink() else Path(out)
+    parent = target.parent
+    if not parent.is_dir():
+        raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} is not writable")
+    if target.exists() and file_problem(target):
+        raise RunError(f"cannot write -out {out!r}: {file_problem(target)}")
+
+
+def check_registry_names(opts) -> None:
+    """--integrator and --sampler name entries of the registries (a usage error otherwise)."""
+    from warp_spt.integrators import INTEGRATORS
+    from warp_spt.samplers import SAMPLERS
+
+    for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
+        if name is not None and name not in registry:
+            raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")

@@ -1,0 +1,415 @@
+"""The ``warp-spt`` flags: argv -> a validated :class:`Options` (pure: no files, no numpy, no Warp).
+
+Every flag group lives here (the seed's flags, your-own-model flags, budgets via
+:mod:`warp_spt.cli.progressive`, animation and cluster flags), and :func:`settings_of` is the one
+place where options become :class:`warp_spt.rendering.settings.RenderSettings`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
+
+from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least
+from warp_spt.cli.progressive import BudgetOptions, add_flags, options
+from warp_spt.demo import PRESETS
+from warp_spt.io.templates import frame_path, is_template, parse_frames
+from warp_spt.scene.sky import Sky
+
+if TYPE_CHECKING:
+    from warp_spt.scene.camera import Camera
+
+
+# The seed's defaults (SEMANTICS §1); the output name follows its Readme, not its code (Q14).
+DEFAULT_RES, DEFAULT_SPP, DEFAULT_DEPTH, DEFAULT_SKY, DEFAULT_OUT = (500, 500), 16, 6, 0, "output.png"
+
+
+# Caps that keep nothing absurd from reaching a kernel; values above them are surely typos.
+MAX_SPP, MAX_DEPTH = 1 << 20, 4096
+OUTPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".npy", ".pfm", ".exr")
+
+
+UP_AXES = ("x", "y", "z", "-x", "-y", "-z")       # camera.AXES, spelled here so the CLI starts without numpy
+
+
+# Film, accumulation and output buffers per pixel, with headroom for tiles and PNG encoding.
+BYTES_PER_PIXEL = 64
+
+
+MEMORY_FRACTION = 0.5
+
+
+EXAMPLES = """\
+examples:
+  warp-spt                                   render the built-in demo to output.png
+  warp-spt --demo 512p16s                    the seed's quick demo script (512x512, 16 spp)
+  warp-spt -mtl scene.mtl -obj room.obj -obj balls.obj -sky 1 -res 512 512 -sr 32 -out room.png
+  warp-spt -obj model.obj -cam 4 -55 16 0 1 0 38 27 0.001 --sky-color 0 0 0 -out model.pfm
+  warp-spt -obj bunny.obj --up y --studio -sr 64 -out bunny.exr    a Y-up model, framed, product shot
+
+-cam takes the order of the seed's design document: px py pz dx dy dz fov focus aperture
+(the seed's Java code read fov aperture focus). d is a view direction, not a target; fov is the
+horizontal angle in degrees. --look-at, --fov and --aperture override single fields of -cam.
+-sky: 0 the seed's 'BlackSky' (a dull blue), 1 gradient, 2 pink. .png and .jpg are tone-mapped;
+.npy, .pfm and .exr hold linear radiance (.exr needs the optional openexr package).
+Exit status: 0 ok, 1 failure, 2 bad arguments, 130 interrupted (Ctrl-C, SIGINT), 143 terminated
+(SIGTERM).
+
+Z is up, as in the seed. Most exported models are Y-up: add --up y (any of x y z -x -y -z) to
+stand them upright; it sets the camera's up axis and the framing's.
+
+With -obj and no -cam the scene is framed automatically (a three-quarter view from the front,
+the whole model in view, pinhole) when the seed's default camera would stand inside the scene's
+bounds, see almost none of it or be too close to see it whole, and whenever --up is not z;
+--frame always frames. The seed's own scenes are seen whole by the default camera and keep it.
+"""
+
+
+@dataclass(frozen=True)
+class Options:
+    """A validated command line. ``action`` is "render", "help" or "version"."""
+
+    action: str = "render"
+    objs: tuple[str, ...] = ()
+    mtls: tuple[str, ...] = ()
+    camera: Camera = field(default_factory=lambda: _camera(None))
+    width: int = DEFAULT_RES[0]
+    height: int = DEFAULT_RES[1]
+    spp: int = DEFAULT_SPP
+    depth: int = DEFAULT_DEPTH
+    sky: Sky = field(default_factory=Sky.black)
+    out: str = DEFAULT_OUT
+    threads: int | None = None
+    seed: int = 0
+    tonemap: str = "seed"
+    texture_filter: str = "nearest"
+    quiet: bool = False
+    verbose: bool = False
+    demo: str | None = None
+    integrator: str | None = None     # None: the renderer's default
+    sampler: str | None = None
+    up: str = "z"
+    cam_given: bool = False          # -cam or --look-at placed the camera: never frame automatically
+    frame: bool = False              # --frame: always frame
+    studio: bool = False
+    default_material: str = "auto"
+    texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
+    budget: BudgetOptions = field(default_factory=BudgetOptions)   # cli_progressive's flags
+    # Distribution and animation (warp_spt.cluster, warp_spt.animation)
+    cluster: str | None = None
+    workers: int | None = None
+    frames: range | None = None
+    camera_path: str | None = None
+    gif: str | None = None
+
+    @property
+    def animated(self) -> bool:
+        """Frames, a camera path, a GIF or an OBJ template were given: render an animation."""
+        return bool(self.frames or self.camera_path or self.gif or any(is_template(p) for p in self.objs))
+
+    @property
+    def uses_demo_scene(self) -> bool:
+        """No ``-obj`` given: the built-in demo scene is rendered."""
+        return not self.objs
+
+
+def _sky_index(text: str) -> int:
+    # The seed mapped any unknown integer to BlackSky; a modern CLI reports the typo instead.
+    if text not in ("0", "1", "2"):
+        raise argparse.ArgumentTypeError(f"expected 0 (BlackSky), 1 (gradient) or 2 (pink), got {text!r}")
+    return int(text)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser; single-dash multi-letter flags are the seed's, ``--`` flags are new."""
+    p = Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
+                formatter_class=argparse.RawDescriptionHelpFormatter,
+                description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
+                            "and the OBJ/MTL dialect of the seed, SimplePathTracer, and standard OBJ/MTL.")
+    seed = p.add_argument_group("the seed's flags")
+    seed.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable)")
+    seed.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable, any order)")
+    seed.add_argument("-cam", nargs=9, type=finite_float,
+                      metavar=("PX", "PY", "PZ", "DX", "DY", "DZ", "FOV", "FOCUS", "APERTURE"),
+                      help="camera: position, view direction, horizontal fov (degrees), focus distance, "
+                           "lens radius (default 4 -55 16 0 1 0 38 27 0.001)")
+    seed.add_argument("-res", nargs=2, type=int_at_least(1), metavar=("W", "H"), help="image size (default 500 500)")
+    seed.add_argument("-depth", type=int_at_least(1, MAX_DEPTH), metavar="N",
+                      help="maximum surface hits per path (default 6)")
+    seed.add_argument("-sr", type=int_at_least(1, MAX_SPP), metavar="N", help="samples per pixel (default 16)")
+    seed.add_argument("-sky", type=_sky_index, metavar="0|1|2", help="0 BlackSky (default), 1 gradient, 2 pink")
+    seed.add_argument("-out", metavar="PATH", help="output .png, .jpg, .npy, .pfm or .exr (default output.png)")
+    new = p.add_argument_group("further options")
+    new.add_argument("-h", "--help", action="store_true", help="show this help and exit")
+    new.add_argument("--version", action="store_true", help="print the version and exit")
+    new.add_argument("--demo", choices=sorted(PRESETS), metavar="PRESET",
+                     help="render the built-in demo like the seed's script: " + ", ".join(PRESETS))
+    new.add_argument("--threads", type=int_at_least(1), metavar="N", help="worker threads (default: all cores)")
+    new.add_argument("--seed", type=int_at_least(0, 2**32 - 1), default=0, metavar="N",
+                     help="random seed (default 0): the same seed gives the same image")
+    new.add_argument("--sky-color", nargs=3, type=finite_float, metavar=("R", "G", "B"),
+                     help="a constant sky instead of -sky; 0 0 0 for none")
+    new.add_argument("--tonemap", choices=("seed", "srgb"), default="seed",
+                     help="PNG mapping: the seed's curve (default) or sRGB")
+    new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
+                     help="texture lookup (default nearest, as the seed)")
+    new.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    new.add_argument("--verbose", action="store_true",
+                     help="also show Warp's own messages (banner, module loads, missing CUDA driver)")
+    # Names are checked against the registries in run(): importing them imports Warp, which must
+    # first be initialised as --verbose says (and parsing stays Warp-free).
+    new.add_argument("--integrator", metavar="NAME",
+                     help="light transport: nee (light sampling with MIS, default) or seed (pure path tracing)")
+    new.add_argument("--sampler", metavar="NAME",
+                     help="random numbers: sobol (Owen-scrambled Sobol', default) or independent (PCG streams)")
+    new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
+                     help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
+    add_flags(p, int_at_least)
+    _add_model_flags(p.add_argument_group("your own models"))
+    more = p.add_argument_group("clusters and animation")
+    more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
+    more.add_argument("--workers", type=int_at_least(1, 1024), metavar="N",
+                      help="render on a local cluster of N worker processes")
+    more.add_argument("--frames", metavar="A:B[:STEP]", help="render frames A..B-1; -obj may name "
+                      "'wave_{frame:04d}.obj' and -out 'frame_{frame:04d}.png'")
+    more.add_argument("--camera-path", metavar="FILE", help="JSON camera keyframes, interpolated per frame")
+    more.add_argument("--gif", metavar="PATH", help="also write the frames as an animated GIF preview")
+    return p
+
+
+def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Options:
+    """Parse and validate a command line (without the program name). Raises :class:`UsageError`.
+
+    ``memory_bytes`` is the RAM budget for the image size check (default: half the machine's).
+    """
+    parser = build_parser()
+    argv = _join_up_operand(argv)
+    _reject_unknown_flags(argv, parser)
+    ns = parser.parse_args(list(argv))
+    if ns.help or ns.version:
+        return Options(action="help" if ns.help else "version")
+    if ns.demo and ns.obj:
+        raise UsageError("--demo renders the built-in scene; it cannot be combined with -obj")
+    if ns.mtl and not ns.obj:
+        raise UsageError("-mtl given without any -obj file to use it")
+    if ns.quiet and ns.verbose:
+        raise UsageError("give either --quiet or --verbose, not both")
+    if ns.sky is not None and ns.sky_color is not None:
+        raise UsageError("give either -sky or --sky-color, not both")
+    _check_model_flags(ns)
+    preset = PRESETS.get(ns.demo) if ns.demo else None
+    width, height = ns.res or ((preset.width, preset.height) if preset else DEFAULT_RES)
+    check_image_size(width, height, memory_bytes)
+    if ns.out is not None and not ns.out.strip():
+        raise UsageError("-out needs a file name, got an empty one")
+    out = ns.out or (preset.output_name(ns.demo) if preset else DEFAULT_OUT)
+    if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
+        raise UsageError(f"-out {out!r}: the file name must end in .png, .jpg, .npy, .pfm or .exr")
+    _check_exr(out)
+    opts = Options(
+        objs=tuple(ns.obj), mtls=tuple(ns.mtl), camera=_model_camera(ns),
+        width=width, height=height,
+        spp=ns.sr or (preset.spp if preset else DEFAULT_SPP),
+        depth=ns.depth or (preset.depth if preset else DEFAULT_DEPTH),
+        sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
+        out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
+        texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
+        integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
+        up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, frame=ns.frame,
+        studio=ns.studio, default_material=ns.default_material,
+        budget=options(ns, UsageError, OUTPUT_SUFFIXES),
+    )
+    return with_animation_options(opts, ns, explicit_out=ns.out is not None)
+
+
+def _reject_unknown_flags(argv: Sequence[str], parser: argparse.ArgumentParser) -> None:
+    """Only exact flags: argparse would take ``-ob`` for ``-obj`` even with allow_abbrev=False."""
+    known = {name for action in parser._actions for name in action.option_strings}
+    for token in argv:
+        if token == "--":
+            return
+        name = token.split("=", 1)[0] if token.startswith("--") else token
+        if token.startswith("-") and len(token) > 1 and name not in known and not _is_number(token):
+            raise UsageError(f"unknown flag {token!r}")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _camera(values: list[float] | None) -> Camera:
+    from warp_spt.scene.camera import Camera
+
+    if values is None:
+        return Camera()
+    cam = Camera(position=tuple(values[0:3]), direction=tuple(values[3:6]),
+                 fov=values[6], focus=values[7], aperture=values[8])
+    try:
+        cam.validate()           # the API's checks (float32 bounds included): one source of truth
+    except ValueError as err:
+        raise UsageError(f"argument -cam: {err}") from None
+    return cam
+
+
+def _sky(index: int | None, colour: list[float] | None, fallback: int) -> Sky:
+    if colour is None:
+        return Sky.from_index(fallback if index is None else index)
+    try:
+        return Sky.constant(*colour)
+    except ValueError as err:
+        raise UsageError(f"argument --sky-color: {err}") from None
+
+
+def _add_model_flags(g) -> None:
+    g.add_argument("--up", choices=UP_AXES, default="z", metavar="AXIS",
+                   help="the world's up axis: x, y, z (default, as the seed), -x, -y or -z; "
+                        "most exported models need --up y")
+    g.add_argument("--look-at", nargs=3, type=finite_float, metavar=("TX", "TY", "TZ"),
+                   help="aim the camera (-cam's or the default position) at this point and focus on it")
+    g.add_argument("--fov", type=finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
+    g.add_argument("--aperture", type=finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
+    g.add_argument("--frame", action="store_true",
+                   help="frame the scene: three-quarter view from the front, all of it in view, pinhole")
+    g.add_argument("--studio", action="store_true",
+                   help="neutral sky, a ground plane under the model and a key light (adds geometry, "
+                        "never edits your files)")
+    g.add_argument("--default-material", choices=("auto", "clay", "checker"), default="auto",
+                   help="material of faces with no usemtl: clay (grey) or checker (the seed's); "
+                        "auto (default): checker if any MTL is given or any OBJ names a material, else clay")
+
+
+def _join_up_operand(argv: Sequence[str]) -> list[str]:
+    """``--up -y`` as ``--up=-y``: argparse would take ``-y`` for a flag."""
+    out: list[str] = []
+    for token in argv:
+        if out and out[-1] == "--up" and token in UP_AXES:
+            out[-1] = f"--up={token}"
+        else:
+            out.append(token)
+    return out
+
+
+def _check_model_flags(ns: argparse.Namespace) -> None:
+    if ns.frame and (ns.cam is not None or ns.look_at is not None):
+        raise UsageError("--frame places the camera itself; it cannot be combined with -cam or --look-at")
+    if (ns.frame or ns.studio) and not ns.obj:
+        raise UsageError("--frame and --studio are for your own -obj files, not the built-in demo")
+
+
+def _model_camera(ns: argparse.Namespace) -> Camera:
+    """-cam (or the seed's default) with --up, --look-at, --fov and --aperture applied."""
+    from warp_spt.scene.camera import AXES, Camera
+
+    cam = _camera(ns.cam)
+    try:     # look_at and with_ validate the camera they return
+        if ns.look_at is not None:
+            cam = Camera.look_at(cam.position, ns.look_at, up=ns.up, fov=cam.fov, aperture=cam.aperture)
+        return cam.with_(up=AXES[ns.up], fov=ns.fov, aperture=ns.aperture)
+    except ValueError as err:
+        raise UsageError(f"camera: {err}") from None
+
+
+def _check_exr(out: str) -> None:
+    import importlib.util
+
+    if Path(out).suffix.lower() == ".exr" and importlib.util.find_spec("OpenEXR") is None:
+        raise UsageError(f"-out {out!r}: writing .exr needs the optional openexr package "
+                         "(pip install 'warp-spt[exr]')")
+
+
+def available_memory() -> int:
+    """Physical RAM in bytes (8 GiB when the platform does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return 8 << 30
+
+
+def check_image_size(width: int, height: int, memory_bytes: int | None = None) -> None:
+    """Refuse images whose buffers would not fit in the memory budget (instead of thrashing or crashing)."""
+    budget = memory_bytes if memory_bytes is not None else int(available_memory() * MEMORY_FRACTION)
+    need = width * height * BYTES_PER_PIXEL
+    if need > budget:
+        raise UsageError(f"-res {width} {height} needs about {need / 2**30:.1f} GiB for the image buffers, "
+                         f"more than the {budget / 2**30:.1f} GiB this machine can spare")
+
+
+def settings_of(opts):
+    """The RenderSettings the command line asks for."""
+    from warp_spt.rendering.settings import RenderSettings
+
+    chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
+    return RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
+                          seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+
+
+DEFAULT_FRAME_OUT = "frame_{frame:04d}.png"
+
+
+def with_animation_options(opts, ns, *, explicit_out: bool):
+    """Add the cluster and animation flags of the parsed namespace ``ns`` to ``opts``, validated.
+
+    Without an explicit ``-out`` an animation writes ``frame_{frame:04d}.png``, or only the GIF when
+    ``--gif`` is given (then ``opts.out`` is empty).
+    """
+    from warp_spt.cli.common import UsageError
+    from warp_spt.cli.options import OUTPUT_SUFFIXES
+
+    if ns.cluster and ns.workers:
+        raise UsageError("give either --cluster or --workers, not both")
+    if ns.camera_path and ns.cam:
+        raise UsageError("give either -cam or --camera-path, not both")
+    if ns.gif is not None and Path(ns.gif).suffix.lower() != ".gif":
+        raise UsageError(f"--gif {ns.gif!r}: the file name must end in .gif")
+    try:
+        frames = parse_frames(ns.frames) if ns.frames is not None else None
+    except ValueError as err:
+        raise UsageError(f"argument --frames: {err}") from None
+    opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
+                   gif=ns.gif)
+    check_budget_flags(opts)
+    if not opts.animated:
+        return opts
+    templates = [p for p in opts.objs if is_template(p)]
+    if templates and frames is None and not opts.camera_path:
+        raise UsageError(f"-obj {templates[0]!r} names one file per frame: give --frames A:B")
+    out = opts.out if explicit_out else ("" if opts.gif else DEFAULT_FRAME_OUT)
+    several = frames is None or len(frames) > 1
+    if out and several and not is_template(out):
+        raise UsageError(f"-out {out!r}: an animation writes one file per frame; "
+                         "put {frame} in the name, e.g. frame_{frame:04d}.png")
+    for name in templates + ([out] if out else []):
+        try:
+            frame_path(name, 0)
+        except ValueError as err:
+            raise UsageError(str(err)) from None
+    if out and Path(frame_path(out, 0)).suffix.lower() not in OUTPUT_SUFFIXES:
+        raise UsageError(f"-out {out!r}: the file name must end in .png, .npy or .pfm")
+    return replace(opts, out=out)
+
+
+BUDGET_FLAGS = (("adaptive", "--adaptive"), ("min_spp", "--min-spp"), ("save_partial", "--save-partial"),
+                ("progressive", "--progressive"), ("error_map", "--error-map"), ("spp_map", "--spp-map"),
+                ("denoise", "--denoise"))
+
+
+def check_budget_flags(opts) -> None:
+    """On a cluster only --time-budget and --target-error of the budget flags apply, and to one image."""
+    from warp_spt.cli.common import UsageError
+
+    b = opts.budget
+    if not (opts.cluster or opts.workers or opts.animated) or not b.active:
+        return
+    where = "an animation" if opts.animated else "a cluster"
+    if opts.animated:
+        raise UsageError(f"budget and error flags are not supported for {where}: render frames with -sr")
+    for name, flag in BUDGET_FLAGS:
+        if getattr(b, name):
+            raise UsageError(f"{flag} is not supported on {where} (--time-budget and --target-error are)")

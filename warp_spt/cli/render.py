@@ -1,0 +1,94 @@
+"""The runner of a single image on this machine: load, view checks, render (plain or budgeted), save."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import TYPE_CHECKING, TextIO
+
+from warp_spt.cli.common import (
+    EXIT_OK,
+    PROG,
+    CompileNotice,
+    RunError,
+    check_files,
+    check_registry_names,
+    init_warp,
+    one_line,
+    scene_files,
+    warm_up,
+)
+from warp_spt.cli.options import Options
+from warp_spt.cli.progressive import check_outputs, render_and_save
+from warp_spt.cli.view_checks import prepare_view
+from warp_spt.runtime.progress import ProgressBar
+from warp_spt.runtime.signals import deferred_signals
+
+if TYPE_CHECKING:
+    pass
+
+
+def run_image(opts: Options, err: TextIO, started: float) -> int:
+    """Load, render and save one image on this machine as ``opts`` says (errors propagate)."""
+    objs, mtls = scene_files(opts)
+    check_files(objs, mtls, opts.out)
+    check_outputs(opts.budget, RunError)
+    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
+    init_warp(opts)
+    check_registry_names(opts)
+    import numpy as np
+
+    from warp_spt.io.images import save_image
+    from warp_spt.io.loader import load_scene
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render, render_scene
+    from warp_spt.scene.recentre import describe_bounds
+
+    if opts.texture_modules:
+        from warp_spt.core.proctex import load_texture_module
+        for module in opts.texture_modules:
+            say(f"textures from {module}: {', '.join(load_texture_module(module)) or 'none registered'}")
+    start = time.perf_counter()
+    try:
+        scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below
+                           default_material=opts.default_material)
+    except MemoryError:
+        raise RunError("out of memory while loading the scene: its files or textures are too large for "
+                       "this machine's memory") from None
+    for warning in scene.warnings:
+        say(f"warning: {warning}")
+    what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
+    say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
+        f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
+        f"{opts.spp} spp, depth {opts.depth}")
+    notice = CompileNotice(say)
+    scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
+    if opts.budget.active:      # passes, budgets and error estimates (cli_progressive)
+        return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started)
+    chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
+    settings = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=sky,
+                    seed=opts.seed, threads=opts.threads, texture_filter=opts.texture_filter, **chosen)
+    with notice:
+        warm_up(render, scene, camera, settings)
+    bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
+    start = time.perf_counter()
+    try:
+        result = render_scene(scene, camera, RenderSettings(**settings), progress=bar or False)
+    except MemoryError:
+        texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
+        raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "
+                       f"{texels:,} texels) at {opts.width}x{opts.height}: try a smaller -res or fewer "
+                       "--threads, or a smaller scene") from None
+    finally:
+        if bar is not None:
+            with deferred_signals():    # never interrupt tqdm while it holds its lock
+                bar.close()
+    seconds = time.perf_counter() - start
+    image, dropped = result.image, result.stats.dropped_samples
+    if dropped:     # shown even with --quiet: the image is wrong somewhere (docs/limits.md)
+        print(f"{PROG}: warning: {dropped} samples were not finite and were dropped; the image is biased "
+              "there (please report this scene)", file=err)
+    save_image(opts.out, image, tonemap=opts.tonemap)
+    rate = opts.width * opts.height * opts.spp / max(seconds, 1e-9)
+    say(f"wrote {opts.out} ({seconds:.1f} s, {rate / 1e6:.2f} M samples/s)")
+    return EXIT_OK

@@ -1,0 +1,278 @@
+"""Scene upload: numpy Scene -> Warp meshes (one per OBJ), our top-level BVH, texture atlas, material table.
+
+The result, :class:`DeviceScene`, carries one small struct per concept that kernels take
+(:class:`Geometry`, :class:`Materials`, :class:`Textures` with procedural instances; the light table is built by
+``warp_spt.core.lights``), plus the :class:`Features` the scene actually uses, from which the
+integrators specialise their kernels.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from typing import MutableMapping
+
+import numpy as np
+import warp as wp
+
+from warp_spt.core.bvh import build_tlas
+from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
+from warp_spt.core.textures import pack_atlas
+from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene
+from warp_spt.scene.validate import validate_scene
+
+
+@wp.struct
+class Geometry:
+    """What intersection and surface lookup read: meshes, spheres, the top-level BVH, per-face data."""
+
+    # Triangles: one wp.Mesh per OBJ file; per-face data is concatenated across meshes.
+    mesh_ids: wp.array(dtype=wp.uint64)
+    face_offset: wp.array(dtype=wp.int32)      # first face of mesh i in the per-face arrays
+    face_material: wp.array(dtype=wp.int32)
+    corner_uv: wp.array(dtype=wp.vec2)         # 3 per face
+    corner_normal: wp.array(dtype=wp.vec3)     # 3 per face (smooth shading only)
+    # 1 when corner_normal holds 3 normals per face. A kernel compiled with smooth-shading code
+    # (e.g. Features.general()) for a scene without vn must not read the one-element dummy array:
+    # it did, out of bounds, and shaded with garbage normals.
+    has_corner_normals: int
+    num_meshes: int
+    # Analytic spheres
+    spheres: wp.array(dtype=wp.vec4)           # centre xyz, radius
+    sphere_material: wp.array(dtype=wp.int32)
+    # Top-level BVH over mesh bounds (items 0..num_meshes-1) and spheres (the rest)
+    node_lower: wp.array(dtype=wp.vec3)
+    node_upper: wp.array(dtype=wp.vec3)
+    node_left: wp.array(dtype=wp.int32)
+    node_right: wp.array(dtype=wp.int32)
+    node_first: wp.array(dtype=wp.int32)
+    node_count: wp.array(dtype=wp.int32)
+    items: wp.array(dtype=wp.int32)
+    # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
+    extent: float
+
+
+@wp.struct
+class Materials:
+    """The material table (structure of arrays, one row per material; see scene.MaterialTable)."""
+
+    diffuse: wp.array(dtype=wp.vec3)
+    reflect: wp.array(dtype=wp.vec3)
+    refract: wp.array(dtype=wp.vec3)
+    emission: wp.array(dtype=wp.vec3)
+    tex: wp.array(dtype=wp.vec4i)              # texture slot per colour (scene.SLOT_*)
+    roughness: wp.array(dtype=wp.float32)      # probability of the diffuse lobe
+    fuzz: wp.array(dtype=wp.float32)
+    ior: wp.array(dtype=wp.float32)
+    refractable: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class Textures:
+    """The texture atlas (flat), its tile table (offset, w, h, stride) and the filter (0 nearest, 1 bilinear)."""
+
+    texels: wp.array(dtype=wp.vec3)
+    tiles: wp.array(dtype=wp.vec4i)
+    bilinear: int
+    # procedural instances (warp_spt.core.proctex): kind = index into Features.procedural, parameters
+    proc_kind: wp.array(dtype=wp.int32)
+    proc_params: wp.array(dtype=ProcParams)
+
+
+@dataclass(frozen=True)
+class Features:
+    """What a scene uses; each False lets the kernel drop that code entirely (wp.static)."""
+
+    meshes: bool = True
+    spheres: bool = True
+    textures: bool = True
+    checker: bool = True
+    refraction: bool = True
+    emitters: bool = True
+    smooth: bool = True
+    diffuse: bool = True       # some material has a diffuse lobe (Roughness > 0)
+    specular: bool = True      # some material has a mirror/glass lobe (Roughness < 1)
+    sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
+    # procedural textures used: sorted (name, source hash); () compiles no procedural code
+    procedural: tuple[tuple[str, str], ...] = ()
+
+    @staticmethod
+    def general() -> "Features":
+        """The kernel that handles any scene (used to check specialisations against)."""
+        return Features()
+
+
+@dataclass
+class UploadedMesh:
+    """One mesh on the device and its float64 bounds (for the top-level BVH)."""
+
+    mesh: wp.Mesh
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @classmethod
+    def of(cls, m, device: str) -> "UploadedMesh":
+        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
+        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+        p = m.positions[m.indices.reshape(-1)].astype(np.float64)
+        return cls(wp.Mesh(points=points, indices=idx, bvh_constructor="sah"), p.min(0), p.max(0))
+
+
+class DeviceScene:
+    """A Scene on a Warp device. Keeps the Warp objects alive while kernels use them.
+
+    ``meshes`` caches :class:`UploadedMesh` objects by :func:`mesh_key`: a mesh found there is reused
+    instead of uploaded and rebuilt (animation frames share their static meshes), new ones are added, and
+    ``mesh_keys`` lists this scene's keys so that the cache's owner can drop the ones no scene uses.
+    """
+
+    def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
+        validate_scene(scene)
+        self.device = device
+        self.scene = scene
+        self.features = _features(scene)
+        self._meshes: list[wp.Mesh] = []
+        self._mesh_cache = meshes
+        self._mesh_bounds: list[tuple[np.ndarray, np.ndarray]] = []
+        self.mesh_keys: list[str] = []
+        self.geometry = Geometry()
+        self._upload_meshes(self.geometry, scene, device)
+        self._upload_spheres_and_tlas(self.geometry, scene, device)
+        b = scene.bounds
+        self.geometry.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
+        self.materials = _upload_materials(scene, device)
+        self._atlas = _upload_atlas(scene, device)
+        self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
+        self._lights: dict = {}          # light tables per sky (warp_spt.core.lights.light_table)
+
+    def textures(self, texture_filter: str = "nearest") -> Textures:
+        """The atlas with the given filter ("nearest" or "bilinear")."""
+        t = Textures()
+        t.texels, t.tiles = self._atlas
+        t.bilinear = int(texture_filter == "bilinear")
+        t.proc_kind, t.proc_params = self.proc_kind, self.proc_params
+        return t
+
+    def _upload_meshes(self, s: Geometry, scene: Scene, device: str) -> None:
+        offsets, mats, uvs, normals = [], [], [], []
+        start = 0
+        cache = self._mesh_cache
+        for m in scene.meshes:
+            key = mesh_key(m, device) if cache is not None else ""
+            uploaded = cache.get(key) if cache is not None else None
+            if uploaded is None:
+                uploaded = UploadedMesh.of(m, device)
+                if cache is not None:
+                    cache[key] = uploaded
+            self._meshes.append(uploaded.mesh)
+            self._mesh_bounds.append((uploaded.lower, uploaded.upper))
+            self.mesh_keys.append(key)
+            offsets.append(start)
+            start += len(m.indices)
+            mats.append(m.face_material.astype(np.int32))
+            uvs.append(m.corner_uv.reshape(-1, 2).astype(np.float32))
+            if self.features.smooth:
+                normals.append(_corner_normals(m).reshape(-1, 3))
+        s.num_meshes = len(self._meshes)
+        s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
+        s.face_offset = _arr(offsets, wp.int32, device, np.int32)
+        s.face_material = _arr(_cat(mats, (0,), np.int32), wp.int32, device, np.int32)
+        s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32)
+        s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
+        s.has_corner_normals = int(self.features.smooth)
+
+    def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
+        lowers = [lo for lo, _ in self._mesh_bounds]
+        uppers = [hi for _, hi in self._mesh_bounds]
+        sph = scene.spheres.astype(np.float64).reshape(-1, 4)
+        lowers.extend(sph[:, :3] - sph[:, 3:4])
+        uppers.extend(sph[:, :3] + sph[:, 3:4])
+        self.tlas = build_tlas(np.asarray(lowers).reshape(-1, 3), np.asarray(uppers).reshape(-1, 3))
+        t = self.tlas
+        _set_arrays(s, device, spheres=(scene.spheres.reshape(-1, 4), wp.vec4),
+                    sphere_material=(scene.sphere_material, wp.int32),
+                    node_lower=(t.lower, wp.vec3), node_upper=(t.upper, wp.vec3),
+                    node_left=(t.left, wp.int32), node_right=(t.right, wp.int32),
+                    node_first=(t.first, wp.int32), node_count=(t.count, wp.int32), items=(t.items, wp.int32))
+
+
+def mesh_key(m, device: str = "cpu") -> str:
+    """What a ``wp.Mesh`` is built from (float32 positions, int32 triangles, the device), hashed."""
+    h = hashlib.sha256(str(device).encode())
+    for a, dtype in ((m.positions, np.float32), (m.indices, np.int32)):
+        a = np.ascontiguousarray(a, dtype=dtype)
+        h.update(str(a.shape).encode())
+        h.update(a.data)
+    return h.hexdigest()
+
+
+def _upload_materials(scene: Scene, device: str) -> Materials:
+    mt = scene.materials
+    m = Materials()
+    _set_arrays(m, device, diffuse=(mt.diffuse, wp.vec3), reflect=(mt.reflect, wp.vec3),
+                refract=(mt.refract, wp.vec3), emission=(mt.emission, wp.vec3), tex=(mt.tex, wp.vec4i),
+                roughness=(mt.roughness, wp.float32), fuzz=(mt.fuzz, wp.float32), ior=(mt.ior, wp.float32),
+                refractable=(mt.refractable.astype(np.int32), wp.int32))
+    return m
+
+
+def _upload_atlas(scene: Scene, device: str) -> tuple[wp.array, wp.array]:
+    atlas = pack_atlas(scene.textures)
+    texels = wp.array(np.ascontiguousarray(atlas.texels, dtype=np.float32), dtype=wp.vec3, device=device)
+    return texels, _arr(atlas.tiles, wp.vec4i, device, np.int32)
+
+
+def _upload_procedural(scene: Scene, key: tuple, device: str) -> tuple[wp.array, wp.array]:
+    """Per-instance kinds and parameter vectors (``proc_params`` is what parameter gradients flow into)."""
+    kinds, params = instance_arrays(scene.procedural, key)
+    return (_arr(kinds, wp.int32, device, np.int32),
+            wp.array(params if len(params) else np.zeros((1, MAX_PARAMS), np.float32), dtype=ProcParams, device=device))
+
+
+def _features(scene: Scene) -> Features:
+    """Which code paths the scene's used materials and geometry need."""
+    used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
+    mt = scene.materials
+    tex = mt.tex[used]
+    emits = (mt.emission[used] > 0).any() or (tex[:, 3] >= 0).any() or (tex[:, 3] <= TEX_PROC_BASE).any()
+    return Features(
+        meshes=any(len(m.indices) for m in scene.meshes),
+        spheres=len(scene.spheres) > 0,
+        textures=bool((tex >= 0).any()),
+        checker=bool((tex == TEX_CHECKER).any()),
+        refraction=bool(mt.refractable[used].any()),
+        emitters=bool(emits),
+        smooth=any(m.corner_normal is not None for m in scene.meshes),
+        diffuse=bool((mt.roughness[used] > 0).any()),
+        specular=bool((mt.roughness[used] < 1).any()),
+        procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
+    )
+
+
+def _corner_normals(m) -> np.ndarray:
+    """Per-corner unit normals; meshes without vn get their flat face normal at every corner."""
+    if m.corner_normal is not None:
+        return m.corner_normal.astype(np.float32)
+    p = m.positions[m.indices].astype(np.float64)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return np.repeat(n[:, None, :], 3, axis=1).astype(np.float32)
+
+
+def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.ndarray:
+    return np.concatenate(parts).astype(dtype) if parts else np.zeros(empty_shape, dtype)
+
+
+def _set_arrays(s, device: str, **fields: tuple) -> None:
+    """Upload each ``name=(data, warp dtype)`` into the struct field of that name."""
+    for name, (data, dtype) in fields.items():
+        np_dtype = np.int32 if dtype in (wp.int32, wp.vec4i) else np.float32
+        setattr(s, name, _arr(data, dtype, device, np_dtype))
+
+
+def _arr(data, dtype, device: str, np_dtype) -> wp.array:
+    """A device array; empty inputs become one zero element so no kernel sees a null pointer."""
+    a = np.ascontiguousarray(np.asarray(data, dtype=np_dtype))
+    if a.shape[0] == 0:
+        a = np.zeros((1, *a.shape[1:]), dtype=np_dtype)
+    return wp.array(a, dtype=dtype, device=device)

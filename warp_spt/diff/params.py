@@ -1,0 +1,260 @@
+"""Scene parameters addressed by name, as Mitsuba's ``traverse``: read, set and differentiate them.
+
+``parameters(scene, camera, sky)`` lists what a user can edit and what gradients reach:
+
+* ``"<material>.diffuse"``, ``.reflect``, ``.refract``, ``.emission``: RGB colours (3,);
+* ``"<material>.roughness"`` (probability of the diffuse lobe, in [0, 1]) and ``.fuzz`` (>= 0), ();
+* ``"<material>.<slot>_map"`` for each image texture, named after the first material slot that uses
+  it (slots diffuse, reflect, refract, emission): its texels (h, w, 3), row 0 the image's top row;
+* ``"<material>.<slot>_map.<key>"`` for each numeric parameter of a procedural texture (named, as
+  image textures are, after the first slot using that instance; ``<key>`` as declared with
+  ``@warp_spt.texture``): () for a number, (3,) for an RGB triple;
+* ``"sky.color"`` (3,) for a constant sky; ``"sky.zenith"`` and ``"sky.nadir"`` (3,) for the
+  gradient sky (its colours straight up and straight down);
+* ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
+  points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
+  see docs/gradients.md).
+
+Values are validated before they reach a kernel (finite; colours and texels >= 0; roughness in
+[0, 1]; fuzz >= 0; a non-zero direction). Setting a material value updates both the host Scene and
+the device arrays, and recomputes the scene's Features (a roughness leaving 1 needs the mirror lobe
+compiled in) and its light table (an emission change re-weights light sampling).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from warp_spt.core.device_scene import DeviceScene, _features
+from warp_spt.core.proctex import get_texture
+from warp_spt.core.textures import tile_view
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.model import (
+    SLOT_DIFFUSE,
+    SLOT_EMISSION,
+    SLOT_REFLECT,
+    SLOT_REFRACT,
+    TEX_PROC_BASE,
+    Scene,
+)
+from warp_spt.scene.sky import SKY_CONSTANT, Sky
+
+COLOR_FIELDS = ("diffuse", "reflect", "refract", "emission")
+SCALAR_FIELDS = ("roughness", "fuzz")
+MATERIAL_FIELDS = COLOR_FIELDS + SCALAR_FIELDS
+_SLOT_NAMES = {SLOT_DIFFUSE: "diffuse", SLOT_REFLECT: "reflect", SLOT_REFRACT: "refract",
+               SLOT_EMISSION: "emission"}
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """Where a named parameter lives: ``kind`` is "material", "texture", "proc" (a procedural
+    texture's parameter), "sky" or "camera"; ``field`` the material field / texture key / sky or
+    camera attribute; ``index`` the material row, texture index or procedural instance."""
+
+    name: str
+    kind: str
+    field: str
+    index: int
+    shape: tuple[int, ...]
+
+
+class SceneParameters:
+    """The editable, differentiable parameters of one DeviceScene seen by one camera under one sky.
+
+    ``params[name]`` returns a numpy copy; ``params[name] = value`` validates and applies it.
+    ``params.camera`` and ``params.sky`` are the current camera and sky (frozen dataclasses, replaced
+    when set).
+    """
+
+    def __init__(self, scene: DeviceScene | Scene, camera: Camera | None = None, sky: Sky | None = None):
+        self.scene = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
+        self.camera = camera or Camera()
+        self.sky = sky or Sky.black()
+        self._info = _describe(self.scene.scene, self.sky)
+
+    # --- the mapping -------------------------------------------------------------------------
+    def names(self) -> list[str]:
+        return list(self._info)
+
+    def __iter__(self):
+        return iter(self._info)
+
+    def __len__(self) -> int:
+        return len(self._info)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._info
+
+    def differentiable(self) -> list[str]:
+        """The names :func:`warp_spt.diff.gradients.render_gradients` differentiates (all of them)."""
+        return list(self._info)
+
+    def info(self, name: str) -> ParamInfo:
+        if name not in self._info:
+            raise KeyError(f"no parameter {name!r}; parameters are: {', '.join(self._info)}")
+        return self._info[name]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        p = self.info(name)
+        s = self.scene.scene
+        if p.kind == "material":
+            return np.array(getattr(s.materials, p.field)[p.index], dtype=np.float32)
+        if p.kind == "texture":
+            return np.array(s.textures[p.index], dtype=np.float32)
+        if p.kind == "proc":
+            off, size = proc_slice(s, p)
+            return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
+        if p.kind == "sky":
+            return np.array(getattr(self.sky, p.field), dtype=np.float32)
+        return np.array(getattr(self.camera, p.field), dtype=np.float32)
+
+    def __setitem__(self, name: str, value) -> None:
+        p = self.info(name)
+        v = np.asarray(value, dtype=np.float64)
+        if v.shape != p.shape:
+            raise ValueError(f"{name}: expected shape {p.shape}, got {v.shape}")
+        _check_value(p, v)
+        if p.kind == "material":
+            self._set_material(p, v)
+        elif p.kind == "texture":
+            self._set_texture(p, v)
+        elif p.kind == "proc":
+            self._set_proc(p, v)
+        elif p.kind == "sky":
+            self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
+        else:
+            self.camera = replace(self.camera, **{p.field: tuple(float(x) for x in v)})
+
+    def update(self, values: dict) -> None:
+        for k, v in values.items():
+            self[k] = v
+
+    # --- writing through to host and device ------------------------------------------------------
+    def _set_material(self, p: ParamInfo, v: np.ndarray) -> None:
+        dev = self.scene
+        getattr(dev.scene.materials, p.field)[p.index] = v
+        arr = getattr(dev.materials, p.field)
+        host = arr.numpy()
+        host[p.index] = v
+        arr.assign(host)
+        self._refresh()
+
+    def _set_texture(self, p: ParamInfo, v: np.ndarray) -> None:
+        dev = self.scene
+        dev.scene.textures[p.index] = v.astype(np.float32)
+        texels, tiles = dev._atlas
+        host = texels.numpy()
+        tile_view(host, tiles.numpy()[p.index])[...] = v
+        texels.assign(host)
+        self._refresh()
+
+    def _set_proc(self, p: ParamInfo, v: np.ndarray) -> None:
+        dev = self.scene
+        off, size = proc_slice(dev.scene, p)
+        ref = dev.scene.procedural[p.index]
+        vec = list(ref.params)
+        vec[off:off + size] = (float(np.float32(x)) for x in v.reshape(-1))
+        dev.scene.procedural[p.index] = replace(ref, params=tuple(vec))
+        host = dev.proc_params.numpy()
+        host[p.index, off:off + size] = v.reshape(-1)
+        dev.proc_params.assign(host)
+        self._refresh()
+
+    def _refresh(self) -> None:
+        """Features and light table follow the new values."""
+        dev = self.scene
+        dev.features = _features(dev.scene)
+        dev._lights.clear()
+
+
+def parameters(scene: DeviceScene | Scene, camera: Camera | None = None, sky: Sky | None = None) -> SceneParameters:
+    """The named parameters of ``scene`` (uploaded if it is a host Scene); see the module docstring."""
+    return SceneParameters(scene, camera, sky)
+
+
+def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
+    info: dict[str, ParamInfo] = {}
+    mt = scene.materials
+    for row, mname in enumerate(mt.names):
+        for f in MATERIAL_FIELDS:
+            n = f"{mname}.{f}"
+            info[n] = ParamInfo(n, "material", f, row, (3,) if f in COLOR_FIELDS else ())
+    for k, img in enumerate(scene.textures):
+        uses = np.argwhere(mt.tex == k)
+        if len(uses):
+            row, slot = (int(x) for x in uses[0])
+            n = f"{mt.names[row]}.{_SLOT_NAMES[slot]}_map"
+        else:
+            n = f"texture{k}"
+        info[n] = ParamInfo(n, "texture", "texels", k, tuple(np.shape(img)))
+    for k, ref in enumerate(scene.procedural):
+        uses = np.argwhere(mt.tex == TEX_PROC_BASE - k)
+        if not len(uses):
+            continue                        # not used by any material: nothing to differentiate
+        row, slot = (int(x) for x in uses[0])
+        for key, (_, size) in get_texture(ref.name).layout().items():
+            n = f"{mt.names[row]}.{_SLOT_NAMES[slot]}_map.{key}"
+            info[n] = ParamInfo(n, "proc", key, k, () if size == 1 else (size,))
+    for f in ("color",) if sky.kind == SKY_CONSTANT else ("zenith", "nadir"):
+        info[f"sky.{f}"] = ParamInfo(f"sky.{f}", "sky", f, 0, (3,))
+    for f in ("position", "direction"):
+        info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
+    return info
+
+
+# The kernel's camera frame (integrators.CameraParams), whose gradients render_gradients computes
+CAMERA_FIELDS = ("origin", "to_upper_left", "x_step", "y_step", "right", "up")
+
+
+def camera_frame(camera: Camera, width: int, height: int) -> np.ndarray:
+    """(6, 3) float64: the CameraParams vectors of ``camera`` in CAMERA_FIELDS order."""
+    f = camera.image_plane(width, height)
+    f["to_upper_left"] = f["upper_left"] - f["origin"]
+    return np.stack([np.asarray(f[k], dtype=np.float64) for k in CAMERA_FIELDS])
+
+
+def camera_jacobian(camera: Camera, field: str, width: int, height: int, h: float = 1e-6) -> np.ndarray:
+    """(6, 3, 3): d camera_frame / d ``camera.<field>`` ("position" or "direction").
+
+    The frame is a smooth float64 function of both (away from looking straight along ``up``, where
+    Camera.axes switches to a fixed reference), so central differences with h = 1e-6 give its
+    derivative to about 1e-9 relative. The position moves only the origin.
+    """
+    if field == "position":
+        jac = np.zeros((len(CAMERA_FIELDS), 3, 3))
+        jac[0] = np.eye(3)
+        return jac
+    v = np.asarray(getattr(camera, field), dtype=np.float64)
+    cols = []
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = h * max(1.0, float(np.linalg.norm(v)))
+        hi = camera_frame(replace(camera, **{field: tuple(v + e)}), width, height)
+        lo = camera_frame(replace(camera, **{field: tuple(v - e)}), width, height)
+        cols.append((hi - lo) / (2.0 * e[i]))
+    return np.stack(cols, axis=-1)
+
+
+def proc_slice(scene: Scene, p: ParamInfo) -> tuple[int, int]:
+    """(offset, size) of a procedural parameter in its instance's parameter vector."""
+    return get_texture(scene.procedural[p.index].name).layout()[p.field]
+
+
+def non_negative(p: ParamInfo) -> bool:
+    """Colours, texels, roughness and fuzz (and a procedural texture's RGB triples) are >= 0; camera
+    vectors and a procedural texture's numbers may take any finite value."""
+    return p.kind in ("material", "texture", "sky") or (p.kind == "proc" and p.shape == (3,))
+
+
+def _check_value(p: ParamInfo, v: np.ndarray) -> None:
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{p.name}: values must be finite")
+    if p.field == "roughness" and not 0.0 <= float(v) <= 1.0:
+        raise ValueError(f"{p.name}: roughness must be in [0, 1], got {float(v)}")
+    if non_negative(p) and p.field != "roughness" and np.any(v < 0):
+        raise ValueError(f"{p.name}: values must be >= 0")
+    if p.field == "direction" and not np.any(v != 0):
+        raise ValueError(f"{p.name}: the view direction must not be zero")

@@ -1,0 +1,338 @@
+"""load_scene(): OBJ and MTL files to one validated :class:`Scene`.
+
+Unlike the seed, materials resolve after every file is read, so the order of the files does not
+matter. Materials come from each OBJ's ``mtllib`` files that exist (a missing one is a warning:
+the seed's own demo names one that does not exist), then from the explicit MTL files, whose
+definitions replace ``mtllib`` ones of the same name; among files of one kind the later wins.
+The name ``Inner_CheckerTexture`` is reserved for the built-in material: an MTL definition of it
+is ignored with a warning. A ``usemtl`` name that no file defines gives the built-in material
+and ONE warning per name.
+
+The material table holds row 0 (the built-in checker) and the materials that some triangle or
+sphere uses, in order of first use. Textures are read only for those materials (so an MTL whose
+unused materials name absent textures still loads), once per resolved file, as RGB float32 =
+8-bit value / 255 or 16-bit value / 65535 (no sRGB decoding, alpha ignored, as the seed), row 0 =
+the image's top row. Every texture, and the atlas they share, must fit the texel budget
+(:data:`warp_spt.scene.atlas_layout.TEXEL_BUDGET`).
+A texture path is tried relative to its MTL file's folder, then to the working directory;
+``\\`` is read as ``/``.
+
+The default material (faces and spheres before any ``usemtl``, table row 0) is the seed's
+``Inner_CheckerTexture`` or a neutral grey clay, chosen by ``default_material``: ``"checker"`` (the
+API's default, the seed's), ``"clay"``, or ``"auto"`` (the CLI's default): checker when any MTL file
+is given or any OBJ names a material (``usemtl`` or ``mtllib``), as every seed scene does; clay for a
+bare model. Row 0 keeps its reserved name either way.
+
+Warnings go to ``Scene.warnings`` and to the ``warn`` callback (by default
+``warnings.warn(message, UserWarning)``; pass ``warn=lambda message: None`` to only collect them).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings as _warnings
+from pathlib import Path
+from typing import Callable, Iterable
+
+import numpy as np
+from PIL import Image
+
+from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
+from warp_spt.io.obj import load_obj
+from warp_spt.io.tokens import file_problem
+from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import (
+    CHECKER_NAME,
+    SLOT_DIFFUSE,
+    SLOT_EMISSION,
+    SLOT_REFLECT,
+    SLOT_REFRACT,
+    TEX_CHECKER,
+    TEX_NONE,
+    TEX_PROC_BASE,
+    Material,
+    MaterialTable,
+    MeshData,
+    ObjData,
+    Scene,
+    TextureRef,
+)
+from warp_spt.scene.validate import validate_scene
+
+__all__ = ["load_scene", "validate_scene"]
+
+WarnFn = Callable[[str], None]
+PathLike = str | os.PathLike[str]
+_SLOT_FIELDS = ((SLOT_DIFFUSE, "diffuse_map"), (SLOT_REFLECT, "reflect_map"),
+                (SLOT_REFRACT, "refract_map"), (SLOT_EMISSION, "emission_map"))
+
+
+def _default_warn(message: str) -> None:
+    _warnings.warn(message, UserWarning, stacklevel=3)
+
+
+DEFAULT_MATERIALS = ("checker", "clay", "auto")
+
+
+def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None,
+               default_material: str = "checker") -> Scene:
+    """Read OBJ files (one object each) and MTL files into a validated :class:`Scene`.
+
+    An item of ``objs`` may also be an already parsed :class:`ObjData` (animations re-use static files).
+
+    Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
+    including a scene with no triangles and no spheres. See the module docs for the rules.
+    """
+    notes: list[str] = []
+
+    def note(message: str) -> None:
+        notes.append(message)
+        (warn or _default_warn)(message)
+
+    if default_material not in DEFAULT_MATERIALS:
+        raise ValueError(f"default_material must be one of {DEFAULT_MATERIALS}, got {default_material!r}")
+    mtls = [str(p) for p in mtls]
+    data = [p if isinstance(p, ObjData) else load_obj(p) for p in objs]   # parsed ones: OBJ sequences
+    _require_geometry(data)
+    library = _read_materials(data, mtls, note)
+    table_rows, obj_rows = _assign_rows(data, library, note)
+    if _default_is_clay(default_material, data, mtls):
+        table_rows[0] = builtin_clay()
+    textures = _TextureCache(note)
+    scene = Scene(
+        meshes=[_mesh(d, rows, note) for d, rows in zip(data, obj_rows) if len(d.faces)],
+        spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float32),
+        sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
+                                       ).astype(np.int32) if data else np.zeros(0, np.int32),
+        materials=_table(table_rows, textures),
+        textures=textures.images,
+        procedural=textures.procedural,
+        warnings=notes,
+        dropped_degenerate=sum(d.dropped_degenerate for d in data),
+    )
+    for d in data:
+        if d.dropped_degenerate:
+            note(f"{d.path}: dropped {d.dropped_degenerate} zero-area triangles")
+    validate_scene(scene)
+    return scene
+
+
+def _default_is_clay(choice: str, data: list[ObjData], mtls: list[str]) -> bool:
+    """The rule for ``default_material="auto"``: clay only for bare models (see the module docs)."""
+    if choice != "auto":
+        return choice == "clay"
+    names_material = any(len(d.material_names) > 1 or d.mtllibs for d in data)
+    return not mtls and not names_material
+
+
+def _require_geometry(data: list[ObjData]) -> None:
+    """A scene with nothing to draw is an error that names every OBJ file and says why."""
+    if any(len(d.faces) or len(d.spheres) for d in data):
+        return
+    if not data:
+        raise SceneError(None, 0, "the scene has no geometry: no OBJ files were given")
+    reasons = []
+    for d in data:
+        if d.dropped_degenerate:
+            why = f"all {d.dropped_degenerate} triangles have zero area"
+        elif len(d.positions):
+            why = f"{len(d.positions)} 'v' lines but no faces ('f') or spheres ('b')"
+        else:
+            why = "no 'v', 'f' or 'b' lines (the file is empty or holds only comments and ignored statements)"
+        reasons.append(f"{d.path}: {why}")
+    raise SceneError(data[0].path, 0, "the scene has no geometry: " + "; ".join(
+        [reasons[0].split(": ", 1)[1]] + reasons[1:]))
+
+
+def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[str, Material]:
+    """{name: Material}: existing mtllib files first, then the explicit files (which win)."""
+    library: dict[str, Material] = {}
+    seen: set[str] = set()
+    for d in data:
+        for lib, line in zip(d.mtllibs, d.mtllib_lines or [0] * len(d.mtllibs)):
+            if lib in seen:
+                continue
+            seen.add(lib)
+            problem = file_problem(lib)
+            if problem is None:
+                library.update(load_mtl(lib, note))
+            else:
+                where = f"{d.path}:{line}" if line else d.path
+                why = "not found" if problem == "no such file or directory" else f"cannot be read ({problem})"
+                note(f"{where}: mtllib {lib} {why}; its materials are not loaded")
+    for path in mtls:
+        library.update(load_mtl(path, note))
+    if CHECKER_NAME in library:
+        m = library.pop(CHECKER_NAME)
+        note(f"{m.source}:{m.line}: {CHECKER_NAME} is the built-in material; this definition is ignored")
+    return library
+
+
+def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
+                 ) -> tuple[list[Material], list[np.ndarray]]:
+    """Table rows (checker first, then used materials) and, per OBJ, its material index -> row."""
+    rows: list[Material] = [builtin_checker()]
+    row_of: dict[str, int] = {CHECKER_NAME: 0}
+    warned: set[str] = set()
+    obj_rows = []
+    for d in data:
+        used = set(np.unique(d.face_material).tolist()) | set(np.unique(d.sphere_material).tolist())
+        mapping = np.zeros(len(d.material_names), dtype=np.int32)
+        for k, (name, line) in enumerate(zip(d.material_names, d.material_lines)):
+            if name not in library and name != CHECKER_NAME:
+                if name not in warned:
+                    warned.add(name)
+                    note(f"{d.path}:{line}: unknown material {name!r}; using {CHECKER_NAME}")
+            elif k in used and name not in row_of:
+                row_of[name] = len(rows)
+                rows.append(library[name])
+            mapping[k] = row_of.get(name, 0)
+        obj_rows.append(mapping)
+    return rows, obj_rows
+
+
+def _mesh(d: ObjData, rows: np.ndarray, note: WarnFn) -> MeshData:
+    """One OBJ's triangles with per-corner uv and normals."""
+    f = len(d.faces)
+    uv = np.zeros((f, 3, 2), np.float32)
+    has_t = d.face_texcoords >= 0
+    uv[has_t] = d.texcoords[d.face_texcoords[has_t]]
+    return MeshData(
+        name=Path(d.path).name,
+        positions=d.positions,
+        indices=d.faces,
+        corner_uv=uv,
+        corner_normal=_corner_normals(d, note),
+        face_material=rows[d.face_material].astype(np.int32),
+    )
+
+
+def _corner_normals(d: ObjData, note: WarnFn) -> np.ndarray | None:
+    """Unit per-corner normals, or None when no corner names a ``vn``.
+
+    A corner without a normal, or whose ``vn`` has zero length, takes the face's geometric normal
+    (cross(p1 - p0, p2 - p0), normalised; faces of zero area were dropped by the reader).
+    """
+    has_n = d.face_normals >= 0
+    if not has_n.any():
+        return None
+    p = d.positions.astype(np.float64)[d.faces]
+    geo = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    geo /= np.linalg.norm(geo, axis=1, keepdims=True)
+    out = np.repeat(geo[:, None, :], 3, axis=1)
+    given = d.normals.astype(np.float64)[d.face_normals[has_n]]
+    length = np.linalg.norm(given, axis=1)
+    ok = length > 0
+    zero = int(np.count_nonzero(~ok))
+    if zero:
+        note(f"{d.path}: {zero} face corners name a zero-length normal; using the face normal")
+    idx = np.argwhere(has_n)[ok]
+    out[idx[:, 0], idx[:, 1]] = given[ok] / length[ok, None]
+    return out.astype(np.float32)
+
+
+class _TextureCache:
+    """Images read once per resolved path, in the order first needed, within the texel budget."""
+
+    def __init__(self, note: WarnFn) -> None:
+        self.images: list[np.ndarray] = []
+        self.refs: list[TextureRef] = []
+        self._index: dict[str, int] = {}
+        self._note = note
+        self.procedural: list = []          # procedural instances (warp_spt.core.proctex.ProcRef)
+
+    def index(self, ref: TextureRef) -> int:
+        if not isinstance(ref, TextureRef):             # a proctex.ProcRef: one instance per (name, params)
+            if ref not in self.procedural:
+                self.procedural.append(ref)
+            return TEX_PROC_BASE - self.procedural.index(ref)
+        path = _find_texture(ref)
+        if path not in self._index:
+            image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h))
+            self._index[path] = len(self.images)
+            self.images.append(image)
+            self.refs.append(ref)
+        return self._index[path]
+
+    def _check_atlas(self, ref: TextureRef, w: int, h: int) -> None:
+        """All textures so far plus a new w x h one (from its header) must fit the texel budget."""
+        names = [f"{r.path} ({r.mtl_file}:{r.line})" for r in [*self.refs, ref]]
+        problem = atlas_problem([im.shape[:2] for im in self.images] + [(h, w)], names, TEXEL_BUDGET)
+        if problem:
+            raise SceneError(ref.mtl_file, ref.line, problem)
+
+
+def _find_texture(ref: TextureRef) -> str:
+    """The first existing candidate: relative to the MTL's folder, then to the working directory."""
+    name = ref.path.replace("\\", "/")
+    candidates = [Path(name)] if Path(name).is_absolute() else [Path(ref.mtl_file).parent / name, Path.cwd() / name]
+    problems = []
+    for c in candidates:
+        problem = file_problem(c)
+        if problem is None:
+            return str(c.resolve())
+        problems.append(f"{c}: {problem}")
+    raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} cannot be read ({'; '.join(problems)})")
+
+
+def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[[int, int], None]) -> np.ndarray:
+    """(H, W, 3) float32 in [0, 1], row 0 at the top; 8-bit values / 255, 16-bit values / 65535.
+
+    The size is checked against the texel budget from the header, before anything is decoded: alone,
+    then with the textures read before it (``check_atlas(w, h)`` raises if they do not fit).
+    Pillow's own warnings become one-line notes naming the MTL line; its decompression-bomb check is
+    replaced by the budget.
+    """
+    try:
+        with _warnings.catch_warnings(record=True) as caught:
+            _warnings.simplefilter("always")
+            with Image.open(path) as img:
+                w, h = img.size
+                if w * h > TEXEL_BUDGET:
+                    raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "
+                                     f"than the budget of {TEXEL_BUDGET:,} (8192x8192); downsample it")
+                check_atlas(w, h)
+                rgb = _to_rgb(img)
+    except (OSError, ValueError, Image.DecompressionBombError) as err:
+        if isinstance(err, SceneError):
+            raise
+        raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {err}") from None
+    for w in caught:
+        if not issubclass(w.category, Image.DecompressionBombWarning):
+            note(f"{ref.mtl_file}:{ref.line}: texture {path}: {w.message}")
+    return rgb
+
+
+def _to_rgb(img: Image.Image) -> np.ndarray:
+    """Float32 RGB in [0, 1]: 16-bit and 32-bit integer grey scaled by 65535, float grey clipped."""
+    if img.mode.startswith("I;16") or img.mode == "I":
+        grey = np.clip(np.asarray(img, dtype=np.float64) / 65535.0, 0.0, 1.0).astype(np.float32)
+        return np.repeat(grey[:, :, None], 3, axis=2)
+    if img.mode == "F":
+        grey = np.clip(np.nan_to_num(np.asarray(img, dtype=np.float32)), 0.0, 1.0)
+        return np.repeat(grey[:, :, None], 3, axis=2)
+    return np.asarray(img.convert("RGB"), dtype=np.float32) / np.float32(255.0)
+
+
+def _table(rows: list[Material], textures: _TextureCache) -> MaterialTable:
+    """The structure-of-arrays table, reading the textures of its rows."""
+    tex = np.full((len(rows), 4), TEX_NONE, dtype=np.int32)
+    for r, m in enumerate(rows):
+        if m.checker:
+            tex[r, SLOT_DIFFUSE] = tex[r, SLOT_REFLECT] = TEX_CHECKER
+        for slot, field in _SLOT_FIELDS:
+            ref = getattr(m, field)
+            if ref is not None:
+                tex[r, slot] = textures.index(ref)
+
+    def col(name: str, dtype: type = np.float32) -> np.ndarray:
+        return np.asarray([getattr(m, name) for m in rows], dtype=dtype)
+
+    return MaterialTable(
+        names=[m.name for m in rows],
+        diffuse=col("diffuse").reshape(-1, 3), reflect=col("reflect").reshape(-1, 3),
+        refract=col("refract").reshape(-1, 3), emission=col("emission").reshape(-1, 3),
+        tex=tex, roughness=col("roughness"), fuzz=col("fuzz"), ior=col("ior"),
+        refractable=col("refractable", np.bool_),
+    )

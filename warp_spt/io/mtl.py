@@ -1,0 +1,273 @@
+"""MTL material libraries read into the seed's material model (:class:`Material`, SEMANTICS §6).
+
+Seed tags (tag names are matched case-insensitively; colours take 3 numbers, or 1 for a grey):
+
+========================  ==============================================================
+``newmtl NAME``           a new material with the seed's MTL defaults; a later definition
+                          of the same name replaces an earlier one
+``Kd`` / ``map_Kd``       diffuse AND reflect colour / texture
+``Kr`` / ``map_Kr``       reflect colour / texture only
+``Kt`` / ``map_Kt``       refract (transmission) colour / texture (the seed ignored map_Kt)
+``Kl`` / ``map_Kl``       emission colour / texture
+``Roughness a``           probability of the diffuse bounce, in [0, 1]
+``Fuzz a``                length of the reflection's random perturbation, >= 0
+``Kn a``                  index of refraction, > 0
+``Refractable``           the specular lobe may refract
+========================  ==============================================================
+
+A constant and a texture of the same slot replace each other: the later line wins (the seed
+kept one texture object per slot).
+
+Standard tags mapped onto the same model:
+
+* ``Ke`` / ``map_Ke``: emission (as ``Kl``); ``Ks`` / ``map_Ks``: reflect colour (as ``Kr``);
+  ``Tf``: refract colour (as ``Kt``); ``Ni``: index of refraction (as ``Kn``).
+* ``d a`` (opacity) and ``Tr t`` (= ``d 1-t``): when the opacity is below 1 the material becomes
+  refractable and its diffuse probability is at most the opacity (``d 0`` is clear glass).
+* ``illum 3`` or ``5`` (ray-traced reflection): a mirror, roughness 0 and fuzz 0.
+  ``illum 4``, ``6`` or ``7`` (ray-traced refraction): glass, refractable, roughness 0, fuzz 0.
+  Other illum values change nothing.
+* The values derived from ``d``/``Tr``/``illum`` never override an explicit ``Roughness``,
+  ``Fuzz`` or ``Refractable`` of the same material, wherever the lines stand.
+* ``Ks`` with ``Ns`` (Phong): when ``Ks`` is given, the probability of the specular lobe is
+  max(Ks) / (max(Kd) + max(Ks)) (so ``Ks 0`` is a purely diffuse material), and the Phong exponent
+  gives the reflection blur ``Fuzz = min(1, sqrt(5 / (Ns + 2)))`` (a cos^n lobe and the seed's fuzz
+  ball have the same RMS angle, sqrt(2 / (n + 2)) = sqrt(2/5) Fuzz).
+* PBR ``Pm`` (metallic) and ``Pr`` (roughness): specular probability Pm + 0.04 (1 - Pm) (a
+  dielectric's normal-incidence Fresnel is about 4%); ``Fuzz = Pr``. They take precedence over
+  ``Ks``/``Ns``.
+* Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); they are skipped and
+  ignored. Every other tag (``Ka``, ``bump``, ``map_d``...) is ignored, as are lines before the
+  first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
+  options it read but does not support.
+
+``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
+built-ins: :mod:`warp_spt.core.proctex`); an unknown name or key is a SceneError with file and line.
+
+Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
+read later, by :func:`warp_spt.io.loader.load_scene`, and only for materials that geometry uses.
+Bad values (a non-number, NaN, a reflectance colour outside [0, 1], an emission above 1e30, a
+roughness outside [0, 1], an IOR outside [0.001, 1000], an opacity outside [0, 1]) raise
+:class:`SceneError` with the file and line.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+
+from warp_spt.io.tokens import (
+    decode_name,
+    iter_lines,
+    normalise_text,
+    parse_floats,
+    parse_int,
+    read_file,
+)
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import CHECKER_NAME, Material, TextureRef
+from warp_spt.scene.validate import MAX_IOR, MAX_RADIANCE, MIN_IOR
+
+# Texture options and how many values follow them; (1, 3) means one to three numbers.
+_TEX_OPTIONS = {
+    "-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
+    "-mm": 2, "-texres": 1, "-type": 1, "-o": (1, 3), "-s": (1, 3), "-t": (1, 3),
+}
+_COLOUR_SLOTS = {"kd": ("diffuse", "reflect"), "kr": ("reflect",), "ks": ("reflect",), "kt": ("refract",),
+                 "tf": ("refract",), "kl": ("emission",), "ke": ("emission",)}
+_MAP_SLOTS = {"map_kd": ("diffuse", "reflect"), "map_kr": ("reflect",), "map_ks": ("reflect",),
+              "map_kt": ("refract",), "map_kl": ("emission",), "map_ke": ("emission",)}
+
+
+def builtin_checker() -> Material:
+    """The built-in ``Inner_CheckerTexture``: checker diffuse and reflect, diffuse probability 0.75."""
+    return Material(name=CHECKER_NAME, roughness=0.75, fuzz=0.62, ior=1.0, checker=True)
+
+
+def builtin_clay() -> Material:
+    """The default material of bare models: a neutral grey, purely diffuse clay (row 0's name kept)."""
+    grey = (0.6, 0.6, 0.6)
+    return Material(name=CHECKER_NAME, diffuse=grey, reflect=grey, roughness=1.0, fuzz=0.0, ior=1.0)
+
+
+@dataclass
+class _Draft:
+    """A material being read, with what the standard tags ask for until it is finished."""
+
+    mat: Material
+    explicit: set[str] = field(default_factory=set)   # fields set by seed tags
+    opacity: float = 1.0
+    illum: int = -1
+    phong: dict[str, float] = field(default_factory=dict)   # ks, ns, pr, pm as read
+
+    def finish(self) -> Material:
+        derived = self._phong_and_pbr()
+        if self.illum in (3, 5, 4, 6, 7):
+            derived.update(roughness=0.0, fuzz=0.0)
+        if self.illum in (4, 6, 7) or self.opacity < 1.0:
+            derived["refractable"] = True
+        if self.opacity < 1.0:
+            derived["roughness"] = min(float(derived.get("roughness", self.mat.roughness)), self.opacity)
+        return replace(self.mat, **{k: v for k, v in derived.items() if k not in self.explicit})
+
+    def _phong_and_pbr(self) -> dict[str, object]:
+        """Roughness (diffuse probability) and fuzz from Ks/Ns or Pm/Pr; see the module docs."""
+        p, out = self.phong, {}
+        if "pm" in p or "pr" in p:
+            if "pm" in p:
+                out["roughness"] = 1.0 - (p["pm"] + 0.04 * (1.0 - p["pm"]))
+            if "pr" in p:
+                out["fuzz"] = p["pr"]
+            return out
+        if "ks" in p:
+            kd = max(self.mat.diffuse)
+            out["roughness"] = kd / (kd + p["ks"]) if kd + p["ks"] > 0 else 1.0
+        if "ns" in p:
+            out["fuzz"] = min(1.0, (5.0 / (p["ns"] + 2.0)) ** 0.5)
+        return out
+
+
+def load_mtl(path: str | os.PathLike[str], warn: Callable[[str], None] | None = None) -> dict[str, Material]:
+    """Read an MTL file into {name: Material}; the later of two definitions of a name wins.
+
+    Raises :class:`SceneError` for a missing file or bad content, with the file and line. ``warn``,
+    when given, receives at most one line per file about what was read but not supported.
+    """
+    path = str(path)
+    return parse_mtl_bytes(read_file(path, "MTL"), path, warn)
+
+
+def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], None] | None = None
+                    ) -> dict[str, Material]:
+    """Parse MTL text given as bytes; ``path`` names it in errors and in :class:`TextureRef`."""
+    out: dict[str, Material] = {}
+    draft: _Draft | None = None
+    ignored: dict[str, None] = {}        # unsupported tags and texture options, in order of appearance
+    data = normalise_text(data, path, "MTL")
+    for lineno, toks in iter_lines(data):
+        tag = toks[0].decode("latin-1").lower()
+        if tag == "newmtl":
+            if draft is not None:
+                out[draft.mat.name] = draft.finish()
+            if len(toks) < 2:
+                raise SceneError(path, lineno, "expected a material name after 'newmtl'")
+            draft = _Draft(Material(name=decode_name(toks[1:]), source=path, line=lineno))
+        elif draft is not None:
+            if not _statement(draft, tag, toks, path, lineno):
+                ignored[toks[0].decode("latin-1")] = None
+            elif tag in _MAP_SLOTS:
+                ignored.update((f"texture option {o}", None) for o in _texture_options(toks[1:]))
+    if draft is not None:
+        out[draft.mat.name] = draft.finish()
+    if warn is not None:
+        _report(path, list(ignored), warn)
+    return out
+
+
+def _report(path: str, ignored: list[str], warn: Callable[[str], None]) -> None:
+    """One line per file naming the tags and texture options it uses that are not supported.
+
+    (A reflectance colour above 1, which would add energy, is an error: see :func:`_statement`.)
+    """
+    if ignored:
+        warn(f"{path}: read but not supported (ignored): " + ", ".join(ignored))
+
+
+def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -> bool:
+    """Apply one line to the material being read; False for a tag that is not supported."""
+    args, name = toks[1:], toks[0].decode("latin-1")
+    m = d.mat
+    if tag in _COLOUR_SLOTS:
+        rgb = parse_floats(args, (1, 3), path, lineno, name)
+        high = MAX_RADIANCE if _COLOUR_SLOTS[tag] == ("emission",) else 1.0
+        if min(rgb) < 0 or max(rgb) > high:
+            why = "" if high == MAX_RADIANCE else " (a surface cannot reflect more light than it receives)"
+            bad = min(rgb) if min(rgb) < 0 else max(rgb)
+            raise SceneError(path, lineno, f"expected colour values in [0, {high:g}] after '{name}', got {bad:g}{why}")
+        colour = (rgb[0],) * 3 if len(rgb) == 1 else tuple(rgb)
+        for slot in _COLOUR_SLOTS[tag]:
+            setattr(m, slot, colour)
+            setattr(m, slot + "_map", None)
+        if tag == "ks":
+            d.phong["ks"] = max(colour)
+    elif tag in _MAP_SLOTS:
+        ref = _proc_map(args, path, lineno, name) or TextureRef(path=_texture_path(args, path, lineno, name),
+                                                                mtl_file=path, line=lineno)
+        for slot in _MAP_SLOTS[tag]:
+            setattr(m, slot + "_map", ref)
+    elif tag == "roughness":
+        m.roughness = _number(args, path, lineno, name, lo=0.0, hi=1.0)
+        d.explicit.add("roughness")
+    elif tag == "fuzz":
+        m.fuzz = _number(args, path, lineno, name, lo=0.0)
+        d.explicit.add("fuzz")
+    elif tag in ("kn", "ni"):
+        m.ior = _number(args, path, lineno, name, lo=MIN_IOR, hi=MAX_IOR)
+    elif tag == "refractable":
+        m.refractable = True
+        d.explicit.add("refractable")
+    elif tag == "d":
+        d.opacity = _number(args, path, lineno, name, lo=0.0, hi=1.0)
+    elif tag == "tr":
+        d.opacity = 1.0 - _number(args, path, lineno, name, lo=0.0, hi=1.0)
+    elif tag == "illum":
+        if len(args) != 1:
+            raise SceneError(path, lineno, f"expected 1 integer after 'illum', got {len(args)}")
+        d.illum = parse_int(args[0], path, lineno, "illumination model")
+    elif tag == "ns":
+        d.phong["ns"] = _number(args, path, lineno, name, lo=0.0)
+    elif tag in ("pr", "pm"):
+        d.phong[tag] = _number(args, path, lineno, name, lo=0.0, hi=1.0)
+    else:
+        return False
+    return True
+
+
+def _number(args: list[bytes], path: str, lineno: int, tag: str, *, lo: float, hi: float | None = None,
+            open_lo: bool = False) -> float:
+    """One number in [lo, hi] (or (lo, hi] with ``open_lo``)."""
+    value = parse_floats(args, (1,), path, lineno, tag)[0]
+    v32 = float(np.float32(value))      # checked as the kernel will see it: 1e-46 is 0 in float32
+    if v32 < lo or value < lo or (open_lo and v32 == lo) or (hi is not None and v32 > hi):
+        low = f"> {lo:g}" if open_lo else f">= {lo:g}"
+        want = f"in [{lo:g}, {hi:g}]" if hi is not None else low
+        raise SceneError(path, lineno, f"expected a value {want} after '{tag}', got {value:g}")
+    return value
+
+
+def _texture_path(args: list[bytes], path: str, lineno: int, tag: str) -> str:
+    """The file name of a texture statement, after its options."""
+    i = 0
+    while i < len(args) - 1 and args[i].decode("latin-1").lower() in _TEX_OPTIONS:
+        count = _TEX_OPTIONS[args[i].decode("latin-1").lower()]
+        lo, hi = (count, count) if isinstance(count, int) else count
+        i += 1 + lo
+        while hi > lo and i < len(args) - 1 and _is_number(args[i]):
+            i, hi = i + 1, hi - 1
+    if i >= len(args):
+        raise SceneError(path, lineno, f"expected a texture file name after '{tag}'")
+    return decode_name(args[i:])
+
+
+def _texture_options(args: list[bytes]) -> list[str]:
+    """The options written before a texture's file name (e.g. ``-s``), as they are spelled."""
+    return [a.decode("latin-1") for a in args[:-1] if a.decode("latin-1").lower() in _TEX_OPTIONS]
+def _proc_map(args: list[bytes], path: str, lineno: int, tag: str):
+    """``map_* proc:NAME key=value...``: a procedural texture (warp_spt.core.proctex), else None."""
+    if not args or not args[0].startswith(b"proc:"):
+        return None
+    from warp_spt.core.proctex import (
+        parse_proc_map,  # imports Warp: only for scenes that use procedural textures
+    )
+    return parse_proc_map(args, path, lineno, tag)
+
+
+def _is_number(tok: bytes) -> bool:
+    try:
+        float(tok)
+    except ValueError:
+        return False
+    return True

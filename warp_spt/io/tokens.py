@@ -1,0 +1,191 @@
+"""Lexical rules shared by the OBJ and MTL readers: lines, tokens, numbers and names.
+
+Both formats are read as bytes. A line ends at ``\\n``, ``\\r\\n`` or a lone ``\\r`` (classic Mac
+OS files); tokens are separated by runs of ASCII whitespace (space, tab, CR, VT, FF).
+A token that starts with ``#`` starts a comment that runs to the end of the line, so
+``usemtl Mat#1`` keeps its name while ``v 1 2 3 # note`` loses the note. Names are decoded as
+UTF-8, or as Latin-1 when they are not valid UTF-8 (older exporters), the same way in both
+formats so that ``usemtl`` and ``newmtl`` names always match.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import re
+import stat
+from collections.abc import Iterator, Sequence
+
+import numpy as np
+
+from warp_spt.scene.errors import SceneError
+
+# Strict decimal syntax; Python's float() would also take "nan", "inf", "1_0" and "0x1p3".
+_FLOAT_RE = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_INT_RE = re.compile(rb"[+-]?\d+")
+
+
+def iter_lines(data: bytes) -> Iterator[tuple[int, list[bytes]]]:
+    """Yield (1-based line number, tokens without comment) for every line with tokens.
+
+    Lines are produced one at a time (no list of all lines is built next to ``data``).
+    """
+    for lineno, line in enumerate(io.BytesIO(data), start=1):
+        toks = strip_comment(line.split())
+        if toks:
+            yield lineno, toks
+
+
+def strip_comment(toks: list[bytes]) -> list[bytes]:
+    """Drop the first token that starts with ``#`` and everything after it."""
+    for i, t in enumerate(toks):
+        if t.startswith(b"#"):
+            return toks[:i]
+    return toks
+
+
+def show(token: bytes) -> str:
+    """A token as it should appear in an error message."""
+    return repr(token.decode("utf-8", errors="replace"))
+
+
+def decode_name(toks: Sequence[bytes]) -> str:
+    """Join name tokens with single spaces and decode them (UTF-8, else Latin-1)."""
+    raw = b" ".join(toks)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def parse_float(tok: bytes, path: str, lineno: int, tag: str) -> float:
+    """One finite decimal number that is also finite in float32, or a SceneError."""
+    if not _FLOAT_RE.fullmatch(tok):
+        raise SceneError(path, lineno, f"expected a number after '{tag}', got {show(tok)}")
+    value = float(tok)
+    with np.errstate(over="ignore"):
+        finite32 = bool(np.isfinite(np.float32(value)))
+    if not math.isfinite(value) or not finite32:
+        raise SceneError(path, lineno, f"expected a finite number after '{tag}', got {show(tok)}")
+    return value
+
+
+def parse_floats(toks: Sequence[bytes], counts: Sequence[int], path: str, lineno: int, tag: str) -> list[float]:
+    """Parse the numbers after ``tag``; their count must be one of ``counts``."""
+    if len(toks) not in counts:
+        want = _phrase(counts)
+        noun = "number" if counts == (1,) else "numbers"
+        raise SceneError(path, lineno, f"expected {want} {noun} after '{tag}', got {len(toks)}")
+    return [parse_float(t, path, lineno, tag) for t in toks]
+
+
+def _phrase(counts: Sequence[int]) -> str:
+    """(3,) -> "3", (1, 3) -> "1 or 3", (3, 4, 6) -> "3, 4 or 6", (1, 2, 3) -> "1 to 3"."""
+    if len(counts) > 2 and list(counts) == list(range(counts[0], counts[-1] + 1)):
+        return f"{counts[0]} to {counts[-1]}"
+    head = ", ".join(str(c) for c in counts[:-1])
+    return f"{head} or {counts[-1]}" if head else str(counts[-1])
+
+
+def parse_int(tok: bytes, path: str, lineno: int, what: str) -> int:
+    """One decimal integer (an OBJ index), or a SceneError."""
+    if not _INT_RE.fullmatch(tok):
+        raise SceneError(path, lineno, f"expected an integer {what}, got {show(tok)}")
+    return int(tok)
+
+
+# Bounds on what a scene file may hold before it is refused with a clear error (docs/limits.md).
+MAX_FILE_BYTES = 2 << 30          # 2 GiB: an OBJ of about 20 million triangles
+MAX_LINE_BYTES = 1 << 20          # 1 MiB: a polygon of ~100,000 corners; no real line needs more
+
+_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def describe_special(mode: int) -> str | None:
+    """What a non-regular file is ("a FIFO (named pipe)"...), or None for a regular file."""
+    if stat.S_ISREG(mode):
+        return None
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
+def file_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why ``path`` cannot be read as a scene file ("no such file", "it is a FIFO"...), or None.
+
+    Never raises and never opens the file (so a FIFO cannot block).
+    """
+    try:
+        special = describe_special(os.stat(path).st_mode)
+    except (OSError, ValueError) as err:
+        return _reason(err)
+    return f"it is {special}, not a regular file" if special else None
+
+
+def is_regular_file(path: str | os.PathLike[str]) -> bool:
+    """Like Path.is_file, but False (never an exception) for names too long, NUL bytes and the like."""
+    return file_problem(path) is None
+
+
+def read_file(path: str, kind: str) -> bytes:
+    """The whole file as bytes (read once), or a SceneError naming it.
+
+    Only regular files are read (symbolic links are followed): a FIFO, a device such as
+    ``/dev/zero`` or a directory is refused before anything is read, so nothing can block or grow
+    without end. The file may hold at most MAX_FILE_BYTES, and no line more than MAX_LINE_BYTES.
+    """
+    try:
+        # O_NONBLOCK: opening a FIFO must not wait for a writer; regular files ignore the flag
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except (OSError, ValueError) as err:     # ValueError: a NUL byte in the name
+        raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
+    with os.fdopen(fd, "rb") as f:
+        special = describe_special(os.fstat(fd).st_mode)
+        if special:
+            raise SceneError(path, 0, f"cannot read {kind} file: it is {special}, not a regular file")
+        try:
+            data = f.read(MAX_FILE_BYTES + 1)
+        except OSError as err:
+            raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise SceneError(path, 0, f"{kind} file is larger than the {MAX_FILE_BYTES >> 30} GiB limit")
+    return data
+
+
+def _reason(err: BaseException) -> str:
+    text = getattr(err, "strerror", None) or str(err)
+    return text[:1].lower() + text[1:]
+
+
+def normalise_text(data: bytes, path: str, kind: str) -> bytes:
+    """Check that ``data`` is OBJ/MTL text and give every line a ``\\n`` end.
+
+    ``\\r\\n`` and a lone ``\\r`` become ``\\n`` (line numbers are those an editor shows). UTF-16
+    text, NUL bytes (binary data, e.g. an image given as OBJ) and lines longer than MAX_LINE_BYTES
+    are SceneErrors naming the file and line.
+    """
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise SceneError(path, 1, f"UTF-16 text is not supported: save the {kind} file as UTF-8 or ASCII")
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if data.startswith(b"\x89PNG"):
+        raise SceneError(path, 1, f"not {kind} text: a PNG image")
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        looks_utf16 = b"\x00" in (data[:1], data[1:2])      # UTF-16 without a byte-order mark
+        utf16 = " (UTF-16 text is not supported: save it as UTF-8)" if looks_utf16 else ""
+        raise SceneError(path, data.count(b"\n", 0, nul) + 1, f"not {kind} text: binary data (a NUL byte){utf16}")
+    _check_line_lengths(data, path)
+    return data
+
+
+def _check_line_lengths(data: bytes, path: str) -> None:
+    if len(data) <= MAX_LINE_BYTES:
+        return
+    ends = np.flatnonzero(np.frombuffer(data, np.uint8) == 10)
+    bounds = np.concatenate([[-1], ends, [len(data)]])
+    lengths = np.diff(bounds) - 1
+    k = int(np.argmax(lengths))
+    if lengths[k] > MAX_LINE_BYTES:
+        raise SceneError(path, k + 1, f"line of {int(lengths[k]):,} bytes is longer than the "
+                                      f"{MAX_LINE_BYTES >> 20} MiB limit")

@@ -1,0 +1,94 @@
+"""RenderSettings: everything a render needs besides the scene and the camera, and its validation.
+
+:func:`check_args` is the one place that decides which settings a kernel may see; every renderer
+(tiles, progressive, gradients, the cluster) calls it before anything is uploaded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from warp_spt.core.device_scene import Features
+from warp_spt.integrators import DEFAULT_INTEGRATOR, check_integrator
+from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
+from warp_spt.scene.sky import Sky
+
+                          # spp (1x1 at 2**20 spp: 131072 launches, ~3 s of launch overhead) are not
+                          # launch-bound. Depends on the image size only: the image stays independent
+                          # of tiles and threads.
+TILE_PIXELS = 4096        # pixels per launch
+
+
+MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Everything a render needs besides the scene and the camera.
+
+    ``spp`` samples per pixel starting at global sample index ``sample_offset`` (renders of disjoint
+    sample ranges can be merged, see :class:`warp_spt.rendering.film.Film`); ``max_depth`` counts surface hits
+    as in the seed; ``sky`` defaults to the seed's (blue) BlackSky; ``integrator`` and ``sampler`` are
+    names from ``warp_spt.integrators.INTEGRATORS`` and ``warp_spt.samplers.SAMPLERS``;
+    ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
+    ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
+    (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
+    """
+
+    width: int = 500
+    height: int = 500
+    spp: int = 16
+    max_depth: int = 6
+    sky: Sky | None = None
+    seed: int = 0
+    integrator: str = DEFAULT_INTEGRATOR
+    sampler: str = DEFAULT_SAMPLER
+    roulette_depth: int = 0
+    texture_filter: str = "nearest"
+    sample_offset: int = 0
+    threads: int | None = None
+    tile_pixels: int = TILE_PIXELS
+    features: Features | None = None
+    device: str = "cpu"
+
+
+_SETTING_NAMES = {f.name for f in fields(RenderSettings)}
+
+
+def settings_from(kw: dict) -> RenderSettings:
+    """A :class:`RenderSettings` from keyword arguments; a TypeError names any unknown ones."""
+    unknown = set(kw) - _SETTING_NAMES
+    if unknown:
+        raise TypeError(f"unknown render setting(s): {', '.join(sorted(unknown))}")
+    return RenderSettings(**kw)
+
+
+def check_args(rs: RenderSettings) -> None:
+    """Raise ValueError naming the first setting of ``rs`` a kernel must not see (sizes, sample indices,
+    seed, roulette depth, texture filter, integrator and sampler names)."""
+    for name in ("width", "height", "spp", "max_depth", "tile_pixels"):
+        v = getattr(rs, name)
+        if not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    if rs.width * rs.height > MAX_PIXELS:
+        raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
+    if rs.sample_offset < 0 or rs.sample_offset + rs.spp > 2**31 - 1:
+        raise ValueError("sample indices must lie in [0, 2**31)")
+    if not isinstance(rs.seed, (int, np.integer)):
+        raise ValueError(f"seed must be an integer, got {rs.seed!r}")
+    if not isinstance(rs.roulette_depth, (int, np.integer)) or rs.roulette_depth < 0:
+        raise ValueError(f"roulette_depth must be a non-negative integer, got {rs.roulette_depth!r}")
+    if rs.texture_filter not in ("nearest", "bilinear"):
+        raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
+    check_integrator(rs.integrator)
+    if rs.sampler not in SAMPLERS:
+        raise ValueError(f"unknown sampler {rs.sampler!r}; choose from {', '.join(sorted(SAMPLERS))}")
+
+
+def _check_rows(rows, height: int) -> None:
+    if rows is not None and not (isinstance(rows, tuple) and len(rows) == 2
+                                 and all(isinstance(r, (int, np.integer)) for r in rows)
+                                 and 0 <= rows[0] < rows[1] <= height):
+        raise ValueError(f"rows must be (first, stop) with 0 <= first < stop <= height, got {rows!r}")

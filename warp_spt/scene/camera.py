@@ -1,0 +1,258 @@
+"""The seed's camera: a position and a view direction, horizontal field of view, thin lens; Z up by default.
+
+Besides the seed's form (position + view direction), a camera can be made from a target
+(:meth:`Camera.look_at`) or fitted to a scene's bounds (:meth:`Camera.frame` with a scene, see
+:mod:`warp_spt.scene.recentre`). ``up`` is the world's up axis: the seed's scenes are Z-up, most exported
+models are Y-up (``up=(0, 1, 0)``).
+"""
+
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from warp_spt.scene.limits import (
+    MAX_COORDINATE,
+    MAX_IMAGE_PLANE,
+    MIN_DIRECTION,
+    MIN_FOCUS,
+)
+from warp_spt.scene.model import Scene
+
+Vec3 = tuple[float, float, float]
+
+# The seed's axes: Z up (SEMANTICS §3).
+Z_UP: Vec3 = (0.0, 0.0, 1.0)
+AXES: dict[str, Vec3] = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": Z_UP,
+                         "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
+
+
+def up_vector(up: str | Sequence[float]) -> np.ndarray:
+    """A unit float64 up vector from ``"x"``, ``"-y"``... or three numbers."""
+    if isinstance(up, str):
+        if up.lower() not in AXES:
+            raise ValueError(f"up axis must be one of {', '.join(AXES)}, got {up!r}")
+        return np.asarray(AXES[up.lower()], dtype=np.float64)
+    v = np.asarray(up, dtype=np.float64)
+    big = float(np.abs(v).max()) if v.shape == (3,) else 0.0
+    if not (math.isfinite(big) and big > 0.0):
+        raise ValueError(f"up must be a non-zero finite 3-vector, got {up!r}")
+    v = v / big                  # scaled first: the norm of (1e300, 1e300, 0) would overflow
+    return v / np.linalg.norm(v)
+
+
+class _FrameMethod:
+    """``Camera.frame(scene, up=...)`` fits a camera to a scene; ``camera.frame(width, height)`` is the
+    older name of :meth:`Camera.image_plane` (the kernel upload still calls it)."""
+
+    def __get__(self, obj: "Camera | None", owner: type) -> Any:
+        def frame(*args: Any, **kwargs: Any) -> Any:
+            if obj is not None and args and isinstance(args[0], (int, np.integer)):
+                return obj.image_plane(*args, **kwargs)
+            return frame_camera(*args, template=obj, **kwargs)
+        frame.__doc__ = _FrameMethod.__doc__
+        return frame
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole or thin-lens camera in the seed's conventions (SEMANTICS §3).
+
+    ``direction`` is a view direction, not a look-at target (see :meth:`look_at` for that). ``fov``
+    is the full horizontal angle in degrees. The image plane lies at ``focus`` along the view
+    direction, so it is also the plane in focus; ``aperture`` is the lens radius (0 gives a pinhole).
+    ``up`` is the world's up direction (the seed's Z by default): the image's vertical axis is the
+    projection of ``up``. The defaults frame the seed's Cornell box.
+    """
+
+    position: Vec3 = (4.0, -55.0, 16.0)
+    direction: Vec3 = (0.0, 1.0, 0.0)
+    fov: float = 38.0
+    aperture: float = 0.001
+    focus: float = 27.0
+    up: Vec3 = Z_UP
+
+    frame = _FrameMethod()
+
+    @classmethod
+    def look_at(cls, position: Sequence[float], target: Sequence[float], *, up: str | Sequence[float] = "z",
+                fov: float = 38.0, aperture: float = 0.0, focus: float | None = None) -> "Camera":
+        """A camera at ``position`` looking at ``target``, focused on it unless ``focus`` is given.
+
+        ``aperture`` defaults to 0 (a pinhole), so everything is sharp.
+        """
+        p = np.asarray(position, dtype=np.float64)
+        t = np.asarray(target, dtype=np.float64)
+        if not (np.abs(p).max() <= MAX_COORDINATE and np.abs(t).max() <= MAX_COORDINATE):   # NaN too
+            raise ValueError(f"camera position and target must be finite and lie within +-{MAX_COORDINATE:g}")
+        d = t - p
+        dist = float(np.linalg.norm(d))
+        if not (math.isfinite(dist) and dist > 0.0):
+            raise ValueError("camera target must differ from its position")
+        cam = cls(position=_vec(p), direction=_vec(d / dist), fov=float(fov), aperture=float(aperture),
+                  focus=float(focus) if focus is not None else dist, up=_vec(up_vector(up)))
+        cam.validate()
+        return cam
+
+    def with_(self, **changes: Any) -> "Camera":
+        """A copy with some fields replaced (``None`` values are ignored), validated."""
+        cam = replace(self, **{k: v for k, v in changes.items() if v is not None})
+        cam.validate()
+        return cam
+
+    def validate(self, width: int = 1, height: int = 1) -> None:
+        """Raise ValueError for a camera no renderer can use, or one whose frame would overflow float32.
+
+        Called by :meth:`image_plane`, so every render checks it; ``width`` x ``height`` (pixels)
+        also bounds the image plane of a tall image. The bounds are in :mod:`warp_spt.scene.limits`.
+        """
+        problem = camera_problem(self, width, height)
+        if problem:
+            raise ValueError(problem)
+
+    def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit (view direction, image right, image up), float64.
+
+        Looking straight along ``up`` or against it is well defined (the seed gave NaN looking
+        down, Q12): for Z up, looking down puts +Y at the image's top and looking up puts -Y there
+        (the seed's choice); for another up axis ``u``, ``cross(u, x)`` (or ``cross(u, y)``) plays +Y's role.
+        """
+        d = np.asarray(self.direction, dtype=np.float64)
+        d = d / np.linalg.norm(d)
+        u = up_vector(self.up)
+        along = float(np.dot(d, u))
+        if abs(along) >= 0.99999:
+            top = _reference_top(u)            # image top when looking straight down
+            right = np.cross(top, u)           # for Z up: exactly the seed's (1, 0, 0)
+            up = top if along <= 0.0 else -top
+        else:
+            right = np.cross(d, u)
+            right /= np.linalg.norm(right)
+            up = np.cross(right, d)
+            up /= np.linalg.norm(up)
+        return d, right, up
+
+    def image_plane(self, width: int, height: int) -> dict[str, np.ndarray]:
+        """The image plane in world space (float64): origin, upper-left corner and pixel steps.
+
+        Row 0 is the top of the image. Pixel (x, y) covers
+        ``upper_left + (x + a) * x_step - (y + b) * y_step`` for a, b in [0, 1).
+        """
+        self.validate(width, height)
+        d, right, up = self.axes()
+        half = self.focus * math.tan(math.radians(self.fov) / 2.0)
+        centre = np.asarray(self.position, dtype=np.float64) + d * self.focus
+        upper_left = centre - right * half + up * half * height / width
+        step = 2.0 * half / width
+        return {
+            "origin": np.asarray(self.position, dtype=np.float64),
+            "upper_left": upper_left,
+            "x_step": right * step,
+            "y_step": up * step,
+            "right": right,
+            "up": up,
+            "lens_radius": np.float64(self.aperture),
+        }
+
+
+def camera_problem(cam: Camera, width: int = 1, height: int = 1) -> str | None:
+    """Why ``cam`` cannot be rendered exactly at ``width`` x ``height``, or None: the checks of
+    :meth:`Camera.validate`, against float32 and the products the kernel's camera frame forms (a
+    unit direction, focus x tan(fov/2), position + aperture offsets). Bounds checked before any
+    vector is normalised, so nothing overflows on the host either."""
+    try:
+        pos, d, u = (tuple(float(v) for v in x) for x in (cam.position, cam.direction, cam.up))
+        fov, focus, aperture = float(cam.fov), float(cam.focus), float(cam.aperture)
+    except (TypeError, ValueError):
+        return "camera values must be numbers (position, direction and up: three each)"
+    if len(pos) != 3 or len(d) != 3 or len(u) != 3:
+        return "camera position, direction and up must have three components each"
+    if not all(math.isfinite(v) for v in (*pos, *d, *u, fov, focus, aperture)):
+        return "camera values must be finite numbers"
+    if max(abs(v) for v in pos) > MAX_COORDINATE:
+        return f"camera position must lie within +-{MAX_COORDINATE:g}"
+    for name, vec in (("view direction", d), ("up vector", u)):
+        if not MIN_DIRECTION <= max(abs(v) for v in vec) <= MAX_COORDINATE:
+            return (f"camera {name} must not be zero or huge: its largest component must lie in "
+                    f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}] in size")
+    if not 0.0 < fov < 180.0:
+        return f"camera fov must be in (0, 180) degrees, got {fov:g}"
+    if not MIN_FOCUS <= focus <= MAX_COORDINATE:
+        return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_COORDINATE:g}], got {focus:g}"
+    if not 0.0 <= aperture <= MAX_COORDINATE:
+        return f"camera aperture must lie in [0, {MAX_COORDINATE:g}], got {aperture:g}"
+    half = focus * math.tan(math.radians(fov) / 2.0) * max(1.0, height / width)
+    if half > MAX_IMAGE_PLANE:
+        return (f"camera image plane is too large for float32: focus x tan(fov/2) x max(1, height/width) "
+                f"= {half:.3g}, at most {MAX_IMAGE_PLANE:g} (a smaller focus distance or fov)")
+    return None
+
+
+def _reference_top(u: np.ndarray) -> np.ndarray:
+    """The image's top direction when looking straight down ``-u``: +Y for Z up (the seed's axes)."""
+    if abs(u[2]) == 1.0 and u[0] == 0.0 and u[1] == 0.0:
+        return np.array([0.0, 1.0, 0.0])
+    t = np.cross(u, [1.0, 0.0, 0.0])
+    if np.linalg.norm(t) < 1e-6:
+        t = np.cross(u, [0.0, 1.0, 0.0])
+    return t / np.linalg.norm(t)
+
+
+def _vec(v: Sequence[float] | np.ndarray) -> Vec3:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+# Framing: azimuth from the front towards the side, elevation above the horizon, in degrees; the
+# box's projection fills 1/MARGIN of the frame's half-width or half-height.
+AZIMUTH, ELEVATION, MARGIN = 35.0, 25.0, 1.05
+
+
+def front_vector(up: np.ndarray) -> np.ndarray:
+    """The direction from a model towards its viewer for an up axis: -Y for Z up (the seed's camera
+    stands at -Y), +Z for Y up (the glTF/OpenGL convention: models face +Z), +Z for X up."""
+    for cand in ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)):
+        f = np.asarray(cand) - np.dot(cand, up) * up
+        if np.linalg.norm(f) > 0.5:
+            return f / np.linalg.norm(f)
+    return np.array([1.0, 0.0, 0.0])
+
+
+def _box(scene_or_bounds: Scene | np.ndarray) -> np.ndarray:
+    b = scene_or_bounds.bounds if isinstance(scene_or_bounds, Scene) else np.asarray(scene_or_bounds, np.float64)
+    if b.shape != (2, 3) or not np.all(np.isfinite(b)):
+        raise ValueError("framing needs a scene with geometry (finite bounds)")
+    return b
+
+
+def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = None, *, fov: float | None = None,
+                 aspect: float = 1.0, margin: float = MARGIN, template: Camera | None = None) -> Camera:
+    """A camera that shows all of ``scene`` (or (2, 3) bounds) from the front, three-quarter view.
+
+    ``aspect`` is width / height of the image. ``fov`` defaults to the template's (the seed's 38°);
+    ``up`` to the template's up axis (Z). The result is a pinhole focused at the bounds' centre.
+    """
+    b = _box(scene)
+    base = template or Camera()
+    u = up_vector(up if up is not None else base.up)
+    fov = float(fov if fov is not None else base.fov)
+    front = front_vector(u)
+    side = np.cross(u, front)
+    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
+    towards_camera = math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * u
+    centre = 0.5 * (b[0] + b[1])
+    probe_cam = Camera(position=tuple(centre), direction=tuple(-towards_camera), fov=fov, focus=1.0,
+                       aperture=0.0, up=tuple(u))
+    d, right, img_up = probe_cam.axes()
+    corners = np.array([[b[i][0], b[j][1], b[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]) - centre
+    tx = math.tan(math.radians(fov) / 2.0) / margin
+    ty = tx / aspect
+    x, y, z = corners @ right, corners @ img_up, corners @ d
+    dist = float(max(np.max(np.abs(x) / tx - z), np.max(np.abs(y) / ty - z)))
+    size = float(np.linalg.norm(b[1] - b[0]))
+    dist = max(dist, float(np.max(-z)) + 1e-3 * size, 1e-6 * max(size, float(np.max(np.abs(centre)))), 1e-12)
+    return Camera(position=tuple(float(v) for v in centre - d * dist), direction=tuple(float(v) for v in d),
+                  fov=fov, aperture=0.0, focus=dist, up=tuple(float(v) for v in u))

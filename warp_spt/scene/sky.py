@@ -1,0 +1,132 @@
+"""The seed's three skies (SEMANTICS §9) plus any constant colour: the radiance of a missed ray.
+
+A Sky is checked when it is made (ValueError, as for :class:`warp_spt.scene.camera.Camera`): its colour
+must lie in [0, MAX_RADIANCE] (:mod:`warp_spt.scene.limits`), so no sky can overflow a sample. The
+gradient sky varies with the height of a direction along an up axis: the sky's own ``up`` if given,
+else the camera's (the seed's Z by default), so a Y-up scene seen by a Y-up camera gets the same
+sky as the equivalent Z-up scene.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from warp_spt.scene.limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
+
+SKY_CONSTANT = 0
+SKY_GRADIENT = 1
+Z_UP = (0.0, 0.0, 1.0)
+
+
+ZENITH = (0.5, 0.7, 1.0)      # the seed's GradientSky, looking straight up
+NADIR = (1.0, 1.0, 1.0)       # and straight down
+
+
+@dataclass(frozen=True)
+class Sky:
+    """``kind`` SKY_CONSTANT returns ``color``; SKY_GRADIENT blends linearly in z, the direction's
+    component along the up axis, from ``nadir`` (z = -1) to ``zenith`` (z = 1); the seed's is
+    (0.75-0.25z, 0.85-0.15z, 1).
+
+    ``up`` is that axis (any non-zero 3-vector, stored normalised), or None to follow the camera's
+    ``up`` (see :func:`warp_spt.core.lights.light_table`). A constant sky does not depend on it.
+    """
+
+    kind: int = SKY_CONSTANT
+    color: tuple[float, float, float] = (0.3, 0.6, 0.8)
+    up: tuple[float, float, float] | None = None
+    zenith: tuple[float, float, float] = ZENITH
+    nadir: tuple[float, float, float] = NADIR
+
+    def __post_init__(self) -> None:
+        problem = sky_problem(self.kind, self.color, self.up)
+        for name in ("zenith", "nadir"):
+            problem = problem or colour_problem(f"sky {name}", getattr(self, name))
+        if not problem and self.kind == SKY_GRADIENT and max(self.zenith + self.nadir) <= 0.0:
+            problem = "a gradient sky needs some colour at its zenith or nadir"
+        if problem:
+            raise ValueError(problem)
+        for name in ("color", "zenith", "nadir"):
+            object.__setattr__(self, name, tuple(float(c) for c in getattr(self, name)))
+        if self.up is not None:
+            object.__setattr__(self, "up", _unit(self.up))
+
+    @staticmethod
+    def black() -> "Sky":
+        """The seed's 'BlackSky', which is a dull light blue (0.3, 0.6, 0.8) (quirk Q2). The default."""
+        return Sky(SKY_CONSTANT, (0.3, 0.6, 0.8))
+
+    @staticmethod
+    def gradient(zenith=ZENITH, nadir=NADIR, up=None) -> "Sky":
+        """The seed's GradientSky: white at the nadir to (0.5, 0.7, 1) at the zenith of ``up``
+        (default: the camera's up axis); both colours settable (in [0, MAX_RADIANCE], not both black)."""
+        return Sky(SKY_GRADIENT, (0.0, 0.0, 0.0), None if up is None else tuple(up), tuple(zenith), tuple(nadir))
+
+    def gradient_terms(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(mean, slope): the gradient sky's radiance is mean + slope * z (float64 sums)."""
+        mean = tuple(0.5 * (a + b) for a, b in zip(self.zenith, self.nadir))
+        slope = tuple(0.5 * (a - b) for a, b in zip(self.zenith, self.nadir))
+        return mean, slope
+
+    @staticmethod
+    def pink() -> "Sky":
+        """The seed's PinkSky, the constant (1, 0.431, 0.888)."""
+        return Sky(SKY_CONSTANT, (1.0, 0.431, 0.888))
+
+    @staticmethod
+    def constant(r: float, g: float, b: float) -> "Sky":
+        """Any constant radiance in [0, MAX_RADIANCE]; ``Sky.constant(0, 0, 0)`` is a truly black sky."""
+        return Sky(SKY_CONSTANT, (r, g, b))
+
+    @staticmethod
+    def from_index(k: int) -> "Sky":
+        """The seed's ``-sky K``: 1 gradient, 2 pink, anything else the (blue) BlackSky."""
+        return {1: Sky.gradient(), 2: Sky.pink()}.get(int(k), Sky.black())
+
+    def up_axis(self, camera_up=Z_UP) -> tuple[float, float, float]:
+        """The unit up axis the gradient follows: ``up``, else ``camera_up`` (normalised)."""
+        return self.up if self.up is not None else _unit(camera_up)
+
+    def radiance(self, z: float) -> tuple[float, float, float]:
+        """Reference value in Python for a unit direction whose component along the up axis is ``z``."""
+        if self.kind == SKY_GRADIENT:
+            mean, slope = self.gradient_terms()
+            return tuple(m + k * z for m, k in zip(mean, slope))
+        return self.color
+
+
+def sky_problem(kind, color, up=None) -> str | None:
+    """Why these sky values cannot be rendered exactly, or None."""
+    if kind not in (SKY_CONSTANT, SKY_GRADIENT):
+        return f"sky kind must be SKY_CONSTANT (0) or SKY_GRADIENT (1), got {kind!r}"
+    problem = colour_problem("sky colour", color)
+    if problem:
+        return problem
+    if up is not None and not (_numbers(up, 3) and all(math.isfinite(float(v)) for v in up)
+                               and MIN_DIRECTION <= max(abs(float(v)) for v in up) <= MAX_COORDINATE):
+        return (f"sky up must be a vector with components between {MIN_DIRECTION:g} and {MAX_COORDINATE:g} "
+                f"in size (not zero), got {up!r}")
+    return None
+
+
+def colour_problem(what: str, color) -> str | None:
+    if not _numbers(color, 3) or not all(0.0 <= float(c) <= MAX_RADIANCE for c in color):   # NaN fails too
+        return f"{what} values must be three numbers in [0, {MAX_RADIANCE:g}], got {color!r}"
+    return None
+
+
+def _numbers(values, n: int) -> bool:
+    """``values`` is a sequence of ``n`` real numbers (strings are not numbers here)."""
+    try:
+        return len(values) == n and not any(isinstance(v, (str, bytes)) or float(v) != float(v) for v in values)
+    except (TypeError, ValueError):
+        return False
+
+
+def _unit(v) -> tuple[float, float, float]:
+    """``v`` normalised in float64, scaled first so that no square overflows; axes stay exact."""
+    big = max(abs(float(x)) for x in v)
+    s = [float(x) / big for x in v]
+    n = math.sqrt(sum(x * x for x in s))
+    return (s[0] / n, s[1] / n, s[2] / n)

@@ -1,0 +1,75 @@
+"""The ``--studio`` preset: a neutral sky, a ground plane under the model and a key light.
+
+It adds generated geometry to a loaded :class:`Scene` (the user's files are never edited): a large
+square ground under the model's bounds (along the up axis) in a mid-grey diffuse material, and an
+emissive sphere above and to the front-left of the model, sized and placed from the bounds, so a
+bare scanned model renders like a product shot with a soft shadow. The key light is an ordinary
+emitter: renders find it by path tracing (and by light sampling, where the integrator offers it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Sequence
+
+import numpy as np
+
+from warp_spt.scene.camera import front_vector, up_vector
+from warp_spt.scene.model import TEX_NONE, MaterialTable, MeshData, Scene
+from warp_spt.scene.sky import Sky
+
+SKY = (0.35, 0.35, 0.35)          # a neutral grey sky
+GROUND_ALBEDO = 0.5
+GROUND_HALF_SIZE = 40.0           # in units of the model's bounding radius
+LIGHT_DISTANCE, LIGHT_RADIUS = 3.0, 1.5    # in units of the model's bounding radius: a big, soft key
+LIGHT_EMISSION = 4.0              # about 3x the sky's contribution on a surface facing it
+
+
+def studio_sky() -> Sky:
+    """The studio's neutral constant sky."""
+    return Sky.constant(*SKY)
+
+
+def add_studio(scene: Scene, up: str | Sequence[float] = "z") -> Scene:
+    """``scene`` plus a ground plane and a key-light sphere placed from its bounds."""
+    u = up_vector(up)
+    b = scene.bounds
+    centre = 0.5 * (b[0] + b[1])
+    radius = max(0.5 * float(np.linalg.norm(b[1] - b[0])), 1e-6)
+    front = front_vector(u)
+    side = np.cross(u, front)
+    low = float(np.min((b - centre) @ u))        # the bounds' lowest point along up, relative to centre
+    floor = centre + u * (low - 1e-3 * radius)    # just under the model: no coplanar faces
+    e1, e2 = front * GROUND_HALF_SIZE * radius, side * GROUND_HALF_SIZE * radius
+    quad = np.array([floor - e1 - e2, floor + e1 - e2, floor + e1 + e2, floor - e1 + e2], dtype=np.float64)
+    # wind the quad to face up
+    faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32)
+    if np.dot(np.cross(quad[1] - quad[0], quad[2] - quad[0]), u) < 0:
+        faces = faces[:, ::-1].copy()
+    ground_row, light_row = len(scene.materials), len(scene.materials) + 1
+    ground = MeshData(name="studio ground", positions=quad.astype(np.float32), indices=faces,
+                      corner_uv=np.zeros((2, 3, 2), np.float32), corner_normal=None,
+                      face_material=np.full(2, ground_row, np.int32))
+    key_dir = 0.7 * front - 0.6 * side + 1.2 * u
+    key = centre + LIGHT_DISTANCE * radius * key_dir / np.linalg.norm(key_dir)
+    light = np.array([[*key, LIGHT_RADIUS * radius]], dtype=np.float32)
+    return replace(scene, meshes=[*scene.meshes, ground],
+                   spheres=np.concatenate([scene.spheres, light]).astype(np.float32),
+                   sphere_material=np.concatenate([scene.sphere_material, [light_row]]).astype(np.int32),
+                   materials=_with_rows(scene.materials))
+
+
+def _with_rows(t: MaterialTable) -> MaterialTable:
+    """The table plus two rows: the ground (grey, diffuse) and the light (emissive, black)."""
+    grey, black = [GROUND_ALBEDO] * 3, [0.0] * 3
+
+    def add(a: np.ndarray, rows: list) -> np.ndarray:
+        return np.concatenate([a, np.asarray(rows, dtype=a.dtype).reshape((len(rows),) + a.shape[1:])])
+
+    return MaterialTable(
+        names=[*t.names, "studio ground", "studio light"],
+        diffuse=add(t.diffuse, [grey, black]), reflect=add(t.reflect, [grey, black]),
+        refract=add(t.refract, [black, black]), emission=add(t.emission, [black, [LIGHT_EMISSION] * 3]),
+        tex=add(t.tex, [[TEX_NONE] * 4] * 2), roughness=add(t.roughness, [1.0, 1.0]),
+        fuzz=add(t.fuzz, [0.0, 0.0]), ior=add(t.ior, [1.0, 1.0]), refractable=add(t.refractable, [False, False]),
+    )

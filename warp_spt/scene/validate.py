@@ -1,0 +1,109 @@
+"""validate_scene(): the last gate before device upload; nothing it accepts can upset a kernel.
+
+Every array of a :class:`Scene` is checked for dtype, shape, finiteness and range. Values out of
+range are errors, never clamped: a roughness outside [0, 1] or an IOR <= 0 means the input is
+wrong, and silently changing it would hide that.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.limits import MAX_COORDINATE, MAX_IOR, MAX_RADIANCE, MIN_IOR  # noqa: F401 (obj, mtl import them from here)
+from warp_spt.scene.model import (
+    CHECKER_NAME,
+    TEX_CHECKER,
+    TEX_NONE,
+    TEX_PROC_BASE,
+    MaterialTable,
+    MeshData,
+    Scene,
+)
+
+_WHERE = "<scene>"
+
+
+def _fail(message: str) -> None:
+    raise SceneError(_WHERE, 0, message)
+
+
+def _check_array(a: object, name: str, dtype: type, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``a`` is an ndarray of ``dtype`` whose shape matches (None = any length), finite if float."""
+    if not isinstance(a, np.ndarray) or a.dtype != dtype:
+        _fail(f"{name} must be a numpy {np.dtype(dtype).name} array, got {getattr(a, 'dtype', type(a).__name__)}")
+    if a.ndim != len(shape) or any(want is not None and got != want for got, want in zip(a.shape, shape)):
+        want = ", ".join("N" if s is None else str(s) for s in shape)
+        _fail(f"{name} must have shape ({want}), got {a.shape}")
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        _fail(f"{name} holds NaN or infinite values")
+    return a
+
+
+def _check_index(a: np.ndarray, name: str, n: int) -> None:
+    if a.size and (a.min() < 0 or a.max() >= n):
+        _fail(f"{name} holds indices outside [0, {n})")
+
+
+def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
+    name = f"meshes[{k}] ({m.name})"
+    pos = _check_array(m.positions, f"{name}.positions", np.float32, (None, 3))
+    idx = _check_array(m.indices, f"{name}.indices", np.int32, (None, 3))
+    f = len(idx)
+    _check_index(idx, f"{name}.indices", len(pos))
+    _check_array(m.corner_uv, f"{name}.corner_uv", np.float32, (f, 3, 2))
+    if m.corner_normal is not None:
+        nrm = _check_array(m.corner_normal, f"{name}.corner_normal", np.float32, (f, 3, 3))
+        if f and np.abs(np.linalg.norm(nrm, axis=2) - 1.0).max() > 1e-3:
+            _fail(f"{name}.corner_normal holds vectors that are not unit length")
+    _check_index(_check_array(m.face_material, f"{name}.face_material", np.int32, (f,)), f"{name}.face_material",
+                 n_materials)
+
+
+def _check_materials(t: MaterialTable, n_textures: int, n_procedural: int = 0) -> None:
+    m = len(t.names)
+    if m == 0 or t.names[0] != CHECKER_NAME:
+        _fail(f"materials row 0 must be {CHECKER_NAME}")
+    for field, high in (("diffuse", 1.0), ("reflect", 1.0), ("refract", 1.0), ("emission", MAX_RADIANCE)):
+        a = _check_array(getattr(t, field), f"materials.{field}", np.float32, (m, 3))
+        if ((a < 0) | (a > high)).any():
+            _fail(f"materials.{field} must lie in [0, {high:g}]")
+    tex = _check_array(t.tex, "materials.tex", np.int32, (m, 4))
+    proc = (tex <= TEX_PROC_BASE) & (tex > TEX_PROC_BASE - n_procedural)
+    if ((tex < 0) & (tex != TEX_NONE) & (tex != TEX_CHECKER) & ~proc).any() or (tex >= n_textures).any():
+        _fail(f"materials.tex holds slots that are neither TEX_NONE, TEX_CHECKER, a texture in [0, {n_textures}) "
+              f"nor one of the {n_procedural} procedural instances")
+    rough = _check_array(t.roughness, "materials.roughness", np.float32, (m,))
+    if ((rough < 0) | (rough > 1)).any():
+        _fail("materials.roughness must lie in [0, 1]")
+    if (_check_array(t.fuzz, "materials.fuzz", np.float32, (m,)) < 0).any():
+        _fail("materials.fuzz must be >= 0")
+    ior = _check_array(t.ior, "materials.ior", np.float32, (m,))
+    if ((ior < MIN_IOR) | (ior > MAX_IOR)).any():
+        _fail(f"materials.ior must lie in [{MIN_IOR:g}, {MAX_IOR:g}]")
+    _check_array(t.refractable, "materials.refractable", np.bool_, (m,))
+
+
+def validate_scene(scene: Scene) -> None:
+    """Raise :class:`SceneError` unless every array of ``scene`` has its dtype, shape and range.
+
+    Checks: meshes (float32 finite positions, int32 indices in range, uv, unit normals, material
+    rows), spheres (finite, radius > 0, material rows), the material table (row 0 is the checker,
+    colours >= 0, roughness in [0, 1], fuzz >= 0, IOR > 0, texture slots valid), textures
+    ((H, W, 3) float32 in [0, 1], non-empty), and that there is some geometry at all.
+    """
+    n_mat = len(scene.materials.names)
+    _check_materials(scene.materials, len(scene.textures), len(scene.procedural))
+    for k, tex in enumerate(scene.textures):
+        _check_array(tex, f"textures[{k}]", np.float32, (None, None, 3))
+        if tex.shape[0] == 0 or tex.shape[1] == 0 or tex.min(initial=0) < 0 or tex.max(initial=0) > 1:
+            _fail(f"textures[{k}] must be a non-empty image with values in [0, 1]")
+    for k, mesh in enumerate(scene.meshes):
+        _check_mesh(k, mesh, n_mat)
+    spheres = _check_array(scene.spheres, "spheres", np.float32, (None, 4))
+    if (spheres[:, 3] <= 0).any():
+        _fail("spheres must have a radius > 0")
+    smat = _check_array(scene.sphere_material, "sphere_material", np.int32, (len(spheres),))
+    _check_index(smat, "sphere_material", n_mat)
+    if scene.num_triangles == 0 and len(spheres) == 0:
+        _fail("the scene has no geometry: no triangles and no spheres")

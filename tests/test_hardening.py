@@ -296,7 +296,7 @@ def test_thin_textures_take_the_sum_of_their_areas_and_sample_right(tmp_path, n)
 
     scene = load_scene([str(thin_texture_scene(tmp_path, n))], warn=lambda m: None)
     dev = DeviceScene(scene)
-    texels, tiles = dev._atlas
+    texels, tiles = dev.atlas_arrays()
     # memory: the device atlas holds 2n texels (it used to be n x n: 4.5 GiB at n = 20000)
     assert texels.shape == (2 * n,) and texels.capacity == 2 * n * 12 and tiles.shape == (2,)
     atlas = Atlas(texels.numpy(), tiles.numpy())

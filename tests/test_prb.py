@@ -122,7 +122,7 @@ def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
         for field in Lights.vars:
             setattr(frozen, field, getattr(base, field))
         frozen.sky_color = p.sky.color if name == "sky.color" else base.sky_color
-        dev._lights[table_key(p.sky, p.camera.up)] = frozen
+        dev.light_cache(table_key(p.sky, p.camera.up), lambda: frozen)   # the cache was cleared above
         out.append(_image_sum(p, rs))
     p[name] = v0
     return (out[0] - out[1]) / (2 * h)

@@ -48,7 +48,12 @@ import numpy as np
 
 from warp_spt.rendering.film import Film
 from warp_spt.rendering.result import RenderResult
-from warp_spt.rendering.schedule import pass_ranges, samples_per_pass
+from warp_spt.rendering.schedule import (
+    batch_spp,
+    pass_ranges,
+    samples_per_pass,
+    unit_passes,
+)
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.runtime.progress import ProgressFn, progress_reporter
 from warp_spt.scene.camera import Camera
@@ -169,8 +174,7 @@ class SceneCache(WorkerPlugin):
         loads a kernel module from one thread at a time (Warp's concurrent module loads are unsafe).
         """
         from warp_spt.core.device_scene import DeviceScene
-        from warp_spt.core.lights import sky_emits
-        from warp_spt.integrators import get_kernel
+        from warp_spt.rendering.setup import device_kernel
 
         with self._lock:
             dev = self._scenes.pop(key, None)
@@ -185,8 +189,7 @@ class SceneCache(WorkerPlugin):
             used = {k for d in self._scenes.values() for k in d.mesh_keys}
             for k in set(self._meshes) - used:
                 del self._meshes[k]
-            get_kernel(rs.features or replace(dev.features, sky=sky_emits(rs.sky or Sky.black())), dev.device,
-                       rs.integrator, rs.sampler)
+            device_kernel(dev, rs)      # the kernel render_scene's set-up will pick, loaded under the lock
             return dev
 
 
@@ -465,24 +468,6 @@ def render(client, scene: Scene, camera: Camera | None = None, **kwargs) -> np.n
 # tiles), waits for them, and decides the next round from the merged estimate and the measured rate.
 # Rounds end on whole units, so a batch's film always equals a plain render of its samples with its
 # seed, and a run stopped after any round equals a run asked for exactly the samples it has.
-
-
-def unit_passes(u: int, spp: int, per_pass: int, batches: int) -> tuple[int, tuple[int, int]]:
-    """Unit ``u`` of a batched render of ``spp`` samples per pixel: (batch, (first sample, count)).
-
-    Unit u covers samples [u * per_pass, (u + 1) * per_pass) of the whole render (the last unit
-    may be short) and is pass ``u // batches`` of batch ``u % batches``.
-    """
-    return u % batches, ((u // batches) * per_pass, min(per_pass, spp - u * per_pass))
-
-
-def batch_spp(units: int, spp: int, per_pass: int, batches: int) -> np.ndarray:
-    """Samples per pixel of each batch after the first ``units`` units."""
-    counts = np.zeros(batches, np.int64)
-    for u in range(units):
-        b, (_, count) = unit_passes(u, spp, per_pass, batches)
-        counts[b] += count
-    return counts
 
 
 def render_progressive(client, scene: Scene, camera: Camera | None = None, settings: RenderSettings | None = None,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
-from typing import MutableMapping
+from typing import Any, Callable, Hashable, MutableMapping
 
 import numpy as np
 import warp as wp
@@ -18,6 +18,7 @@ import warp as wp
 from warp_spt.core.bvh import build_tlas
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
 from warp_spt.core.textures import pack_atlas
+from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
@@ -128,6 +129,7 @@ class DeviceScene:
 
     def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
         validate_scene(scene)
+        init_warp()            # quietly, once, before the first Warp array (not at import time)
         self.device = device
         self.scene = scene
         self.features = _features(scene)
@@ -144,6 +146,32 @@ class DeviceScene:
         self._atlas = _upload_atlas(scene, device)
         self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
         self._lights: dict = {}          # light tables per sky (warp_spt.core.lights.light_table)
+
+    def light_cache(self, key: Hashable, build: Callable[[], Any]) -> Any:
+        """What ``build()`` makes for ``key``, kept with this scene until :meth:`invalidate_lights`
+        (the light tables of :func:`warp_spt.core.lights.light_table`, per sky and up axis)."""
+        if key not in self._lights:
+            self._lights[key] = build()
+        return self._lights[key]
+
+    def invalidate_lights(self) -> None:
+        """Forget the light tables: the scene's emission or textures changed."""
+        self._lights.clear()
+
+    def refresh_features(self) -> None:
+        """Recompute the feature set from the host scene (after its materials changed) and forget
+        the light tables built from the old values."""
+        self.features = _features(self.scene)
+        self.invalidate_lights()
+
+    def atlas_arrays(self) -> tuple[wp.array, wp.array]:
+        """(texels (N,) vec3, tiles (textures, 4) int32): the texture atlas on the device; write
+        texels through ``assign`` (the arrays are shared with every Textures struct made from it)."""
+        return self._atlas
+
+    def atlas_tiles(self) -> np.ndarray:
+        """The atlas's tile table on the host: (offset, w, h, stride) per texture."""
+        return self._atlas[1].numpy()
 
     def textures(self, texture_filter: str = "nearest") -> Textures:
         """The atlas with the given filter ("nearest" or "bilinear")."""

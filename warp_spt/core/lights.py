@@ -420,12 +420,8 @@ def light_table(dev, sky: Sky, camera_up=Z_UP) -> Lights:
     """The device light table of a DeviceScene under ``sky`` (built once per scene and sky); the
     gradient sky follows ``sky.up``, else ``camera_up`` (pass the camera's ``up``)."""
     key = table_key(sky, camera_up)
-    up = key[-1]
-    if key not in dev._lights:
-        if "weights" not in dev._lights:
-            dev._lights["weights"] = _emitter_weights(dev.scene)
-        dev._lights[key] = _upload(dev._lights["weights"], dev.scene, sky, up, dev.device)
-    return dev._lights[key]
+    weights = dev.light_cache("weights", lambda: _emitter_weights(dev.scene))
+    return dev.light_cache(key, lambda: _upload(weights, dev.scene, sky, key[-1], dev.device))
 
 
 def sky_frame(up: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

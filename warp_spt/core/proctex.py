@@ -52,6 +52,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.textures import checker as _seed_checker
+from warp_spt.runtime import kernel_cache
 from warp_spt.scene.errors import SceneError
 
 MAX_PARAMS = 16
@@ -292,7 +293,12 @@ def make_dispatch(key: tuple[tuple[str, str], ...]):
 
 
 def _probe_kernel(key):
-    """A kernel evaluating every instance at given surface points: out[i, k] = texture k at point i."""
+    """A kernel evaluating every instance at given surface points: out[i, k] = texture k at point i
+    (built once per texture set, in the one kernel cache)."""
+    return kernel_cache.cached("proc_probe", key, lambda: _make_probe_kernel(key))
+
+
+def _make_probe_kernel(key):
     proc = make_dispatch(key)
 
     @wp.kernel(enable_backward=False, module="unique")

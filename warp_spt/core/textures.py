@@ -29,10 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.atlas_layout import flat_layout
-
-init_warp()   # every Warp path imports this module: initialise quietly (see warp_runtime)
 
 MAX_ATLAS_TEXELS = 2**31 - 1      # the kernel forms texel indices in int32
 COORD_LIMIT = float(2**30)        # |c * n| is clamped here before converting to int (see above)

@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import warp as wp
 
+from warp_spt.core.camera_rays import CameraParams
 from warp_spt.core.device_scene import (
     DeviceScene,
     Features,
@@ -47,7 +48,7 @@ from warp_spt.core.device_scene import (
     Materials,
     Textures,
 )
-from warp_spt.core.lights import Lights, light_table, sky_emits
+from warp_spt.core.lights import Lights
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
     CAMERA_FIELDS,
@@ -58,25 +59,37 @@ from warp_spt.diff.params import (
     camera_jacobian,
     proc_slice,
 )
-from warp_spt.diff.prb import get_replay_kernel
+from warp_spt.diff.prb import replay_inputs
 from warp_spt.integrators import (
-    VERTICES,
-    CameraParams,
     RenderParams,
-    camera_params,
     check_integrator,
+    get_integrator,
     get_step,
 )
 from warp_spt.losses import Loss
 from warp_spt.rendering.film import Film
-from warp_spt.rendering.settings import RenderSettings, check_args
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.setup import (
+    Bound,
+    KernelKind,
+    bind,
+    check,
+    register_kind,
+    render_features,
+)
 from warp_spt.rendering.tiles import render_scene
+from warp_spt.runtime import kernel_cache
 from warp_spt.runtime.threads import run_jobs
 from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.sky import Sky
 
 MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
+# The tape interface's defaults differ from the renderer's on purpose: render_differentiable (and
+# get_diff_kernel) predate NEE and kept the seed's pure path tracing, the cheapest step to unroll;
+# changing them would change the gradients their callers get.
+TAPE_INTEGRATOR = "seed"
+TAPE_KERNEL_SAMPLER = "independent"
 MODES = ("auto", "prb", "tape")
 # Parameters path replay differentiates (it holds sampled directions fixed and finds hits outside
 # the differentiated vertex, see warp_spt.diff.prb); the others (fuzz bends directions, the camera moves
@@ -125,20 +138,30 @@ def _make_kernel(step, start_path, depth: int):
     return trace_diff
 
 
-_kernels: dict[tuple[str, str, Features, int], wp.Kernel] = {}
-_ADJ = wp.Tape()     # used only for get_adjoint (building adjoint structs); it never records
+def tape_inputs(scene_args: list, deltas: wp.array, image: wp.array) -> list:
+    """The tape kernel's inputs after the scene's (``Bound.scene_args``), in its order."""
+    return [*scene_args, deltas, image]
 
 
-def get_diff_kernel(features: Features, depth: int, integrator: str = "seed", sampler: str = "independent",
-                    device: str = "cpu") -> wp.Kernel:
+def adjoint_structs(scene_args: list) -> list:
+    """The adjoints of ``scene_args`` for a launch with ``adjoint=True``: mirrors of the structs
+    whose arrays' adjoints are their ``.grad`` buffers. A fresh ``wp.Tape`` builds them (it never
+    records: Warp's tape is one global context, so none is kept between calls or threads)."""
+    mirrors = wp.Tape()
+    return [mirrors.get_adjoint(a) for a in scene_args]
+
+
+def get_diff_kernel(features: Features, depth: int, integrator: str = TAPE_INTEGRATOR,
+                    sampler: str = TAPE_KERNEL_SAMPLER, device: str = "cpu") -> wp.Kernel:
     """The differentiable kernel (forward and adjoint) for these features, unrolled to ``depth``."""
     check_integrator(integrator)
-    key = (integrator, sampler, features, depth)
-    if key not in _kernels:
-        _kernels[key] = _make_kernel(*get_step(integrator, sampler, features, differentiable=True), depth)
-    k = _kernels[key]
-    wp.load_module(k.module, device=device)      # on this thread, before any worker launches it
-    return k
+    k = kernel_cache.cached("tape", (integrator, sampler, features, depth), lambda: _make_kernel(
+        *get_step(integrator, sampler, features, differentiable=True), depth))
+    return kernel_cache.load(k, device)      # on this thread, before any worker launches it
+
+
+register_kind(KernelKind("tape", lambda b: get_diff_kernel(
+    b.features, b.settings.max_depth, b.integrator.name, b.settings.sampler, b.dev.device), render_features))
 
 
 def _check_estimator(integrator: str, sampler: str) -> None:
@@ -162,7 +185,7 @@ def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
     if mode not in MODES:
         raise ValueError(f"unknown gradient mode {mode!r}; choose from {', '.join(MODES)}")
     pathwise = [p.name for p in infos if not replayable(p)]
-    ok = not pathwise and integrator in VERTICES
+    ok = not pathwise and get_integrator(integrator).replayable
     if mode == "auto":
         return "prb" if ok else "tape"
     if mode == "prb" and not ok:
@@ -170,14 +193,6 @@ def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
                else f"integrator {integrator!r} has no vertex function")
         raise ValueError(f"path replay cannot differentiate this: {why}; use mode='tape' or 'auto'")
     return mode
-
-
-def _render_params(width: int, lo: int, s0: int, spp: int, max_depth: int, seed: int,
-                   roulette_depth: int = 0) -> RenderParams:
-    rp = RenderParams()
-    rp.width, rp.pixel_start, rp.sample_start, rp.sample_count = width, lo, s0, spp
-    rp.max_depth, rp.roulette_depth, rp.seed = max_depth, roulette_depth, wp.uint32(seed & 0xFFFFFFFF)
-    return rp
 
 
 # ------------------------------------------------------------------------------------------------
@@ -242,8 +257,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     image, value, forward_seconds = None, None, 0.0
     shape = (rs.height, rs.width, 3)
     if replay_image:
-        check_args(rs)
-        camera.validate(rs.width, rs.height)
+        check(rs, camera)
         adj = adjoint
     else:
         t0 = time.perf_counter()
@@ -256,7 +270,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
-    bw = _Backward(dev, camera, sky, brs, wants={p.kind for p in infos}, mode=mode)
+    bw = _Backward(bind(dev, camera, brs, mode="replay" if mode == "prb" else "tape"), wants={p.kind for p in infos})
     sums = bw.run(adj.reshape(-1, 3), rs.threads, want_image=replay_image)
     if replay_image:
         image = Film(sums.pop("film").reshape(shape), rs.spp).image()
@@ -269,17 +283,10 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 class _Backward:
     """One backward pass: per-tile gradient buffers, adjoint launches from a pool, ordered reduction."""
 
-    def __init__(self, dev: DeviceScene, camera: Camera, sky: Sky, rs: RenderSettings, wants: set,
-                 mode: str = "tape"):
-        self.dev, self.rs, self.mode = dev, rs, mode
-        feats = replace(dev.features, sky=sky_emits(sky))
-        if mode == "prb":
-            self.kernel = get_replay_kernel(feats, rs.integrator, rs.sampler, dev.device)
-        else:
-            self.kernel = get_diff_kernel(feats, rs.max_depth, rs.integrator, rs.sampler, dev.device)
-        self.cam = camera_params(camera, rs.width, rs.height)
-        self.lights = light_table(dev, sky, camera.up)
-        self.tex = dev.textures(rs.texture_filter)
+    def __init__(self, bound: Bound, wants: set):
+        self.bound, self.dev, self.rs, self.tex = bound, bound.dev, bound.settings, bound.tex
+        self.mode = "prb" if bound.kind.name == "replay" else "tape"
+        rs = self.rs
         self.wants_texels = "texture" in wants
         self.wants_proc = "proc" in wants
         n = rs.width * rs.height
@@ -318,7 +325,7 @@ class _Backward:
     def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
         """The reduced gradient buffers by name; with ``want_image`` (path replay only) also
         ``"film"``, the radiance sums of pass 1 (H*W, 3) float64."""
-        rs, dev = self.rs, self.dev
+        dev = self.dev
         adj_image = wp.array(adj, dtype=wp.vec3, device=dev.device)
         self.nbytes += adj_image.capacity
         film = wp.zeros(len(adj) if want_image else 1, dtype=wp.vec3d, device=dev.device)
@@ -327,16 +334,14 @@ class _Backward:
         def work(k: int) -> None:
             lo, hi = self.tiles[k]
             m, t, deltas, scratch = inputs[k]
-            rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed, rs.roulette_depth)
+            args = self.bound.scene_args(self.bound.params(lo), materials=m, textures=t)
+            kernel = self.bound.kernel
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
-                wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=[
-                    dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad,
-                    int(want_image), film[lo:hi] if want_image else film])
+                wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=replay_inputs(
+                    args, adj_image[lo:hi], deltas.grad, want_image, film[lo:hi] if want_image else film))
                 return
-            args = [dev.geometry, m, t, self.lights, self.cam, rp, deltas, scratch]
-            adj_structs = [_ADJ.get_adjoint(a) for a in args[:6]]   # mirrors holding each array's .grad
-            wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=args,
-                      adj_inputs=adj_structs + [deltas.grad, adj_image[lo:hi]], adjoint=True)
+            wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=tape_inputs(args, deltas, scratch),
+                      adj_inputs=tape_inputs(adjoint_structs(args), deltas.grad, adj_image[lo:hi]), adjoint=True)
 
         self.threads = max(1, min(threads or os.cpu_count() or 1, len(self.tiles)))
         # the renderer's tile runner: Ctrl-C stops the workers safely (no concurrent.futures, see parallel)
@@ -367,7 +372,7 @@ def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -
         g = sums[p.field][p.index]
         return np.asarray(g, dtype=np.float64).reshape(p.shape)
     if p.kind == "texture":
-        return tile_view(sums["texels"], dev._atlas[1].numpy()[p.index]).copy()
+        return tile_view(sums["texels"], dev.atlas_tiles()[p.index]).copy()
     if p.kind == "proc":
         off, size = proc_slice(dev.scene, p)
         return sums["proc"][p.index][off:off + size].reshape(p.shape).copy()
@@ -408,7 +413,7 @@ def enable_material_gradients(scene: DeviceScene) -> None:
 
 def render_differentiable(scene: DeviceScene, camera: Camera | None = None, *, width: int = 32,
                           height: int = 32, spp: int = 4, max_depth: int = 4, sky: Sky | None = None,
-                          seed: int = 0, texture_filter: str = "nearest", integrator: str = "seed",
+                          seed: int = 0, texture_filter: str = "nearest", integrator: str = TAPE_INTEGRATOR,
                           sampler: str = DEFAULT_SAMPLER) -> DiffRender:
     """Render on a ``wp.Tape``; call ``result.tape.backward(grads={result.image: adjoint})`` and read
     e.g. ``scene.materials.diffuse.grad`` (call :func:`enable_material_gradients` first).
@@ -421,16 +426,13 @@ def render_differentiable(scene: DeviceScene, camera: Camera | None = None, *, w
     if width < 1 or height < 1 or spp < 1:
         raise ValueError("width, height and spp must be positive")
     _check_estimator(integrator, sampler)
-    sky = sky or Sky.black()
-    camera = camera or Camera()
-    feats = replace(scene.features, sky=sky_emits(sky))
-    kernel = get_diff_kernel(feats, max_depth, integrator, sampler, scene.device)
-    rp = _render_params(width, 0, 0, spp, max_depth, seed)
+    b = bind(scene, camera, RenderSettings(width=width, height=height, spp=spp, max_depth=max_depth, sky=sky,
+                                           seed=seed, texture_filter=texture_filter, integrator=integrator,
+                                           sampler=sampler, device=scene.device), mode="tape")
     image = wp.zeros(width * height, dtype=wp.vec3, device=scene.device, requires_grad=True)
     deltas = wp.zeros(NUM_DELTAS, dtype=wp.vec3, device=scene.device)
     tape = wp.Tape()
     with tape:
-        wp.launch(kernel, dim=width * height, device=scene.device, inputs=[
-            scene.geometry, scene.materials, scene.textures(texture_filter), light_table(scene, sky, camera.up),
-            camera_params(camera, width, height), rp, deltas, image])
+        wp.launch(b.kernel, dim=width * height, device=scene.device,
+                  inputs=tape_inputs(b.scene_args(b.params()), deltas, image))
     return DiffRender(image, tape, width, height)

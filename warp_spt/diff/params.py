@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from warp_spt.core.device_scene import DeviceScene, _features
+from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.proctex import get_texture
 from warp_spt.core.textures import tile_view
 from warp_spt.scene.camera import Camera
@@ -145,7 +145,7 @@ class SceneParameters:
     def _set_texture(self, p: ParamInfo, v: np.ndarray) -> None:
         dev = self.scene
         dev.scene.textures[p.index] = v.astype(np.float32)
-        texels, tiles = dev._atlas
+        texels, tiles = dev.atlas_arrays()
         host = texels.numpy()
         tile_view(host, tiles.numpy()[p.index])[...] = v
         texels.assign(host)
@@ -165,9 +165,7 @@ class SceneParameters:
 
     def _refresh(self) -> None:
         """Features and light table follow the new values."""
-        dev = self.scene
-        dev.features = _features(dev.scene)
-        dev._lights.clear()
+        self.scene.refresh_features()
 
 
 def parameters(scene: DeviceScene | Scene, camera: Camera | None = None, sky: Sky | None = None) -> SceneParameters:

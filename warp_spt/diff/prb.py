@@ -18,7 +18,7 @@ Per sample, the replay kernel (forward-only, ``enable_backward=False``, a dynami
 2. traces it again with the same random numbers; at each vertex it calls ``wp.grad`` of a scalar
    ``objective = a . R_{k+1} + b . T_{k+1}`` of that one vertex, with ``a`` the pixel's adjoint per
    sample and ``b = a * Lo_{k+1}`` held constant. The vertex is the integrator's own ``vertex``
-   function (``integrators.VERTICES``), the very code ``step`` runs after its closest hit: the hit
+   function (``Integrator.make_vertex``), the very code ``step`` runs after its closest hit: the hit
    is found outside the differentiated function, and the visibility of the light sample is passed
    in (``vis``, what the forward call returned), so its adjoint never traces a ray. The adjoints
    of array reads land in the arrays' ``.grad`` buffers (per-tile aliases, as for the tape).
@@ -57,13 +57,14 @@ from __future__ import annotations
 
 import warp as wp
 
+from warp_spt.core.camera_rays import CameraParams
 from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import NO_HIT, Hit, make_closest_hit
 from warp_spt.core.lights import Lights
-from warp_spt.integrators import CameraParams, PathState, RenderParams, get_vertex
+from warp_spt.integrators import PathState, RenderParams, get_vertex
 from warp_spt.integrators.nee import VIS_TRACE
-
-_kernels: dict[tuple, wp.Kernel] = {}
+from warp_spt.rendering.setup import KernelKind, register_kind, render_features
+from warp_spt.runtime import kernel_cache
 
 
 @wp.func
@@ -169,22 +170,33 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
     its forward, and of every out-of-line callee once more per nesting level; inlined, the compiler
     shares those re-runs with the caller's. It took the backward from about 2.8x to 2.0x the forward
     (kernel time, nee + sobol) for +4 s of cold compile (15 to 19 s; docs/gradients.md, Cost)."""
-    key = (integrator, sampler, features, inline)
-    if key not in _kernels:
-        vertex, start_path = get_vertex(integrator, sampler, features, inline)
-        # the forward passes run the vertex inlined (the fast kernel's choice, nee.make_path_step): called
-        # out of line, each bounce copied the scene structs, and pass 1 took 1.2-1.4x the fast kernel
-        forward = get_vertex(integrator, sampler, features, True)[0]    # ``vertex`` itself by default
-        # Warp 1.19: wp.grad flags its function for adjoint code, and a function passes the flag to its
-        # callees only while it is being built. The kernel builds ``forward`` first (pass 1), and with it
-        # the callees it shares with ``vertex`` (texture lookups, the materials' helpers): unflagged, they
-        # got empty adjoints (texel gradients 0). So both are flagged before the build. (Warp's module
-        # hash does not include the flags: a kernel once built without them stays wrong in the cache.)
-        # get_vertex's functions are path replay's own: the fast and tape kernels build theirs in get_step.
-        vertex.adj.force_adjoint_codegen = True
-        forward.adj.force_adjoint_codegen = True
-        _skip_replay(vertex)
-        _kernels[key] = _make_kernel(vertex, forward, start_path, make_closest_hit(features), inline)
-    k = _kernels[key]
-    wp.load_module(k.module, device=device)     # on this thread, before any worker launches it
-    return k
+    k = kernel_cache.cached("replay", (integrator, sampler, features, inline),
+                            lambda: _build(features, integrator, sampler, inline))
+    return kernel_cache.load(k, device)     # on this thread, before any worker launches it
+
+
+def _build(features: Features, integrator: str, sampler: str, inline: bool | None) -> wp.Kernel:
+    vertex, start_path = get_vertex(integrator, sampler, features, inline)
+    # the forward passes run the vertex inlined (the fast kernel's choice, nee.make_path_step): called
+    # out of line, each bounce copied the scene structs, and pass 1 took 1.2-1.4x the fast kernel
+    forward = get_vertex(integrator, sampler, features, True)[0]    # ``vertex`` itself by default
+    # Warp 1.19: wp.grad flags its function for adjoint code, and a function passes the flag to its
+    # callees only while it is being built. The kernel builds ``forward`` first (pass 1), and with it
+    # the callees it shares with ``vertex`` (texture lookups, the materials' helpers): unflagged, they
+    # got empty adjoints (texel gradients 0). So both are flagged before the build. (Warp's module
+    # hash does not include the flags: a kernel once built without them stays wrong in the cache.)
+    # get_vertex's functions are path replay's own: the fast and tape kernels build theirs in get_step.
+    vertex.adj.force_adjoint_codegen = True
+    forward.adj.force_adjoint_codegen = True
+    _skip_replay(vertex)
+    return _make_kernel(vertex, forward, start_path, make_closest_hit(features), inline)
+
+
+def replay_inputs(scene_args: list, adj_image: wp.array, sky_grad: wp.array, want_image: bool,
+                  film: wp.array) -> list:
+    """The replay kernel's inputs after the scene's (``Bound.scene_args``), in its order."""
+    return [*scene_args, adj_image, sky_grad, int(want_image), film]
+
+
+register_kind(KernelKind("replay", lambda b: get_replay_kernel(
+    b.features, b.integrator.name, b.settings.sampler, b.dev.device), render_features))

@@ -1,7 +1,8 @@
-"""What every integrator shares: the camera ray, the path state, the sample dimensions, the kernels.
+"""What every integrator shares: its record, the path state, the sample dimensions, the fast kernel.
 
-An integrator is a ``make(features, sampler) -> step`` function; ``step`` is ONE bounce as a
-``wp.func`` taking and returning a :class:`PathState`. The fast kernel runs it in a dynamic loop;
+An integrator is an :class:`Integrator` record (registered in ``warp_spt.integrators.INTEGRATORS``)
+whose ``make_step(features, sampler) -> step`` builds ONE bounce as a ``wp.func`` taking and
+returning a :class:`PathState`. The fast kernel runs it in a dynamic loop;
 the differentiable kernel (``warp_spt.diff.gradients``) runs the same function in an unrolled loop,
 because Warp differentiates only unrolled loops with multiplicative carried state.
 
@@ -14,16 +15,17 @@ of the pre-restructure renderer); adding a dimension at the end of a block shift
 
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import dataclass
+from typing import Callable
+
 import warp as wp
 
+from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray  # noqa: F401 (re-exported)
 from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.core.materials import BsdfSample
-from warp_spt.core.sampling import concentric_disk
 from warp_spt.core.surface import Surface, offset_origin
 from warp_spt.samplers import Sampler, SamplerState
-from warp_spt.scene.camera import Camera
 
 DIM_PIXEL = 0          # 2 dims: offset inside the pixel
 DIM_LENS = 2           # 2 dims: point on the lens
@@ -39,23 +41,34 @@ SEED_STRIDE = 4        # the seed's four draws per bounce
 FULL_STRIDE = 8
 
 
-@wp.struct
-class CameraParams:
-    """The image plane of camera.Camera.frame(), in float32.
+@dataclass(frozen=True)
+class Integrator:
+    """An integrator: a name, its Warp function builders and what it can do.
 
-    Primary rays use ``to_upper_left`` (the corner relative to the origin, subtracted in float64):
-    with the absolute corner, a camera at 1e5 rounded every target point to 1/128 unit before the
-    origin was subtracted, which bent primary rays by up to a few percent
-    (tests/test_stability.py, shifted Cornell box).
+    ``make_step(features, sampler, differentiable=False) -> step``: one bounce (closest hit and
+    vertex), run by the fast kernel in a dynamic loop and by the tape's kernel unrolled.
+    ``make_vertex(features, sampler, inline=None) -> vertex``: the bounce after its ray was traced,
+    what path replay differentiates; None: no path replay (gradients through the tape only).
+    ``stride``: sample dimensions per bounce (see the module docs). ``deterministic``: the image is a
+    function of the seed alone (every renderer's merge and the house hashes rely on it); ``tape``:
+    its step differentiates through Warp's tape. ``prepare(bound) -> data``: optional device data
+    of its own, built once per render set-up (``Bound.data``); ``passes(bound, result) -> result``:
+    optional work after the image's passes (e.g. a second estimator), run by the tile renderer.
     """
 
-    origin: wp.vec3
-    to_upper_left: wp.vec3     # upper_left - origin
-    x_step: wp.vec3
-    y_step: wp.vec3
-    right: wp.vec3
-    up: wp.vec3
-    lens_radius: float
+    name: str
+    make_step: Callable
+    make_vertex: Callable | None
+    stride: int
+    deterministic: bool = True
+    tape: bool = True
+    prepare: Callable | None = None
+    passes: Callable | None = None
+
+    @property
+    def replayable(self) -> bool:
+        """Path replay (``warp_spt.diff.prb``) can differentiate it."""
+        return self.make_vertex is not None
 
 
 @wp.struct
@@ -86,31 +99,6 @@ class PathState:
     singular: int          # 1: d came from the camera or a singular lobe (emitters hit count in full)
     vis: int               # the last vertex's shadow ray: 1 visible, 0 occluded, -1 none (nee.VIS_*)
     sampler: SamplerState
-
-
-def camera_params(camera: Camera, width: int, height: int) -> CameraParams:
-    """Pack a Camera's frame for the kernel."""
-    f = dict(camera.image_plane(width, height))
-    f["to_upper_left"] = f["upper_left"] - f["origin"]     # in float64, before rounding to float32
-    c = CameraParams()
-    for name in ("origin", "to_upper_left", "x_step", "y_step", "right", "up"):
-        setattr(c, name, wp.vec3(*np.asarray(f[name], dtype=np.float32).tolist()))
-    c.lens_radius = float(f["lens_radius"])
-    return c
-
-
-@wp.func
-def camera_ray(cam: CameraParams, x: float, y: float, r1: float, r2: float, r3: float, r4: float):
-    """The primary ray through pixel (x, y) at offset (r1, r2) in the pixel, lens sample (r3, r4).
-
-    The image plane is the focal plane, so every lens point sees the same target: a thin lens.
-    """
-    target = cam.to_upper_left + cam.x_step * (x + r1) - cam.y_step * (y + r2)   # relative to origin
-    lens = wp.vec3(0.0, 0.0, 0.0)
-    if cam.lens_radius > 0.0:
-        k = concentric_disk(r3, r4)
-        lens = (cam.right * k[0] + cam.up * k[1]) * cam.lens_radius
-    return cam.origin + lens, wp.normalize(target - lens)
 
 
 def make_start_path(sampler: Sampler):
@@ -186,6 +174,12 @@ def continue_path(path: PathState, sf: Surface, bs: BsdfSample, extent: float) -
     p.pdf = bs.pdf
     p.singular = bs.singular
     return p
+
+
+def fast_inputs(scene_args: list, film: wp.array, counters: wp.array2d, work: wp.array | None = None) -> list:
+    """The fast kernel's inputs after the scene's (``Bound.scene_args``: geometry, materials,
+    textures, lights, camera, render parameters), in its order."""
+    return [*scene_args, film, counters, work]
 
 
 def make_kernel(step, start_path):

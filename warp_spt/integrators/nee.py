@@ -41,6 +41,7 @@ from warp_spt.integrators.common import (
     OFF_LIGHT_POS,
     OFF_ROULETTE,
     SEED_STRIDE,
+    Integrator,
     PathState,
     RenderParams,
     continue_path,
@@ -87,6 +88,9 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
 def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
     """The NEE + MIS vertex (``make_path_vertex``): what path replay differentiates."""
     return make_path_vertex(features, sampler, light_sampling=True, inline=inline, replay=True)
+
+
+INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE)
 
 
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):

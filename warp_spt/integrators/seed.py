@@ -9,6 +9,7 @@ It is the NEE step with light sampling (and roulette) compiled out: MIS weights 
 from __future__ import annotations
 
 from warp_spt.core.device_scene import Features
+from warp_spt.integrators.common import SEED_STRIDE, Integrator
 from warp_spt.integrators.nee import make_path_step, make_path_vertex
 from warp_spt.samplers import Sampler
 
@@ -21,3 +22,6 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
 def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
     """The vertex of pure path tracing (``nee.make_path_vertex``): what path replay differentiates."""
     return make_path_vertex(features, sampler, light_sampling=False, inline=inline, replay=True)
+
+
+INTEGRATOR = Integrator("seed", make, make_vertex, SEED_STRIDE)

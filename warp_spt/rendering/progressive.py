@@ -34,15 +34,14 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 import warp as wp
 
 from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.lights import light_table, sky_emits
-from warp_spt.integrators import RenderParams, camera_params, get_kernel
+from warp_spt.integrators import fast_inputs
 from warp_spt.rendering.result import (
     ERROR_FLOOR_FRACTION,
     RenderResult,
@@ -56,17 +55,11 @@ from warp_spt.rendering.schedule import (
     batch_seed,
     pass_samples,
 )
-from warp_spt.rendering.settings import (
-    TILE_PIXELS,
-    RenderSettings,
-    check_args,
-    settings_from,
-)
+from warp_spt.rendering.settings import TILE_PIXELS, RenderSettings, settings_from
+from warp_spt.rendering.setup import Bound, bind, check
 from warp_spt.runtime.threads import run_jobs
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
-from warp_spt.scene.recentre import recentre
-from warp_spt.scene.sky import Sky
 
 SAMPLE_COST_RAYS = -0.6      # a sample's cost beyond its rays, in rays: negative, because a ray that misses
                              # everything (the last of many paths) costs a fraction of one that hits and is
@@ -141,15 +134,11 @@ def render_progressive(
     if settings.get("spp") is None:
         settings["spp"] = UNLIMITED_SPP if budgeted else RenderSettings.spp
     rs = settings_from(settings)
-    check_args(rs)
-    (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
+    check(rs, camera)                           # ValueError before anything is uploaded
     check_budget(time_budget, target_error, batches, min_spp, adaptive_metric)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")
-    if not isinstance(scene, DeviceScene):      # far from the origin: shifted to it, as render_scene does
-        scene, camera, _ = recentre(scene, camera)
-    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
-    driver = _Driver(dev, camera or Camera(), rs, batches)
+    driver = _Driver(bind(scene, camera, rs), batches)
     plan = _Plan(rs.spp, time_budget, target_error, adaptive,
                  min(rs.spp, 2 * batches if min_spp is None else min_spp), t0, sample_budget, adaptive_metric)
     return driver.run(plan, on_pass, keep_partial)
@@ -188,20 +177,15 @@ class _Plan:
 class _Driver:
     """Owns the batch buffers on the device and launches passes over runs of pixels."""
 
-    def __init__(self, dev: DeviceScene, camera: Camera, rs: RenderSettings, batches: int):
-        self.dev, self.rs, self.width, self.height, self.B = dev, rs, rs.width, rs.height, batches
-        self.n = rs.width * rs.height
-        sky = rs.sky or Sky.black()
-        feats = rs.features or replace(dev.features, sky=sky_emits(sky))
-        self.kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)   # compile on this thread
-        self.kernel_features = feats
-        self.scene_inputs = [dev.geometry, dev.materials, dev.textures(rs.texture_filter),
-                             light_table(dev, sky, camera.up), camera_params(camera, rs.width, rs.height)]
-        self.seeds = [wp.uint32(batch_seed(rs.seed, b)) for b in range(batches)]
+    def __init__(self, bound: Bound, batches: int):
+        self.bound, self.dev, self.rs, self.B = bound, bound.dev, bound.settings, batches
+        self.width, self.height, self.n = bound.width, bound.height, bound.pixels
+        dev, rs = self.dev, self.rs
+        self.kernel_features = bound.features
+        self.seeds = [batch_seed(rs.seed, b) for b in range(batches)]
         self.films = [wp.zeros(self.n, dtype=wp.vec3d, device=dev.device) for _ in range(batches)]
         self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]
         self.counts = np.zeros((batches, self.n), dtype=np.int64)
-        self.params_index = len(self.scene_inputs)
         self.launches: dict = {}     # (batch, task slot) -> recorded launch
         self.threads = max(1, rs.threads or os.cpu_count() or 1)
         self.stop = threading.Event()
@@ -217,13 +201,10 @@ class _Driver:
         lo..hi-1."""
         if self.stop.is_set():
             return
-        p = RenderParams()
-        p.width, p.pixel_start, p.sample_start, p.sample_count = self.width, lo, start, count
-        p.max_depth, p.roulette_depth, p.seed = self.rs.max_depth, self.rs.roulette_depth, self.seeds[b]
         cmd = self._command(b, slot)
         cmd.set_dim(hi - lo)
-        cmd.set_param_at_index(self.params_index, p)
-        cmd.set_param_at_index(self.params_index + 3, None if work is None else work[0][lo:hi])
+        cmd.set_param_by_name("rp", self.bound.params(lo, start, count, seed=self.seeds[b]))
+        cmd.set_param_by_name("work", None if work is None else work[0][lo:hi])
         cmd.launch()
         # disjoint pixels per launch: safe across threads; counted once launched (Ctrl-C, keep_partial)
         if work is None:
@@ -236,11 +217,10 @@ class _Driver:
         one (replayed with new params: packing the scene's structs afresh cost about 160 us per launch)."""
         cmd = self.launches.get((b, slot))
         if cmd is None:
-            p = RenderParams()
-            p.width, p.seed = self.width, self.seeds[b]
+            args = self.bound.scene_args(self.bound.params(seed=self.seeds[b]))
             cmd = self.launches[b, slot] = wp.launch(
-                self.kernel, dim=1, device=self.dev.device, record_cmd=True,
-                inputs=[*self.scene_inputs, p, self.films[b], self.counters[b], None])
+                self.bound.kernel, dim=1, device=self.dev.device, record_cmd=True,
+                inputs=fast_inputs(args, self.films[b], self.counters[b]))
         return cmd
 
     def _batch_tasks(self, b: int, inc: np.ndarray, shares: int, cost: np.ndarray | None) -> list:

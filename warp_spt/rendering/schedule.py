@@ -52,3 +52,26 @@ def pass_samples(k: int, pixels: int, batches: int) -> int:
     (Pass 0 renders 2 spp, one sample in each of the first two batches: the first error estimate.)"""
     cap = max(1, BATCH_PASS_WORK // max(1, pixels * batches))
     return int(min(1 << max(0, k - 1), cap))
+
+
+# The cluster's batched renders (warp_spt.cluster.render_progressive) cut work into *units*: one
+# pass of one batch each, batches in turn, so that a batch's film is always a plain render's.
+
+
+def unit_passes(u: int, spp: int, per_pass: int, batches: int) -> tuple[int, tuple[int, int]]:
+    """Unit ``u`` of a batched render of ``spp`` samples per pixel: (batch, (first sample, count)).
+
+    Unit u covers samples [u * per_pass, (u + 1) * per_pass) of the whole render (the last unit
+    may be short) and is pass ``u // batches`` of batch ``u % batches`` (``per_pass``:
+    :func:`samples_per_pass` of the image).
+    """
+    return u % batches, ((u // batches) * per_pass, min(per_pass, spp - u * per_pass))
+
+
+def batch_spp(units: int, spp: int, per_pass: int, batches: int) -> np.ndarray:
+    """Samples per pixel of each batch after the first ``units`` units."""
+    counts = np.zeros(batches, np.int64)
+    for u in range(units):
+        b, (_, count) = unit_passes(u, spp, per_pass, batches)
+        counts[b] += count
+    return counts

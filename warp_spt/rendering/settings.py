@@ -12,15 +12,10 @@ import numpy as np
 
 from warp_spt.core.device_scene import Features
 from warp_spt.integrators import DEFAULT_INTEGRATOR, check_integrator
-from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
+from warp_spt.samplers import DEFAULT_SAMPLER, check_sampler
 from warp_spt.scene.sky import Sky
 
-                          # spp (1x1 at 2**20 spp: 131072 launches, ~3 s of launch overhead) are not
-                          # launch-bound. Depends on the image size only: the image stays independent
-                          # of tiles and threads.
 TILE_PIXELS = 4096        # pixels per launch
-
-
 MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
 
 
@@ -83,11 +78,11 @@ def check_args(rs: RenderSettings) -> None:
     if rs.texture_filter not in ("nearest", "bilinear"):
         raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
     check_integrator(rs.integrator)
-    if rs.sampler not in SAMPLERS:
-        raise ValueError(f"unknown sampler {rs.sampler!r}; choose from {', '.join(sorted(SAMPLERS))}")
+    check_sampler(rs.sampler)
 
 
-def _check_rows(rows, height: int) -> None:
+def check_rows(rows, height: int) -> None:
+    """Raise ValueError unless ``rows`` is None or (first, stop) with 0 <= first < stop <= height."""
     if rows is not None and not (isinstance(rows, tuple) and len(rows) == 2
                                  and all(isinstance(r, (int, np.integer)) for r in rows)
                                  and 0 <= rows[0] < rows[1] <= height):

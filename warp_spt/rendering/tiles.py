@@ -10,30 +10,22 @@ from __future__ import annotations
 import os
 import time
 import warnings as _warnings
-from dataclasses import replace
 
 import numpy as np
 import warp as wp
 
 from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.lights import light_table, sky_emits
 from warp_spt.core.proctex import nonfinite_textures
-from warp_spt.integrators import RenderParams, camera_params, get_kernel
+from warp_spt.integrators import fast_inputs
 from warp_spt.rendering.film import Film
 from warp_spt.rendering.result import RenderResult, RenderStats
-from warp_spt.rendering.schedule import samples_per_pass
-from warp_spt.rendering.settings import (
-    RenderSettings,
-    _check_rows,
-    check_args,
-    settings_from,
-)
+from warp_spt.rendering.schedule import pass_ranges
+from warp_spt.rendering.settings import RenderSettings, settings_from
+from warp_spt.rendering.setup import Bound, bind
 from warp_spt.runtime.progress import ProgressFn, progress_reporter
 from warp_spt.runtime.threads import run_jobs
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
-from warp_spt.scene.recentre import recentre
-from warp_spt.scene.sky import Sky
 
 
 def render(scene: Scene | DeviceScene, camera: Camera | None = None, *,
@@ -63,45 +55,24 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     just them, equal bit for bit to the same rows of the full render (random streams key on the
     global pixel, passes on the whole image's size), which is what tile tasks stand on.
     """
-    rs = settings or RenderSettings()
-    check_args(rs)
-    (camera or Camera()).validate(rs.width, rs.height)     # ValueError before anything is uploaded
-    _check_rows(rows, rs.height)
-    width, height, spp = rs.width, rs.height, rs.spp
-    if not isinstance(scene, DeviceScene):      # far from the origin: shift to it in float64 first
-        scene, camera, _ = recentre(scene, camera)
-    dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, device=rs.device)
-    sky = rs.sky or Sky.black()
-    feats = rs.features or replace(dev.features, sky=sky_emits(sky))
-    kernel = get_kernel(feats, dev.device, rs.integrator, rs.sampler)
-    camera = camera or Camera()
-    cam = camera_params(camera, width, height)
-    lights = light_table(dev, sky, camera.up)
-    tex = dev.textures(rs.texture_filter)
-    n = width * height
-    first, stop = rows or (0, height)
-    film, counters, keep = _window_arrays(first * width, stop * width, dev.device)
+    b = bind(scene, camera, settings, rows=rows)
+    rs, width = b.settings, b.width
+    first, stop = rows or (0, b.height)
+    film, counters, keep = _window_arrays(first * width, stop * width, b.dev.device)
     tiles = [(p, min(stop * width, p + rs.tile_pixels)) for p in range(first * width, stop * width, rs.tile_pixels)]
     nthreads = max(1, min(rs.threads or os.cpu_count() or 1, len(tiles)))
-    per_pass = samples_per_pass(width, height)
-
-    def params(lo: int, s0: int, count: int) -> RenderParams:
-        p = RenderParams()
-        p.width, p.pixel_start, p.sample_start, p.sample_count = width, lo, rs.sample_offset + s0, count
-        p.max_depth, p.roulette_depth, p.seed = rs.max_depth, rs.roulette_depth, wp.uint32(rs.seed & 0xFFFFFFFF)
-        return p
+    passes = pass_ranges(rs.spp, width, b.height)
 
     def work(tile: tuple[int, int], stop, done) -> None:
         lo, hi = tile
-        for s0 in range(0, spp, per_pass):
+        for s0, count in passes:
             if stop.is_set():
                 return
-            count = min(per_pass, spp - s0)
-            wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=[
-                dev.geometry, dev.materials, tex, lights, cam, params(lo, s0, count), film, counters, None])
+            wp.launch(b.kernel, dim=hi - lo, device=b.dev.device,
+                      inputs=fast_inputs(b.scene_args(b.params(lo, s0, count)), film, counters))
             done(count * (hi - lo))
 
-    report = progress_reporter(progress, (stop - first) * width * spp)
+    report = progress_reporter(progress, (stop - first) * width * rs.spp)
     start = time.perf_counter()
     try:
         run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
@@ -109,16 +80,22 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
         report(None)
     seconds = time.perf_counter() - start
     c = keep[1].numpy().sum(axis=0)
-    stats = RenderStats(feats, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads,
-                        pixel_samples=(stop - first) * width * spp, render_seconds=seconds,
-                        launches=len(tiles) * -(-spp // per_pass))
-    if stats.dropped_samples and feats.procedural:
-        stats.nonfinite_textures = tuple(nonfinite_textures(dev.scene, dev.device))
-        _warnings.warn(f"{stats.dropped_samples} non-finite samples dropped; procedural texture(s) returning "
-                       f"NaN or infinity: {', '.join(stats.nonfinite_textures) or 'none found by probing'}",
-                       RuntimeWarning, stacklevel=2)
+    stats = RenderStats(b.features, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads,
+                        pixel_samples=(stop - first) * width * rs.spp, render_seconds=seconds,
+                        launches=len(tiles) * len(passes))
+    if stats.dropped_samples and b.features.procedural:
+        _warn_nonfinite(b, stats)
     sums = keep[0].numpy().reshape(stop - first, width, 3)
-    return RenderResult(Film(sums, spp), stats, rs)
+    result = RenderResult(Film(sums, rs.spp), stats, rs)
+    return result if b.integrator.passes is None else b.integrator.passes(b, result)
+
+
+def _warn_nonfinite(b: Bound, stats: RenderStats) -> None:
+    """Name the procedural textures that return NaN or infinity (they dropped samples)."""
+    stats.nonfinite_textures = tuple(nonfinite_textures(b.dev.scene, b.dev.device))
+    _warnings.warn(f"{stats.dropped_samples} non-finite samples dropped; procedural texture(s) returning "
+                   f"NaN or infinity: {', '.join(stats.nonfinite_textures) or 'none found by probing'}",
+                   RuntimeWarning, stacklevel=3)
 
 
 def _window_arrays(lo: int, hi: int, device) -> tuple[wp.array, wp.array, tuple[wp.array, wp.array]]:

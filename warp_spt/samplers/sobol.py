@@ -85,6 +85,8 @@ from __future__ import annotations
 
 import warp as wp
 
+from warp_spt.samplers import Sampler, SamplerState, detach_requests, sampler_state
+
 # Python-int spellings of the constants, shared with the numpy reference in the tests.
 LOWBIAS_MUL1 = 0x7FEB352D
 LOWBIAS_MUL2 = 0x846CA68B
@@ -245,3 +247,26 @@ def sobol_2d(seed: wp.uint32, pixel: int, index: int, dim: int) -> wp.vec2:
     """Sample dimensions ``dim`` and ``dim + 1`` of global sample ``index`` of ``pixel``: a shuffled,
     Owen-scrambled point of the 2D Sobol' (0,2)-sequence in [0, 1)^2."""
     return sobol_2d_keyed(pixel_key(seed, pixel), index, dim)
+
+
+# ---------------------------------------------------------------------------------------------
+# The sampler record (warp_spt.samplers.SAMPLERS["sobol"])
+
+
+def make():
+    """The Sobol' sampler's record: the pixel's key is computed once per sample (``start``), each
+    request hashes only its own dimension and index, and no PCG chain is kept."""
+    @wp.func
+    def start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
+        return sampler_state(seed, pixel, index, pixel_key(seed, pixel))
+
+    @wp.func
+    def next_1d(state: SamplerState, dim: int):
+        return sobol_1d_keyed(state.rng, state.index, dim), state
+
+    @wp.func
+    def next_2d(state: SamplerState, dim: int):
+        return sobol_2d_keyed(state.rng, state.index, dim), state
+
+    detach_requests(next_1d, next_2d)
+    return Sampler("sobol", start, next_1d, next_2d, random_access=True)

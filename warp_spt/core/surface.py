@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.device_scene import Features, Geometry
 from warp_spt.core.geometry import KIND_TRIANGLE, Hit
 
@@ -135,7 +136,4 @@ def detach_surface(surface_at) -> None:
     no pathwise derivatives (the hit and the sampled directions stay put), so the adjoint of the
     surface was computed and then dropped, after re-running the surface's forward code for it; the
     tape, whose camera gradients move the hits, keeps the full adjoint."""
-
-    @wp.func_grad(surface_at)
-    def adj_surface_at(s: Geometry, h: Hit, o: wp.vec3, d: wp.vec3, adj_ret: Surface):
-        pass
+    zero_adjoint(surface_at, (Surface,))

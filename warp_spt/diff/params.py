@@ -27,6 +27,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from warp_spt.core.camera_rays import CAMERA_FIELDS
+from warp_spt.core.camera_rays import camera_frame as kernel_camera_frame
 from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.proctex import get_texture
 from warp_spt.core.textures import tile_view
@@ -204,14 +206,11 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
 
 
 # The kernel's camera frame (integrators.CameraParams), whose gradients render_gradients computes
-CAMERA_FIELDS = ("origin", "to_upper_left", "x_step", "y_step", "right", "up")
-
-
 def camera_frame(camera: Camera, width: int, height: int) -> np.ndarray:
-    """(6, 3) float64: the CameraParams vectors of ``camera`` in CAMERA_FIELDS order."""
-    f = camera.image_plane(width, height)
-    f["to_upper_left"] = f["upper_left"] - f["origin"]
-    return np.stack([np.asarray(f[k], dtype=np.float64) for k in CAMERA_FIELDS])
+    """(6, 3) float64: the CameraParams vectors of ``camera`` in CAMERA_FIELDS order
+    (``core.camera_rays.camera_frame``, the kernels' own)."""
+    f = kernel_camera_frame(camera, width, height)
+    return np.stack([f[k] for k in CAMERA_FIELDS])
 
 
 def camera_jacobian(camera: Camera, field: str, width: int, height: int, h: float = 1e-6) -> np.ndarray:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import (
     KIND_MISS,
@@ -74,9 +75,7 @@ def detached(x: float) -> float:
     return x
 
 
-@wp.func_grad(detached)
-def adj_detached(x: float, adj_ret: float):
-    pass
+zero_adjoint(detached, (float,))
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):

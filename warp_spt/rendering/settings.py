@@ -17,6 +17,7 @@ from warp_spt.scene.sky import Sky
 
 TILE_PIXELS = 4096        # pixels per launch
 MAX_PIXELS = 1 << 28      # far beyond any sane image; guards the int32 pixel index in the kernel
+SAMPLE_INDEX_LIMIT = 2**31 - 1   # the kernels' sample index is an int32
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ def check_args(rs: RenderSettings) -> None:
             raise ValueError(f"{name} must be a positive integer, got {v!r}")
     if rs.width * rs.height > MAX_PIXELS:
         raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
-    if rs.sample_offset < 0 or rs.sample_offset + rs.spp > 2**31 - 1:
+    if rs.sample_offset < 0 or rs.sample_offset + rs.spp > SAMPLE_INDEX_LIMIT:
         raise ValueError("sample indices must lie in [0, 2**31)")
     if not isinstance(rs.seed, (int, np.integer)):
         raise ValueError(f"seed must be an integer, got {rs.seed!r}")

@@ -137,6 +137,8 @@ def deferred_signals() -> Iterator[None]:
             deliver(pending[0], previous.get(pending[0], signal.SIG_DFL))
 
 
+# Signal handlers belong to the process, and a handler receives no context of ours: the CLI's one
+# state of "interrupted, by which signal" lives here, set by the handler, reset by install_cli_handlers().
 _cli_state: dict[str, object] = {"interrupted": False, "signum": None}
 
 

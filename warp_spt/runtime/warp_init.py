@@ -19,7 +19,7 @@ import tempfile
 # The one native line hidden by default (cuda_util.cpp, init_cuda_driver); matched by its start.
 _NO_DRIVER = b"Warp CUDA warning: Could not find or load the NVIDIA CUDA driver"
 
-_state = {"done": False}
+_state = {"done": False}     # Warp's own initialisation is process-wide: so is the record of it
 
 
 def init_warp(verbose: bool | None = None, *, quiet: bool = False) -> None:

@@ -139,3 +139,20 @@ def test_device_scene_hands_out_its_caches_through_methods(box):
     assert light_table(box, Sky.black()) is not a
     texels, tiles = box.atlas_arrays()
     np.testing.assert_array_equal(box.atlas_tiles(), tiles.numpy())
+
+
+def test_capabilities_of_the_record_are_enforced(box, monkeypatch):
+    from warp_spt.diff.gradients import render_gradients
+    from warp_spt.diff.params import parameters
+    from warp_spt.integrators import INTEGRATORS
+    from warp_spt.rendering.settings import RenderSettings
+
+    monkeypatch.setitem(INTEGRATORS, "no-tape", replace(INTEGRATORS["seed"], name="no-tape", tape=False,
+                                                        make_vertex=None))
+    p = parameters(box, CAM, KW["sky"])
+    rs = RenderSettings(width=8, height=6, spp=1, max_depth=2, integrator="no-tape")
+    adj = np.ones((6, 8, 3), np.float32)
+    with pytest.raises(ValueError, match="not differentiable through the tape"):
+        render_gradients(p, rs, adjoint=adj, wrt=["sky.color"], mode="tape")
+    with pytest.raises(ValueError, match="path replay cannot"):
+        render_gradients(p, rs, adjoint=adj, wrt=["sky.color"], mode="prb")

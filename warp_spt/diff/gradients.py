@@ -186,6 +186,8 @@ def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
         raise ValueError(f"unknown gradient mode {mode!r}; choose from {', '.join(MODES)}")
     pathwise = [p.name for p in infos if not replayable(p)]
     ok = not pathwise and get_integrator(integrator).replayable
+    if mode != "prb" and not (mode == "auto" and ok) and not get_integrator(integrator).tape:
+        raise ValueError(f"integrator {integrator!r} is not differentiable through the tape")
     if mode == "auto":
         return "prb" if ok else "tape"
     if mode == "prb" and not ok:

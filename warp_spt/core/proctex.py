@@ -315,8 +315,9 @@ def evaluate(refs: list[ProcRef], uv, p, n, device: str = "cpu") -> np.ndarray:
     key = features_key(r.name for r in refs)
     kinds, params = instance_arrays(refs, key)
     uv, p, n = (np.ascontiguousarray(a, dtype=np.float32) for a in (uv, p, n))
+    kernel = kernel_cache.load(_probe_kernel(key), device)     # initialises Warp quietly first
     out = wp.zeros((len(uv), len(refs)), dtype=wp.vec3, device=device)
-    wp.launch(_probe_kernel(key), dim=(len(uv), len(refs)), device=device, inputs=[
+    wp.launch(kernel, dim=(len(uv), len(refs)), device=device, inputs=[
         wp.array(kinds, dtype=wp.int32, device=device), wp.array(params, dtype=ProcParams, device=device),
         wp.array(uv, dtype=wp.vec2, device=device), wp.array(p, dtype=wp.vec3, device=device),
         wp.array(n, dtype=wp.vec3, device=device), out])

@@ -256,19 +256,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     # path replay's first pass traces the very paths of the forward render: when the adjoint is known
     # before the image (no loss) and the seeds are the same, its radiance sums are the image
     replay_image = mode == "prb" and loss is None and gradient_seed is None
-    image, value, forward_seconds = None, None, 0.0
     shape = (rs.height, rs.width, 3)
-    if replay_image:
-        check(rs, camera)
-        adj = adjoint
-    else:
-        t0 = time.perf_counter()
-        image = render_scene(dev, camera, rs).image
-        forward_seconds = time.perf_counter() - t0
-        value, adj = loss(image) if loss is not None else (None, adjoint)
-    adj = np.asarray(adj, dtype=np.float32)
-    if adj.shape != shape or not np.all(np.isfinite(adj)):
-        raise ValueError(f"the adjoint image must be finite with shape {shape}, got {adj.shape}")
+    image, value, adj, forward_seconds = _forward(dev, camera, rs, loss, adjoint, replay_image)
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
@@ -280,6 +269,25 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     grads = {p.name: _pick(p, sums, dev, camera, rs) for p in infos}
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
                           bw.threads, mode)
+
+
+def _forward(dev: DeviceScene, camera: Camera, rs: RenderSettings, loss: Loss | None, adjoint, replay_image: bool):
+    """(image or None, loss value or None, the adjoint image (H, W, 3) float32, forward seconds):
+    the forward render and the loss, unless path replay's first pass will give the image."""
+    image, value, seconds = None, None, 0.0
+    if replay_image:
+        check(rs, camera)
+        adj = adjoint
+    else:
+        t0 = time.perf_counter()
+        image = render_scene(dev, camera, rs).image
+        seconds = time.perf_counter() - t0
+        value, adj = loss(image) if loss is not None else (None, adjoint)
+    adj = np.asarray(adj, dtype=np.float32)
+    shape = (rs.height, rs.width, 3)
+    if adj.shape != shape or not np.all(np.isfinite(adj)):
+        raise ValueError(f"the adjoint image must be finite with shape {shape}, got {adj.shape}")
+    return image, value, adj, seconds
 
 
 class _Backward:

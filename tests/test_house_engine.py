@@ -156,3 +156,10 @@ def test_capabilities_of_the_record_are_enforced(box, monkeypatch):
         render_gradients(p, rs, adjoint=adj, wrt=["sky.color"], mode="tape")
     with pytest.raises(ValueError, match="path replay cannot"):
         render_gradients(p, rs, adjoint=adj, wrt=["sky.color"], mode="prb")
+
+
+def test_an_unregistered_kernel_kind_is_named(box):
+    from warp_spt.rendering.setup import bind
+
+    with pytest.raises(ValueError, match="unknown kernel kind 'nope'"):
+        bind(box, CAM, mode="nope")

@@ -134,14 +134,22 @@ def upload(scene: Scene | DeviceScene, camera: Camera | None, device: str) -> tu
     return scene, camera or Camera()
 
 
+def kernel_kind(mode: str) -> KernelKind:
+    """The registered kernel kind ``mode`` (ValueError naming the registered ones otherwise; the
+    gradient kinds register when ``warp_spt.diff`` is imported)."""
+    if mode not in KERNEL_KINDS:
+        raise ValueError(f"unknown kernel kind {mode!r}; registered: {', '.join(sorted(KERNEL_KINDS))}")
+    return KERNEL_KINDS[mode]
+
+
 def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: RenderSettings | None = None, *,
          mode: str = "fast", rows: tuple[int, int] | None = None) -> Bound:
     """Check, upload and pick the kernel of ``mode`` (a ``KERNEL_KINDS`` name): the one set-up of
     every renderer. The kernel is loaded on the calling thread, before any worker launches it."""
     rs = settings or RenderSettings()
+    kind = kernel_kind(mode)
     check(rs, camera, rows)
     dev, camera = upload(scene, camera, rs.device)
-    kind = KERNEL_KINDS[mode]
     sky = rs.sky or Sky.black()
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)
     b.kernel = kind.build(b)
@@ -156,7 +164,7 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
 def device_kernel(dev: DeviceScene, rs: RenderSettings, mode: str = "fast") -> wp.Kernel:
     """Only the kernel :func:`bind` would pick for ``dev`` and ``rs`` (compiled and loaded): what a
     cluster worker prepares under its lock when it uploads a scene."""
-    kind = KERNEL_KINDS[mode]
+    kind = kernel_kind(mode)
     sky = rs.sky or Sky.black()
     return kind.build(Bound(dev, Camera(), rs, sky, kind.features(dev.features, rs, sky),
                             get_integrator(rs.integrator), kind))

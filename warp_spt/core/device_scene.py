@@ -16,6 +16,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.bvh import build_tlas
+from warp_spt.core.material_table import Materials, upload_materials  # noqa: F401 (kernels import Materials from here)
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
 from warp_spt.core.textures import pack_atlas
 from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene
@@ -50,21 +51,6 @@ class Geometry:
     items: wp.array(dtype=wp.int32)
     # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
     extent: float
-
-
-@wp.struct
-class Materials:
-    """The material table (structure of arrays, one row per material; see scene.MaterialTable)."""
-
-    diffuse: wp.array(dtype=wp.vec3)
-    reflect: wp.array(dtype=wp.vec3)
-    refract: wp.array(dtype=wp.vec3)
-    emission: wp.array(dtype=wp.vec3)
-    tex: wp.array(dtype=wp.vec4i)              # texture slot per colour (scene.SLOT_*)
-    roughness: wp.array(dtype=wp.float32)      # probability of the diffuse lobe
-    fuzz: wp.array(dtype=wp.float32)
-    ior: wp.array(dtype=wp.float32)
-    refractable: wp.array(dtype=wp.int32)
 
 
 @wp.struct
@@ -140,7 +126,7 @@ class DeviceScene:
         self._upload_spheres_and_tlas(self.geometry, scene, device)
         b = scene.bounds
         self.geometry.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
-        self.materials = _upload_materials(scene, device)
+        self.materials = upload_materials(scene.materials, device)
         self._atlas = _upload_atlas(scene, device)
         self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
         self._lights: dict = {}          # light tables per sky (warp_spt.core.lights.light_table)
@@ -204,16 +190,6 @@ def mesh_key(m, device: str = "cpu") -> str:
         h.update(str(a.shape).encode())
         h.update(a.data)
     return h.hexdigest()
-
-
-def _upload_materials(scene: Scene, device: str) -> Materials:
-    mt = scene.materials
-    m = Materials()
-    _set_arrays(m, device, diffuse=(mt.diffuse, wp.vec3), reflect=(mt.reflect, wp.vec3),
-                refract=(mt.refract, wp.vec3), emission=(mt.emission, wp.vec3), tex=(mt.tex, wp.vec4i),
-                roughness=(mt.roughness, wp.float32), fuzz=(mt.fuzz, wp.float32), ior=(mt.ior, wp.float32),
-                refractable=(mt.refractable.astype(np.int32), wp.int32))
-    return m
 
 
 def _upload_atlas(scene: Scene, device: str) -> tuple[wp.array, wp.array]:

@@ -130,3 +130,106 @@ def test_a_new_column_is_one_line(tmp_path):
     out = subprocess.run([sys.executable, "-c", PROBE, src, EXTRA, str(tmp_path)], capture_output=True, text=True,
                          cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300)
     assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]
+
+
+# A second material kind: one module (here built in the probe) and one name in MATERIAL_KINDS.
+KIND_MODULE = textwrap.dedent('''
+    from types import SimpleNamespace
+    import warp as wp
+    from warp_spt.core.device_scene import Materials, Textures
+    from warp_spt.core.materials.common import BsdfSample
+    from warp_spt.core.surface import Surface
+
+    def make(features, color):
+        @wp.func
+        def sample(m: Materials, t: Textures, sf: Surface, d: wp.vec3, u_lobe: float, u_dir: wp.vec2,
+                   u_fresnel: float) -> BsdfSample:
+            out = BsdfSample()
+            out.weight = wp.vec3(1.0, 2.0, 3.0)
+            out.alive = 1
+            return out
+
+        @wp.func
+        def eval(m: Materials, t: Textures, sf: Surface, wi: wp.vec3) -> wp.vec3:
+            return wp.vec3(0.0, 0.0, 0.0)
+
+        @wp.func
+        def pdf(m: Materials, sf: Surface, wi: wp.vec3) -> float:
+            return 7.0
+
+        @wp.func
+        def has_density(m: Materials, sf: Surface) -> bool:
+            return False
+
+        return SimpleNamespace(sample=sample, eval=eval, pdf=pdf, has_density=has_density)
+''')
+
+KIND_PROBE = textwrap.dedent('''
+    import importlib.util, sys
+    import numpy as np
+    path, module_src, folder = sys.argv[1:4]
+    src = open(path).read().replace('MATERIAL_KINDS: tuple[str, ...] = ("seed",)',
+                                    'MATERIAL_KINDS: tuple[str, ...] = ("seed", "probe")')
+    spec = importlib.util.spec_from_loader("warp_spt.scene.material_schema", loader=None)
+    schema = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = schema
+    exec(compile(src, path, "exec"), schema.__dict__)
+    import warp as wp
+    import warp_spt.core.device_scene  # noqa: F401  (the kind module imports it)
+    kspec = importlib.util.spec_from_file_location("warp_spt.core.materials.probe", module_src)
+    kind = importlib.util.module_from_spec(kspec)
+    sys.modules[kind.__name__] = kind         # what importlib finds for the registered name
+    kspec.loader.exec_module(kind)            # from a file: Warp reads its functions' source
+
+    from warp_spt.core.device_scene import DeviceScene, Materials, Textures
+    from warp_spt.core.materials import make_materials
+    from warp_spt.core.surface import INV_PI, Surface
+    from warp_spt.io.loader import load_scene
+
+    scene = load_scene([folder + "/a.obj"], [folder + "/a.mtl"])
+    scene.materials.kind[1] = 1
+    dev = DeviceScene(scene)
+    assert dev.features.material_kinds == ("seed", "probe"), dev.features
+    mat = make_materials(dev.features)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def probe(m: Materials, t: Textures, dens: wp.array(dtype=int), pdf: wp.array(dtype=float),
+              weight: wp.array(dtype=wp.vec3)):
+        i = wp.tid()
+        sf = Surface()
+        sf.ng = wp.vec3(0.0, 0.0, 1.0)
+        sf.ns = sf.ng
+        sf.front = 1
+        sf.mat = i
+        dens[i] = wp.where(mat.has_density(m, sf), 1, 0)
+        pdf[i] = mat.pdf(m, sf, wp.vec3(0.0, 0.0, 1.0))
+        weight[i] = mat.sample(m, t, sf, wp.vec3(0.0, 0.0, -1.0), 0.99, wp.vec2(0.5, 0.5), 0.5).weight
+
+    dens, pdf, weight = wp.zeros(2, dtype=int), wp.zeros(2, dtype=float), wp.zeros(2, dtype=wp.vec3)
+    wp.launch(probe, dim=2, inputs=[dev.materials, dev.textures(), dens, pdf, weight])
+    assert dens.numpy().tolist() == [1, 0], dens
+    np.testing.assert_allclose(pdf.numpy(), [0.75 * INV_PI, 7.0], rtol=1e-6)   # the checker: Roughness 0.75
+    np.testing.assert_array_equal(weight.numpy()[1], [1.0, 2.0, 3.0])
+    print("ok")
+''')
+
+
+def test_a_second_material_kind_is_dispatched(tmp_path):
+    """A kind registered by name gets its rows (``kind`` column) through make_materials' dispatch."""
+    (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl red\nf 1 2 3\n")
+    (tmp_path / "a.mtl").write_text("newmtl red\nKd 1 0 0\n")
+    src = str(ROOT / "warp_spt" / "scene" / "material_schema.py")
+    (tmp_path / "probe_kind.py").write_text(KIND_MODULE)
+    (tmp_path / "probe.py").write_text(KIND_PROBE)       # Warp compiles functions from source files only
+    out = subprocess.run([sys.executable, str(tmp_path / "probe.py"), src, str(tmp_path / "probe_kind.py"),
+                          str(tmp_path)], capture_output=True,
+                         text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=600)
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]
+
+
+def test_kinds_are_registered():
+    from warp_spt.core.materials import KINDS
+
+    assert tuple(KINDS) == schema.MATERIAL_KINDS and schema.COLUMN["kind"].high == len(KINDS) - 1
+    for module in KINDS.values():
+        assert callable(module.make)

@@ -19,6 +19,7 @@ from warp_spt.core.bvh import build_tlas
 from warp_spt.core.material_table import Materials, upload_materials  # noqa: F401 (kernels import Materials from here)
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
 from warp_spt.core.textures import pack_atlas
+from warp_spt.scene.material_schema import MATERIAL_KINDS
 from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
@@ -81,6 +82,8 @@ class Features:
     sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
     # procedural textures used: sorted (name, source hash); () compiles no procedural code
     procedural: tuple[tuple[str, str], ...] = ()
+    # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch
+    material_kinds: tuple[str, ...] = MATERIAL_KINDS
 
     @staticmethod
     def general() -> "Features":
@@ -222,6 +225,7 @@ def _features(scene: Scene) -> Features:
         diffuse=bool((mt.roughness[used] > 0).any()),
         specular=bool((mt.roughness[used] < 1).any()),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
+        material_kinds=tuple(MATERIAL_KINDS[k] for k in np.unique(mt.kind[used])),
     )
 
 

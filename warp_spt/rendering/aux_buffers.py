@@ -2,7 +2,8 @@
 
 Open Image Denoise keeps edges and textures much better when it also sees, per pixel, the surface
 colour and normal of what the pixel shows. Through mirrors and glass that is the first surface with
-a diffuse lobe (Roughness > 0), seen through the specular bounces, whose colours tint the albedo.
+a lobe with a density (the material kind's ``has_density``: a diffuse lobe, Roughness > 0, for the
+seed's model), seen through the specular bounces, whose colours tint the albedo.
 Rays that leave the scene give albedo 1 (OIDN's convention for a background) and normal 0.
 
 One small kernel of its own per feature set, built from the integrators' pieces (camera ray,
@@ -68,8 +69,8 @@ def _make_kernel(features: Features):
                 sf = surface_at(g, h, o, d)
                 a = wp.cw_mul(tint, mats.color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf))
                 n = sf.ns
-                if m.roughness[sf.mat] > 0.0:
-                    break                  # the first surface with a diffuse lobe
+                if mats.has_density(m, sf):
+                    break                  # the first surface with a lobe that has a density (diffuse)
                 u_dir = wp.vec2(wp.randf(state), wp.randf(state))
                 bs = mats.sample(m, t, sf, d, 1.0, u_dir, wp.randf(state))     # u_lobe = 1: the specular lobe
                 if bs.alive == 0:

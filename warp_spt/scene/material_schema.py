@@ -78,6 +78,7 @@ COLUMNS: tuple[Column, ...] = (
            differentiable=True, pathwise=True),
     Column("ior", SCALAR, 1.0, MIN_IOR, MAX_IOR, "index of refraction (Kn, Ni)"),
     Column("refractable", FLAG, False, None, None, "the specular lobe may refract: glass"),
+    Column("kind", INDEX, 0, 0, len(MATERIAL_KINDS) - 1, "the material model: an index into MATERIAL_KINDS"),
 )
 
 COLUMN = {c.name: c for c in COLUMNS}

@@ -20,7 +20,7 @@ from warp_spt.core.material_table import Materials, upload_materials  # noqa: F4
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
 from warp_spt.core.textures import pack_atlas
 from warp_spt.scene.material_schema import MATERIAL_KINDS
-from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene
+from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
 
@@ -213,7 +213,8 @@ def _features(scene: Scene) -> Features:
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
     mt = scene.materials
     tex = mt.tex[used]
-    emits = (mt.emission[used] > 0).any() or (tex[:, 3] >= 0).any() or (tex[:, 3] <= TEX_PROC_BASE).any()
+    emits = ((mt.emission[used] > 0).any() or (tex[:, SLOT_EMISSION] >= 0).any()
+             or (tex[:, SLOT_EMISSION] <= TEX_PROC_BASE).any())
     return Features(
         meshes=any(len(m.indices) for m in scene.meshes),
         spheres=len(scene.spheres) > 0,

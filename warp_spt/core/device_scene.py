@@ -16,10 +16,12 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.bvh import build_tlas
+from warp_spt.core.material_table import Materials, upload_materials  # noqa: F401 (kernels import Materials from here)
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
 from warp_spt.core.textures import pack_atlas
 from warp_spt.runtime.warp_init import init_warp
-from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene
+from warp_spt.scene.material_schema import MATERIAL_KINDS
+from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
 
@@ -54,21 +56,6 @@ class Geometry:
 
 
 @wp.struct
-class Materials:
-    """The material table (structure of arrays, one row per material; see scene.MaterialTable)."""
-
-    diffuse: wp.array(dtype=wp.vec3)
-    reflect: wp.array(dtype=wp.vec3)
-    refract: wp.array(dtype=wp.vec3)
-    emission: wp.array(dtype=wp.vec3)
-    tex: wp.array(dtype=wp.vec4i)              # texture slot per colour (scene.SLOT_*)
-    roughness: wp.array(dtype=wp.float32)      # probability of the diffuse lobe
-    fuzz: wp.array(dtype=wp.float32)
-    ior: wp.array(dtype=wp.float32)
-    refractable: wp.array(dtype=wp.int32)
-
-
-@wp.struct
 class Textures:
     """The texture atlas (flat), its tile table (offset, w, h, stride) and the filter (0 nearest, 1 bilinear)."""
 
@@ -96,6 +83,8 @@ class Features:
     sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
     # procedural textures used: sorted (name, source hash); () compiles no procedural code
     procedural: tuple[tuple[str, str], ...] = ()
+    # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch
+    material_kinds: tuple[str, ...] = MATERIAL_KINDS
 
     @staticmethod
     def general() -> "Features":
@@ -142,7 +131,7 @@ class DeviceScene:
         self._upload_spheres_and_tlas(self.geometry, scene, device)
         b = scene.bounds
         self.geometry.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
-        self.materials = _upload_materials(scene, device)
+        self.materials = upload_materials(scene.materials, device)
         self._atlas = _upload_atlas(scene, device)
         self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
         self._lights: dict = {}          # light tables per sky (warp_spt.core.lights.light_table)
@@ -234,16 +223,6 @@ def mesh_key(m, device: str = "cpu") -> str:
     return h.hexdigest()
 
 
-def _upload_materials(scene: Scene, device: str) -> Materials:
-    mt = scene.materials
-    m = Materials()
-    _set_arrays(m, device, diffuse=(mt.diffuse, wp.vec3), reflect=(mt.reflect, wp.vec3),
-                refract=(mt.refract, wp.vec3), emission=(mt.emission, wp.vec3), tex=(mt.tex, wp.vec4i),
-                roughness=(mt.roughness, wp.float32), fuzz=(mt.fuzz, wp.float32), ior=(mt.ior, wp.float32),
-                refractable=(mt.refractable.astype(np.int32), wp.int32))
-    return m
-
-
 def _upload_atlas(scene: Scene, device: str) -> tuple[wp.array, wp.array]:
     atlas = pack_atlas(scene.textures)
     texels = wp.array(np.ascontiguousarray(atlas.texels, dtype=np.float32), dtype=wp.vec3, device=device)
@@ -262,7 +241,8 @@ def _features(scene: Scene) -> Features:
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
     mt = scene.materials
     tex = mt.tex[used]
-    emits = (mt.emission[used] > 0).any() or (tex[:, 3] >= 0).any() or (tex[:, 3] <= TEX_PROC_BASE).any()
+    emits = ((mt.emission[used] > 0).any() or (tex[:, SLOT_EMISSION] >= 0).any()
+             or (tex[:, SLOT_EMISSION] <= TEX_PROC_BASE).any())
     return Features(
         meshes=any(len(m.indices) for m in scene.meshes),
         spheres=len(scene.spheres) > 0,
@@ -274,6 +254,7 @@ def _features(scene: Scene) -> Features:
         diffuse=bool((mt.roughness[used] > 0).any()),
         specular=bool((mt.roughness[used] < 1).any()),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
+        material_kinds=tuple(MATERIAL_KINDS[k] for k in np.unique(mt.kind[used])),
     )
 
 

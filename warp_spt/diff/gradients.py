@@ -49,11 +49,13 @@ from warp_spt.core.device_scene import (
     Textures,
 )
 from warp_spt.core.lights import Lights
+from warp_spt.core.material_table import with_gradients
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
     CAMERA_FIELDS,
     COLOR_FIELDS,
     MATERIAL_FIELDS,
+    REPLAYABLE_FIELDS,
     ParamInfo,
     SceneParameters,
     camera_jacobian,
@@ -94,7 +96,7 @@ MODES = ("auto", "prb", "tape")
 # Parameters path replay differentiates (it holds sampled directions fixed and finds hits outside
 # the differentiated vertex, see warp_spt.diff.prb); the others (fuzz bends directions, the camera moves
 # rays and hit points) need the tape's pathwise derivative.
-REPLAYABLE = ({("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels")}
+REPLAYABLE = ({("material", f) for f in REPLAYABLE_FIELDS} | {("texture", "texels")}
               | {("sky", f) for f in ("color", "zenith", "nadir")})
 
 
@@ -311,10 +313,7 @@ class _Backward:
         return wp.array(ptr=a.ptr, dtype=a.dtype, shape=a.shape, device=a.device, grad=g)
 
     def _tile_inputs(self, lo: int, hi: int) -> tuple:
-        m = Materials()
-        for name in ("tex", "ior", "refractable") + MATERIAL_FIELDS:
-            a = getattr(self.dev.materials, name)
-            setattr(m, name, self._grad_alias(a) if name in MATERIAL_FIELDS else a)
+        m = with_gradients(self.dev.materials, self._grad_alias)     # the schema's differentiable columns
         t = self.tex
         if self.wants_texels or self.wants_proc:
             t = Textures()

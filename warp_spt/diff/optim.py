@@ -10,16 +10,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_spt.diff.params import SceneParameters, non_negative
+from warp_spt.diff.params import SceneParameters, value_range
 
-_UPPER = {"roughness": 1.0}
 FLOOR = 1e-4     # a path whose throughput is exactly 0 ends, so a colour of exactly 0 gets no gradient
 
 
 class Adam:
     """Adam (Kingma & Ba 2015) over ``names`` of ``params``, the step size multiplied by ``decay`` after
-    each step. Colours are clipped to [FLOOR, inf) (roughness to [FLOOR, 1]) so that they stay valid
-    for ``params[name] = value`` and keep a gradient: at exactly 0 a colour kills its paths."""
+    each step. Each value is clipped into its valid range (``params.value_range``: a material field's
+    range in the material schema), raised by FLOOR at the bottom, so that it stays valid for
+    ``params[name] = value`` and keeps a gradient: at exactly 0 a colour kills its paths."""
 
     def __init__(self, params: SceneParameters, names: list[str], lr: float = 0.01, betas=(0.9, 0.999),
                  eps: float = 1e-8, decay: float = 1.0):
@@ -39,8 +39,8 @@ class Adam:
             m_hat = self.m[n] / (1 - b1 ** self.t)
             v_hat = self.v[n] / (1 - b2 ** self.t)
             value = self.params[n] - self.lr * m_hat / (np.sqrt(v_hat) + self.eps)
-            info = self.params.info(n)
-            if non_negative(info):       # camera vectors, a texture's numbers: any value
-                value = np.clip(value, FLOOR, _UPPER.get(info.field))
+            low, high = value_range(self.params.info(n))
+            if low is not None:          # camera vectors, a texture's numbers: any value
+                value = np.clip(value, low + FLOOR, high)
             self.params[n] = value
         self.lr *= self.decay

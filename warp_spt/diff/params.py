@@ -2,8 +2,10 @@
 
 ``parameters(scene, camera, sky)`` lists what a user can edit and what gradients reach:
 
-* ``"<material>.diffuse"``, ``.reflect``, ``.refract``, ``.emission``: RGB colours (3,);
-* ``"<material>.roughness"`` (probability of the diffuse lobe, in [0, 1]) and ``.fuzz`` (>= 0), ();
+* ``"<material>.<field>"`` for each differentiable column of the material schema
+  (``warp_spt.scene.material_schema``): the colours ``.diffuse``, ``.reflect``, ``.refract``,
+  ``.emission`` (3,); ``.roughness`` (probability of the diffuse lobe, in [0, 1]) and ``.fuzz``
+  (>= 0), ();
 * ``"<material>.<slot>_map"`` for each image texture, named after the first material slot that uses
   it (slots diffuse, reflect, refract, emission): its texels (h, w, 3), row 0 the image's top row;
 * ``"<material>.<slot>_map.<key>"`` for each numeric parameter of a procedural texture (named, as
@@ -15,8 +17,9 @@
   points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
   see docs/gradients.md).
 
-Values are validated before they reach a kernel (finite; colours and texels >= 0; roughness in
-[0, 1]; fuzz >= 0; a non-zero direction). Setting a material value updates both the host Scene and
+Values are validated before they reach a kernel (finite; a material field in its range of the
+material schema, reflectance colours in [0, 1], roughness in [0, 1], fuzz >= 0; texels >= 0; a
+non-zero direction). Setting a material value updates both the host Scene and
 the device arrays, and recomputes the scene's Features (a roughness leaving 1 needs the mirror lobe
 compiled in) and its light table (an emission change re-weights light sampling).
 """
@@ -33,21 +36,22 @@ from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.proctex import get_texture
 from warp_spt.core.textures import tile_view
 from warp_spt.scene.camera import Camera
-from warp_spt.scene.model import (
-    SLOT_DIFFUSE,
-    SLOT_EMISSION,
-    SLOT_REFLECT,
-    SLOT_REFRACT,
-    TEX_PROC_BASE,
-    Scene,
+from warp_spt.scene.material_schema import (
+    COLOR,
+    COLUMN,
+    DIFFERENTIABLE,
+    SLOT_COLUMNS,
+    range_text,
 )
+from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import SKY_CONSTANT, Sky
 
-COLOR_FIELDS = ("diffuse", "reflect", "refract", "emission")
-SCALAR_FIELDS = ("roughness", "fuzz")
-MATERIAL_FIELDS = COLOR_FIELDS + SCALAR_FIELDS
-_SLOT_NAMES = {SLOT_DIFFUSE: "diffuse", SLOT_REFLECT: "reflect", SLOT_REFRACT: "refract",
-               SLOT_EMISSION: "emission"}
+# the material schema's differentiable columns (warp_spt.scene.material_schema), in its order
+MATERIAL_FIELDS = tuple(c.name for c in DIFFERENTIABLE)
+COLOR_FIELDS = tuple(c.name for c in DIFFERENTIABLE if c.type == COLOR)
+SCALAR_FIELDS = tuple(c.name for c in DIFFERENTIABLE if c.type != COLOR)
+REPLAYABLE_FIELDS = tuple(c.name for c in DIFFERENTIABLE if not c.pathwise)   # path replay takes these
+_SLOT_NAMES = {c.slot: c.name for c in SLOT_COLUMNS}
 
 
 @dataclass(frozen=True)
@@ -240,18 +244,30 @@ def proc_slice(scene: Scene, p: ParamInfo) -> tuple[int, int]:
     return get_texture(scene.procedural[p.index].name).layout()[p.field]
 
 
+def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
+    """(low, high) of a parameter's values, None where unbounded: a material field's range in the
+    material schema; colours, texels (and a procedural texture's RGB triples) >= 0; camera vectors
+    and a procedural texture's numbers any finite value."""
+    if p.kind == "material":
+        return COLUMN[p.field].low, COLUMN[p.field].high
+    if p.kind in ("texture", "sky") or (p.kind == "proc" and p.shape == (3,)):
+        return 0.0, None
+    return None, None
+
+
 def non_negative(p: ParamInfo) -> bool:
-    """Colours, texels, roughness and fuzz (and a procedural texture's RGB triples) are >= 0; camera
-    vectors and a procedural texture's numbers may take any finite value."""
-    return p.kind in ("material", "texture", "sky") or (p.kind == "proc" and p.shape == (3,))
+    """The parameter's values are bounded below by 0 (see :func:`value_range`)."""
+    return value_range(p)[0] == 0.0
 
 
 def _check_value(p: ParamInfo, v: np.ndarray) -> None:
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{p.name}: values must be finite")
-    if p.field == "roughness" and not 0.0 <= float(v) <= 1.0:
-        raise ValueError(f"{p.name}: roughness must be in [0, 1], got {float(v)}")
-    if non_negative(p) and p.field != "roughness" and np.any(v < 0):
-        raise ValueError(f"{p.name}: values must be >= 0")
+    low, high = value_range(p)
+    if (low is not None and np.any(v < low)) or (high is not None and np.any(v > high)):
+        if p.kind == "material" and p.shape == ():
+            raise ValueError(f"{p.name}: {p.field} must {range_text(COLUMN[p.field])}, got {float(v)}")
+        raise ValueError(f"{p.name}: values must be >= {low:g}" if high is None
+                         else f"{p.name}: values must lie in [{low:g}, {high:g}]")
     if p.field == "direction" and not np.any(v != 0):
         raise ValueError(f"{p.name}: the view direction must not be zero")

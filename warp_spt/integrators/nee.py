@@ -166,7 +166,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         contrib = wp.vec3(0.0, 0.0, 0.0)
         seen = int(VIS_TRACE)
         st = p.sampler
-        if mats.roughness[sf.mat] > 0.0:      # only the diffuse lobe has a density to sample lights for
+        if mat.has_density(mats, sf):      # light sampling needs a lobe with a density to weigh against
             u_pick = float(0.0)
             u_pos = wp.vec2(0.0, 0.0)
             if wp.static(sampler.random_access):

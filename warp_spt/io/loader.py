@@ -44,12 +44,6 @@ from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import (
     CHECKER_NAME,
-    SLOT_DIFFUSE,
-    SLOT_EMISSION,
-    SLOT_REFLECT,
-    SLOT_REFRACT,
-    TEX_CHECKER,
-    TEX_NONE,
     TEX_PROC_BASE,
     Material,
     MaterialTable,
@@ -64,8 +58,6 @@ __all__ = ["load_scene", "validate_scene"]
 
 WarnFn = Callable[[str], None]
 PathLike = str | os.PathLike[str]
-_SLOT_FIELDS = ((SLOT_DIFFUSE, "diffuse_map"), (SLOT_REFLECT, "reflect_map"),
-                (SLOT_REFRACT, "refract_map"), (SLOT_EMISSION, "emission_map"))
 
 
 def _default_warn(message: str) -> None:
@@ -105,7 +97,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float32),
         sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
-        materials=_table(table_rows, textures),
+        materials=MaterialTable.from_rows(table_rows, textures.index),   # reads the rows' textures
         textures=textures.images,
         procedural=textures.procedural,
         warnings=notes,
@@ -314,25 +306,3 @@ def _to_rgb(img: Image.Image) -> np.ndarray:
         return np.repeat(grey[:, :, None], 3, axis=2)
     return np.asarray(img.convert("RGB"), dtype=np.float32) / np.float32(255.0)
 
-
-def _table(rows: list[Material], textures: _TextureCache) -> MaterialTable:
-    """The structure-of-arrays table, reading the textures of its rows."""
-    tex = np.full((len(rows), 4), TEX_NONE, dtype=np.int32)
-    for r, m in enumerate(rows):
-        if m.checker:
-            tex[r, SLOT_DIFFUSE] = tex[r, SLOT_REFLECT] = TEX_CHECKER
-        for slot, field in _SLOT_FIELDS:
-            ref = getattr(m, field)
-            if ref is not None:
-                tex[r, slot] = textures.index(ref)
-
-    def col(name: str, dtype: type = np.float32) -> np.ndarray:
-        return np.asarray([getattr(m, name) for m in rows], dtype=dtype)
-
-    return MaterialTable(
-        names=[m.name for m in rows],
-        diffuse=col("diffuse").reshape(-1, 3), reflect=col("reflect").reshape(-1, 3),
-        refract=col("refract").reshape(-1, 3), emission=col("emission").reshape(-1, 3),
-        tex=tex, roughness=col("roughness"), fuzz=col("fuzz"), ior=col("ior"),
-        refractable=col("refractable", np.bool_),
-    )

@@ -68,8 +68,9 @@ from warp_spt.io.tokens import (
     read_file,
 )
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.material_schema import COLUMN
 from warp_spt.scene.model import CHECKER_NAME, Material, TextureRef
-from warp_spt.scene.validate import MAX_IOR, MAX_RADIANCE, MIN_IOR
+from warp_spt.scene.validate import MAX_RADIANCE
 
 # Texture options and how many values follow them; (1, 3) means one to three numbers.
 _TEX_OPTIONS = {
@@ -182,7 +183,7 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     m = d.mat
     if tag in _COLOUR_SLOTS:
         rgb = parse_floats(args, (1, 3), path, lineno, name)
-        high = MAX_RADIANCE if _COLOUR_SLOTS[tag] == ("emission",) else 1.0
+        high = min(COLUMN[slot].high for slot in _COLOUR_SLOTS[tag])     # the schema's ranges (low 0)
         if min(rgb) < 0 or max(rgb) > high:
             why = "" if high == MAX_RADIANCE else " (a surface cannot reflect more light than it receives)"
             bad = min(rgb) if min(rgb) < 0 else max(rgb)
@@ -199,13 +200,13 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         for slot in _MAP_SLOTS[tag]:
             setattr(m, slot + "_map", ref)
     elif tag == "roughness":
-        m.roughness = _number(args, path, lineno, name, lo=0.0, hi=1.0)
+        m.roughness = _column_value(args, path, lineno, name, "roughness")
         d.explicit.add("roughness")
     elif tag == "fuzz":
-        m.fuzz = _number(args, path, lineno, name, lo=0.0)
+        m.fuzz = _column_value(args, path, lineno, name, "fuzz")
         d.explicit.add("fuzz")
     elif tag in ("kn", "ni"):
-        m.ior = _number(args, path, lineno, name, lo=MIN_IOR, hi=MAX_IOR)
+        m.ior = _column_value(args, path, lineno, name, "ior")
     elif tag == "refractable":
         m.refractable = True
         d.explicit.add("refractable")
@@ -224,6 +225,11 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     else:
         return False
     return True
+
+
+def _column_value(args: list[bytes], path: str, lineno: int, tag: str, column: str) -> float:
+    """One number in the range of a material schema column."""
+    return _number(args, path, lineno, tag, lo=COLUMN[column].low, hi=COLUMN[column].high)
 
 
 def _number(args: list[bytes], path: str, lineno: int, tag: str, *, lo: float, hi: float | None = None,

@@ -2,7 +2,8 @@
 
 Open Image Denoise keeps edges and textures much better when it also sees, per pixel, the surface
 colour and normal of what the pixel shows. Through mirrors and glass that is the first surface with
-a diffuse lobe (Roughness > 0), seen through the specular bounces, whose colours tint the albedo.
+a lobe with a density (the material kind's ``has_density``: a diffuse lobe, Roughness > 0, for the
+seed's model), seen through the specular bounces, whose colours tint the albedo.
 Rays that leave the scene give albedo 1 (OIDN's convention for a background) and normal 0.
 
 One small kernel of its own per feature set (the "aov" kind of ``rendering.setup.KERNEL_KINDS``),
@@ -74,8 +75,8 @@ def _make_kernel(features: Features, sampler: Sampler):
                 sf = surface_at(g, h, o, d)
                 a = wp.cw_mul(tint, mats.color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf))
                 n = sf.ns
-                if m.roughness[sf.mat] > 0.0:
-                    break                  # the first surface with a diffuse lobe
+                if mats.has_density(m, sf):
+                    break                  # the first surface with a lobe that has a density (diffuse)
                 base = DIM_BOUNCE + AOV_STRIDE * bounce
                 u_dir, st = sampler.next_2d(st, base + AOV_OFF_DIR)
                 u_fresnel, st = sampler.next_1d(st, base + AOV_OFF_FRESNEL)

@@ -8,17 +8,33 @@ Nothing in this module imports Warp.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, make_dataclass
+from typing import Callable
 
 import numpy as np
+
+from warp_spt.scene.material_schema import (
+    COLOR,
+    COLUMN,
+    COLUMNS,
+    FLAG,
+    INDEX,
+    NUM_SLOTS,
+    SCALAR,
+    SLOT_COLUMNS,
+    SLOTS,
+    host_dtype,
+    row_shape,
+)
 
 # Texture slot values in MaterialTable.tex: an index >= 0 names Scene.textures[k].
 TEX_NONE = -1      # use the constant colour
 TEX_CHECKER = -2   # the built-in Inner_CheckerTexture pattern (SEMANTICS §10)
 TEX_PROC_BASE = -3  # -3 - k: procedural texture instance k (Scene.procedural, warp_spt.core.proctex)
 
-# Column order of MaterialTable.tex
-SLOT_DIFFUSE, SLOT_REFLECT, SLOT_REFRACT, SLOT_EMISSION = 0, 1, 2, 3
+# Columns of MaterialTable.tex (the texture slots of the schema's colours)
+SLOT_DIFFUSE, SLOT_REFLECT, SLOT_REFRACT, SLOT_EMISSION = (
+    COLUMN[n].slot for n in ("diffuse", "reflect", "refract", "emission"))
 
 CHECKER_NAME = "Inner_CheckerTexture"
 
@@ -32,30 +48,27 @@ class TextureRef:
     line: int
 
 
-@dataclass
-class Material:
-    """One material of the seed's model (SEMANTICS §6), before textures are loaded.
+def _material_fields() -> list[tuple]:
+    """Material's fields from the schema: the name, the colours, their texture maps, the other columns."""
+    types = {COLOR: "tuple[float, float, float]", SCALAR: "float", FLAG: "bool", INDEX: "int"}
+    return ([("name", "str")]
+            + [(c.name, types[c.type], field(default=c.default)) for c in COLUMNS if c.type == COLOR]
+            + [(f"{c.name}_map", "TextureRef | None", field(default=None)) for c in SLOT_COLUMNS]
+            + [(c.name, types[c.type], field(default=c.default)) for c in COLUMNS if c.type in (SCALAR, FLAG, INDEX)]
+            + [("checker", "bool", field(default=False)),      # the checker pattern fills the Column.checker slots
+               ("source", "str", field(default="<builtin>")),  # file that defined it
+               ("line", "int", field(default=0))])             # line of its ``newmtl``
 
-    ``roughness`` is the probability of the diffuse lobe (the seed's diffuseWeight);
-    ``fuzz`` is 1 - reflectClearness; ``ior`` is the seed's ``Kn``.
-    """
 
-    name: str
-    diffuse: tuple[float, float, float] = (0x9F / 256, 0x8F / 256, 0x7C / 256)
-    reflect: tuple[float, float, float] = (0xAF / 256, 0xBF / 256, 0xCF / 256)
-    refract: tuple[float, float, float] = (0xBB / 256, 0xBC / 256, 0xB1 / 256)
-    emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    diffuse_map: TextureRef | None = None
-    reflect_map: TextureRef | None = None
-    refract_map: TextureRef | None = None
-    emission_map: TextureRef | None = None
-    roughness: float = 0.85
-    fuzz: float = 0.62
-    ior: float = 1.0
-    refractable: bool = False
-    checker: bool = False          # diffuse and reflect use the built-in checker pattern
-    source: str = "<builtin>"      # file that defined it
-    line: int = 0                  # line of its ``newmtl``
+Material = make_dataclass("Material", _material_fields(), namespace={"__module__": __name__, "__doc__": """\
+One material of the seed's model (SEMANTICS §6), before textures are loaded.
+
+Its fields and defaults come from the material schema (``warp_spt.scene.material_schema``): a
+field per column (``roughness`` is the probability of the diffuse lobe, the seed's diffuseWeight;
+``fuzz`` is 1 - reflectClearness; ``ior`` is the seed's ``Kn``), ``<colour>_map`` (a
+:class:`TextureRef` or a procedural texture) for each colour with a texture slot, and ``checker``
+(the built-in checker pattern), ``source`` and ``line`` (where it was defined).
+"""})
 
 
 @dataclass
@@ -91,23 +104,63 @@ class MeshData:
     face_material: np.ndarray   # (F,) int32 into Scene.materials
 
 
-@dataclass
-class MaterialTable:
-    """Materials as structure-of-arrays; row 0 is always Inner_CheckerTexture."""
+def _table_post_init(self) -> None:
+    for c in COLUMNS:
+        if getattr(self, c.name) is None:
+            setattr(self, c.name, _default_column(c, len(self.names)))
 
-    names: list[str]
-    diffuse: np.ndarray      # (M, 3) float32
-    reflect: np.ndarray      # (M, 3) float32
-    refract: np.ndarray      # (M, 3) float32
-    emission: np.ndarray     # (M, 3) float32
-    tex: np.ndarray          # (M, 4) int32 per slot (SLOT_*): TEX_NONE, TEX_CHECKER or a texture index
-    roughness: np.ndarray    # (M,) float32 in [0, 1]
-    fuzz: np.ndarray         # (M,) float32 >= 0
-    ior: np.ndarray          # (M,) float32 > 0
-    refractable: np.ndarray  # (M,) bool
 
-    def __len__(self) -> int:
-        return len(self.names)
+def _default_column(c, rows: int) -> np.ndarray:
+    """The column's array with its default in every row."""
+    if c.type == SLOTS:
+        return np.full((rows, NUM_SLOTS), TEX_NONE, dtype=np.int32)
+    return np.tile(np.asarray(c.default, dtype=host_dtype(c)), (rows,) + (1,) * len(row_shape(c)))
+
+
+def _from_rows(cls, rows: list, texture_index: Callable[[object], int] | None = None) -> "MaterialTable":
+    """The table of ``rows`` (Materials); ``texture_index(ref)`` gives the slot value of a texture map
+    (the loader's texture cache; needed only when some row has a map)."""
+    columns = {}
+    for c in COLUMNS:
+        if c.type == SLOTS:
+            columns[c.name] = _slots(rows, texture_index)
+        else:
+            columns[c.name] = np.asarray([getattr(m, c.name) for m in rows],
+                                         dtype=host_dtype(c)).reshape((len(rows),) + row_shape(c))
+    return cls(names=[m.name for m in rows], **columns)
+
+
+def _slots(rows: list, texture_index: Callable[[object], int] | None) -> np.ndarray:
+    """(M, NUM_SLOTS) int32: the checker in the checker slots of checker materials, then each map."""
+    tex = np.full((len(rows), NUM_SLOTS), TEX_NONE, dtype=np.int32)
+    for r, m in enumerate(rows):
+        if m.checker:
+            tex[r, [c.slot for c in SLOT_COLUMNS if c.checker]] = TEX_CHECKER
+        for c in SLOT_COLUMNS:
+            ref = getattr(m, f"{c.name}_map")
+            if ref is not None:
+                tex[r, c.slot] = texture_index(ref)
+    return tex
+
+
+def _with_rows(self, rows: list) -> "MaterialTable":
+    """This table followed by ``rows`` (Materials without texture maps)."""
+    more = MaterialTable.from_rows(rows)
+    return MaterialTable(names=[*self.names, *more.names],
+                         **{c.name: np.concatenate([getattr(self, c.name), getattr(more, c.name)]) for c in COLUMNS})
+
+
+MaterialTable = make_dataclass(
+    "MaterialTable", [("names", "list[str]")] + [(c.name, "np.ndarray", field(default=None)) for c in COLUMNS],
+    namespace={"__module__": __name__, "__post_init__": _table_post_init, "__len__": lambda self: len(self.names),
+               "from_rows": classmethod(_from_rows), "with_rows": _with_rows, "__doc__": """\
+Materials as structure-of-arrays, one array per schema column; row 0 is always Inner_CheckerTexture.
+
+Column ``name`` is an array of ``material_schema.host_dtype`` with rows of ``row_shape``: colours
+(M, 3) float32, scalars (M,) float32, flags (M,) bool, ``tex`` (M, NUM_SLOTS) int32 per slot
+(SLOT_*): TEX_NONE, TEX_CHECKER, a texture index or a procedural instance. A column not given
+takes its default in every row. ``MaterialTable.from_rows(materials, texture_index)`` assembles one.
+"""})
 
 
 @dataclass

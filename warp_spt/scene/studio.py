@@ -15,7 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from warp_spt.scene.camera import front_vector, up_vector
-from warp_spt.scene.model import TEX_NONE, MaterialTable, MeshData, Scene
+from warp_spt.scene.model import Material, MaterialTable, MeshData, Scene
 from warp_spt.scene.sky import Sky
 
 SKY = (0.35, 0.35, 0.35)          # a neutral grey sky
@@ -61,15 +61,7 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z") -> Scene:
 
 def _with_rows(t: MaterialTable) -> MaterialTable:
     """The table plus two rows: the ground (grey, diffuse) and the light (emissive, black)."""
-    grey, black = [GROUND_ALBEDO] * 3, [0.0] * 3
-
-    def add(a: np.ndarray, rows: list) -> np.ndarray:
-        return np.concatenate([a, np.asarray(rows, dtype=a.dtype).reshape((len(rows),) + a.shape[1:])])
-
-    return MaterialTable(
-        names=[*t.names, "studio ground", "studio light"],
-        diffuse=add(t.diffuse, [grey, black]), reflect=add(t.reflect, [grey, black]),
-        refract=add(t.refract, [black, black]), emission=add(t.emission, [black, [LIGHT_EMISSION] * 3]),
-        tex=add(t.tex, [[TEX_NONE] * 4] * 2), roughness=add(t.roughness, [1.0, 1.0]),
-        fuzz=add(t.fuzz, [0.0, 0.0]), ior=add(t.ior, [1.0, 1.0]), refractable=add(t.refractable, [False, False]),
-    )
+    grey, black = (GROUND_ALBEDO,) * 3, (0.0, 0.0, 0.0)
+    plain = dict(refract=black, roughness=1.0, fuzz=0.0, ior=1.0)    # diffuse only, no glass
+    return t.with_rows([Material("studio ground", diffuse=grey, reflect=grey, emission=black, **plain),
+                        Material("studio light", diffuse=black, reflect=black, emission=(LIGHT_EMISSION,) * 3, **plain)])

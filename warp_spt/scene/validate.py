@@ -11,6 +11,13 @@ import numpy as np
 
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_COORDINATE, MAX_IOR, MAX_RADIANCE, MIN_IOR  # noqa: F401 (obj, mtl import them from here)
+from warp_spt.scene.material_schema import (
+    COLUMNS,
+    SLOTS,
+    host_dtype,
+    range_text,
+    row_shape,
+)
 from warp_spt.scene.model import (
     CHECKER_NAME,
     TEX_CHECKER,
@@ -61,27 +68,23 @@ def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
 
 
 def _check_materials(t: MaterialTable, n_textures: int, n_procedural: int = 0) -> None:
+    """Every schema column: its dtype and shape, its range (or, for ``tex``, valid slot values)."""
     m = len(t.names)
     if m == 0 or t.names[0] != CHECKER_NAME:
         _fail(f"materials row 0 must be {CHECKER_NAME}")
-    for field, high in (("diffuse", 1.0), ("reflect", 1.0), ("refract", 1.0), ("emission", MAX_RADIANCE)):
-        a = _check_array(getattr(t, field), f"materials.{field}", np.float32, (m, 3))
-        if ((a < 0) | (a > high)).any():
-            _fail(f"materials.{field} must lie in [0, {high:g}]")
-    tex = _check_array(t.tex, "materials.tex", np.int32, (m, 4))
+    for c in COLUMNS:
+        a = _check_array(getattr(t, c.name), f"materials.{c.name}", np.dtype(host_dtype(c)).type, (m, *row_shape(c)))
+        if c.type == SLOTS:
+            _check_slots(a, n_textures, n_procedural)
+        elif (c.low is not None and (a < c.low).any()) or (c.high is not None and (a > c.high).any()):
+            _fail(f"materials.{c.name} must {range_text(c)}")
+
+
+def _check_slots(tex: np.ndarray, n_textures: int, n_procedural: int) -> None:
     proc = (tex <= TEX_PROC_BASE) & (tex > TEX_PROC_BASE - n_procedural)
     if ((tex < 0) & (tex != TEX_NONE) & (tex != TEX_CHECKER) & ~proc).any() or (tex >= n_textures).any():
         _fail(f"materials.tex holds slots that are neither TEX_NONE, TEX_CHECKER, a texture in [0, {n_textures}) "
               f"nor one of the {n_procedural} procedural instances")
-    rough = _check_array(t.roughness, "materials.roughness", np.float32, (m,))
-    if ((rough < 0) | (rough > 1)).any():
-        _fail("materials.roughness must lie in [0, 1]")
-    if (_check_array(t.fuzz, "materials.fuzz", np.float32, (m,)) < 0).any():
-        _fail("materials.fuzz must be >= 0")
-    ior = _check_array(t.ior, "materials.ior", np.float32, (m,))
-    if ((ior < MIN_IOR) | (ior > MAX_IOR)).any():
-        _fail(f"materials.ior must lie in [{MIN_IOR:g}, {MAX_IOR:g}]")
-    _check_array(t.refractable, "materials.refractable", np.bool_, (m,))
 
 
 def validate_scene(scene: Scene) -> None:
@@ -89,7 +92,7 @@ def validate_scene(scene: Scene) -> None:
 
     Checks: meshes (float32 finite positions, int32 indices in range, uv, unit normals, material
     rows), spheres (finite, radius > 0, material rows), the material table (row 0 is the checker,
-    colours >= 0, roughness in [0, 1], fuzz >= 0, IOR > 0, texture slots valid), textures
+    every column in its range of the material schema, texture slots valid), textures
     ((H, W, 3) float32 in [0, 1], non-empty), and that there is some geometry at all.
     """
     n_mat = len(scene.materials.names)

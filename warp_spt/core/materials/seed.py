@@ -17,9 +17,9 @@ Fixes over the seed: inside/outside comes from the geometry (Q3), diffuse sampli
 cosine-weighted, a fuzzed reflection below the surface is absorbed (Q6), total internal reflection
 reflects.
 
-``make_materials(features)`` compiles only the lobes the scene's materials use (Features.diffuse,
-.specular, .refraction) and the colour sources it needs (textures, the checker, the procedural textures of
-Features.procedural).
+:func:`make` compiles only the lobes the scene's materials use (Features.diffuse, .specular,
+.refraction). It is the kind ``"seed"`` of the material-kind registry (``warp_spt.core.materials``;
+the interface is in ``warp_spt.core.materials.common``).
 """
 
 from __future__ import annotations
@@ -29,66 +29,15 @@ from types import SimpleNamespace
 import warp as wp
 
 from warp_spt.core.device_scene import Features, Materials, Textures
-from warp_spt.core.proctex import make_dispatch, seed_checker
+from warp_spt.core.materials.common import BsdfSample, lobe_weight
 from warp_spt.core.sampling import cosine_hemisphere, uniform_sphere
 from warp_spt.core.surface import INV_PI, Surface
-from warp_spt.core.textures import sample_texture
-from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE
+from warp_spt.scene.model import SLOT_DIFFUSE, SLOT_REFLECT, SLOT_REFRACT
 
 
-@wp.func
-def lobe_weight(p: float) -> float:
-    """1 in value; in the adjoint, d/dp = 1/p (the score of a discrete choice made with probability p).
-
-    Multiplying a lobe's weight by ``lobe_weight(prob of that lobe)`` leaves every image bit-identical
-    and makes the differentiable kernel's derivative in ``Roughness`` correct in expectation: the
-    choice ``u < Roughness`` is a step for common random numbers, so its pathwise derivative is 0,
-    and the score term p'/p restores d E[L] / d Roughness (warp_spt.diff.gradients, tests/test_gradients.py).
-    """
-    return 1.0
-
-
-@wp.func_grad(lobe_weight)
-def _adj_lobe_weight(p: float, adj_ret: float):
-    wp.adjoint[p] += adj_ret / p
-
-
-@wp.struct
-class BsdfSample:
-    """One sampled direction. ``weight`` = f cos / pdf (the throughput factor); ``pdf`` is the
-    solid-angle density of the whole mixture for that direction (0 when ``singular``)."""
-
-    dir: wp.vec3
-    weight: wp.vec3
-    pdf: float
-    singular: int      # 1: mirror/glass lobe, no density: no MIS for what it hits
-    alive: int         # 0: absorbed (below the surface)
-    through: int       # 1: the ray passes through the surface (refraction)
-
-
-def make_materials(features: Features) -> SimpleNamespace:
-    """``color``, ``emission``, ``sample``, ``eval``, ``pdf`` as Warp functions for these features."""
-
-    proc = make_dispatch(features.procedural)
-
-    @wp.func
-    def color(t: Textures, tex: int, const: wp.vec3, sf: Surface) -> wp.vec3:
-        """A material colour: texture slot ``tex`` at the surface point if it has one, else ``const``."""
-        if wp.static(features.textures):
-            if tex >= 0:
-                return sample_texture(t.texels, t.tiles, tex, sf.uv, t.bilinear)
-        if wp.static(features.checker):
-            if tex == TEX_CHECKER:
-                return seed_checker(sf.uv, sf.p, sf.ns)
-        if wp.static(len(features.procedural) > 0):
-            if tex <= TEX_PROC_BASE:
-                return proc(t.proc_kind, t.proc_params, TEX_PROC_BASE - tex, sf.uv, sf.p, sf.ns)
-        return const
-
-    @wp.func
-    def emission(m: Materials, t: Textures, sf: Surface) -> wp.vec3:
-        """Emitted radiance, the same on both faces (the seed's emitters are two-sided)."""
-        return color(t, m.tex[sf.mat][3], m.emission[sf.mat], sf)
+def make(features: Features, color) -> SimpleNamespace:
+    """``sample``, ``eval``, ``pdf``, ``has_density`` of the seed's model as Warp functions for these
+    features; ``color`` reads a colour column with its texture (``common.make_color``)."""
 
     @wp.func
     def specular(m: Materials, t: Textures, sf: Surface, d: wp.vec3, u_dir: wp.vec2, u_fresnel: float) -> BsdfSample:
@@ -114,14 +63,14 @@ def make_materials(features: Features) -> SimpleNamespace:
                     if u_fresnel >= fresnel:
                         tr = d * eta + sf.ns * (eta * cos_i - wp.sqrt(1.0 - sin2_t))
                         out.dir = wp.normalize(tr)
-                        out.weight = color(t, tex[2], m.refract[sf.mat], sf)
+                        out.weight = color(t, tex[wp.static(SLOT_REFRACT)], m.refract[sf.mat], sf)
                         out.through = 1
                         if wp.dot(out.dir, sf.ng) >= 0.0:
                             out.alive = 0
                         return out
         r = d + sf.ns * (2.0 * cos_i)
         out.dir = wp.normalize(r + uniform_sphere(u_dir[0], u_dir[1]) * m.fuzz[sf.mat])
-        out.weight = color(t, tex[1], m.reflect[sf.mat], sf)
+        out.weight = color(t, tex[wp.static(SLOT_REFLECT)], m.reflect[sf.mat], sf)
         if wp.dot(out.dir, sf.ng) <= 0.0:
             out.alive = 0              # fuzz pushed it below the surface: absorbed (seed leaked, Q6)
         return out
@@ -140,7 +89,7 @@ def make_materials(features: Features) -> SimpleNamespace:
                 out.alive = 1
                 out.through = 0
                 out.singular = 0
-                out.weight = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf)
+                out.weight = color(t, m.tex[sf.mat][wp.static(SLOT_DIFFUSE)], m.diffuse[sf.mat], sf)
                 if wp.static(features.specular):
                     out.weight = out.weight * lobe_weight(rough)
                 out.dir = cosine_hemisphere(sf.ns, u_dir[0], u_dir[1])
@@ -168,8 +117,13 @@ def make_materials(features: Features) -> SimpleNamespace:
         if wp.static(features.diffuse):
             c = wp.dot(wi, sf.ns)
             if c > 0.0 and wp.dot(wi, sf.ng) > 0.0:
-                kd = color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf)
+                kd = color(t, m.tex[sf.mat][wp.static(SLOT_DIFFUSE)], m.diffuse[sf.mat], sf)
                 return kd * (m.roughness[sf.mat] * c * INV_PI)
         return wp.vec3(0.0, 0.0, 0.0)
 
-    return SimpleNamespace(color=color, emission=emission, sample=sample, pdf=pdf, eval=eval)
+    @wp.func
+    def has_density(m: Materials, sf: Surface) -> bool:
+        """The diffuse lobe is the only one with a density: it exists where Roughness > 0."""
+        return m.roughness[sf.mat] > 0.0
+
+    return SimpleNamespace(sample=sample, pdf=pdf, eval=eval, has_density=has_density)

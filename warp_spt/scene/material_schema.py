@@ -1,0 +1,115 @@
+"""The material schema: one row per column of the material table, the one home of every material field.
+
+A :class:`Column` says what a field is (an RGB colour, a scalar, a flag, an index), its seed default,
+its valid range, its texture slot (colours that a ``map_*`` statement may replace), whether gradients
+reach it and its meaning. Everything else is derived from :data:`COLUMNS`, in its order:
+
+* ``warp_spt.scene.model``: the host :class:`Material` (fields and defaults) and :class:`MaterialTable`
+  (one array per column), and the table's assembly from Materials (loader, studio);
+* ``warp_spt.scene.validate``: dtype, shape and range checks of the table;
+* ``warp_spt.core.material_table``: the device struct ``Materials``, its upload and its gradient aliases;
+* ``warp_spt.diff.params`` and ``warp_spt.diff.optim``: parameter names, shapes, ranges and bounds.
+
+So adding a material field is one line here (then a material kind reads it in its kernel functions,
+``warp_spt.core.materials``). The order is the device struct's field order, which is in the kernels'
+generated code: append new columns at the end.
+
+``MATERIAL_KINDS`` names the material models (``warp_spt.core.materials.<name>``), in the order of
+their index in the ``kind`` column. Nothing here imports Warp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from warp_spt.scene.limits import MAX_IOR, MAX_RADIANCE, MIN_IOR
+
+# Column types: what a row holds, on the host and on the device (warp_spt.core.material_table)
+COLOR = "color"      # RGB: host (M, 3) float32, device vec3; Material: a tuple of 3 floats
+SCALAR = "scalar"    # host (M,) float32, device float32; Material: a float
+FLAG = "flag"        # host (M,) bool, device int32 (0/1); Material: a bool
+INDEX = "index"      # host (M,) int32, device int32; Material: an int
+SLOTS = "slots"      # host (M, NUM_SLOTS) int32, device vec4i: the texture of each slot (model.TEX_*)
+
+# The material models, by index in the ``kind`` column: each is the module
+# warp_spt.core.materials.<name> (a new kind: that module and its name here).
+MATERIAL_KINDS: tuple[str, ...] = ("seed",)
+
+
+@dataclass(frozen=True)
+class Column:
+    """One field of the material table.
+
+    ``low``/``high``: the valid range (None: unbounded on that side), checked by ``validate_scene``
+    and by ``SceneParameters``, and the optimiser's bounds. ``slot``: for a colour, its column in the
+    texture-slot table (``Material.<name>_map`` names the texture that replaces the colour);
+    ``checker``: the built-in checker pattern fills that slot of a ``Material.checker`` material.
+    ``differentiable``: a named parameter (``"<material>.<name>"``) that gradients reach;
+    ``pathwise``: its derivative bends sampled directions, so only the tape takes it (not path replay).
+    """
+
+    name: str
+    type: str
+    default: object = None
+    low: float | None = None
+    high: float | None = None
+    doc: str = ""
+    slot: int | None = None
+    checker: bool = False
+    differentiable: bool = False
+    pathwise: bool = False
+
+
+# The seed's defaults (SEMANTICS §6): its MTL colours are bytes / 256.
+COLUMNS: tuple[Column, ...] = (
+    Column("diffuse", COLOR, (0x9F / 256, 0x8F / 256, 0x7C / 256), 0.0, 1.0, "diffuse colour (Kd)",
+           slot=0, checker=True, differentiable=True),
+    Column("reflect", COLOR, (0xAF / 256, 0xBF / 256, 0xCF / 256), 0.0, 1.0, "mirror colour (Kr, Ks)",
+           slot=1, checker=True, differentiable=True),
+    Column("refract", COLOR, (0xBB / 256, 0xBC / 256, 0xB1 / 256), 0.0, 1.0, "transmission colour of glass (Kt, Tf)",
+           slot=2, differentiable=True),
+    Column("emission", COLOR, (0.0, 0.0, 0.0), 0.0, MAX_RADIANCE, "emitted radiance, both faces (Kl, Ke)",
+           slot=3, differentiable=True),
+    Column("tex", SLOTS, None, None, None, "texture of each slot: TEX_NONE, TEX_CHECKER, a texture or a "
+           "procedural instance (from the colours' maps and Material.checker)"),
+    Column("roughness", SCALAR, 0.85, 0.0, 1.0, "probability of the diffuse lobe (the seed's diffuseWeight)",
+           differentiable=True),
+    Column("fuzz", SCALAR, 0.62, 0.0, None, "length of the mirror's random perturbation (1 - reflectClearness)",
+           differentiable=True, pathwise=True),
+    Column("ior", SCALAR, 1.0, MIN_IOR, MAX_IOR, "index of refraction (Kn, Ni)"),
+    Column("refractable", FLAG, False, None, None, "the specular lobe may refract: glass"),
+    Column("kind", INDEX, 0, 0, len(MATERIAL_KINDS) - 1, "the material model: an index into MATERIAL_KINDS"),
+)
+
+COLUMN = {c.name: c for c in COLUMNS}
+SLOT_COLUMNS: tuple[Column, ...] = tuple(sorted((c for c in COLUMNS if c.slot is not None), key=lambda c: c.slot))
+NUM_SLOTS = len(SLOT_COLUMNS)
+DIFFERENTIABLE: tuple[Column, ...] = tuple(c for c in COLUMNS if c.differentiable)
+
+
+def host_dtype(c: Column) -> str:
+    """The numpy dtype of the column's host array."""
+    return {COLOR: "float32", SCALAR: "float32", FLAG: "bool", INDEX: "int32", SLOTS: "int32"}[c.type]
+
+
+def row_shape(c: Column) -> tuple[int, ...]:
+    """The shape of one row of the column: (3,) for colours, (NUM_SLOTS,) for slots, () otherwise."""
+    return {COLOR: (3,), SLOTS: (NUM_SLOTS,)}.get(c.type, ())
+
+
+def range_text(c: Column) -> str:
+    """The valid range as the error messages spell it: "lie in [0, 1]" or "be >= 0"."""
+    if c.high is None:
+        return f"be >= {c.low:g}"
+    return f"lie in [{c.low:g}, {c.high:g}]"
+
+
+def _check_schema() -> None:
+    """Slots number 0..NUM_SLOTS-1 once each and belong to colours; names are unique."""
+    assert len(COLUMN) == len(COLUMNS), "duplicate column names"
+    assert [c.slot for c in SLOT_COLUMNS] == list(range(NUM_SLOTS)), "slots must be 0..n-1"
+    assert all(c.type == COLOR for c in SLOT_COLUMNS), "only colours have texture slots"
+    assert sum(c.type == SLOTS for c in COLUMNS) == 1, "one slots column"
+
+
+_check_schema()

@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from warp_spt.core.lights import Lights, light_table, table_key
+from warp_spt.core.lights import Lights, SkyLight, light_table, table_key
 from warp_spt.diff.gradients import render_gradients
 from warp_spt.diff.params import parameters
 from warp_spt.scene.sky import Sky
@@ -118,10 +118,13 @@ def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
         v = v0.copy()
         v[c] += s
         p[name] = v                     # clears the cached tables and the Features
-        frozen = Lights()
+        frozen, sky = Lights(), SkyLight()
         for field in Lights.vars:
             setattr(frozen, field, getattr(base, field))
-        frozen.sky_color = p.sky.color if name == "sky.color" else base.sky_color
+        for field in SkyLight.vars:
+            setattr(sky, field, getattr(base.sky, field))
+        sky.color = p.sky.color if name == "sky.color" else base.sky.color
+        frozen.sky = sky
         dev._lights[table_key(p.sky, p.camera.up)] = frozen
         out.append(_image_sum(p, rs))
     p[name] = v0

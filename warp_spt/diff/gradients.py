@@ -105,8 +105,8 @@ def _make_kernel(step, start_path, depth: int):
         tid = wp.tid()
         pix = rp.pixel_start + tid
         lt = lights
-        lt.sky_color = lights.sky_color + deltas[D_SKY]
-        lt.sky_slope = lights.sky_slope + deltas[D_SKY_SLOPE]
+        lt.sky.color = lights.sky.color + deltas[D_SKY]
+        lt.sky.slope = lights.sky.slope + deltas[D_SKY_SLOPE]
         c = cam                     # every field set before any call takes c (see nee's vertex: a copy)
         c.origin = cam.origin + deltas[D_CAM]
         c.to_upper_left = cam.to_upper_left + deltas[D_CAM + 1]

@@ -32,7 +32,7 @@ parameters that change the integrand but not the sampled directions: colours, em
 procedural-texture parameters, the sky's colours (constant, or the gradient's mean and slope),
 and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
 The sampling itself carries no derivative either: the light sample's point, direction and density
-(``lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
+(``core.lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
 two techniques' weights still sum to 1 at every point, so their derivatives would only add terms
 whose expectation is 0; dropping them keeps the gradient unbiased, and each vertex's adjoint is one
 call (the BSDF-side weight of the next vertex would otherwise need this vertex's density
@@ -124,7 +124,7 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
             return
         pix = rp.pixel_start + tid
         zero = wp.vec3(0.0, 0.0, 0.0)
-        sky = zero                               # d loss / d Lights.sky_color and .sky_slope
+        sky = zero                               # d loss / d Lights.sky.color and .sky.slope
         slope = zero
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         for j in range(rp.sample_count):
@@ -144,8 +144,8 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
                     b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
                 ag, am, at, al, arp, apath, ah, av, aa, ab = wp.grad(objective)(
                     geo, mats, tex, lights, rp, q, h, nxt.vis, a, b)
-                sky += al.sky_color
-                slope += al.sky_slope
+                sky += al.sky.color
+                slope += al.sky.slope
                 q = nxt
         if want_image != 0:
             film[tid] = film[tid] + acc
@@ -161,7 +161,7 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
     render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, an
-    array receiving d loss / d ``Lights.sky_color`` (element 0) and ``Lights.sky_slope`` (element 1:
+    array receiving d loss / d ``Lights.sky.color`` (element 0) and ``Lights.sky.slope`` (element 1:
     the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``, and ``want_image``
     (0 or 1) with the tile's float64 film, to which the radiance sums are added when it is 1.
     ``inline``: the wp.func inline hint of the differentiated vertex, its helpers and ``objective``

@@ -47,7 +47,14 @@ from warp_spt.core.device_scene import (
     Materials,
     Textures,
 )
-from warp_spt.core.lights import Lights, light_table, sky_emits
+from warp_spt.core.lights import (
+    PARAMETER_KINDS,
+    Lights,
+    alias_parameters,
+    light_table,
+    parameter_arrays,
+    sky_emits,
+)
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
     CAMERA_FIELDS,
@@ -81,20 +88,18 @@ MODES = ("auto", "prb", "tape")
 # Parameters path replay differentiates (it holds sampled directions fixed and finds hits outside
 # the differentiated vertex, see warp_spt.diff.prb); the others (fuzz bends directions, the camera moves
 # rays and hit points) need the tape's pathwise derivative.
-REPLAYABLE = ({("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels")}
-              | {("sky", f) for f in ("color", "zenith", "nadir")})
+REPLAYABLE = {("material", f) for f in MATERIAL_FIELDS if f != "fuzz"} | {("texture", "texels")}
 
 
 def replayable(p: ParamInfo) -> bool:
-    """Path replay differentiates ``p`` (every procedural-texture parameter: it is read at the vertex)."""
-    return p.kind == "proc" or (p.kind, p.field) in REPLAYABLE
+    """Path replay differentiates ``p`` (every procedural-texture parameter and every light's: they
+    are read at the vertex)."""
+    return p.kind == "proc" or p.kind in PARAMETER_KINDS or (p.kind, p.field) in REPLAYABLE
 
 
-# deltas[k] shift values passed by value in structs (the sky colour, the camera's frame); zero, they
-# exist for their gradients (path replay reads the sky's from its Lights adjoint into the same slots)
-D_SKY = 0                  # constant sky colour, or the gradient sky's mean
-D_SKY_SLOPE = 1            # the gradient sky's slope in z
-D_CAM = 2                  # CAMERA_FIELDS, in order
+# deltas[k] shift values passed by value in structs (the camera's frame); zero, they exist for
+# their gradients
+D_CAM = 0                  # CAMERA_FIELDS, in order
 NUM_DELTAS = D_CAM + len(CAMERA_FIELDS)
 
 
@@ -104,9 +109,6 @@ def _make_kernel(step, start_path, depth: int):
                    rp: RenderParams, deltas: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
         tid = wp.tid()
         pix = rp.pixel_start + tid
-        lt = lights
-        lt.sky.color = lights.sky.color + deltas[D_SKY]
-        lt.sky.slope = lights.sky.slope + deltas[D_SKY_SLOPE]
         c = cam                     # every field set before any call takes c (see nee's vertex: a copy)
         c.origin = cam.origin + deltas[D_CAM]
         c.to_upper_left = cam.to_upper_left + deltas[D_CAM + 1]
@@ -119,7 +121,7 @@ def _make_kernel(step, start_path, depth: int):
             path = start_path(c, pix, rp.width, rp.seed, rp.sample_start + j)
             for _bounce in range(wp.static(depth)):      # unrolled: each step traces one ray
                 if path.alive != 0:
-                    path = step(geo, mats, tex, lt, rp, path)
+                    path = step(geo, mats, tex, lights, rp, path)
             wp.atomic_add(image, tid, path.radiance * inv_spp)
 
     return trace_diff
@@ -313,7 +315,8 @@ class _Backward:
             scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
             self.nbytes += scratch.capacity
         self.nbytes += 2 * deltas.capacity
-        return m, t, deltas, scratch
+        lights = alias_parameters(self.lights, self._grad_alias)     # the sky's colours, as m's
+        return m, t, lights, deltas, scratch
 
     def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
         """The reduced gradient buffers by name; with ``want_image`` (path replay only) also
@@ -326,14 +329,14 @@ class _Backward:
 
         def work(k: int) -> None:
             lo, hi = self.tiles[k]
-            m, t, deltas, scratch = inputs[k]
+            m, t, lights, deltas, scratch = inputs[k]
             rp = _render_params(rs.width, lo, rs.sample_offset, rs.spp, rs.max_depth, rs.seed, rs.roulette_depth)
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
                 wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=[
-                    dev.geometry, m, t, self.lights, self.cam, rp, adj_image[lo:hi], deltas.grad,
+                    dev.geometry, m, t, lights, self.cam, rp, adj_image[lo:hi],
                     int(want_image), film[lo:hi] if want_image else film])
                 return
-            args = [dev.geometry, m, t, self.lights, self.cam, rp, deltas, scratch]
+            args = [dev.geometry, m, t, lights, self.cam, rp, deltas, scratch]
             adj_structs = [_ADJ.get_adjoint(a) for a in args[:6]]   # mirrors holding each array's .grad
             wp.launch(self.kernel, dim=hi - lo, device=dev.device, inputs=args,
                       adj_inputs=adj_structs + [deltas.grad, adj_image[lo:hi]], adjoint=True)
@@ -343,8 +346,9 @@ class _Backward:
         run_jobs(list(range(len(self.tiles))), lambda k, stop, done: work(k), self.threads, lambda units: None)
         # reduce in tile order, in float64: independent of threads
         sums: dict = {}
-        for m, t, deltas, _ in inputs:
+        for m, t, lights, deltas, _ in inputs:
             parts = {f: getattr(m, f).grad for f in MATERIAL_FIELDS}
+            parts.update({kind: a.grad for kind, a in parameter_arrays(lights).items()})
             parts["deltas"] = deltas.grad
             if self.wants_texels:
                 parts["texels"] = t.texels.grad
@@ -371,12 +375,9 @@ def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -
     if p.kind == "proc":
         off, size = proc_slice(dev.scene, p)
         return sums["proc"][p.index][off:off + size].reshape(p.shape).copy()
-    g_mean, g_slope = sums["deltas"][D_SKY], sums["deltas"][D_SKY_SLOPE]
-    if p.field == "zenith":                   # mean = (zenith + nadir) / 2, slope = (zenith - nadir) / 2
-        return 0.5 * (g_mean + g_slope)
-    if p.field == "nadir":
-        return 0.5 * (g_mean - g_slope)
-    return g_mean.copy()                      # the constant sky's colour
+    if p.kind in PARAMETER_KINDS:            # a light's parameter (the sky's colours): a row of its array
+        return sums[p.kind][p.index].copy()
+    raise ValueError(f"no gradient buffer holds {p.name}")
 
 
 # ------------------------------------------------------------------------------------------------

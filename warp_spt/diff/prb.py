@@ -29,7 +29,7 @@ of that channel is unknown from the ratio: it gets no gradient from later bounce
 
 Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, which is unbiased for
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
-procedural-texture parameters, the sky's colours (constant, or the gradient's mean and slope),
+procedural-texture parameters, the sky's colours (constant, or the gradient's zenith and nadir),
 and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
 The sampling itself carries no derivative either: the light sample's point, direction and density
 (``core.lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
@@ -113,8 +113,8 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
 
     @wp.kernel(enable_backward=False, module="unique")
     def replay(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
-               rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), sky_grad: wp.array(dtype=wp.vec3),
-               want_image: int, film: wp.array(dtype=wp.vec3d)):
+               rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), want_image: int,
+               film: wp.array(dtype=wp.vec3d)):
         """Each thread replays the samples of one pixel of the tile; with ``want_image`` it also adds
         the pass-1 radiance sums to ``film`` (the fast kernel's sums: same paths, same order)."""
         tid = wp.tid()
@@ -124,8 +124,6 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
             return
         pix = rp.pixel_start + tid
         zero = wp.vec3(0.0, 0.0, 0.0)
-        sky = zero                               # d loss / d Lights.sky.color and .sky.slope
-        slope = zero
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         for j in range(rp.sample_count):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
@@ -142,15 +140,12 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
                 b = zero
                 if nxt.alive != 0:
                     b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
+                # the adjoints of array reads (materials, texels, the sky's colours) land in the arrays' .grad
                 ag, am, at, al, arp, apath, ah, av, aa, ab = wp.grad(objective)(
                     geo, mats, tex, lights, rp, q, h, nxt.vis, a, b)
-                sky += al.sky.color
-                slope += al.sky.slope
                 q = nxt
         if want_image != 0:
             film[tid] = film[tid] + acc
-        wp.atomic_add(sky_grad, 0, sky)
-        wp.atomic_add(sky_grad, 1, slope)
 
     return replay
 
@@ -160,10 +155,9 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
     """The path-replay kernel of (integrator, sampler) for these features, loaded on ``device``.
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
-    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, an
-    array receiving d loss / d ``Lights.sky.color`` (element 0) and ``Lights.sky.slope`` (element 1:
-    the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``, and ``want_image``
-    (0 or 1) with the tile's float64 film, to which the radiance sums are added when it is 1.
+    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, and
+    ``want_image`` (0 or 1) with the tile's float64 film, to which the radiance sums are added when
+    it is 1. (The sky's gradients, as the materials', land in its colour array's ``.grad``.)
     ``inline``: the wp.func inline hint of the differentiated vertex, its helpers and ``objective``
     (the forward passes always inline the vertex). On by default: Warp's adjoint of a function re-runs
     its forward, and of every out-of-line callee once more per nesting level; inlined, the compiler

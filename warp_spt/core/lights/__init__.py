@@ -3,7 +3,8 @@
 * ``base``: what a kind registers (``LightKind``) and the sample it returns (``LightSample``);
 * ``triangle``, ``sphere``: area lights (emitting triangles of meshes, emitting spheres), whose
   radiance is the emission of their surface's material;
-* ``sky``: an infinite light, seen by rays that miss the scene;
+* ``sky``: an infinite light, seen by rays that miss the scene, with its colours as a device array
+  carrying gradients (the parameters ``sky.color``, ``sky.zenith``, ``sky.nadir``);
 * ``registry``: the kinds, one line each (``KINDS``);
 * ``table``: the light table (each kind's entries, the choice among them by power, the device
   struct ``Lights``) and its host-side build (``light_table``);
@@ -31,15 +32,18 @@ from warp_spt.core.lights.sky import (
     sky_radiance,
 )
 from warp_spt.core.lights.table import (
+    PARAMETER_KINDS,
     Lights,
+    alias_parameters,
     light_table,
+    parameter_arrays,
     pick_entry,
     reuse_pick,
     table_key,
 )
 from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL
 
-__all__ = ["KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "LightKind", "LightSample", "Lights", "SkyLight",
-           "detach_lights", "light_table", "make_lights", "pick_entry",
+__all__ = ["KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
+           "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
            "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
            "table_key"]

@@ -62,6 +62,8 @@ class LightKind:
       density, shadow-ray length) and ``pdf_li``: ``(geo, lights, h, o, d) -> float`` for an area
       light (the density with which sampling from ``o`` would give the hit ``h``), ``(lights, d)``
       for an infinite one, which also gives ``le(lights, d) -> vec3``. Densities include the choice.
+    * ``params``: the field of ``data`` holding its differentiable parameters, an array whose rows
+      ``diff.params`` names (e.g. the sky's colours), or None.
     """
 
     name: str
@@ -73,6 +75,7 @@ class LightKind:
     upload: Callable[..., Any]
     make: Callable[..., Any]
     cache: bool = True
+    params: str | None = None
 
 
 def device_array(x, dtype, np_dtype, device: str) -> wp.array:

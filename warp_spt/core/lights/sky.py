@@ -4,6 +4,13 @@ It is seen by every ray that misses the scene (``le``), and sampled with a densi
 its RGB sum, (a + b z) / (4 pi a) (uniform for a constant sky); its choice weight is that of a
 sphere of the scene's radius seen from inside, radiating the mean radiance.
 
+Its colours (``scene.sky.Sky.colour_fields``: the constant sky's ``color``; the gradient sky's
+``zenith`` and ``nadir``) are the rows of ``SkyLight.colors``, float64 as the host holds them: they
+are the sky's differentiable parameters, whose gradient a backward pass reads from that array's
+``.grad`` (``table.alias_parameters``), as for a material colour. The radiance is computed from them
+in float64 and rounded once to float32, exactly as the host rounded the gradient's mean and slope
+before they were device arrays: images are bit-identical to that.
+
 (No ``from __future__ import annotations`` here: ``make``'s functions are annotated with the
 ``Lights`` struct it is given, which Warp must see as an object, not as a string.)
 """
@@ -29,8 +36,7 @@ class SkyLight:
 
     prob: float                                # choice probability (0: it does not emit)
     kind: int                                  # SKY_CONSTANT or SKY_GRADIENT
-    color: wp.vec3                             # constant sky: its colour; gradient sky: its mean
-    slope: wp.vec3                             # gradient sky: radiance = color + slope * z
+    colors: wp.array(dtype=wp.vec3d)           # rows: Sky.colour_fields() (constant: color; gradient: zenith, nadir)
     a: float                                   # sampling density is (a + b z) / (4 pi a)
     b: float
     up: wp.vec3                                # z above is the direction's component along up;
@@ -40,12 +46,17 @@ class SkyLight:
 
 @wp.func
 def sky_radiance(sky: SkyLight, d: wp.vec3) -> wp.vec3:
-    """The seed's skies: SKY_GRADIENT linear in the component along the up axis, anything else a
-    constant colour."""
+    """The seed's skies: SKY_GRADIENT linear in the component along the up axis, from the nadir
+    (z = -1) to the zenith (z = 1), as mean + slope * z with mean and slope rounded once from float64
+    (the host's arithmetic, bit for bit); anything else a constant colour."""
     if sky.kind == 1:
+        zenith = sky.colors[0]
+        nadir = sky.colors[1]
+        mean = wp.vec3((zenith + nadir) * wp.float64(0.5))
+        slope = wp.vec3((zenith - nadir) * wp.float64(0.5))
         z = wp.dot(d, sky.up)                  # exactly d[2] for Z up: the seed's images do not change
-        return sky.color + sky.slope * z
-    return sky.color
+        return mean + slope * z
+    return wp.vec3(sky.colors[0])
 
 
 @wp.func
@@ -99,9 +110,7 @@ def make(Lights, features: Features):
 
 def sky_emits(sky: Sky) -> bool:
     """Some colour of the sky is above 0 (else it is not in the light table)."""
-    if sky.kind == SKY_GRADIENT:
-        return any(c > 0 for c in sky.zenith + sky.nadir)
-    return any(c > 0 for c in sky.color)
+    return any(c > 0 for f in sky.colour_fields() for c in getattr(sky, f))
 
 
 def sky_terms(sky: Sky) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -141,12 +150,12 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     s = SkyLight()
     s.prob = float(prob[0]) if len(prob) else 0.0
     s.kind = int(sky.kind)
-    mean, slope = sky_terms(sky)
-    s.color, s.slope = wp.vec3(*mean), wp.vec3(*slope)
+    s.colors = wp.array(np.array([getattr(sky, f) for f in sky.colour_fields()], dtype=np.float64),
+                        dtype=wp.vec3d, device=device)
     s.a, s.b = sky_density(sky) if len(prob) else (1.0, 0.0)
     s.t, s.b_axis, s.up = (wp.vec3(*v.astype(np.float32).tolist()) for v in sky_frame(up))
     return s
 
 
 KIND = LightKind("sky", SkyLight, KIND_MISS, area=False, sampled=lambda f: f.sky, weigh=weigh,
-                 upload=upload, make=make, cache=False)
+                 upload=upload, make=make, cache=False, params="colors")

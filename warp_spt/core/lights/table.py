@@ -23,6 +23,9 @@ from warp_spt.scene.model import Scene
 from warp_spt.scene.sky import Z_UP, Sky
 
 KindInts = wp.types.vector(length=len(KINDS), dtype=wp.int32)
+# the kinds with differentiable parameters (``LightKind.params``): the ``kind`` of their ParamInfo
+# (``warp_spt.diff.params``), whose ``index`` is the row of the parameter array
+PARAMETER_KINDS = tuple(k.name for k in KINDS if k.params)
 
 
 def _lights_struct():
@@ -117,3 +120,28 @@ def _upload(cached: dict[str, Weighed], scene: Scene, sky: Sky, up: tuple[float,
     L.first, L.count = KindInts(*firsts), KindInts(*counts)
     return L
 
+
+def _copy(struct, value):
+    """A shallow copy of a Warp struct instance (its arrays shared)."""
+    out = struct()
+    for name in struct.vars:
+        setattr(out, name, getattr(value, name))
+    return out
+
+
+def parameter_arrays(lights: Lights) -> dict[str, wp.array]:
+    """The kinds' differentiable parameter arrays by kind name (``LightKind.params``: the sky's
+    colours under "sky")."""
+    return {k.name: getattr(getattr(lights, k.name), k.params) for k in KINDS if k.params}
+
+
+def alias_parameters(lights: Lights, alias) -> Lights:
+    """A copy of ``lights`` whose parameter arrays are ``alias(array)`` (a backward pass's view with a
+    gradient buffer of its own); the rest is shared."""
+    out = _copy(Lights, lights)
+    for k in KINDS:
+        if k.params:
+            data = _copy(k.data, getattr(lights, k.name))
+            setattr(data, k.params, alias(getattr(data, k.params)))
+            setattr(out, k.name, data)
+    return out

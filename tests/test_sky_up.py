@@ -104,10 +104,10 @@ def test_light_sampling_of_a_tilted_sky_matches_the_z_up_scene(tmp_path):
 def _sky_kernel(lights: Lights, u: wp.array(dtype=wp.vec2), dirs: wp.array(dtype=wp.vec3),
                 pdf: wp.array(dtype=float), radiance: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    d = sample_sky(lights.sky, u[i])
+    d = sample_sky(lights, u[i])
     dirs[i] = d
-    pdf[i] = sky_pdf(lights.sky, d)
-    radiance[i] = sky_radiance(lights.sky, d)
+    pdf[i] = sky_pdf(lights, d)
+    radiance[i] = sky_radiance(lights, d)
 
 
 @pytest.mark.parametrize("up", [(0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (1.0, -2.0, 3.0)])

@@ -78,7 +78,7 @@ def make(Lights, features: Features):
         ls.t_max = th - offset_eps(on, geo.extent) * 2.0
         return ls
 
-    @wp.func
+    @wp.func(inline=True)     # into the dispatch's pdf_li, one function as before: no call level of its own
     def pdf_li(geo: Geometry, lights: Lights, h: Hit, o: wp.vec3, d: wp.vec3) -> float:
         prob = lights.sphere.sphere_prob[h.index]
         sph = geo.spheres[h.index]

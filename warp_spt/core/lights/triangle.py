@@ -131,7 +131,7 @@ def make(Lights, features: Features):
         ls.t_max = dist - offset_eps(pl, geo.extent) / wp.max(cos_l, 0.05)
         return ls
 
-    @wp.func
+    @wp.func(inline=True)     # into the dispatch's pdf_li, one function as before: no call level of its own
     def pdf_li(geo: Geometry, lights: Lights, h: Hit, o: wp.vec3, d: wp.vec3) -> float:
         prob = lights.triangle.face_prob[geo.face_offset[h.index] + h.face]
         cos_l = wp.abs(wp.dot(h.normal, d))

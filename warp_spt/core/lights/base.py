@@ -47,16 +47,17 @@ class LightKind:
     """One kind of light, as registered in ``registry.KINDS``.
 
     * ``name``: its field in ``table.Lights`` (``lights.<name>``), of type ``data``, a wp.struct
-      whose first two fields are ``first`` and ``count``: its entries in the table.
+      (its entries in the table are ``lights.first[i]``, ``lights.count[i]``, i its place in KINDS).
     * ``hit_kind``: the ``geometry`` hit kind it is found as (KIND_MISS for an infinite light).
     * ``area``: an area light, whose radiance is the emission of the surface it is (the materials'
       ``emission`` at ``surface_at``, shared by all area kinds); otherwise an infinite light, which
-      gives ``le(data, d)`` itself and is seen by every ray that misses the scene.
+      gives ``le(lights, d)`` itself and is seen by every ray that misses the scene (its ``le`` is
+      compiled in whatever the features: a dark one is black).
     * ``sampled(features)``: its sampling code is compiled in (it can be in the table).
     * ``weigh(scene, sky) -> Weighed`` (host): its entries and their weights (``cache``: they do not
       depend on the sky and are computed once per scene).
-    * ``upload(payload, prob, first, scene, sky, up, device) -> data`` (host): its device data, with
-      ``prob`` its entries' choice probabilities (float64) and ``first`` its first entry.
+    * ``upload(payload, prob, scene, sky, up, device) -> data`` (host): its device data, with
+      ``prob`` its entries' choice probabilities (float64) and ``up`` the sky's up axis.
     * ``make(Lights, features) -> namespace`` (device) with ``sample_li(geo, lights, k, prob, x, u)
       -> LightSample`` (entry ``k`` of its own, chosen with probability ``prob``: point, direction,
       density, shadow-ray length) and ``pdf_li``: ``(geo, lights, h, o, d) -> float`` for an area

@@ -218,17 +218,17 @@ def _pdf_kernels():
     def pdf_along(geo: Geometry, lights: Lights, x: wp.vec3, d: wp.vec3) -> float:
         h = closest_hit(geo, x, d, NO_HIT)
         if h.kind == KIND_MISS:
-            return light.pdf_sky(lights, d)
-        return light.pdf_hit(geo, lights, h, x, d)
+            return light.pdf_miss(lights, d)
+        return light.pdf_li(geo, lights, h, x, d)
 
     @wp.kernel(module="unique")
     def evaluate(geo: Geometry, lights: Lights, x: wp.vec3, dirs: wp.array(dtype=wp.vec3),
                  out: wp.array(dtype=float)):
         i = wp.tid()     # the sky's density counts behind the emitters too: it is sampled there
         h = closest_hit(geo, x, dirs[i], NO_HIT)
-        p = light.pdf_sky(lights, dirs[i])
+        p = light.pdf_miss(lights, dirs[i])
         if h.kind != KIND_MISS:
-            p += light.pdf_hit(geo, lights, h, x, dirs[i])
+            p += light.pdf_li(geo, lights, h, x, dirs[i])
         out[i] = p
 
     @wp.kernel(module="unique")

@@ -24,8 +24,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import warp as wp
 
-from warp_spt.core.lights import Lights, light_table, table_key
+from warp_spt.core.lights import alias_parameters, light_table, table_key
 from warp_spt.diff.gradients import render_gradients
 from warp_spt.diff.params import parameters
 from warp_spt.scene.sky import Sky
@@ -118,10 +119,8 @@ def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
         v = v0.copy()
         v[c] += s
         p[name] = v                     # clears the cached tables and the Features
-        frozen = Lights()
-        for field in Lights.vars:
-            setattr(frozen, field, getattr(base, field))
-        frozen.sky_color = p.sky.color if name == "sky.color" else base.sky_color
+        colors = (lambda a: wp.array(np.array([p.sky.color]), dtype=wp.vec3d)) if name == "sky.color" else None
+        frozen = alias_parameters(base, colors or (lambda a: a))     # the sky's colours as they are now
         dev.light_cache(table_key(p.sky, p.camera.up), lambda: frozen)   # the cache was cleared above
         out.append(_image_sum(p, rs))
     p[name] = v0

@@ -48,7 +48,7 @@ from warp_spt.core.device_scene import (
     Materials,
     Textures,
 )
-from warp_spt.core.lights import Lights
+from warp_spt.core.lights import PARAMETER_KINDS, Lights, alias_parameters, parameter_arrays
 from warp_spt.core.material_table import with_gradients
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
@@ -96,20 +96,18 @@ MODES = ("auto", "prb", "tape")
 # Parameters path replay differentiates (it holds sampled directions fixed and finds hits outside
 # the differentiated vertex, see warp_spt.diff.prb); the others (fuzz bends directions, the camera moves
 # rays and hit points) need the tape's pathwise derivative.
-REPLAYABLE = ({("material", f) for f in REPLAYABLE_FIELDS} | {("texture", "texels")}
-              | {("sky", f) for f in ("color", "zenith", "nadir")})
+REPLAYABLE = {("material", f) for f in REPLAYABLE_FIELDS} | {("texture", "texels")}
 
 
 def replayable(p: ParamInfo) -> bool:
-    """Path replay differentiates ``p`` (every procedural-texture parameter: it is read at the vertex)."""
-    return p.kind == "proc" or (p.kind, p.field) in REPLAYABLE
+    """Path replay differentiates ``p`` (every procedural-texture parameter and every light's: they
+    are read at the vertex)."""
+    return p.kind == "proc" or p.kind in PARAMETER_KINDS or (p.kind, p.field) in REPLAYABLE
 
 
-# deltas[k] shift values passed by value in structs (the sky colour, the camera's frame); zero, they
-# exist for their gradients (path replay reads the sky's from its Lights adjoint into the same slots)
-D_SKY = 0                  # constant sky colour, or the gradient sky's mean
-D_SKY_SLOPE = 1            # the gradient sky's slope in z
-D_CAM = 2                  # CAMERA_FIELDS, in order
+# deltas[k] shift values passed by value in structs (the camera's frame); zero, they exist for
+# their gradients
+D_CAM = 0                  # CAMERA_FIELDS, in order
 NUM_DELTAS = D_CAM + len(CAMERA_FIELDS)
 
 
@@ -119,9 +117,6 @@ def _make_kernel(step, start_path, depth: int):
                    rp: RenderParams, deltas: wp.array(dtype=wp.vec3), image: wp.array(dtype=wp.vec3)):
         tid = wp.tid()
         pix = rp.pixel_start + tid
-        lt = lights
-        lt.sky_color = lights.sky_color + deltas[D_SKY]
-        lt.sky_slope = lights.sky_slope + deltas[D_SKY_SLOPE]
         c = cam                     # every field set before any call takes c (see nee's vertex: a copy)
         c.origin = cam.origin + deltas[D_CAM]
         c.to_upper_left = cam.to_upper_left + deltas[D_CAM + 1]
@@ -134,7 +129,7 @@ def _make_kernel(step, start_path, depth: int):
             path = start_path(c, pix, rp.width, rp.seed, rp.sample_start + j)
             for _bounce in range(wp.static(depth)):      # unrolled: each step traces one ray
                 if path.alive != 0:
-                    path = step(geo, mats, tex, lt, rp, path)
+                    path = step(geo, mats, tex, lights, rp, path)
             wp.atomic_add(image, tid, path.radiance * inv_spp)
 
     return trace_diff
@@ -329,7 +324,8 @@ class _Backward:
             scratch = wp.zeros(hi - lo, dtype=wp.vec3, device=self.dev.device)
             self.nbytes += scratch.capacity
         self.nbytes += 2 * deltas.capacity
-        return m, t, deltas, scratch
+        lights = alias_parameters(self.bound.lights, self._grad_alias)     # the sky's colours, as m's
+        return m, t, lights, deltas, scratch
 
     def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
         """The reduced gradient buffers by name; with ``want_image`` (path replay only) also
@@ -342,12 +338,12 @@ class _Backward:
 
         def work(k: int) -> None:
             lo, hi = self.tiles[k]
-            m, t, deltas, scratch = inputs[k]
-            args = self.bound.scene_args(self.bound.params(lo), materials=m, textures=t)
+            m, t, lights, deltas, scratch = inputs[k]
+            args = self.bound.scene_args(self.bound.params(lo), materials=m, textures=t, lights=lights)
             kernel = self.bound.kernel
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
                 wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=replay_inputs(
-                    args, adj_image[lo:hi], deltas.grad, want_image, film[lo:hi] if want_image else film))
+                    args, adj_image[lo:hi], want_image, film[lo:hi] if want_image else film))
                 return
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=tape_inputs(args, deltas, scratch),
                       adj_inputs=tape_inputs(adjoint_structs(args), deltas.grad, adj_image[lo:hi]), adjoint=True)
@@ -357,8 +353,9 @@ class _Backward:
         run_jobs(list(range(len(self.tiles))), lambda k, stop, done: work(k), self.threads, lambda units: None)
         # reduce in tile order, in float64: independent of threads
         sums: dict = {}
-        for m, t, deltas, _ in inputs:
+        for m, t, lights, deltas, _ in inputs:
             parts = {f: getattr(m, f).grad for f in MATERIAL_FIELDS}
+            parts.update({kind: a.grad for kind, a in parameter_arrays(lights).items()})
             parts["deltas"] = deltas.grad
             if self.wants_texels:
                 parts["texels"] = t.texels.grad
@@ -385,12 +382,9 @@ def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -
     if p.kind == "proc":
         off, size = proc_slice(dev.scene, p)
         return sums["proc"][p.index][off:off + size].reshape(p.shape).copy()
-    g_mean, g_slope = sums["deltas"][D_SKY], sums["deltas"][D_SKY_SLOPE]
-    if p.field == "zenith":                   # mean = (zenith + nadir) / 2, slope = (zenith - nadir) / 2
-        return 0.5 * (g_mean + g_slope)
-    if p.field == "nadir":
-        return 0.5 * (g_mean - g_slope)
-    return g_mean.copy()                      # the constant sky's colour
+    if p.kind in PARAMETER_KINDS:            # a light's parameter (the sky's colours): a row of its array
+        return sums[p.kind][p.index].copy()
+    raise ValueError(f"no gradient buffer holds {p.name}")
 
 
 # ------------------------------------------------------------------------------------------------

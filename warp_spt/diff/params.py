@@ -44,7 +44,7 @@ from warp_spt.scene.material_schema import (
     range_text,
 )
 from warp_spt.scene.model import TEX_PROC_BASE, Scene
-from warp_spt.scene.sky import SKY_CONSTANT, Sky
+from warp_spt.scene.sky import Sky
 
 # the material schema's differentiable columns (warp_spt.scene.material_schema), in its order
 MATERIAL_FIELDS = tuple(c.name for c in DIFFERENTIABLE)
@@ -58,7 +58,8 @@ _SLOT_NAMES = {c.slot: c.name for c in SLOT_COLUMNS}
 class ParamInfo:
     """Where a named parameter lives: ``kind`` is "material", "texture", "proc" (a procedural
     texture's parameter), "sky" or "camera"; ``field`` the material field / texture key / sky or
-    camera attribute; ``index`` the material row, texture index or procedural instance."""
+    camera attribute; ``index`` the material row, texture index, procedural instance or row of the
+    sky's colour array (``Sky.colour_fields`` order)."""
 
     name: str
     kind: str
@@ -202,8 +203,9 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
         for key, (_, size) in get_texture(ref.name).layout().items():
             n = f"{mt.names[row]}.{_SLOT_NAMES[slot]}_map.{key}"
             info[n] = ParamInfo(n, "proc", key, k, () if size == 1 else (size,))
-    for f in ("color",) if sky.kind == SKY_CONSTANT else ("zenith", "nadir"):
-        info[f"sky.{f}"] = ParamInfo(f"sky.{f}", "sky", f, 0, (3,))
+    # the sky's colours: kind "sky", the light kind whose colour array holds them, index their row
+    for row, f in enumerate(sky.colour_fields()):
+        info[f"sky.{f}"] = ParamInfo(f"sky.{f}", "sky", f, row, (3,))
     for f in ("position", "direction"):
         info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
     return info

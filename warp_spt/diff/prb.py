@@ -29,10 +29,10 @@ of that channel is unknown from the ratio: it gets no gradient from later bounce
 
 Sampling is *detached* (directions do not move with θ), as in Mitsuba's PRB, which is unbiased for
 parameters that change the integrand but not the sampled directions: colours, emission, texels,
-procedural-texture parameters, the sky's colours (constant, or the gradient's mean and slope),
+procedural-texture parameters, the sky's colours (constant, or the gradient's zenith and nadir),
 and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
 The sampling itself carries no derivative either: the light sample's point, direction and density
-(``lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
+(``core.lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
 two techniques' weights still sum to 1 at every point, so their derivatives would only add terms
 whose expectation is 0; dropping them keeps the gradient unbiased, and each vertex's adjoint is one
 call (the BSDF-side weight of the next vertex would otherwise need this vertex's density
@@ -114,8 +114,8 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
 
     @wp.kernel(enable_backward=False, module="unique")
     def replay(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
-               rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), sky_grad: wp.array(dtype=wp.vec3),
-               want_image: int, film: wp.array(dtype=wp.vec3d)):
+               rp: RenderParams, adj_image: wp.array(dtype=wp.vec3), want_image: int,
+               film: wp.array(dtype=wp.vec3d)):
         """Each thread replays the samples of one pixel of the tile; with ``want_image`` it also adds
         the pass-1 radiance sums to ``film`` (the fast kernel's sums: same paths, same order)."""
         tid = wp.tid()
@@ -125,8 +125,6 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
             return
         pix = rp.pixel_start + tid
         zero = wp.vec3(0.0, 0.0, 0.0)
-        sky = zero                               # d loss / d Lights.sky_color and .sky_slope
-        slope = zero
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         for j in range(rp.sample_count):
             start = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
@@ -143,15 +141,12 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
                 b = zero
                 if nxt.alive != 0:
                     b = wp.cw_mul(a, remaining(total, nxt.radiance, nxt.throughput))
+                # the adjoints of array reads (materials, texels, the sky's colours) land in the arrays' .grad
                 ag, am, at, al, arp, apath, ah, av, aa, ab = wp.grad(objective)(
                     geo, mats, tex, lights, rp, q, h, nxt.vis, a, b)
-                sky += al.sky_color
-                slope += al.sky_slope
                 q = nxt
         if want_image != 0:
             film[tid] = film[tid] + acc
-        wp.atomic_add(sky_grad, 0, sky)
-        wp.atomic_add(sky_grad, 1, slope)
 
     return replay
 
@@ -161,10 +156,9 @@ def get_replay_kernel(features: Features, integrator: str, sampler: str, device:
     """The path-replay kernel of (integrator, sampler) for these features, loaded on ``device``.
 
     Inputs: the scene structs (arrays whose gradients are wanted carry ``.grad``), the camera, the
-    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, an
-    array receiving d loss / d ``Lights.sky_color`` (element 0) and ``Lights.sky_slope`` (element 1:
-    the gradient sky's slope), the layout of ``gradients.D_SKY``/``D_SKY_SLOPE``, and ``want_image``
-    (0 or 1) with the tile's float64 film, to which the radiance sums are added when it is 1.
+    render parameters (a tile: ``pixel_start``, samples), the adjoint image of the tile, and
+    ``want_image`` (0 or 1) with the tile's float64 film, to which the radiance sums are added when
+    it is 1. (The sky's gradients, as the materials', land in its colour array's ``.grad``.)
     ``inline``: the wp.func inline hint of the differentiated vertex, its helpers and ``objective``
     (the forward passes always inline the vertex). On by default: Warp's adjoint of a function re-runs
     its forward, and of every out-of-line callee once more per nesting level; inlined, the compiler
@@ -192,10 +186,9 @@ def _build(features: Features, integrator: str, sampler: str, inline: bool | Non
     return _make_kernel(vertex, forward, start_path, make_closest_hit(features), inline)
 
 
-def replay_inputs(scene_args: list, adj_image: wp.array, sky_grad: wp.array, want_image: bool,
-                  film: wp.array) -> list:
+def replay_inputs(scene_args: list, adj_image: wp.array, want_image: bool, film: wp.array) -> list:
     """The replay kernel's inputs after the scene's (``Bound.scene_args``), in its order."""
-    return [*scene_args, adj_image, sky_grad, int(want_image), film]
+    return [*scene_args, adj_image, int(want_image), film]
 
 
 register_kind(KernelKind("replay", lambda b: get_replay_kernel(

@@ -26,13 +26,7 @@ from warp_spt.core.geometry import (
     make_closest_hit,
     make_occluded,
 )
-from warp_spt.core.lights import (
-    Lights,
-    detach_lights,
-    make_lights,
-    reuse_pick,
-    sky_radiance,
-)
+from warp_spt.core.lights import Lights, detach_lights, make_lights, reuse_pick
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
 from warp_spt.integrators.common import (
@@ -186,10 +180,10 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                 u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
             x = offset_origin(sf.p, sf.ng, 0, geo.extent)
             # light.sample in two halves, the geometric one having no adjoint in path replay
-            ls = light.sample_point(geo, lights, x, u_pick, u_pos)
+            ls = light.sample_li(geo, lights, x, u_pick, u_pos)
             if ls.pdf > 0.0:
                 f = mat.eval(mats, tex, sf, ls.dir)
-                le = wp.cw_mul(f, light.radiance(geo, mats, tex, lights, ls, x))
+                le = wp.cw_mul(f, light.le(geo, mats, tex, lights, ls, x))
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
                     seen = vis
                     if seen == VIS_TRACE:
@@ -207,8 +201,8 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         p = path
         p.vis = VIS_TRACE
         if h.kind == KIND_MISS:
-            w = mis_bsdf(p, light.pdf_sky(lights, p.d))
-            p.radiance += wp.cw_mul(p.throughput, sky_radiance(lights, p.d)) * w
+            w = mis_bsdf(p, light.pdf_miss(lights, p.d))
+            p.radiance += wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
             p.alive = 0
             return p
         p.depth += 1
@@ -216,7 +210,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):       # NaN: the guard reports it
-                w = mis_bsdf(p, light.pdf_hit(geo, lights, h, p.o, p.d))
+                w = mis_bsdf(p, light.pdf_li(geo, lights, h, p.o, p.d))
                 p.radiance += wp.cw_mul(p.throughput, le) * w
         if p.depth >= rp.max_depth:     # max_depth counts hits, as in the seed
             p.alive = 0

@@ -110,12 +110,13 @@ class Bound:
         p.seed = wp.uint32((rs.seed if seed is None else seed) & SEED_MASK)
         return p
 
-    def scene_args(self, rp: RenderParams, *, materials=None, textures=None) -> list:
+    def scene_args(self, rp: RenderParams, *, materials=None, textures=None, lights=None) -> list:
         """The inputs every path kernel (fast, replay, tape) starts with, in their order: geometry,
-        materials, textures, lights, camera, render parameters. ``materials``/``textures`` replace
-        the scene's (the gradients' per-tile aliases carrying ``.grad``)."""
+        materials, textures, lights, camera, render parameters. ``materials``/``textures``/``lights``
+        replace the scene's (the gradients' per-tile aliases carrying ``.grad``)."""
         return [self.dev.geometry, self.dev.materials if materials is None else materials,
-                self.tex if textures is None else textures, self.lights, self.cam, rp]
+                self.tex if textures is None else textures, self.lights if lights is None else lights,
+                self.cam, rp]
 
 
 def check(rs: RenderSettings, camera: Camera | None, rows: tuple[int, int] | None = None) -> None:

@@ -84,6 +84,11 @@ class Sky:
         """The seed's ``-sky K``: 1 gradient, 2 pink, anything else the (blue) BlackSky."""
         return {1: Sky.gradient(), 2: Sky.pink()}.get(int(k), Sky.black())
 
+    def colour_fields(self) -> tuple[str, ...]:
+        """The colours this sky is made of, in the order of their rows in the device's colour array
+        (``warp_spt.core.lights.sky``) and of the parameters ``sky.<field>`` (``warp_spt.diff.params``)."""
+        return ("color",) if self.kind != SKY_GRADIENT else ("zenith", "nadir")
+
     def up_axis(self, camera_up=Z_UP) -> tuple[float, float, float]:
         """The unit up axis the gradient follows: ``up``, else ``camera_up`` (normalised)."""
         return self.up if self.up is not None else _unit(camera_up)

@@ -1,0 +1,49 @@
+"""Lights: a closed set of kinds, one module each, behind one interface, dispatched statically.
+
+* ``base``: what a kind registers (``LightKind``) and the sample it returns (``LightSample``);
+* ``triangle``, ``sphere``: area lights (emitting triangles of meshes, emitting spheres), whose
+  radiance is the emission of their surface's material;
+* ``sky``: an infinite light, seen by rays that miss the scene, with its colours as a device array
+  carrying gradients (the parameters ``sky.color``, ``sky.zenith``, ``sky.nadir``);
+* ``registry``: the kinds, one line each (``KINDS``);
+* ``table``: the light table (each kind's entries, the choice among them by power, the device
+  struct ``Lights``) and its host-side build (``light_table``);
+* ``dispatch``: ``make_lights``, the interface the integrators call (``sample_li``, ``le``,
+  ``pdf_li``, ``le_miss``, ``pdf_miss``) over the kinds a scene's features use, and ``detach_lights``
+  for path replay.
+
+Adding a kind (an environment map, say): a module here exporting ``KIND`` (its ``data`` struct,
+``sample_li``/``pdf_li`` and, for an infinite light, ``le``; its host ``weigh`` and ``upload``)
+and one line in ``registry.KINDS``.
+"""
+
+from __future__ import annotations
+
+from warp_spt.core.lights.base import LightKind, LightSample
+from warp_spt.core.lights.dispatch import detach_lights, make_lights
+from warp_spt.core.lights.registry import KINDS
+from warp_spt.core.lights.sky import (
+    SkyLight,
+    sample_sky,
+    sky_density,
+    sky_emits,
+    sky_frame,
+    sky_pdf,
+    sky_radiance,
+)
+from warp_spt.core.lights.table import (
+    PARAMETER_KINDS,
+    Lights,
+    alias_parameters,
+    light_table,
+    parameter_arrays,
+    pick_entry,
+    reuse_pick,
+    table_key,
+)
+from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL
+
+__all__ = ["KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
+           "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
+           "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
+           "table_key"]

@@ -127,6 +127,7 @@ class DeviceScene:
     """
 
     def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
+        scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
         validate_scene(scene)
         self.device = device
         self.scene = scene

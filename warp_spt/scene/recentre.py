@@ -59,7 +59,8 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
     """Shift a scene far from the origin (and its camera) so that its centre is at the origin.
 
     Returns (scene', camera', offset) with world = local + offset. The subtraction is done in float64
-    on the float32 positions, so the local coordinates are exact to float32 *relative to the scene's
+    on the positions as parsed (float64: nothing was rounded to float32 before), and the result is
+    rounded to float32 once, so the local coordinates are exact to float32 *relative to the scene's
     size*, not to its distance from the origin. Scenes whose centre lies within ``ratio`` times their
     size of the origin are returned unchanged (offset 0), so ordinary scenes render bit for bit as before.
     """
@@ -71,7 +72,7 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
         return scene, camera, np.zeros(3)
     meshes = [replace(m, positions=(m.positions.astype(np.float64) - centre).astype(np.float32))
               for m in scene.meshes]
-    spheres = scene.spheres.copy()
+    spheres = scene.spheres.astype(np.float32)
     if len(spheres):
         spheres[:, :3] = (scene.spheres[:, :3].astype(np.float64) - centre).astype(np.float32)
     moved = replace(scene, meshes=meshes, spheres=spheres)

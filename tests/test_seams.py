@@ -58,3 +58,40 @@ def test_a_room_far_from_the_origin_renders_like_the_room_at_the_origin(tmp_path
     b = render_batches(dev1, cam1, 32, 16, seed=2, **kw)
     c = assert_same_image(a, b, f"room with a light gap of {LIGHT_GAP * SCALE:.4f}, shifted {SHIFT:g}")
     print(f"worst block |t| {c.worst:.2f} / {c.bound:.2f}; difference {c.rel_diff:.2%} +- {c.rel_se:.2%}")
+
+
+# ---------------------------------------------------------------- 1. every front end, the same image
+
+def _cli(tmp_path, *args, out="one.npy"):
+    from warp_spt.cli.main import main
+
+    assert main([*args, "--quiet", "-res", "16", "12", "-sr", "2", "-depth", "3", "-out", str(tmp_path / out)]) == 0
+
+
+def _bare_frames(tmp_path):
+    """A bare model (no MTL, no material names) as two frame files: clay, framing and studio apply."""
+    from .models import write_model
+
+    for k in range(2):
+        write_model(tmp_path / f"cow_{k}.obj", "cow", up="y", offset=(0.2 * k, 0.0, 0.0))
+    return str(tmp_path / "cow_{frame}.obj")
+
+
+@pytest.mark.parametrize("look", [[], ["--studio"], ["--up", "z", "--default-material", "checker"]],
+                         ids=["bare", "studio", "checker"])
+def test_frames_render_what_a_single_render_renders(tmp_path, look):
+    template = _bare_frames(tmp_path)
+    _cli(tmp_path, "-obj", str(tmp_path / "cow_1.obj"), *look, out="single.npy")
+    _cli(tmp_path, "-obj", template, "--frames", "0:2", *look, out="seq_{frame}.npy")
+    _cli(tmp_path, "-obj", template, "--frames", "1", *look, out="alone_{frame}.npy")
+    single = np.load(tmp_path / "single.npy")
+    assert np.array_equal(np.load(tmp_path / "seq_1.npy"), single), "frame 1 of a sequence differs from a single render"
+    assert np.array_equal(np.load(tmp_path / "alone_1.npy"), single), "frame 1 alone differs from a single render"
+
+
+def test_workers_render_what_a_single_render_renders(tmp_path):
+    pytest.importorskip("dask.distributed")
+    model = _bare_frames(tmp_path).format(frame=0)
+    _cli(tmp_path, "-obj", model, "--studio", out="single.npy")
+    _cli(tmp_path, "-obj", model, "--studio", "--workers", "1", out="workers.npy")
+    assert np.array_equal(np.load(tmp_path / "workers.npy"), np.load(tmp_path / "single.npy"))

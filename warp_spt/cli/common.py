@@ -14,6 +14,7 @@ import math
 import os
 import re
 import unicodedata
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence, TextIO
 
@@ -123,10 +124,25 @@ class CompileNotice:
         self._timer.cancel()
 
 
-def warm_up(render, scene, camera, settings: dict) -> None:
-    """Load (on a cold cache: compile) the exact kernel of ``render(scene, camera, **settings)`` by
-    rendering one pixel with one sample through the same public call."""
-    render(scene, camera, **{**settings, "width": 1, "height": 1, "spp": 1}, progress=False)
+def warm_up(render_scene, scene, camera, settings) -> None:
+    """Load (on a cold cache: compile) the exact kernel of ``render_scene(scene, camera, settings)`` by
+    rendering one pixel with one sample through the same call."""
+    render_scene(scene, camera, replace(settings, width=1, height=1, spp=1), progress=False)
+
+
+def say_for(opts, err: TextIO):
+    """The runners' one-line messages on ``err`` (nothing with --quiet)."""
+    if opts.quiet:
+        return lambda msg: None
+    return lambda msg: print(f"{PROG}: {one_line(msg)}", file=err)
+
+
+def load_texture_modules(opts, say) -> None:
+    """Import the ``--textures`` files (they register procedural textures) before any scene is read."""
+    if opts.texture_modules:
+        from warp_spt.core.proctex import load_texture_module
+        for module in opts.texture_modules:
+            say(f"textures from {module}: {', '.join(load_texture_module(module)) or 'none registered'}")
 
 
 def scene_files(opts) -> tuple[list[str], list[str]]:

@@ -341,13 +341,15 @@ def check_image_size(width: int, height: int, memory_bytes: int | None = None) -
                          f"more than the {budget / 2**30:.1f} GiB this machine can spare")
 
 
-def settings_of(opts):
-    """The RenderSettings the command line asks for."""
+def settings_of(opts, **overrides):
+    """The RenderSettings the command line asks for (the one place options become settings);
+    ``overrides`` replace fields (the view's sky, a budget's spp)."""
     from warp_spt.rendering.settings import RenderSettings
 
     chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
-    return RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
-                          seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+    fields = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
+                  seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+    return RenderSettings(**{**fields, **overrides})
 
 
 DEFAULT_FRAME_OUT = "frame_{frame:04d}.png"

@@ -9,7 +9,6 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,9 +18,6 @@ from warp_spt.cli.options import settings_of
 from warp_spt.cli.view_checks import frame_view
 from warp_spt.io.images import save_gif
 from warp_spt.io.templates import frame_path
-
-if TYPE_CHECKING:
-    pass
 
 
 def _run_budgeted(opts, scene, say, started: float | None) -> int:

@@ -13,6 +13,7 @@ import argparse
 import math
 import os
 import re
+import time
 import unicodedata
 from dataclasses import replace
 from pathlib import Path
@@ -188,3 +189,22 @@ def check_registry_names(opts) -> None:
     for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
         if name is not None and name not in registry:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
+
+
+def process_start() -> float:
+    """When this process started, as a ``time.perf_counter()`` value (Linux: from /proc; elsewhere: now).
+
+    Python's start-up and the import of Warp take a second or two before ``main()`` runs; the
+    time budget targets the wall time the user sees, so it counts them too where it can.
+    """
+    now = time.perf_counter()
+    try:
+        ticks = os.sysconf("SC_CLK_TCK")
+        with open("/proc/self/stat", "rb") as f:
+            start_ticks = int(f.read().rsplit(b")", 1)[1].split()[19])
+        with open("/proc/uptime", "rb") as f:
+            uptime = float(f.read().split()[0])
+        age = uptime - start_ticks / ticks
+        return now - age if 0.0 <= age < 3600.0 else now
+    except (OSError, ValueError, IndexError, AttributeError):
+        return now

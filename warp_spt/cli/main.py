@@ -25,9 +25,9 @@ from warp_spt.cli.common import (
     RunError,
     UsageError,
     fail,
+    process_start,
 )
 from warp_spt.cli.options import Options, build_parser, parse_args
-from warp_spt.cli.progressive import process_start
 from warp_spt.runtime.signals import (
     cli_interruption,
     exit_status,

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
+from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least
-from warp_spt.cli.progressive import BudgetOptions, add_flags, options
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
 from warp_spt.scene.sky import Sky

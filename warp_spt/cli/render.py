@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import TYPE_CHECKING, TextIO
+from typing import TextIO
 
+from warp_spt.cli.budget_flags import check_outputs
 from warp_spt.cli.common import (
     EXIT_OK,
     PROG,
@@ -20,13 +21,10 @@ from warp_spt.cli.common import (
     warm_up,
 )
 from warp_spt.cli.options import Options, settings_of
-from warp_spt.cli.progressive import check_outputs, render_and_save
+from warp_spt.cli.progressive import render_and_save
 from warp_spt.cli.view_checks import prepare_view
 from warp_spt.runtime.progress import ProgressBar
 from warp_spt.runtime.signals import deferred_signals
-
-if TYPE_CHECKING:
-    pass
 
 
 def run_image(opts: Options, err: TextIO, started: float) -> int:

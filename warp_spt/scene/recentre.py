@@ -1,16 +1,8 @@
-"""Host-side view checks for users' own models: framing, probes, warnings and recentring.
+"""Scenes far from the origin: shifted to it in float64 before anything is rounded to float32.
 
-Everything here works on the numpy :class:`Scene` and a :class:`Camera`, before the engine sees
-them. Two small Warp kernels of this module's own do the geometric queries on a ``wp.Mesh`` per
-OBJ: :func:`probe` (one ray per probe pixel) and :func:`enclosing_object` (a winding number), so the
-checks cost about one scene upload (``benchmarks/bench_view_checks.py``).
-
-* :func:`frame_camera` (also ``Camera.frame(scene, up=...)``): a three-quarter view from the front,
-  the whole bounding box in view with a margin, focused at its centre, pinhole lens.
-* :func:`should_frame`: the CLI's rule for telling a user's model from the seed's setups.
-* :func:`view_warnings`: camera inside a closed mesh, camera sees no geometry, lens blur too large.
-* :func:`recentre` / :func:`render`: far-from-origin scenes are shifted to the origin in float64
-  before anything reaches the float32 engine.
+:func:`recentre` is called by every renderer on a host Scene (a DeviceScene is used as it is), so a
+scene 1e5 away renders like the same scene at the origin; :func:`describe_bounds` and
+:func:`format_point` print bounds and points the way the command line shows them.
 """
 
 from __future__ import annotations

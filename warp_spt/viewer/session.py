@@ -19,6 +19,7 @@ gives each pixel's standard error, and the image is an exact float64 sum of the 
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import tempfile
@@ -108,10 +109,16 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
               "preview_scale": (1, 16), "exposure": (-20.0, 20.0)}
     if key in limits and not limits[key][0] <= value <= limits[key][1]:
         raise ValueError(f"{key} must lie in [{limits[key][0]}, {limits[key][1]}], got {value}")
-    new = replace(settings, **{key: value})
-    if key == "sky_color" or key == "sky":
-        make_sky(new)                         # Sky validates its colour
-    return new
+    if key == "sky_color":
+        warp_spt.Sky.constant(*value)          # Sky validates a colour (ValueError)
+    return replace(settings, **{key: value})
+
+
+def preview_size(settings: ViewSettings, smallest: int = 8) -> tuple[int, int]:
+    """The preview's size: the view's divided by ``preview_scale``, the same factor on both axes (the
+    page stretches it over the view), but no side below ``smallest`` pixels unless the view's is."""
+    f = max(1.0, min(float(settings.preview_scale), min(settings.width, settings.height) / smallest))
+    return max(1, round(settings.width / f)), max(1, round(settings.height / f))
 
 
 def batch_seed(seed: int, batch: int) -> int:
@@ -122,7 +129,10 @@ def batch_seed(seed: int, batch: int) -> int:
 class Accumulator:
     """The refined image of one version: per-batch float64 sums and sample counts.
 
-    Every pass covers every pixel, so a batch's count is the same for all pixels."""
+    Every pass covers every pixel, so a batch's count is the same for all pixels. Passes go in
+    rounds, one pass per batch with the same samples each (:meth:`pass_spp`), so after every round
+    the batches are equal in size: their means are then identically distributed whatever the
+    sampler does within a batch, and their spread is an unbiased estimate of the error."""
 
     def __init__(self, version: int, height: int, width: int, batches: int = BATCHES, seed: int = 0):
         self.version, self.height, self.width = version, height, width
@@ -131,6 +141,7 @@ class Accumulator:
         self.seeds = [batch_seed(seed, b) for b in range(batches)]
         self.passes = 0
         self.seconds = 0.0
+        self.round_spp = 1
 
     @property
     def spp(self) -> int:
@@ -139,6 +150,15 @@ class Accumulator:
     @property
     def next_batch(self) -> int:
         return self.passes % len(self.counts)
+
+    def pass_spp(self, wanted: int, max_spp: int) -> int:
+        """Samples for the next pass: chosen at the start of a round (1 in the first, so an image
+        and then an error estimate appear at once; later ``wanted``), and no more than keeps the
+        rest of ``max_spp`` a whole number of rounds, so a multiple of the batch count ends equal."""
+        batches = len(self.counts)
+        if self.next_batch == 0 and self.passes > 0:
+            self.round_spp = max(1, min(wanted, (max_spp - self.spp) // batches))
+        return max(1, min(self.round_spp, max_spp - self.spp))
 
     def add(self, batch: int, sums: np.ndarray, spp: int, seconds: float) -> None:
         """A finished pass: ``spp`` more samples of batch ``batch`` in every pixel."""
@@ -193,8 +213,9 @@ class Session:
         self._settings = ViewSettings(**settings)
         self._given_camera = camera
         self._up = up or _axis_name(camera.up if camera is not None else (0.0, 0.0, 1.0))
-        # the scene is read (loader) and uploaded on the render thread, so a host starts at once
-        self._loader = loader or (lambda: scene)
+        # the scene is read (loader) and uploaded on the render thread, so a host starts at once;
+        # material edits write through to the host scene, so a given one is copied, never changed
+        self._loader = loader or (lambda: copy.deepcopy(scene))
         self._can_reload = loader is not None
         self._scene = self._params = None
         self._rig = self._home = None
@@ -573,7 +594,7 @@ class Session:
         import warp_spt
 
         version, s, camera, dev = self._snapshot()
-        w, h = max(8, round(s.width / s.preview_scale)), max(8, round(s.height / s.preview_scale))
+        w, h = preview_size(s)
         rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth, sky=make_sky(s),
                                      integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
         start = time.perf_counter()
@@ -595,8 +616,7 @@ class Session:
         version, s, camera, dev = self._snapshot()
         acc = self._acc
         b, n = acc.next_batch, s.width * s.height
-        spp = 1 if acc.passes == 0 or self._rate <= 0 else int(PASS_SECONDS * self._rate / n)
-        spp = max(1, min(spp, MAX_PASS_SPP, s.max_spp - acc.spp))
+        spp = acc.pass_spp(min(MAX_PASS_SPP, int(PASS_SECONDS * self._rate / n)), s.max_spp)
         band = max(1, int(BAND_SECONDS * max(self._rate, 1.0) / (s.width * spp))) if self._rate > 0 else 8
         rs = warp_spt.RenderSettings(width=s.width, height=s.height, spp=spp, max_depth=s.max_depth,
                                      sky=make_sky(s), integrator=s.integrator, sampler=s.sampler,

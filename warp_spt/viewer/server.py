@@ -18,6 +18,7 @@ import asyncio
 import collections
 import importlib.resources
 import json
+import os
 import signal
 import struct
 import sys
@@ -111,7 +112,7 @@ class ViewerServer:
         app.router.add_get("/", self._static)
         app.router.add_get("/viewer.js", self._static)
         app.router.add_get("/ws", self._socket)
-        app.router.add_get("/favicon.ico", lambda request: web.Response(status=204))   # no 404 in the console
+        app.router.add_get("/favicon.ico", self._no_icon)
         return app
 
     async def start(self) -> str:
@@ -136,6 +137,11 @@ class ViewerServer:
         hosts = {f"127.0.0.1:{self.port}", f"localhost:{self.port}"}
         origin = request.headers.get("Origin")
         return request.host in hosts and (origin is None or origin in {f"http://{h}" for h in hosts})
+
+    async def _no_icon(self, request):
+        from aiohttp import web
+
+        return web.Response(status=204)          # no 404 in the page's console
 
     async def _static(self, request):
         from aiohttp import web
@@ -300,6 +306,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         status = EXIT_INTERRUPTED
     except OSError as err:         # the port is taken, and the like
         print(f"{PROG}: error: {err.strerror or err}", file=sys.stderr)
+        return 1
+    except Exception as err:       # a bug: one line, unless asked for the traceback
+        if os.environ.get("WARP_SPT_TRACEBACK"):
+            raise
+        print(f"{PROG}: internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
+              file=sys.stderr)
         return 1
     if status == EXIT_INTERRUPTED:
         print(f"{PROG}: interrupted", file=sys.stderr)

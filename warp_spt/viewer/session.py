@@ -249,6 +249,11 @@ class Session:
         return self._settings
 
     @property
+    def version(self) -> int:
+        """Counts the changes that restart the render; every frame message carries the one it shows."""
+        return self._version
+
+    @property
     def error(self) -> str | None:
         """The scene's or the last render's error message, shown on the page; None if all is well."""
         return self._error
@@ -704,7 +709,8 @@ class Session:
         with self._cond:
             if version != self._version and meta["mode"] == "refine":
                 return
-            meta = {**meta, "camera": camera_info(self._rig), "view": [self._settings.width, self._settings.height]}
+            meta = {**meta, "camera": camera_info(self._rig), "view": [self._settings.width, self._settings.height],
+                    "version": version}
             self._shown = _Shown(image, std_error, meta)
             cleared, self._error = self._error is not None, None     # a render worked: the error is past
         if cleared:

@@ -107,17 +107,17 @@ function build(el) {
     integrator: select([]), sampler: select([]),
     depth: h("input", { type: "number", min: "1", max: "4096" }),
     sky: select([]), skyColor: h("input", { type: "color" }),
-    maxSpp: h("input", { type: "number", min: "1", step: "1" }),
+    maxSpp: h("input", { type: "number", min: "1", step: "1", class: "wspt-max-spp" }),
     exposure: h("input", { type: "range", min: "-6", max: "6", step: "0.1" }),
     exposureValue: h("span"),
     tonemap: select(["srgb", "seed"]),
     errorMap: h("input", { type: "checkbox" }),
     group: select([]), params: h("div"),
     saves: h("div"),
-    cmdWidth: h("input", { type: "number", min: "1", max: "65536" }),
-    cmdHeight: h("input", { type: "number", min: "1", max: "65536" }),
-    cmdSpp: h("input", { type: "number", min: "1", value: "256" }),
-    cmdOut: h("input", { type: "text", value: "view.png", size: "12" }),
+    cmdWidth: h("input", { type: "number", min: "1", max: "65536", class: "wspt-cmd-width" }),
+    cmdHeight: h("input", { type: "number", min: "1", max: "65536", class: "wspt-cmd-height" }),
+    cmdSpp: h("input", { type: "number", min: "1", value: "256", class: "wspt-cmd-spp" }),
+    cmdOut: h("input", { type: "text", value: "view.png", size: "12", class: "wspt-cmd-out" }),
     copy: h("button", { type: "button", class: "wspt-copy" }, "Copy command line"),
     command: h("textarea", { readonly: "", class: "wspt-command", spellcheck: "false" }),
     notes: h("div", { class: "wspt-notes" }),
@@ -178,6 +178,7 @@ async function showFrame(ui, view, message, buffer) {
   ui.status.textContent = statusLine(message, fps);
   ui.camera.textContent = cameraLine(message.camera);
   Object.assign(ui.root.dataset, { frames: String(view.drawn), mode: message.mode, spp: String(message.spp),
+                                   version: String(message.version),
                                    fps: fps.toFixed(1), error: message.error == null ? "" : String(message.error) });
 }
 
@@ -220,7 +221,7 @@ function showState(ui, view, send, st) {
       [ui.skyColor, toHex(s.sky_color, 1)]]) setValue(input, value);
   ui.exposureValue.textContent = `${Number(s.exposure).toFixed(1)} EV`;
   ui.skyColor.style.display = s.sky === "color" ? "" : "none";
-  if (!ui.cmdWidth.value) { ui.cmdWidth.value = s.width; ui.cmdHeight.value = s.height; }
+  if (!ui.cmdTouched) { ui.cmdWidth.value = s.width; ui.cmdHeight.value = s.height; }   // follows the view
   if (st.camera) {
     setValue(ui.fov, st.camera.fov); setValue(ui.fovValue, st.camera.fov); setValue(ui.aperture, st.camera.aperture);
   }
@@ -379,6 +380,7 @@ function wireControls(ui, view, send) {
   on(ui.errorMap, "change", () => set("error_map", ui.errorMap.checked));
   on(ui.group, "change", () => { view.group = ui.group.value; showParams(ui, view, send); });
   on(ui.reload, "click", () => send({ type: "reload" }));
+  for (const input of [ui.cmdWidth, ui.cmdHeight]) on(input, "change", () => { ui.cmdTouched = true; });
   on(ui.copy, "click", () => send({ type: "command", width: Number(ui.cmdWidth.value) || null,
                                     height: Number(ui.cmdHeight.value) || null,
                                     spp: Number(ui.cmdSpp.value) || 64, out: ui.cmdOut.value }));

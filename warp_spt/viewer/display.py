@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 JPEG_QUALITY = 90
-ERROR_MAP_RANGE = (1e-3, 1.0)     # relative errors mapped to black .. white (log scale)
+ERROR_MAP_RANGE = (1e-2, 1.0)     # relative errors mapped to black .. white (log scale): 1% .. 100%
 ERROR_FLOOR_FRACTION = 0.1        # as warp_spt.relative_error: divide by max(value, 0.1 x image mean)
 
 

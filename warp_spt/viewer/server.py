@@ -68,6 +68,13 @@ class _Client:
         self.wake.set()
 
     async def pump(self) -> None:
+        """Send what is queued until the page goes away."""
+        try:
+            await self._pump()
+        except ConnectionError:       # the page closed while a message was on its way
+            pass
+
+    async def _pump(self) -> None:
         while True:
             await self.wake.wait()
             self.wake.clear()

@@ -42,6 +42,8 @@ DRAG_TIMEOUT = 2.0           # a drag without events for this long has ended (a 
 PASS_SECONDS = 0.5           # aim of a refine pass: the display updates about twice a second
 BAND_SECONDS = 0.12          # aim of one render call: the longest a new interaction waits
 PREVIEW_SPP = 1
+PREVIEW_SECONDS = 0.05       # a preview renders in this long at most (20 fps), shrinking if it must...
+MAX_PREVIEW_SHRINK = 2.0     # ...but to no less than half the preview_scale size per side
 MAX_PASS_SPP = 256
 SLOW_CALL_SECONDS = 1.0      # a render call this slow is compiling a kernel: say so on the page
 STUDIO_GREY = (0.35, 0.35, 0.35)   # the CLI's --studio sky, without its added geometry
@@ -114,10 +116,14 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     return replace(settings, **{key: value})
 
 
-def preview_size(settings: ViewSettings, smallest: int = 8) -> tuple[int, int]:
-    """The preview's size: the view's divided by ``preview_scale``, the same factor on both axes (the
-    page stretches it over the view), but no side below ``smallest`` pixels unless the view's is."""
-    f = max(1.0, min(float(settings.preview_scale), min(settings.width, settings.height) / smallest))
+def preview_size(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int]:
+    """The preview's size: the view's divided by ``preview_scale``, or by up to MAX_PREVIEW_SHRINK
+    times more where that is more than ``budget`` pixels (what renders in PREVIEW_SECONDS); the same
+    factor on both axes (the page stretches it over the view), no side below ``smallest`` pixels."""
+    f = float(settings.preview_scale)
+    if budget:
+        f = min(max(f, math.sqrt(settings.width * settings.height / budget)), MAX_PREVIEW_SHRINK * f)
+    f = max(1.0, min(f, min(settings.width, settings.height) / smallest))
     return max(1, round(settings.width / f)), max(1, round(settings.height / f))
 
 
@@ -230,6 +236,7 @@ class Session:
         self._shown: _Shown | None = None
         self._frame: tuple[dict, list] | None = None
         self._rate = 0.0                 # pixel-samples per second of the last render calls
+        self._preview_rate = 0.0         # ... of the last previews (overheads weigh more there)
         self._preview_times: list[float] = []
         self._listeners: list[Listener] = []
         self._closed = False
@@ -599,13 +606,15 @@ class Session:
         import warp_spt
 
         version, s, camera, dev = self._snapshot()
-        w, h = preview_size(s)
+        w, h = preview_size(s, PREVIEW_SECONDS * self._preview_rate)
         rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth, sky=make_sky(s),
                                      integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
         start = time.perf_counter()
         res = self._timed(lambda: warp_spt.render_scene(dev, camera, rs))
         seconds = time.perf_counter() - start
         self._measure(w * h * PREVIEW_SPP, seconds)
+        rate = w * h * PREVIEW_SPP / max(seconds, 1e-9)
+        self._preview_rate = rate if not self._preview_rate else 0.5 * self._preview_rate + 0.5 * rate
         with self._cond:
             self._preview_version = version
             self._preview_times = [t for t in self._preview_times[-40:] if time.monotonic() - t < 2.0]
@@ -726,7 +735,8 @@ class Session:
             rgb = display.error_colours(display.relative_map(shown.std_error, shown.image))
         else:
             rgb = display.tonemapped(shown.image, s.exposure, s.tonemap)
-        msg = {"type": "frame", **shown.meta, "error_map": bool(s.error_map and shown.std_error is not None)}
+        msg = {"type": "frame", **shown.meta, "error_map": bool(s.error_map and shown.std_error is not None),
+               "error_range": list(display.ERROR_MAP_RANGE)}
         frame = (msg, [display.encode(rgb)])
         self._frame = frame
         self._broadcast(*frame)

@@ -99,7 +99,7 @@ function build(el) {
     width: h("input", { type: "number", min: "8", max: "4096", step: "8" }),
     height: h("input", { type: "number", min: "8", max: "4096", step: "8" }),
     fov: h("input", { type: "range", min: "1", max: "170", step: "0.5" }),
-    fovValue: h("input", { type: "number", min: "1", max: "170", step: "0.5" }),
+    fovValue: h("input", { type: "number", min: "1", max: "170", step: "0.5", style: "width:52px" }),
     aperture: h("input", { type: "number", min: "0", step: "0.01" }),
     up: select(["z", "y", "x", "-z", "-y", "-x"]),
     frame: h("button", { type: "button", title: "F" }, "Frame"),
@@ -169,6 +169,7 @@ async function showFrame(ui, view, message, buffer) {
   const [w, h] = message.view;
   if (ui.canvas.width !== w || ui.canvas.height !== h) { ui.canvas.width = w; ui.canvas.height = h; }
   ui.ctx.imageSmoothingEnabled = true;
+  ui.ctx.imageSmoothingQuality = "high";       // previews are a quarter of the size: interpolate them
   ui.ctx.drawImage(bitmap, 0, 0, w, h);
   bitmap.close();
   view.drawn += 1;
@@ -178,7 +179,7 @@ async function showFrame(ui, view, message, buffer) {
   ui.status.textContent = statusLine(message, fps);
   ui.camera.textContent = cameraLine(message.camera);
   Object.assign(ui.root.dataset, { frames: String(view.drawn), mode: message.mode, spp: String(message.spp),
-                                   version: String(message.version),
+                                   version: String(message.version), size: message.size.join("x"),
                                    fps: fps.toFixed(1), error: message.error == null ? "" : String(message.error) });
 }
 
@@ -189,7 +190,12 @@ function statusLine(m, fps) {
   }
   const err = m.error == null ? "n/a" : `${(100 * m.error).toFixed(2)}%`;
   return `${m.spp} spp \u00b7 estimated relative error ${err} \u00b7 ${rate} samples/s` +
-         (m.error_map ? "\nerror map: black 0.1% \u2026 red \u2026 yellow \u2026 white 100% (log)" : "");
+         (m.error_map ? `\nerror map (relative standard error, log scale): black ${pct(m.error_range[0])} ` +
+                        `\u2026 red \u2026 yellow \u2026 white ${pct(m.error_range[1])}` : "");
+}
+
+function pct(x) {
+  return `${+(100 * x).toPrecision(3)}%`;
 }
 
 function cameraLine(c) {

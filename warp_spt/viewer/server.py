@@ -306,7 +306,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             ns = parse(sys.argv[1:] if argv is None else list(argv))
         except SystemExit as exit_:
             return int(exit_.code or 0)
-        size = dict(zip(("width", "height"), ns.res)) if ns.res else {}
+        size = dict(zip(("width", "height"), ns.res, strict=True)) if ns.res else {}
         status = serve(camera=ns.camera, objs=ns.obj, mtls=ns.mtl, up=ns.up, port=ns.port or None,
                        open_browser=not ns.no_browser, **size)
     except KeyboardInterrupt:

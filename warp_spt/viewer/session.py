@@ -610,7 +610,7 @@ class Session:
         rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth, sky=make_sky(s),
                                      integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
         start = time.perf_counter()
-        res = self._timed(lambda: warp_spt.render_scene(dev, camera, rs))
+        res = self._timed(warp_spt.render_scene, dev, camera, rs)
         seconds = time.perf_counter() - start
         self._measure(w * h * PREVIEW_SPP, seconds)
         rate = w * h * PREVIEW_SPP / max(seconds, 1e-9)
@@ -643,7 +643,7 @@ class Session:
                 return                      # abandoned: the view changed
             r1 = min(s.height, r0 + band)
             t0 = time.perf_counter()
-            res = self._timed(lambda: warp_spt.render_scene(dev, camera, rs, rows=(r0, r1)))
+            res = self._timed(warp_spt.render_scene, dev, camera, rs, rows=(r0, r1))
             self._measure((r1 - r0) * s.width * spp, time.perf_counter() - t0)
             sums[r0:r1] = res.film.sum
         with self._cond:
@@ -656,14 +656,14 @@ class Session:
                               "rate": acc.spp * n / max(acc.seconds, 1e-9), "passes": acc.passes,
                               "size": [s.width, s.height]}, version)
 
-    def _timed(self, call: Callable):
+    def _timed(self, call: Callable, *args, **kw):
         """Run a render call; if it is slow (a kernel compiling), tell the page while it runs."""
         timer = threading.Timer(SLOW_CALL_SECONDS, lambda: self._broadcast(
             {"type": "status", "text": "compiling the render kernel for these settings (first time only)..."}, []))
         timer.daemon = True
         timer.start()
         try:
-            return call()
+            return call(*args, **kw)
         finally:
             timer.cancel()
 

@@ -1,0 +1,348 @@
+"""The browser host: a local web server for one :class:`~warp_spt.viewer.session.Session`.
+
+``python -m warp_spt.viewer [-obj F]... [-mtl F]... [--up y] [--port N] [--no-browser]`` serves the
+page on 127.0.0.1 (a free port unless ``--port``), prints its URL and opens the browser. The page
+is ``static/index.html``, which runs the same ``static/viewer.js`` as the Jupyter widget over a
+WebSocket. aiohttp serves both the page and the socket from one asyncio loop; the session's
+render thread hands messages to that loop with ``call_soon_threadsafe``.
+
+Only this machine may connect: the server binds 127.0.0.1 and refuses requests whose Host or
+Origin header names another site (a web page elsewhere could otherwise reach it through DNS
+rebinding). Ctrl-C stops it with one line and exit status 130; SIGTERM with 143.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import collections
+import importlib.resources
+import json
+import os
+import signal
+import struct
+import sys
+import threading
+import webbrowser
+from typing import Sequence, TextIO
+
+PROG = "warp-spt view"
+EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_TERMINATED = 0, 2, 130, 143
+STATIC = {"/": ("index.html", "text/html"), "/viewer.js": ("viewer.js", "text/javascript")}
+MAX_MESSAGE = 1 << 20        # the page sends small JSON messages only
+
+
+def pack(message: dict, buffers: Sequence[bytes]) -> bytes:
+    """One binary WebSocket frame: [uint32 LE header length][JSON header][buffers...]."""
+    header = json.dumps({"message": message, "buffers": [len(b) for b in buffers]}).encode()
+    return b"".join([struct.pack("<I", len(header)), header, *map(bytes, buffers)])
+
+
+def static_text(name: str) -> bytes:
+    """A file of the front end, from the installed package."""
+    return importlib.resources.files("warp_spt.viewer").joinpath("static", name).read_bytes()
+
+
+class _Client:
+    """One page's socket. Messages go out in order, except frames: only the newest waits, so a
+    slow page drops frames instead of falling behind."""
+
+    def __init__(self, ws, loop: asyncio.AbstractEventLoop):
+        self.ws, self.loop = ws, loop
+        self.messages: collections.deque = collections.deque()
+        self.frame = None
+        self.wake = asyncio.Event()
+
+    def push(self, message: dict, buffers: list) -> None:
+        """Queue a message; safe from any thread."""
+        try:
+            self.loop.call_soon_threadsafe(self._enqueue, message, buffers)
+        except RuntimeError:          # the loop has closed: the server is stopping
+            pass
+
+    def _enqueue(self, message: dict, buffers: list) -> None:
+        if message.get("type") == "frame":
+            self.frame = (message, buffers)
+        else:
+            self.messages.append((message, buffers))
+        self.wake.set()
+
+    async def pump(self) -> None:
+        """Send what is queued until the page goes away."""
+        try:
+            await self._pump()
+        except ConnectionError:       # the page closed while a message was on its way
+            pass
+
+    async def _pump(self) -> None:
+        while True:
+            await self.wake.wait()
+            self.wake.clear()
+            while self.messages:
+                await self._send(*self.messages.popleft())
+            if self.frame is not None:
+                frame, self.frame = self.frame, None
+                await self._send(*frame)
+
+    async def _send(self, message: dict, buffers: list) -> None:
+        if buffers:
+            await self.ws.send_bytes(pack(message, buffers))
+        else:
+            await self.ws.send_str(json.dumps(message))
+
+
+class ViewerServer:
+    """Serves ``session`` at http://127.0.0.1:PORT/ (``port`` None or 0: a free one).
+
+    :meth:`run` blocks on the main thread until Ctrl-C; :meth:`start_thread` runs the server on a
+    background thread instead (tests, scripts) and :meth:`stop_thread` ends it.
+    """
+
+    def __init__(self, session, port: int | None = None, host: str = "127.0.0.1"):
+        self.session, self.host, self.port = session, host, port or 0
+        self.url: str | None = None
+        self._runner = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._stopped: asyncio.Event | None = None
+
+    def _app(self):
+        from aiohttp import web
+
+        @web.middleware
+        async def local_only(request, handler):
+            if not self._allowed(request):
+                raise web.HTTPForbidden(text="the warp_spt viewer only answers pages it served itself")
+            return await handler(request)
+
+        app = web.Application(middlewares=[local_only], client_max_size=MAX_MESSAGE)
+        app.router.add_get("/", self._static)
+        app.router.add_get("/viewer.js", self._static)
+        app.router.add_get("/ws", self._socket)
+        app.router.add_get("/favicon.ico", self._no_icon)
+        return app
+
+    async def start(self) -> str:
+        """Bind and start serving; returns the URL."""
+        from aiohttp import web
+
+        self._runner = web.AppRunner(self._app(), handle_signals=False, access_log=None)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self.port)
+        await site.start()
+        self.port = self._runner.addresses[0][1]
+        self.url = f"http://{self.host}:{self.port}/"
+        return self.url
+
+    async def close(self) -> None:
+        if self._runner is not None:
+            await self._runner.cleanup()
+            self._runner = None
+
+    # -- handlers
+    def _allowed(self, request) -> bool:
+        hosts = {f"127.0.0.1:{self.port}", f"localhost:{self.port}"}
+        origin = request.headers.get("Origin")
+        return request.host in hosts and (origin is None or origin in {f"http://{h}" for h in hosts})
+
+    async def _no_icon(self, request):
+        from aiohttp import web
+
+        return web.Response(status=204)          # no 404 in the page's console
+
+    async def _static(self, request):
+        from aiohttp import web
+
+        name, kind = STATIC[request.path]
+        return web.Response(body=static_text(name), content_type=kind, charset="utf-8",
+                            headers={"Cache-Control": "no-store"})
+
+    async def _socket(self, request):
+        from aiohttp import WSMsgType, web
+
+        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=30.0)
+        await ws.prepare(request)
+        client = _Client(ws, asyncio.get_running_loop())
+        self.session.add_listener(client.push)
+        pump = asyncio.create_task(client.pump())
+        try:
+            async for raw in ws:
+                if raw.type == WSMsgType.TEXT:
+                    self._receive(raw.data, client)
+        finally:
+            self.session.remove_listener(client.push)
+            pump.cancel()
+        return ws
+
+    def _receive(self, text: str, client: _Client) -> None:
+        try:
+            message = json.loads(text)
+        except ValueError:
+            client.push({"type": "notice", "level": "error", "text": "the page sent a message that is not JSON"}, [])
+            return
+        if isinstance(message, dict):
+            self.session.handle(message, reply=client.push)
+
+    # -- running
+    async def _serve_until_stopped(self, on_ready) -> None:
+        self._stopped = asyncio.Event()
+        await self.start()
+        on_ready(self.url)
+        try:
+            await self._stopped.wait()
+        finally:
+            await self.close()
+
+    def run(self, open_browser: bool = True, out: TextIO | None = None) -> int:
+        """Serve until Ctrl-C (130) or SIGTERM (143); prints the URL, opens the browser."""
+        out = out or sys.stdout
+        terminated = []
+
+        def ready(url: str) -> None:
+            print(f"{PROG}: serving {url} (Ctrl-C to stop)", file=out, flush=True)
+            loop = asyncio.get_running_loop()
+            if threading.current_thread() is threading.main_thread():
+                loop.add_signal_handler(signal.SIGTERM, lambda: (terminated.append(1), self._stopped.set()))
+            if open_browser:
+                threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
+
+        try:
+            asyncio.run(self._serve_until_stopped(ready))
+        except KeyboardInterrupt:
+            return EXIT_INTERRUPTED
+        finally:
+            self.session.close(timeout=5.0)
+        return EXIT_TERMINATED if terminated else EXIT_OK
+
+    def start_thread(self, timeout: float = 30.0) -> str:
+        """Serve on a background thread; returns the URL once it is listening."""
+        ready = threading.Event()
+
+        def target() -> None:
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            try:
+                loop.run_until_complete(self._serve_until_stopped(lambda url: ready.set()))
+            finally:
+                loop.close()
+
+        self._thread = threading.Thread(target=target, name="warp_spt-viewer-server", daemon=True)
+        self._thread.start()
+        if not ready.wait(timeout):
+            raise TimeoutError("the viewer server did not start")
+        return self.url
+
+    def stop_thread(self, timeout: float = 10.0) -> None:
+        """Stop a server started with :meth:`start_thread` (the session is left running)."""
+        if self._loop is not None and self._stopped is not None:
+            self._loop.call_soon_threadsafe(self._stopped.set)
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+
+def serve(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[str] = (), up: str | None = None,
+          port: int | None = None, open_browser: bool = True, out: TextIO | None = None, **settings) -> int:
+    """Serve a live view until Ctrl-C; returns the exit status (0, 130 on Ctrl-C, 143 on SIGTERM).
+
+    ``scene`` is a :class:`warp_spt.Scene`, or None to load ``objs``/``mtls`` (the built-in demo
+    when none are given; a :class:`warp_spt.SceneError` is then shown on the page, which can reload
+    the files). ``settings`` are :class:`~warp_spt.viewer.session.ViewSettings` fields (width,
+    height, integrator, sampler, max_depth, sky, ...).
+    """
+    from .session import open_session
+
+    session = open_session(scene, camera, objs=objs, mtls=mtls, up=up, **settings)
+    return ViewerServer(session, port).run(open_browser=open_browser, out=out)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG, allow_abbrev=False,
+                                description="Explore a scene in the browser: orbit, pan, zoom, refine, copy the "
+                                            "warp-spt command that renders the view.")
+    p.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable; default: the demo)")
+    p.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable)")
+    p.add_argument("-cam", nargs=9, type=float, metavar=("PX", "PY", "PZ", "DX", "DY", "DZ", "FOV", "FOCUS", "APERTURE"),
+                   help="start from this camera (as warp-spt -cam); default: the seed's for the demo, else framed")
+    p.add_argument("--up", choices=("x", "y", "z", "-x", "-y", "-z"), default="z", help="the world's up axis")
+    p.add_argument("-res", nargs=2, type=int, metavar=("W", "H"), help="view size in pixels (default 384 288)")
+    p.add_argument("--port", type=int, default=0, help="port on 127.0.0.1 (default: a free one)")
+    p.add_argument("--no-browser", action="store_true", help="only print the URL")
+    return p
+
+
+def parse(argv: Sequence[str]) -> argparse.Namespace:
+    """Parse the arguments; SystemExit(2) with argparse's message on bad ones."""
+    parser = build_parser()
+    ns = parser.parse_args(_join_up(argv))
+    if ns.mtl and not ns.obj:
+        parser.error("-mtl given without any -obj file to use it")
+    if ns.res and min(ns.res) < 8:
+        parser.error("-res: the view must be at least 8 x 8 pixels")
+    if not 0 <= ns.port < 65536:
+        parser.error(f"--port must lie in [0, 65535], got {ns.port}")
+    try:
+        ns.camera = _camera(ns)
+    except ValueError as err:
+        parser.error(f"argument -cam: {err}")
+    return ns
+
+
+def _join_up(argv: Sequence[str]) -> list[str]:
+    """``--up -y`` as ``--up=-y`` (argparse would take ``-y`` for a flag), as the CLI does."""
+    out: list[str] = []
+    for token in argv:
+        if out and out[-1] == "--up" and token.startswith("-"):
+            out[-1] = f"--up={token}"
+        else:
+            out.append(token)
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``warp-spt view``'s entry point; returns the exit status. Ctrl-C at any moment ends with one
+    line, ``warp-spt view: interrupted``, and status 130."""
+    try:
+        try:
+            ns = parse(sys.argv[1:] if argv is None else list(argv))
+        except SystemExit as exit_:
+            return int(exit_.code or 0)
+        size = dict(zip(("width", "height"), ns.res, strict=True)) if ns.res else {}
+        status = serve(camera=ns.camera, objs=ns.obj, mtls=ns.mtl, up=ns.up, port=ns.port or None,
+                       open_browser=not ns.no_browser, **size)
+    except KeyboardInterrupt:
+        status = EXIT_INTERRUPTED
+    except OSError as err:         # the port is taken, and the like
+        print(f"{PROG}: error: {err.strerror or err}", file=sys.stderr)
+        return 1
+    except Exception as err:       # a bug: one line, unless asked for the traceback
+        if os.environ.get("WARP_SPT_TRACEBACK"):
+            raise
+        print(f"{PROG}: internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
+              file=sys.stderr)
+        return 1
+    if status == EXIT_INTERRUPTED:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+    elif status == EXIT_TERMINATED:
+        print(f"{PROG}: terminated", file=sys.stderr)
+    return status
+
+
+AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
+        "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
+
+
+def _camera(ns: argparse.Namespace):
+    """-cam's camera with --up's axis, validated (ValueError); None without -cam."""
+    if ns.cam is None:
+        return None
+    from warp_spt import Camera
+
+    v = ns.cam
+    cam = Camera(position=tuple(v[0:3]), direction=tuple(v[3:6]), fov=v[6], focus=v[7], aperture=v[8],
+                 up=AXES[ns.up])
+    cam.validate()
+    return cam
+
+
+if __name__ == "__main__":
+    sys.exit(main())

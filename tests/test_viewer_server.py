@@ -91,7 +91,7 @@ def get(url: str, host: str | None = None) -> tuple[int, str, bytes]:
 
 
 def test_the_command_serves_the_page_and_stops_on_ctrl_c():
-    proc = subprocess.Popen([sys.executable, "-m", "warp_spt.viewer", "--no-browser", "-res", "32", "24"],
+    proc = subprocess.Popen([sys.executable, "-m", "warp_spt", "view", "--no-browser", "-res", "32", "24"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     try:
         line = read_line(proc.stdout, TIMEOUT)
@@ -119,7 +119,7 @@ def test_the_command_serves_the_page_and_stops_on_ctrl_c():
                                            (["-cam", "0", "0", "0", "0", "0", "0", "38", "1", "0"], "-cam"),
                                            (["--bogus"], "unrecognized")])
 def test_bad_arguments_exit_2(argv, message):
-    proc = subprocess.run([sys.executable, "-m", "warp_spt.viewer", "--no-browser", *argv], capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "warp_spt", "view", "--no-browser", *argv], capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr
 

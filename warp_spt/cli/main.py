@@ -81,6 +81,12 @@ def _main(argv: list[str], stderr: TextIO, started: float) -> int:
     if argv[:1] == ["convergence"]:
         from warp_spt.cli.convergence import main as convergence_main
         return convergence_main(argv[1:])
+    if argv[:1] == ["view"]:
+        from warp_spt.cli.view import main as view_main
+        try:
+            return view_main(argv[1:])
+        except BaseException as err:        # Ctrl-C before the server runs, a bug: one line
+            return _report(err, stderr)
     try:
         opts = parse_args(argv)
         if opts.action == "help":

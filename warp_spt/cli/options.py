@@ -43,6 +43,10 @@ MEMORY_FRACTION = 0.5
 
 
 EXAMPLES = """\
+commands:
+  warp-spt view [scene flags]       explore a scene in the browser (pip install "warp-spt[view]")
+  warp-spt convergence [flags]      error against samples and seconds: CSV, JSON, PNG
+
 examples:
   warp-spt                                   render the built-in demo to output.png
   warp-spt --demo 512p16s                    the seed's quick demo script (512x512, 16 spp)

@@ -1,7 +1,7 @@
 """The browser host: a local web server for one :class:`~warp_spt.viewer.session.Session`.
 
-``python -m warp_spt.viewer [-obj F]... [-mtl F]... [--up y] [--port N] [--no-browser]`` serves the
-page on 127.0.0.1 (a free port unless ``--port``), prints its URL and opens the browser. The page
+``warp-spt view [-obj F]... [-mtl F]... [--up y] [--port N] [--no-browser]`` (:mod:`warp_spt.cli.view`)
+serves the page on 127.0.0.1 (a free port unless ``--port``), prints its URL and opens the browser. The page
 is ``static/index.html``, which runs the same ``static/viewer.js`` as the Jupyter widget over a
 WebSocket. aiohttp serves both the page and the socket from one asyncio loop; the session's
 render thread hands messages to that loop with ``call_soon_threadsafe``.
@@ -13,12 +13,10 @@ rebinding). Ctrl-C stops it with one line and exit status 130; SIGTERM with 143.
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import collections
 import importlib.resources
 import json
-import os
 import signal
 import struct
 import sys
@@ -255,94 +253,3 @@ def serve(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[s
     return ViewerServer(session, port).run(open_browser=open_browser, out=out)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, allow_abbrev=False,
-                                description="Explore a scene in the browser: orbit, pan, zoom, refine, copy the "
-                                            "warp-spt command that renders the view.")
-    p.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable; default: the demo)")
-    p.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable)")
-    p.add_argument("-cam", nargs=9, type=float, metavar=("PX", "PY", "PZ", "DX", "DY", "DZ", "FOV", "FOCUS", "APERTURE"),
-                   help="start from this camera (as warp-spt -cam); default: the seed's for the demo, else framed")
-    p.add_argument("--up", choices=("x", "y", "z", "-x", "-y", "-z"), default="z", help="the world's up axis")
-    p.add_argument("-res", nargs=2, type=int, metavar=("W", "H"), help="view size in pixels (default 384 288)")
-    p.add_argument("--port", type=int, default=0, help="port on 127.0.0.1 (default: a free one)")
-    p.add_argument("--no-browser", action="store_true", help="only print the URL")
-    return p
-
-
-def parse(argv: Sequence[str]) -> argparse.Namespace:
-    """Parse the arguments; SystemExit(2) with argparse's message on bad ones."""
-    parser = build_parser()
-    ns = parser.parse_args(_join_up(argv))
-    if ns.mtl and not ns.obj:
-        parser.error("-mtl given without any -obj file to use it")
-    if ns.res and min(ns.res) < 8:
-        parser.error("-res: the view must be at least 8 x 8 pixels")
-    if not 0 <= ns.port < 65536:
-        parser.error(f"--port must lie in [0, 65535], got {ns.port}")
-    try:
-        ns.camera = _camera(ns)
-    except ValueError as err:
-        parser.error(f"argument -cam: {err}")
-    return ns
-
-
-def _join_up(argv: Sequence[str]) -> list[str]:
-    """``--up -y`` as ``--up=-y`` (argparse would take ``-y`` for a flag), as the CLI does."""
-    out: list[str] = []
-    for token in argv:
-        if out and out[-1] == "--up" and token.startswith("-"):
-            out[-1] = f"--up={token}"
-        else:
-            out.append(token)
-    return out
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``warp-spt view``'s entry point; returns the exit status. Ctrl-C at any moment ends with one
-    line, ``warp-spt view: interrupted``, and status 130."""
-    try:
-        try:
-            ns = parse(sys.argv[1:] if argv is None else list(argv))
-        except SystemExit as exit_:
-            return int(exit_.code or 0)
-        size = dict(zip(("width", "height"), ns.res, strict=True)) if ns.res else {}
-        status = serve(camera=ns.camera, objs=ns.obj, mtls=ns.mtl, up=ns.up, port=ns.port or None,
-                       open_browser=not ns.no_browser, **size)
-    except KeyboardInterrupt:
-        status = EXIT_INTERRUPTED
-    except OSError as err:         # the port is taken, and the like
-        print(f"{PROG}: error: {err.strerror or err}", file=sys.stderr)
-        return 1
-    except Exception as err:       # a bug: one line, unless asked for the traceback
-        if os.environ.get("WARP_SPT_TRACEBACK"):
-            raise
-        print(f"{PROG}: internal error: {type(err).__name__}: {err} (set WARP_SPT_TRACEBACK=1 for details)",
-              file=sys.stderr)
-        return 1
-    if status == EXIT_INTERRUPTED:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-    elif status == EXIT_TERMINATED:
-        print(f"{PROG}: terminated", file=sys.stderr)
-    return status
-
-
-AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
-        "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
-
-
-def _camera(ns: argparse.Namespace):
-    """-cam's camera with --up's axis, validated (ValueError); None without -cam."""
-    if ns.cam is None:
-        return None
-    from warp_spt import Camera
-
-    v = ns.cam
-    cam = Camera(position=tuple(v[0:3]), direction=tuple(v[3:6]), fov=v[6], focus=v[7], aperture=v[8],
-                 up=AXES[ns.up])
-    cam.validate()
-    return cam
-
-
-if __name__ == "__main__":
-    sys.exit(main())

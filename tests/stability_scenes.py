@@ -57,17 +57,18 @@ def box_quads(lo, hi, mat: str) -> list[tuple[str, list[tuple[float, float, floa
 CORNELL_SIZE = 32.0
 
 
-def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0, light_gap: float = 0.25
-                  ) -> tuple[list[str], list[str]]:
+def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0, light_gap: float = 0.25,
+                  exact32: bool = True) -> tuple[list[str], list[str]]:
     """A closed Cornell-like room (32 units, seed-sized) with a ceiling light ``light_gap`` below the ceiling,
     two blocks standing on the floor, a glossy ball and a glass ball; every coordinate is
-    ``c * scale + shift``. Unscaled coordinates are multiples of 1/4, so a shift of 1e5 is exact in
-    float32 and the shifted room is the same room.
+    ``c * scale + shift``, rounded to float32 unless ``exact32`` is False (then written in float64).
+    Unscaled coordinates are multiples of 1/4, so a shift of 1e5 is exact in float32 and the shifted
+    room is the same room.
     """
     s = CORNELL_SIZE
 
     def tr(p):
-        return tuple(float(np.float32(c * scale + shift)) for c in p)
+        return tuple(float(np.float32(c * scale + shift)) if exact32 else c * scale + shift for c in p)
 
     quads = [
         ("white", [(0, 0, 0), (s, 0, 0), (s, s, 0), (0, s, 0)]),          # floor
@@ -89,7 +90,7 @@ def cornell_files(folder: Path, scale: float = 1.0, shift: float = 0.0, light_ga
            + material("gloss", Kd=(0.8, 0.6, 0.3), Roughness=0.5, Fuzz=0.2)
            + material("glass", Kd=(0.95, 0.95, 0.95), Kt=(0.95, 0.95, 0.95), Roughness=0, Fuzz=0,
                       Kn=1.5, Refractable=True))
-    name = f"cornell_{scale:g}_{shift:g}_{light_gap:g}".replace(".", "p").replace("-", "m").replace("+", "")
+    name = f"cornell_{scale:g}_{shift:g}_{light_gap:g}_{int(exact32)}".replace(".", "p").replace("-", "m").replace("+", "")
     return write_scene_files(folder, name, quads_obj(quads, spheres), mtl)
 
 

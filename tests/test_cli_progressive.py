@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from warp_spt.cli.common import process_start
 from warp_spt.cli.main import main
 from warp_spt.cli.options import parse_args
 from warp_spt.cli.progressive import (
     EXIT_SECONDS,
     false_colour,
     finish_seconds,
-    process_start,
 )
 from warp_spt.io.images import load_image
 

@@ -189,7 +189,7 @@ def _replace_mesh(scene, **fields):
 
 BREAKERS = {
     "nan position": lambda s: _replace_mesh(s, positions=np.full((3, 3), np.nan, np.float32)),
-    "float64 positions": lambda s: _replace_mesh(s, positions=s.meshes[0].positions.astype(np.float64)),
+    "integer positions": lambda s: _replace_mesh(s, positions=s.meshes[0].positions.astype(np.int64)),
     "index out of range": lambda s: _replace_mesh(s, indices=np.array([[0, 1, 3]], np.int32)),
     "negative index": lambda s: _replace_mesh(s, indices=np.array([[0, -1, 2]], np.int32)),
     "uv shape": lambda s: _replace_mesh(s, corner_uv=np.zeros((1, 3, 3), np.float32)),

@@ -37,7 +37,7 @@ def test_vertices_and_seed_face_form(fast):
     np.testing.assert_array_equal(d.faces, [[0, 1, 2]])
     np.testing.assert_array_equal(d.face_texcoords, [[0, 1, 2]])
     np.testing.assert_array_equal(d.face_normals, [[-1, -1, -1]])
-    assert d.faces.dtype == np.int32 and d.positions.dtype == np.float32
+    assert d.faces.dtype == np.int32 and d.positions.dtype == np.float64   # rounded only at upload
     assert d.material_names == [CHECKER_NAME] and d.face_material.tolist() == [0]
 
 

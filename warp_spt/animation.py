@@ -26,7 +26,7 @@ import json
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -34,6 +34,10 @@ from warp_spt.io.templates import frame_path, is_template
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import ObjData, Scene
+from warp_spt.scene.sky import Sky
+
+# prepares one frame as a single render would: (scene, camera) -> (scene, camera, sky or None)
+View = Callable[[Scene, Camera], tuple[Scene, Camera, 'Sky | None']]
 
 # ---------------------------------------------------------------------------------------------
 # Camera paths
@@ -194,9 +198,10 @@ class ObjSequence:
     ``loads`` counts OBJ files parsed (tests check that static files are parsed once).
     """
 
-    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = ()) -> None:
+    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker") -> None:
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
+        self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
         self.loads = 0
         self._parsed: dict[str, ObjData] = {}
         self._last_scene: tuple[tuple[str, ...], Scene] | None = None
@@ -224,7 +229,8 @@ class ObjSequence:
             if p not in self._parsed:
                 self._parsed[p] = load_obj(p)
                 self.loads += 1
-        scene = load_scene([self._parsed[p] for p in paths], self.mtls, warn=lambda message: None)
+        scene = load_scene([self._parsed[p] for p in paths], self.mtls, warn=lambda message: None,
+                           default_material=self.default_material)
         self._last_scene = (paths, scene)
         return scene
 
@@ -235,7 +241,7 @@ class ObjSequence:
 
 def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = (), frames: Sequence[int] = (0,),
                      camera: Camera | CameraPath | None = None, settings=None, *, client=None, options=None,
-                     progress=False, **kw) -> Iterator[tuple[int, np.ndarray]]:
+                     progress=False, view: View | None = None, **kw) -> Iterator[tuple[int, np.ndarray]]:
     """Render ``frames``; yield ``(frame, float32 (H, W, 3) image)`` as each frame finishes.
 
     ``settings`` is a :class:`warp_spt.rendering.settings.RenderSettings`, or its fields are given as keywords.
@@ -245,7 +251,9 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
     each mesh is shipped and uploaded once per worker, and frames come in the order they finish.
     Either way frame k is the same image as a single render of its scene and camera (same seed for
     every frame). ``progress`` (True or a callable ``(done, total)``) counts samples x pixels of the
-    whole run.
+    whole run. ``view(scene, camera) -> (scene, camera, sky or None)`` prepares each frame as a
+    single render would (the command line's recentring, framing and studio: the same function, so
+    frame k is the image of a single render of frame k's files); without it a frame is recentred only.
     """
     from warp_spt.rendering.settings import RenderSettings
 
@@ -255,21 +263,26 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
         raise TypeError("give either settings or keyword settings, not both")
     rs = settings if settings is not None else RenderSettings(**kw)
     if client is not None:
-        yield from _render_on_cluster(client, seq, frames, camera, rs, options, progress)
+        yield from _render_on_cluster(client, seq, frames, camera, rs, options, progress, view)
         return
-    yield from _render_here(seq, frames, camera, rs, progress)
+    yield from _render_here(seq, frames, camera, rs, progress, view)
 
 
-def frame_scene(seq: ObjSequence, frame: int, camera: Camera | CameraPath | None) -> tuple[Scene, Camera]:
-    """The scene and camera of ``frame``, recentred as a single render recentres them (a no-op for a
-    scene near the origin, so its static meshes stay the same arrays)."""
+def frame_scene(seq: ObjSequence, frame: int, camera: Camera | CameraPath | None, rs,
+                view: View | None = None) -> tuple[Scene, Camera, object]:
+    """The scene, camera and settings of ``frame``: prepared by ``view`` (see :func:`render_animation`),
+    or recentred as a single render recentres them (a no-op for a scene near the origin, so its
+    static meshes stay the same arrays)."""
     from warp_spt.scene.recentre import recentre
 
-    scene, cam, _ = recentre(seq.scene(frame), camera_at(camera, frame))
-    return scene, cam
+    if view is None:
+        scene, cam, _ = recentre(seq.scene(frame), camera_at(camera, frame))
+        return scene, cam, rs
+    scene, cam, sky = view(seq.scene(frame), camera_at(camera, frame))
+    return scene, cam, rs if sky is None else replace(rs, sky=sky)
 
 
-def _render_here(seq: ObjSequence, frames: list[int], camera, rs, progress):
+def _render_here(seq: ObjSequence, frames: list[int], camera, rs, progress, view):
     from warp_spt.core.device_scene import DeviceScene
     from warp_spt.rendering.tiles import render_scene
 
@@ -279,13 +292,13 @@ def _render_here(seq: ObjSequence, frames: list[int], camera, rs, progress):
     meshes: dict[str, object] = {}             # wp.Mesh by content: static meshes are built once
     try:
         for i, k in enumerate(frames):
-            scene, cam = frame_scene(seq, k, camera)
+            scene, cam, frame_rs = frame_scene(seq, k, camera, rs, view)
             if dev is None or scene is not dev.scene:       # upload again only when the scene changed
                 dev = DeviceScene(scene, device=rs.device, meshes=meshes)
                 for key in set(meshes) - set(dev.mesh_keys):
                     del meshes[key]
             per_frame = (lambda done, total, base=i * frame_total: report(base + done)) if report else False
-            yield k, render_scene(dev, cam, rs, progress=per_frame).image
+            yield k, render_scene(dev, cam, frame_rs, progress=per_frame).image
     finally:
         if report:
             report(None)
@@ -309,15 +322,14 @@ def _frames_progress(progress, total: int):
     return report
 
 
-def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, rs, options, progress):
+def _render_on_cluster(client, seq: ObjSequence, frames: list[int], camera, rs, options, progress, view):
     from warp_spt import cluster
 
-    rs = cluster.cluster_settings(rs)
     shared: dict[str, object] = {}           # what is on the cluster already: static meshes go once
     jobs = []
     for k in frames:
-        scene, cam = frame_scene(seq, k, camera)
-        jobs.append(cluster.Job(cluster.share_scene(client, scene, shared), cam, rs))
+        scene, cam, frame_rs = frame_scene(seq, k, camera, rs, view)
+        jobs.append(cluster.Job(cluster.share_scene(client, scene, shared), cam, cluster.cluster_settings(frame_rs)))
     for j, result in cluster.run_jobs(client, jobs, options or cluster.ClusterOptions(), progress=progress):
         yield frames[j], result.image
 

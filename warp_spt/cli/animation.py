@@ -9,17 +9,15 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from warp_spt.animation import CameraPath, ObjSequence, render_animation
+from warp_spt.cli.common import load_texture_modules, say_for
 from warp_spt.cli.options import settings_of
+from warp_spt.cli.view_checks import frame_view
 from warp_spt.io.images import save_gif
 from warp_spt.io.templates import frame_path
-
-if TYPE_CHECKING:
-    pass
 
 
 def _run_budgeted(opts, scene, say, started: float | None) -> int:
@@ -75,23 +73,22 @@ def run_cli(opts, err, started: float | None = None) -> int:
     """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
     from warp_spt.cli.common import (
         EXIT_OK,
-        PROG,
         check_files,
         init_warp,
-        one_line,
         scene_files,
     )
     from warp_spt.io.images import _TONEMAPS, save_image
     from warp_spt.runtime.progress import ProgressBar
 
-    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
+    say = say_for(opts, err)
     objs, mtls = scene_files(opts)
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
     frames = opts.frames or (path.frames if path is not None else range(0, 1))
-    seq = ObjSequence(objs, mtls)
+    seq = ObjSequence(objs, mtls, default_material=opts.default_material)
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
     init_warp(opts)
+    load_texture_modules(opts, say)
     start = time.perf_counter()
     first = seq.scene(frames[0])
     for warning in first.warnings:
@@ -108,7 +105,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
     if opts.animated:
         def images(client, progress):
             return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
-                                    progress=progress)
+                                    progress=progress, view=frame_view(opts, say))
     else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
         from warp_spt.cli.common import CompileNotice
         from warp_spt.cli.view_checks import _view

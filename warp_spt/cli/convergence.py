@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -19,10 +19,6 @@ from warp_spt.rendering.convergence import (
     write_json,
     write_plot,
 )
-
-if TYPE_CHECKING:
-    pass
-
 
 PROG = "warp-spt convergence"
 

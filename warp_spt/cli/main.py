@@ -25,9 +25,9 @@ from warp_spt.cli.common import (
     RunError,
     UsageError,
     fail,
+    process_start,
 )
 from warp_spt.cli.options import Options, build_parser, parse_args
-from warp_spt.cli.progressive import process_start
 from warp_spt.runtime.signals import (
     cli_interruption,
     exit_status,
@@ -81,6 +81,12 @@ def _main(argv: list[str], stderr: TextIO, started: float) -> int:
     if argv[:1] == ["convergence"]:
         from warp_spt.cli.convergence import main as convergence_main
         return convergence_main(argv[1:])
+    if argv[:1] == ["view"]:
+        from warp_spt.cli.view import main as view_main
+        try:
+            return view_main(argv[1:])
+        except BaseException as err:        # Ctrl-C before the server runs, a bug: one line
+            return _report(err, stderr)
     try:
         opts = parse_args(argv)
         if opts.action == "help":

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
+from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least
-from warp_spt.cli.progressive import BudgetOptions, add_flags, options
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
 from warp_spt.scene.sky import Sky
@@ -43,6 +43,10 @@ MEMORY_FRACTION = 0.5
 
 
 EXAMPLES = """\
+commands:
+  warp-spt view [scene flags]       explore a scene in the browser (pip install "warp-spt[view]")
+  warp-spt convergence [flags]      error against samples and seconds: CSV, JSON, PNG
+
 examples:
   warp-spt                                   render the built-in demo to output.png
   warp-spt --demo 512p16s                    the seed's quick demo script (512x512, 16 spp)
@@ -341,13 +345,15 @@ def check_image_size(width: int, height: int, memory_bytes: int | None = None) -
                          f"more than the {budget / 2**30:.1f} GiB this machine can spare")
 
 
-def settings_of(opts):
-    """The RenderSettings the command line asks for."""
+def settings_of(opts, **overrides):
+    """The RenderSettings the command line asks for (the one place options become settings);
+    ``overrides`` replace fields (the view's sky, a budget's spp)."""
     from warp_spt.rendering.settings import RenderSettings
 
     chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
-    return RenderSettings(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
-                          seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+    fields = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
+                  seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+    return RenderSettings(**{**fields, **overrides})
 
 
 DEFAULT_FRAME_OUT = "frame_{frame:04d}.png"

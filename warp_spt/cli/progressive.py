@@ -1,7 +1,7 @@
-"""The CLI's error, budget and adaptive-sampling flags (issue 9), kept apart from cli.py.
+"""The runner of budgeted and progressive renders: passes until a sample count, a time or an error.
 
-cli.py calls :func:`add_flags` on its parser, :func:`options` on the parsed namespace, and
-:func:`render_and_save` instead of its plain render when :attr:`BudgetOptions.active`. The time
+:mod:`warp_spt.cli.render` calls :func:`render_and_save` instead of its plain render when
+:attr:`warp_spt.cli.budget_flags.BudgetOptions.active`. The time
 budget counts from the start of the process (:func:`process_start`), so it covers Python's start-up,
 loading the scene and compiling the kernel, and the render stops early enough for the measured cost
 of saving (:func:`finish_seconds`): the wall time the user sees (docs/error.md, "Budgets").
@@ -9,129 +9,15 @@ of saving (:func:`finish_seconds`): the wall time the user sees (docs/error.md, 
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
+from warp_spt.cli.budget_flags import BudgetOptions
+
 if TYPE_CHECKING:
     import numpy as np
-
-# Only the standard library at import time (cli.py imports this module at its top; on main, cli.py
-# installs its signal handling before numpy and Warp load), so numpy is imported where it is used.
-MAP_SUFFIXES = (".npy", ".pfm", ".exr", ".png")
-
-
-@dataclass(frozen=True)
-class BudgetOptions:
-    """The parsed flags; ``active`` when any of them asks for the progressive renderer."""
-
-    time_budget: float | None = None
-    target_error: float | None = None
-    adaptive: bool = False
-    min_spp: int | None = None
-    save_partial: bool = False
-    progressive: str | None = None
-    error_map: str | None = None
-    spp_map: str | None = None
-    spp_given: bool = False
-    denoise: bool = False
-    adaptive_metric: str | None = None
-
-    @property
-    def active(self) -> bool:
-        return any((self.time_budget, self.target_error, self.adaptive, self.save_partial, self.progressive,
-                    self.error_map, self.spp_map, self.min_spp, self.denoise))
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
-
-
-def _fraction(text: str) -> float:
-    """0.01 or 1%."""
-    percent = text.endswith("%")
-    value = _positive_float(text[:-1] if percent else text)
-    return value / 100 if percent else value
-
-
-def _metric(text: str) -> str:
-    from warp_spt.rendering.progressive import ADAPTIVE_METRICS
-
-    if text not in ADAPTIVE_METRICS:
-        raise argparse.ArgumentTypeError(f"expected one of {', '.join(ADAPTIVE_METRICS)}, got {text!r}")
-    return text
-
-
-def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
-    """The issue-9 flags, as their own argument group."""
-    g = parser.add_argument_group("error, budgets and adaptive sampling (docs/error.md)")
-    g.add_argument("--time-budget", type=_positive_float, metavar="SECONDS",
-                   help="end this many seconds after the command started (start-up, load, compile, saving "
-                        "and exit included); -sr becomes a maximum")
-    g.add_argument("--target-error", type=_fraction, metavar="E",
-                   help="stop when the estimated relative error of the image is at most E (0.01 or 1%%)")
-    g.add_argument("--adaptive", action="store_true",
-                   help="after --min-spp, spend passes on the pixels whose estimated error is high "
-                        "(opt-in; it lowers the error --adaptive-metric names; docs/error.md)")
-    g.add_argument("--adaptive-metric", type=_metric, metavar="relative|rmse",
-                   help="what --adaptive minimises: the relative error of the image (default; what "
-                        "--target-error and the final line measure) or the RMSE (samples in proportion to "
-                        "each pixel's absolute noise)")
-    g.add_argument("--min-spp", type=int_at_least(1), metavar="N", help="samples every pixel gets (default 16)")
-    g.add_argument("--save-partial", action="store_true",
-                   help="on Ctrl-C, write the image accumulated so far instead of nothing")
-    g.add_argument("--progressive", metavar="PATH", help="rewrite this image after every pass")
-    g.add_argument("--error-map", metavar="PATH",
-                   help="write the per-pixel standard error (.npy/.pfm linear, .png false colour of the "
-                        "relative error)")
-    g.add_argument("--spp-map", metavar="PATH", help="write the samples per pixel (.npy/.pfm, or .png false colour)")
-    g.add_argument("--denoise", action="store_true",
-                   help="denoise the output with Intel Open Image Denoise (needs pyoidn: warp-spt[denoise]); "
-                        "the error line and maps describe the image before denoising")
-
-
-def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
-            image_suffixes: tuple[str, ...]) -> BudgetOptions:
-    """Validate the flags of :func:`add_flags` (suffixes only: files are checked before rendering)."""
-    for flag, path, allowed in (("--progressive", ns.progressive, image_suffixes),
-                                ("--error-map", ns.error_map, MAP_SUFFIXES), ("--spp-map", ns.spp_map, MAP_SUFFIXES)):
-        if path is not None and Path(path).suffix.lower() not in allowed:
-            raise usage_error(f"{flag} {path!r}: the file name must end in {', '.join(allowed)}")
-        if path is not None and Path(path).suffix.lower() == ".exr":
-            import importlib.util
-            if importlib.util.find_spec("OpenEXR") is None:
-                raise usage_error(f"{flag} {path!r}: writing .exr needs the optional openexr package "
-                                  "(pip install 'warp-spt[exr]')")
-    if ns.adaptive_metric is not None and not ns.adaptive:
-        raise usage_error("--adaptive-metric needs --adaptive")
-    return BudgetOptions(ns.time_budget, ns.target_error, ns.adaptive, ns.min_spp, ns.save_partial, ns.progressive,
-                         ns.error_map, ns.spp_map, ns.sr is not None, ns.denoise, ns.adaptive_metric)
-
-
-def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
-    """(flag, path) of every further file the render writes (for the early writability check)."""
-    return [(f, p) for f, p in (("--progressive", b.progressive), ("--error-map", b.error_map),
-                                ("--spp-map", b.spp_map)) if p]
-
-
-def check_outputs(b: BudgetOptions, error: Callable[[str], Exception]) -> None:
-    """Fail before rendering when a further output cannot be written."""
-    for flag, path in extra_outputs(b):
-        parent = Path(path).parent
-        if not parent.is_dir():
-            raise error(f"cannot write {flag} {path!r}: directory {str(parent)!r} does not exist")
-        if Path(path).is_dir():
-            raise error(f"cannot write {flag} {path!r}: it is a directory")
 
 
 def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) -> int:
@@ -139,8 +25,11 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
 
     Returns the exit status: 0, or 130 after a Ctrl-C with --save-partial (the partial image written).
     """
+    from dataclasses import fields
+
     import numpy as np
 
+    from warp_spt.cli.options import settings_of
     from warp_spt.core.device_scene import DeviceScene
     from warp_spt.io.images import save_image
     from warp_spt.rendering.progressive import render_progressive
@@ -170,13 +59,13 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         if b.progressive:
             save_image(b.progressive, res.image, tonemap=opts.tonemap)
 
-    res = render_progressive(dev, opts.camera, width=opts.width, height=opts.height, spp=spp,
-                             max_depth=opts.depth, sky=opts.sky, seed=opts.seed, threads=opts.threads,
-                             texture_filter=opts.texture_filter, time_budget=render_budget,
-                             target_error=b.target_error, adaptive=b.adaptive, min_spp=b.min_spp,
+    rs = settings_of(opts, spp=spp)
+    # the batches own the sample indices and the tiling: every other setting as the command gave it
+    settings = {f.name: getattr(rs, f.name) for f in fields(rs) if f.name not in ("sample_offset", "tile_pixels")}
+    res = render_progressive(dev, opts.camera, time_budget=render_budget, target_error=b.target_error,
+                             adaptive=b.adaptive, min_spp=b.min_spp,
                              **({"adaptive_metric": b.adaptive_metric} if b.adaptive_metric else {}),
-                             on_pass=on_pass, keep_partial=b.save_partial, started=started,
-                             **{k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v})
+                             on_pass=on_pass, keep_partial=b.save_partial, started=started, **settings)
     image = res.image
     if b.denoise:
         from warp_spt.rendering.denoise import denoise
@@ -240,25 +129,6 @@ def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int,
 
         seconds += denoise_seconds(width, height)
     return seconds
-
-
-def process_start() -> float:
-    """When this process started, as a ``time.perf_counter()`` value (Linux: from /proc; elsewhere: now).
-
-    Python's start-up and the import of Warp take a second or two before ``main()`` runs; the
-    time budget targets the wall time the user sees, so it counts them too where it can.
-    """
-    now = time.perf_counter()
-    try:
-        ticks = os.sysconf("SC_CLK_TCK")
-        with open("/proc/self/stat", "rb") as f:
-            start_ticks = int(f.read().rsplit(b")", 1)[1].split()[19])
-        with open("/proc/uptime", "rb") as f:
-            uptime = float(f.read().split()[0])
-        age = uptime - start_ticks / ticks
-        return now - age if 0.0 <= age < 3600.0 else now
-    except (OSError, ValueError, IndexError, AttributeError):
-        return now
 
 
 def _pct(e: float) -> str:

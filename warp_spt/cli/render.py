@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import TYPE_CHECKING, TextIO
+from typing import TextIO
 
+from warp_spt.cli.budget_flags import check_outputs
 from warp_spt.cli.common import (
     EXIT_OK,
     PROG,
@@ -14,18 +15,16 @@ from warp_spt.cli.common import (
     check_files,
     check_registry_names,
     init_warp,
-    one_line,
+    load_texture_modules,
+    say_for,
     scene_files,
     warm_up,
 )
-from warp_spt.cli.options import Options
-from warp_spt.cli.progressive import check_outputs, render_and_save
+from warp_spt.cli.options import Options, settings_of
+from warp_spt.cli.progressive import render_and_save
 from warp_spt.cli.view_checks import prepare_view
 from warp_spt.runtime.progress import ProgressBar
 from warp_spt.runtime.signals import deferred_signals
-
-if TYPE_CHECKING:
-    pass
 
 
 def run_image(opts: Options, err: TextIO, started: float) -> int:
@@ -33,21 +32,17 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     check_outputs(opts.budget, RunError)
-    say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {one_line(msg)}", file=err))
+    say = say_for(opts, err)
     init_warp(opts)
     check_registry_names(opts)
     import numpy as np
 
     from warp_spt.io.images import save_image
     from warp_spt.io.loader import load_scene
-    from warp_spt.rendering.settings import RenderSettings
-    from warp_spt.rendering.tiles import render, render_scene
+    from warp_spt.rendering.tiles import render_scene
     from warp_spt.scene.recentre import describe_bounds
 
-    if opts.texture_modules:
-        from warp_spt.core.proctex import load_texture_module
-        for module in opts.texture_modules:
-            say(f"textures from {module}: {', '.join(load_texture_module(module)) or 'none registered'}")
+    load_texture_modules(opts, say)
     start = time.perf_counter()
     try:
         scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below
@@ -65,15 +60,13 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
     if opts.budget.active:      # passes, budgets and error estimates (cli_progressive)
         return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started)
-    chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
-    settings = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=sky,
-                    seed=opts.seed, threads=opts.threads, texture_filter=opts.texture_filter, **chosen)
+    settings = settings_of(opts, sky=sky)
     with notice:
-        warm_up(render, scene, camera, settings)
+        warm_up(render_scene, scene, camera, settings)
     bar = None if opts.quiet else ProgressBar(opts.width * opts.height * opts.spp, file=err)
     start = time.perf_counter()
     try:
-        result = render_scene(scene, camera, RenderSettings(**settings), progress=bar or False)
+        result = render_scene(scene, camera, settings, progress=bar or False)
     except MemoryError:
         texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
         raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
@@ -226,6 +226,23 @@ def prepare_view(opts, scene, say, notice: "CompileNotice | None" = None) -> tup
     with notice or CompileNotice(say):
         scene, camera, sky = _view(opts, scene, say)
     return DeviceScene(scene), camera, sky
+
+
+def frame_view(opts, say):
+    """The view of each frame of an animation: :func:`_view`, the very preparation of a single image,
+    with the frame's camera; a camera path, like -cam, is never replaced by framing. A message that
+    every frame repeats is said once."""
+    fixed = opts.cam_given or bool(opts.camera_path)
+    said: set[str] = set()
+
+    def say_once(msg: str) -> None:
+        if msg not in said:
+            said.add(msg)
+            say(msg)
+
+    def view(scene, camera):
+        return _view(replace(opts, camera=camera, cam_given=fixed), scene, say_once)
+    return view
 
 
 def _view(opts, scene, say) -> tuple[object, Camera, Sky]:

@@ -117,6 +117,7 @@ class DeviceScene:
     """
 
     def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
+        scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
         validate_scene(scene)
         init_warp()            # quietly, once, before the first Warp array (not at import time)
         self.device = device

@@ -1,1 +1,6 @@
-"""TODO"""
+"""Differentiable rendering: parameters by name, their gradients, and optimisation.
+
+``params`` (SceneParameters: what can be edited and differentiated, by name), ``gradients``
+(render_gradients: path replay or the tape), ``prb`` (path-replay backpropagation), ``optim`` (Adam
+and bounds). Losses are in :mod:`warp_spt.losses`.
+"""

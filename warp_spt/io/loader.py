@@ -94,7 +94,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     textures = _TextureCache(note)
     scene = Scene(
         meshes=[_mesh(d, rows, note) for d, rows in zip(data, obj_rows) if len(d.faces)],
-        spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float32),
+        spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float64),
         sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
         materials=MaterialTable.from_rows(table_rows, textures.index),   # reads the rows' textures

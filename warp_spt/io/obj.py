@@ -203,7 +203,9 @@ def write_obj(
 ) -> None:
     """Write a mesh (0-based arrays, -1 for an absent vt/vn corner) as an OBJ that :func:`load_obj` reads back.
 
-    Numbers are written with 9 significant digits, which round-trips float32 exactly. Faces keep
+    Positions and spheres are written with 17 significant digits, which round-trips float64 exactly
+    (the reader keeps them float64), texture coordinates and normals with 9, which round-trips their
+    float32 exactly. Faces keep
     their order; a ``usemtl`` line is written wherever ``face_material`` changes.
     """
     nf = len(faces)
@@ -214,26 +216,28 @@ def write_obj(
     with open(path, "w", encoding="utf-8", newline="\n") as out:
         if mtllib:
             out.write(f"mtllib {mtllib}\n")
-        out.write(_rows("v", positions, 3))
+        out.write(_rows("v", positions, 3, np.float64))
         out.write(_rows("vt", texcoords, 2))
         out.write(_rows("vn", normals, 3))
         out.write(_face_block(faces, ft, fn, fmat, names))
         if spheres is not None and len(spheres):
             smat = np.zeros(len(spheres), np.int64) if sphere_material is None else np.asarray(sphere_material)
-            for s, m in zip(np.asarray(spheres, dtype=np.float32), smat):
-                out.write(f"usemtl {names[m]}\nb {s[0]:.9g} {s[1]:.9g} {s[2]:.9g} {s[3]:.9g}\n")
+            for s, m in zip(np.asarray(spheres, dtype=np.float64), smat):
+                out.write(f"usemtl {names[m]}\nb {s[0]:.17g} {s[1]:.17g} {s[2]:.17g} {s[3]:.17g}\n")
 
 
 def _corner_array(a: np.ndarray | None, nf: int) -> np.ndarray:
     return np.full((nf, 3), -1, np.int64) if a is None else np.asarray(a, dtype=np.int64)
 
 
-def _rows(tag: str, values: np.ndarray | None, width: int) -> str:
-    """``tag`` lines for an (N, width) array, formatted in one C-level operation."""
+def _rows(tag: str, values: np.ndarray | None, width: int, dtype=np.float32) -> str:
+    """``tag`` lines for an (N, width) array of ``dtype`` values, with the digits that round-trip that
+    type (9 for float32, 17 for float64), formatted in one C-level operation."""
     if values is None or len(values) == 0:
         return ""
-    flat = np.asarray(values, dtype=np.float32).reshape(-1, width).astype(np.float64).ravel().tolist()
-    return ((tag + " %.9g" * width + "\n") * (len(flat) // width)) % tuple(flat)
+    digits = 17 if dtype == np.float64 else 9
+    flat = np.asarray(values, dtype=dtype).reshape(-1, width).astype(np.float64).ravel().tolist()
+    return ((tag + f" %.{digits}g" * width + "\n") * (len(flat) // width)) % tuple(flat)
 
 
 def _face_block(faces: np.ndarray, ft: np.ndarray, fn: np.ndarray, fmat: np.ndarray, names: list[str]) -> str:

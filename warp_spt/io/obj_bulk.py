@@ -29,6 +29,7 @@ _SPACE, _NL, _HASH, _SLASH = 32, 10, 35, 47
 # check that a text holds only the characters its numbers may use (the line reader rejects "nan",
 # "inf", hex floats, stray control characters... with a precise message).
 _BLANKS = b" \t\r\n\x0b\x0c"
+_FLOAT32_MAX = float(np.finfo(np.float32).max)   # NaN fails the comparison too
 _FLOAT_CHARS = b"0123456789+-.eE" + _BLANKS
 _INDEX_CHARS = b"0123456789+-/" + _BLANKS
 # everything but the control characters that are not blanks: a file holding one goes to the line reader
@@ -133,7 +134,8 @@ def _comment_in(buf: np.ndarray, lay: _Lines, bulk: np.ndarray) -> bool:
 def _values(buf: np.ndarray, lay: _Lines, sel: np.ndarray, integers: bool) -> np.ndarray | None:
     """All numbers after the tag of the selected lines, in file order (None on any doubt).
 
-    Integers (face corners, ``/`` read as a space) come back as int64, other numbers as float32.
+    Integers (face corners, ``/`` read as a space) come back as int64, other numbers as float64
+    (positions stay float64 until the upload; the line reader parses the same way).
     """
     first_val = lay.start[lay.tag_tok[sel] + 1]
     ends = lay.line_end(lay.line[sel])
@@ -158,7 +160,7 @@ def _values(buf: np.ndarray, lay: _Lines, sel: np.ndarray, integers: bool) -> np
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", DeprecationWarning)  # numpy < 2.3 only warned on bad text
-            return np.fromstring(text, dtype=np.int64 if integers else np.float32, sep=" ")
+            return np.fromstring(text, dtype=np.int64 if integers else np.float64, sep=" ")
     except (ValueError, DeprecationWarning):
         return None
 
@@ -167,17 +169,19 @@ def _vertex_lines(buf: np.ndarray, lay: _Lines):
     """(positions, v_line, texcoords, vt_line, normals, vn_line), or None."""
     sel = lay.is_v | lay.is_vt | lay.is_vn
     nv = (lay.ntok - 1)[sel]
-    vals = _values(buf, lay, sel, False) if sel.any() else np.zeros(0, np.float32)
-    if vals is None or len(vals) != nv.sum() or not np.isfinite(vals).all():
+    vals = _values(buf, lay, sel, False) if sel.any() else np.zeros(0, np.float64)
+    # finite in float32 too (the engine's type): anything else is left to the line reader's message
+    if vals is None or len(vals) != nv.sum() or not (np.abs(vals) <= _FLOAT32_MAX).all():
         return None
     offset = np.cumsum(nv) - nv
     line = lay.line[sel] + 1
     out = []
-    for kind, width in ((lay.is_v[sel], 3), (lay.is_vt[sel], 2), (lay.is_vn[sel], 3)):
+    for kind, width, dtype in ((lay.is_v[sel], 3, np.float64), (lay.is_vt[sel], 2, np.float32),
+                               (lay.is_vn[sel], 3, np.float32)):
         o = offset[kind]
-        cols = [vals[o + c] if c == 0 else np.where(nv[kind] > c, vals[np.minimum(o + c, len(vals) - 1)], np.float32(0))
+        cols = [vals[o + c] if c == 0 else np.where(nv[kind] > c, vals[np.minimum(o + c, len(vals) - 1)], 0.0)
                 for c in range(width)]
-        out += [np.stack(cols, axis=1).astype(np.float32).reshape(-1, width), line[kind]]
+        out += [np.stack(cols, axis=1).astype(dtype).reshape(-1, width), line[kind]]
     return tuple(out)
 
 

@@ -38,7 +38,7 @@ class RawObj:
     Every element carries its 1-based line number, which resolves relative indices and materials.
     """
 
-    positions: np.ndarray   # (V, 3) float32
+    positions: np.ndarray   # (V, 3) float64 (rounded to float32 only at upload)
     v_line: np.ndarray      # (V,) int64
     texcoords: np.ndarray   # (T, 2) float32
     vt_line: np.ndarray
@@ -49,7 +49,7 @@ class RawObj:
     corner_vn: np.ndarray   # (C,) int64, 0 = absent
     poly_size: np.ndarray   # (P,) int64, >= 3
     poly_line: np.ndarray   # (P,) int64
-    spheres: np.ndarray     # (S, 4) float32
+    spheres: np.ndarray     # (S, 4) float64
     sphere_line: np.ndarray
     usemtl: list[tuple[int, str]]
     mtllib: list[tuple[int, list[bytes]]]
@@ -135,14 +135,18 @@ class LineReader:
         """The accumulated statements as arrays."""
         corners = np.asarray(self.corners, dtype=np.int64).reshape(-1, 3)
         return RawObj(
-            positions=_f32(self.v, 3), v_line=_i64(self.v_line),
+            positions=_f64(self.v, 3), v_line=_i64(self.v_line),
             texcoords=_f32(self.vt, 2), vt_line=_i64(self.vt_line),
             normals=_f32(self.vn, 3), vn_line=_i64(self.vn_line),
             corner_v=corners[:, 0].copy(), corner_vt=corners[:, 1].copy(), corner_vn=corners[:, 2].copy(),
             poly_size=_i64(self.poly_size), poly_line=_i64(self.poly_line),
-            spheres=_f32(self.spheres, 4), sphere_line=_i64(self.sphere_line),
+            spheres=_f64(self.spheres, 4), sphere_line=_i64(self.sphere_line),
             usemtl=self.usemtl, mtllib=self.mtllib,
         )
+
+
+def _f64(values: list[float], width: int) -> np.ndarray:
+    return np.asarray(values, dtype=np.float64).reshape(-1, width)
 
 
 def _f32(values: list[float], width: int) -> np.ndarray:

@@ -140,10 +140,8 @@ def run_report(scene, camera, *, width: int, height: int, max_spp: int, referenc
 
 def parse_config(name: str) -> tuple[str, str, set[str]]:
     """``nee/sobol+adaptive`` -> ("nee", "sobol", {"adaptive"}); raises ValueError for unknown parts."""
-    from warp_spt.integrators import INTEGRATORS
-    from warp_spt.integrators import DEFAULT_INTEGRATOR
-    from warp_spt.samplers import DEFAULT_SAMPLER
-    from warp_spt.samplers import SAMPLERS
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
+    from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
 
     base, *mods = name.split("+")
     if base in MODIFIERS or base == "uniform":
@@ -157,10 +155,8 @@ def parse_config(name: str) -> tuple[str, str, set[str]]:
 
 def default_configs() -> list[str]:
     """Every integrator with every sampler, and the renderer's default pair with +adaptive."""
-    from warp_spt.integrators import INTEGRATORS
-    from warp_spt.integrators import DEFAULT_INTEGRATOR
-    from warp_spt.samplers import DEFAULT_SAMPLER
-    from warp_spt.samplers import SAMPLERS
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
+    from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
 
     pairs = [f"{i}/{s}" for i in sorted(INTEGRATORS) for s in sorted(SAMPLERS)]
     return pairs + [f"{DEFAULT_INTEGRATOR}/{DEFAULT_SAMPLER}+adaptive"]

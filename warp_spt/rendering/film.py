@@ -1,16 +1,12 @@
-"""The film (per-pixel float64 sample sums), tone maps, and image files written atomically.
+"""The film: per-pixel float64 sample sums, merged exactly (its files: :func:`Film.save`/``load``).
 
 Splitting and merging renders: a :class:`Film` stores per-pixel *sums* and the number of samples
 per pixel. Renders of disjoint sample ranges (``render(..., sample_offset=...)``) can be produced on
 different machines and merged with :meth:`Film.add`. Because every sample's random stream depends
 only on (seed, pixel, sample index), the merged result is deterministic; it is bit-for-bit identical
 to a single film that accumulated the same partial sums in the same order (float64 addition is not
-associative, so merge in a fixed order, e.g. by increasing sample offset).
-
-Tone maps: :func:`tonemap_seed` is the seed's curve (SEMANTICS §4) bit for bit, :func:`tonemap_srgb`
-the standard sRGB transfer function. File formats by extension: ``.png`` (8-bit, tone mapped),
-``.jpg`` (8-bit, tone mapped), ``.npy``, ``.pfm`` and ``.exr`` (float32 linear radiance; EXR needs the
-optional ``openexr`` package).
+associative, so merge in a fixed order, e.g. by increasing sample offset). Tone maps and image
+files are :mod:`warp_spt.io.images`.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ Nothing in this module imports Warp.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, make_dataclass
+from dataclasses import dataclass, field, make_dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -76,14 +76,14 @@ class ObjData:
     """One parsed OBJ file: a single object of the scene. All indices are 0-based and validated."""
 
     path: str
-    positions: np.ndarray        # (V, 3) float32
+    positions: np.ndarray        # (V, 3) float64 as written (rounded to float32 once, at upload)
     texcoords: np.ndarray        # (T, 2) float32 (u, v); a third vt component is dropped
     normals: np.ndarray          # (N, 3) float32
     faces: np.ndarray            # (F, 3) int32 into positions (polygons already triangulated)
     face_texcoords: np.ndarray   # (F, 3) int32 into texcoords, -1 where the corner has none
     face_normals: np.ndarray     # (F, 3) int32 into normals, -1 where the corner has none
     face_material: np.ndarray    # (F,) int32 into material_names
-    spheres: np.ndarray          # (S, 4) float32: cx, cy, cz, r (r > 0)
+    spheres: np.ndarray          # (S, 4) float64 as written: cx, cy, cz, r (r > 0)
     sphere_material: np.ndarray  # (S,) int32 into material_names
     material_names: list[str]    # names used by usemtl; index 0 is always CHECKER_NAME (the default)
     material_lines: list[int]    # line of the first usemtl naming each entry (0 for the default)
@@ -97,7 +97,7 @@ class MeshData:
     """The triangles of one OBJ file, in world space, ready for one ``wp.Mesh``."""
 
     name: str
-    positions: np.ndarray       # (V, 3) float32
+    positions: np.ndarray       # (V, 3) float64 (or float32), world space; see Scene.rounded
     indices: np.ndarray         # (F, 3) int32
     corner_uv: np.ndarray       # (F, 3, 2) float32, zeros where the OBJ gave none
     corner_normal: np.ndarray | None  # (F, 3, 3) float32 unit vectors, or None: flat shading
@@ -168,7 +168,7 @@ class Scene:
     """Everything the engine needs, as validated numpy arrays."""
 
     meshes: list[MeshData]
-    spheres: np.ndarray          # (S, 4) float32
+    spheres: np.ndarray          # (S, 4) float64 (or float32); see Scene.rounded
     sphere_material: np.ndarray  # (S,) int32 into materials
     materials: MaterialTable
     textures: list[np.ndarray]   # each (H, W, 3) float32 in [0, 1]; row 0 is the image's top row
@@ -181,21 +181,41 @@ class Scene:
     def num_triangles(self) -> int:
         return int(sum(len(m.indices) for m in self.meshes))
 
+    def rounded(self) -> "Scene":
+        """This scene as the float32 engine sees it: positions and spheres rounded to float32.
+
+        Positions stay float64 from the parser until the scene is recentred
+        (:func:`warp_spt.scene.recentre.recentre`), so a scene far from the origin is shifted before
+        anything is rounded; the upload (:class:`warp_spt.core.device_scene.DeviceScene`) rounds once,
+        here. Returns ``self`` when nothing needs rounding.
+        """
+        meshes = [m if m.positions.dtype == np.float32 else replace(m, positions=m.positions.astype(np.float32))
+                  for m in self.meshes]
+        spheres = self.spheres.astype(np.float32, copy=False)
+        if spheres is self.spheres and all(a is b for a, b in zip(meshes, self.meshes)):
+            return self
+        return replace(self, meshes=meshes, spheres=spheres)
+
     @property
     def bounds(self) -> np.ndarray:
-        """(2, 3) float64 world bounds of all geometry."""
+        """(2, 3) float64 world bounds of all geometry as the engine sees it (float32 coordinates)."""
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
         for m in self.meshes:
             if len(m.indices):
                 mask = np.zeros(len(m.positions), dtype=bool)
                 mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-                used = m.positions[mask]
+                used = _as_float32(m.positions[mask])
                 lo = np.minimum(lo, used.min(0))
                 hi = np.maximum(hi, used.max(0))
         if len(self.spheres):
-            c = self.spheres[:, :3].astype(np.float64)
-            r = self.spheres[:, 3:4].astype(np.float64)
+            s = _as_float32(self.spheres)
+            c, r = s[:, :3], s[:, 3:4]
             lo = np.minimum(lo, (c - r).min(0))
             hi = np.maximum(hi, (c + r).max(0))
         return np.stack([lo, hi])
+
+
+def _as_float32(a: np.ndarray) -> np.ndarray:
+    """``a`` rounded to float32 (what the engine stores), as float64 for exact host arithmetic."""
+    return a.astype(np.float32).astype(np.float64)

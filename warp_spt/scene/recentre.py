@@ -1,16 +1,8 @@
-"""Host-side view checks for users' own models: framing, probes, warnings and recentring.
+"""Scenes far from the origin: shifted to it in float64 before anything is rounded to float32.
 
-Everything here works on the numpy :class:`Scene` and a :class:`Camera`, before the engine sees
-them. Two small Warp kernels of this module's own do the geometric queries on a ``wp.Mesh`` per
-OBJ: :func:`probe` (one ray per probe pixel) and :func:`enclosing_object` (a winding number), so the
-checks cost about one scene upload (``benchmarks/bench_view_checks.py``).
-
-* :func:`frame_camera` (also ``Camera.frame(scene, up=...)``): a three-quarter view from the front,
-  the whole bounding box in view with a margin, focused at its centre, pinhole lens.
-* :func:`should_frame`: the CLI's rule for telling a user's model from the seed's setups.
-* :func:`view_warnings`: camera inside a closed mesh, camera sees no geometry, lens blur too large.
-* :func:`recentre` / :func:`render`: far-from-origin scenes are shifted to the origin in float64
-  before anything reaches the float32 engine.
+:func:`recentre` is called by every renderer on a host Scene (a DeviceScene is used as it is), so a
+scene 1e5 away renders like the same scene at the origin; :func:`describe_bounds` and
+:func:`format_point` print bounds and points the way the command line shows them.
 """
 
 from __future__ import annotations
@@ -59,7 +51,8 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
     """Shift a scene far from the origin (and its camera) so that its centre is at the origin.
 
     Returns (scene', camera', offset) with world = local + offset. The subtraction is done in float64
-    on the float32 positions, so the local coordinates are exact to float32 *relative to the scene's
+    on the positions as parsed (float64: nothing was rounded to float32 before), and the result is
+    rounded to float32 once, so the local coordinates are exact to float32 *relative to the scene's
     size*, not to its distance from the origin. Scenes whose centre lies within ``ratio`` times their
     size of the origin are returned unchanged (offset 0), so ordinary scenes render bit for bit as before.
     """
@@ -71,7 +64,7 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
         return scene, camera, np.zeros(3)
     meshes = [replace(m, positions=(m.positions.astype(np.float64) - centre).astype(np.float32))
               for m in scene.meshes]
-    spheres = scene.spheres.copy()
+    spheres = scene.spheres.astype(np.float32)
     if len(spheres):
         spheres[:, :3] = (scene.spheres[:, :3].astype(np.float64) - centre).astype(np.float32)
     moved = replace(scene, meshes=meshes, spheres=spheres)

@@ -29,16 +29,19 @@ from warp_spt.scene.model import (
 )
 
 _WHERE = "<scene>"
+COORDINATES = (np.float64, np.float32)   # parsed coordinates stay float64 until the upload rounds them
 
 
 def _fail(message: str) -> None:
     raise SceneError(_WHERE, 0, message)
 
 
-def _check_array(a: object, name: str, dtype: type, shape: tuple[int | None, ...]) -> np.ndarray:
-    """``a`` is an ndarray of ``dtype`` whose shape matches (None = any length), finite if float."""
-    if not isinstance(a, np.ndarray) or a.dtype != dtype:
-        _fail(f"{name} must be a numpy {np.dtype(dtype).name} array, got {getattr(a, 'dtype', type(a).__name__)}")
+def _check_array(a: object, name: str, dtype: type | tuple[type, ...], shape: tuple[int | None, ...]) -> np.ndarray:
+    """``a`` is an ndarray of ``dtype`` (or one of them) whose shape matches (None = any length), finite if float."""
+    dtypes = dtype if isinstance(dtype, tuple) else (dtype,)
+    if not isinstance(a, np.ndarray) or a.dtype not in dtypes:
+        want = " or ".join(np.dtype(d).name for d in dtypes)
+        _fail(f"{name} must be a numpy {want} array, got {getattr(a, 'dtype', type(a).__name__)}")
     if a.ndim != len(shape) or any(want is not None and got != want for got, want in zip(a.shape, shape)):
         want = ", ".join("N" if s is None else str(s) for s in shape)
         _fail(f"{name} must have shape ({want}), got {a.shape}")
@@ -54,7 +57,7 @@ def _check_index(a: np.ndarray, name: str, n: int) -> None:
 
 def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
     name = f"meshes[{k}] ({m.name})"
-    pos = _check_array(m.positions, f"{name}.positions", np.float32, (None, 3))
+    pos = _check_array(m.positions, f"{name}.positions", COORDINATES, (None, 3))
     idx = _check_array(m.indices, f"{name}.indices", np.int32, (None, 3))
     f = len(idx)
     _check_index(idx, f"{name}.indices", len(pos))
@@ -90,7 +93,7 @@ def _check_slots(tex: np.ndarray, n_textures: int, n_procedural: int) -> None:
 def validate_scene(scene: Scene) -> None:
     """Raise :class:`SceneError` unless every array of ``scene`` has its dtype, shape and range.
 
-    Checks: meshes (float32 finite positions, int32 indices in range, uv, unit normals, material
+    Checks: meshes (finite float64 or float32 positions, int32 indices in range, uv, unit normals, material
     rows), spheres (finite, radius > 0, material rows), the material table (row 0 is the checker,
     every column in its range of the material schema, texture slots valid), textures
     ((H, W, 3) float32 in [0, 1], non-empty), and that there is some geometry at all.
@@ -103,7 +106,7 @@ def validate_scene(scene: Scene) -> None:
             _fail(f"textures[{k}] must be a non-empty image with values in [0, 1]")
     for k, mesh in enumerate(scene.meshes):
         _check_mesh(k, mesh, n_mat)
-    spheres = _check_array(scene.spheres, "spheres", np.float32, (None, 4))
+    spheres = _check_array(scene.spheres, "spheres", COORDINATES, (None, 4))
     if (spheres[:, 3] <= 0).any():
         _fail("spheres must have a radius > 0")
     smat = _check_array(scene.sphere_material, "sphere_material", np.int32, (len(spheres),))

@@ -1,0 +1,77 @@
+"""The ``warp-spt`` command line that renders what the viewer shows, at a chosen size and spp.
+
+The numbers follow the README: ``-cam px py pz dx dy dz fov focus aperture`` (position, view
+*direction*, horizontal fov in degrees, focus distance, lens radius), Z up unless ``--up``. With
+``-cam`` given the command line never frames the scene itself, so the command reproduces the view
+exactly. Numbers are written with 9 significant digits: float32, which the renderer uses, needs
+that many to round-trip.
+"""
+
+from __future__ import annotations
+
+import shlex
+from dataclasses import dataclass
+from typing import Sequence
+
+SKY_FLAGS = {"blue": ["-sky", "0"], "gradient": ["-sky", "1"], "pink": ["-sky", "2"]}
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    """What the command renders besides the camera: scene files, size, samples and light transport.
+
+    ``sky`` is a key of SKY_FLAGS or None for a constant ``sky_color``.
+    """
+
+    objs: tuple[str, ...] = ()
+    mtls: tuple[str, ...] = ()
+    up: str = "z"
+    width: int = 512
+    height: int = 512
+    spp: int = 64
+    max_depth: int = 6
+    sky: str | None = "blue"
+    sky_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    integrator: str = "nee"
+    sampler: str = "sobol"
+    tonemap: str = "seed"
+    out: str = "view.png"
+
+
+def number(v: float) -> str:
+    """A float as the shortest text with 9 significant digits (``-0`` written as ``0``)."""
+    text = f"{float(v):.9g}"
+    return "0" if text == "-0" else text
+
+
+def cam_numbers(camera) -> list[str]:
+    """``-cam``'s nine operands of a :class:`warp_spt.Camera`."""
+    values = [*camera.position, *camera.direction, camera.fov, camera.focus, camera.aperture]
+    return [number(v) for v in values]
+
+
+def command_args(camera, spec: CommandSpec) -> list[str]:
+    """The command line as a list of arguments, starting with ``warp-spt``."""
+    args = ["warp-spt"]
+    for obj in spec.objs:
+        args += ["-obj", obj]
+    for mtl in spec.mtls:
+        args += ["-mtl", mtl]
+    args += ["-cam", *cam_numbers(camera)]
+    if spec.up != "z":
+        args += [f"--up={spec.up}"] if spec.up.startswith("-") else ["--up", spec.up]
+    args += ["-res", str(spec.width), str(spec.height), "-sr", str(spec.spp), "-depth", str(spec.max_depth)]
+    args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
+    args += ["--integrator", spec.integrator, "--sampler", spec.sampler]
+    if spec.out.lower().endswith((".png", ".jpg", ".jpeg")) and spec.tonemap != "seed":
+        args += ["--tonemap", spec.tonemap]
+    return args + ["-out", spec.out]
+
+
+def command_line(camera, spec: CommandSpec) -> str:
+    """:func:`command_args` quoted for a POSIX shell."""
+    return join(command_args(camera, spec))
+
+
+def join(args: Sequence[str]) -> str:
+    return " ".join(shlex.quote(a) for a in args)

@@ -1,0 +1,842 @@
+"""The viewer's state machine, shared by the browser and the Jupyter hosts.
+
+A :class:`Session` owns the scene, the orbit camera (:mod:`.navigation`), the render settings and
+one background render thread. A host passes it the front end's messages (:meth:`Session.handle`)
+and gets back JSON-able messages with binary buffers (frames, files) through listeners.
+
+How rendering stays responsive: every change bumps a version number. While the camera moves (a
+drag, or within SETTLE_SECONDS of the last change) the thread renders low-resolution 1-spp
+previews of the newest version; once it settles, it refines at full size pass by pass. A pass
+is cut into bands of rows (``render_scene(..., rows=...)``), each a fraction of a second, and the
+version is checked between bands: a new interaction abandons the pass within one band. Threads
+are never killed.
+
+How samples add up: the refined image is kept as BATCHES batch sums, as
+``warp_spt.render_progressive`` keeps them (docs/error.md): batch b renders with its own seed and
+continues its own sample sequence (``sample_offset``), so batches are independent and their spread
+gives each pixel's standard error, and the image is an exact float64 sum of the samples.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import tempfile
+import threading
+import time
+import traceback
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from . import display, navigation
+from .command import CommandSpec, command_line
+from .raycast import first_hit
+
+BATCHES = 8                  # independent sample streams of the refined image (error estimate)
+SETTLE_SECONDS = 0.25        # no change for this long: the camera has stopped, refine
+DRAG_TIMEOUT = 2.0           # a drag without events for this long has ended (a lost "interact" message)
+PASS_SECONDS = 0.5           # aim of a refine pass: the display updates about twice a second
+BAND_SECONDS = 0.12          # aim of one render call: the longest a new interaction waits
+PREVIEW_SPP = 1
+PREVIEW_SECONDS = 0.05       # a preview renders in this long at most (20 fps), shrinking if it must...
+MAX_PREVIEW_SHRINK = 2.0     # ...but to no less than half the preview_scale size per side
+MAX_PASS_SPP = 256
+SLOW_CALL_SECONDS = 1.0      # a render call this slow is compiling a kernel: say so on the page
+STUDIO_GREY = (0.35, 0.35, 0.35)   # the CLI's --studio sky, without its added geometry
+SKY_NAMES = ("blue", "gradient", "pink", "studio", "black", "color")
+DISPLAY_KEYS = ("exposure", "tonemap", "error_map")   # change the picture, not the render
+
+Listener = Callable[[dict, list], None]
+
+
+@dataclass(frozen=True)
+class ViewSettings:
+    """Everything the page can set besides the camera. ``sky`` is one of SKY_NAMES ("blue" is
+    the seed's BlackSky, ``-sky 0``); ``sky_color`` is the "color" sky's radiance; ``exposure``
+    is in stops; ``preview_scale`` divides the view size while the camera moves."""
+
+    width: int = 384
+    height: int = 288
+    integrator: str = "nee"
+    sampler: str = "sobol"
+    max_depth: int = 6
+    sky: str = "blue"
+    sky_color: tuple = (0.5, 0.5, 0.5)
+    max_spp: int = 1024
+    preview_scale: int = 4
+    exposure: float = 0.0
+    tonemap: str = "srgb"
+    error_map: bool = False
+
+
+def make_sky(settings: ViewSettings):
+    """The :class:`warp_spt.Sky` the settings name."""
+    from warp_spt import Sky
+
+    return {"blue": Sky.black, "gradient": Sky.gradient, "pink": Sky.pink,
+            "studio": lambda: Sky.constant(*STUDIO_GREY), "black": lambda: Sky.constant(0.0, 0.0, 0.0),
+            "color": lambda: Sky.constant(*settings.sky_color)}[settings.sky]()
+
+
+def sky_command(settings: ViewSettings) -> tuple[str | None, tuple]:
+    """(-sky name or None, --sky-color value) for :class:`.command.CommandSpec`."""
+    if settings.sky in ("blue", "gradient", "pink"):
+        return settings.sky, (0.0, 0.0, 0.0)
+    return None, make_sky(settings).color
+
+
+def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
+    """``settings`` with ``key`` set to ``value`` converted to the field's type; ValueError if invalid."""
+    import warp_spt
+
+    kinds = {f.name: f.type for f in fields(ViewSettings)}
+    if key not in kinds:
+        raise ValueError(f"unknown setting {key!r}")
+    current = getattr(settings, key)
+    if isinstance(current, bool):
+        value = bool(value)
+    elif isinstance(current, tuple):
+        value = tuple(float(v) for v in value)
+    else:
+        value = type(current)(value)
+    choices = {"integrator": warp_spt.INTEGRATORS, "sampler": warp_spt.SAMPLERS, "sky": SKY_NAMES,
+               "tonemap": ("srgb", "seed")}
+    if key in choices and value not in choices[key]:
+        raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
+    limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, 4096), "max_spp": (1, 1 << 20),
+              "preview_scale": (1, 16), "exposure": (-20.0, 20.0)}
+    if key in limits and not limits[key][0] <= value <= limits[key][1]:
+        raise ValueError(f"{key} must lie in [{limits[key][0]}, {limits[key][1]}], got {value}")
+    if key == "sky_color":
+        warp_spt.Sky.constant(*value)          # Sky validates a colour (ValueError)
+    return replace(settings, **{key: value})
+
+
+def preview_size(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int]:
+    """The preview's size: the view's divided by ``preview_scale``, or by up to MAX_PREVIEW_SHRINK
+    times more where that is more than ``budget`` pixels (what renders in PREVIEW_SECONDS); the same
+    factor on both axes (the page stretches it over the view), no side below ``smallest`` pixels."""
+    f = float(settings.preview_scale)
+    if budget:
+        f = min(max(f, math.sqrt(settings.width * settings.height / budget)), MAX_PREVIEW_SHRINK * f)
+    f = max(1.0, min(f, min(settings.width, settings.height) / smallest))
+    return max(1, round(settings.width / f)), max(1, round(settings.height / f))
+
+
+def batch_seed(seed: int, batch: int) -> int:
+    """A distinct 32-bit seed per batch (any distinct seeds give independent scrambles)."""
+    return (seed * 0x9E3779B1 + (batch + 1) * 0x85EBCA77) & 0xFFFFFFFF
+
+
+class Accumulator:
+    """The refined image of one version: per-batch float64 sums and sample counts.
+
+    Every pass covers every pixel, so a batch's count is the same for all pixels. Passes go in
+    rounds, one pass per batch with the same samples each (:meth:`pass_spp`), so after every round
+    the batches are equal in size: their means are then identically distributed whatever the
+    sampler does within a batch, and their spread is an unbiased estimate of the error."""
+
+    def __init__(self, version: int, height: int, width: int, batches: int = BATCHES, seed: int = 0):
+        self.version, self.height, self.width = version, height, width
+        self.sums = np.zeros((batches, height, width, 3), dtype=np.float64)
+        self.counts = np.zeros(batches, dtype=np.int64)
+        self.seeds = [batch_seed(seed, b) for b in range(batches)]
+        self.passes = 0
+        self.seconds = 0.0
+        self.round_spp = 1
+
+    @property
+    def spp(self) -> int:
+        return int(self.counts.sum())
+
+    @property
+    def next_batch(self) -> int:
+        return self.passes % len(self.counts)
+
+    def pass_spp(self, wanted: int, max_spp: int) -> int:
+        """Samples for the next pass: chosen at the start of a round (1 in the first, so an image
+        and then an error estimate appear at once; later ``wanted``), and no more than keeps the
+        rest of ``max_spp`` a whole number of rounds, so a multiple of the batch count ends equal."""
+        batches = len(self.counts)
+        if self.next_batch == 0 and self.passes > 0:
+            self.round_spp = max(1, min(wanted, (max_spp - self.spp) // batches))
+        return max(1, min(self.round_spp, max_spp - self.spp))
+
+    def add(self, batch: int, sums: np.ndarray, spp: int, seconds: float) -> None:
+        """A finished pass: ``spp`` more samples of batch ``batch`` in every pixel."""
+        self.sums[batch] += sums
+        self.counts[batch] += spp
+        self.passes += 1
+        self.seconds += seconds
+
+    def statistics(self) -> tuple[np.ndarray, np.ndarray]:
+        """(mean image, standard error of each pixel's mean), float32 (H, W, 3).
+
+        The variance of the mean is the between-batch mean square sum_b n_b (m_b - m)^2 / (k - 1)
+        over the k batches with samples, divided by the pixel's n samples; NaN while k < 2."""
+        n = self.counts.astype(np.float64)
+        used = n > 0
+        total = n.sum()
+        mean = self.sums.sum(axis=0) / max(total, 1.0)
+        k = int(used.sum())
+        if k < 2:
+            return mean.astype(np.float32), np.full(mean.shape, np.nan, dtype=np.float32)
+        mb = self.sums[used] / n[used, None, None, None]
+        between = (n[used, None, None, None] * (mb - mean) ** 2).sum(axis=0) / (k - 1)
+        return mean.astype(np.float32), np.sqrt(between / total).astype(np.float32)
+
+
+@dataclass
+class _Shown:
+    """The last picture published: enough to redraw it with other display settings."""
+
+    image: np.ndarray
+    std_error: np.ndarray | None
+    meta: dict
+
+
+class Session:
+    """One interactive view of a scene: camera, settings, a render thread, messages in and out.
+
+    ``scene`` is a :class:`warp_spt.Scene`; or give ``loader`` (a function returning one, such as
+    ``lambda: warp_spt.load_scene(objs, mtls)``), which is called on the render thread and again
+    on "reload": a :class:`warp_spt.SceneError` is then shown on the page. ``camera`` defaults to
+    the seed's camera for the built-in demo (``objs`` empty) and to ``Camera.frame`` otherwise.
+    ``objs``/``mtls`` are the file names the copied command line names; ``up`` the world's up
+    axis ("z" or "y"...). ``settings`` are :class:`ViewSettings` fields.
+    """
+
+    def __init__(self, scene=None, camera=None, *, loader: Callable | None = None, objs: Sequence[str] = (),
+                 mtls: Sequence[str] = (), up: str | None = None, start: bool = True, **settings):
+        if scene is None and loader is None:
+            raise ValueError("give a scene or a loader")
+        self.objs, self.mtls = tuple(map(str, objs)), tuple(map(str, mtls))
+        self._cond = threading.Condition()
+        self._settings = ViewSettings(**settings)
+        self._given_camera = camera
+        self._up = up or _axis_name(camera.up if camera is not None else (0.0, 0.0, 1.0))
+        # the scene is read (loader) and uploaded on the render thread, so a host starts at once;
+        # material edits write through to the host scene, so a given one is copied, never changed
+        self._loader = loader or (lambda: copy.deepcopy(scene))
+        self._can_reload = loader is not None
+        self._scene = self._params = None
+        self._rig = self._home = None
+        self._version = self._preview_version = 0
+        self._last_change, self._interacting = time.monotonic(), False
+        self._pending: dict = {}
+        self._edits: set[str] = set()    # parameters changed on the page (not on the command line)
+        self._failed_version = -1        # a version whose render failed: not retried until a change
+        self._reload = True
+        self._error: str | None = None
+        self._acc: Accumulator | None = None
+        self._shown: _Shown | None = None
+        self._frame: tuple[dict, list] | None = None
+        self._rate = 0.0                 # pixel-samples per second of the last render calls
+        self._preview_rate = 0.0         # ... of the last previews (overheads weigh more there)
+        self._preview_times: list[float] = []
+        self._listeners: list[Listener] = []
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name="warp_spt-viewer", daemon=True)
+        if start:
+            self._thread.start()
+
+    # ------------------------------------------------------------------ public surface
+    @property
+    def camera(self):
+        """The current view as a :class:`warp_spt.Camera` (None before the scene is loaded)."""
+        with self._cond:
+            return None if self._rig is None else rig_camera(self._rig)
+
+    @property
+    def settings(self) -> ViewSettings:
+        return self._settings
+
+    @property
+    def version(self) -> int:
+        """Counts the changes that restart the render; every frame message carries the one it shows."""
+        return self._version
+
+    @property
+    def error(self) -> str | None:
+        """The scene's or the last render's error message, shown on the page; None if all is well."""
+        return self._error
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call ``listener(message, buffers)`` for every message to the front ends."""
+        with self._cond:
+            self._listeners.append(listener)
+
+    def remove_listener(self, listener: Listener) -> None:
+        with self._cond:
+            if listener in self._listeners:
+                self._listeners.remove(listener)
+
+    def handle(self, msg: dict, buffers: Sequence = (), reply: Listener | None = None) -> None:
+        """Act on one message of a front end (see docs/viewer.md for the protocol). ``reply`` gets the
+        answers meant for that front end only (state, files, the command line); by default every
+        listener does. An invalid request is answered with a "notice" message, never raised."""
+        reply = reply or self._broadcast
+        handler = getattr(self, f"_on_{msg.get('type', '')}", None)
+        if handler is None:
+            reply({"type": "notice", "level": "error", "text": f"unknown message {msg.get('type')!r}"}, [])
+            return
+        try:
+            handler(msg, reply)
+        except (ValueError, TypeError, KeyError) as err:      # a bad request or value
+            reply({"type": "notice", "level": "error", "text": str(err)}, [])
+        except Exception as err:       # a bug: shown on the page, the connection stays up
+            if os.environ.get("WARP_SPT_TRACEBACK"):
+                traceback.print_exc()
+            reply({"type": "notice", "level": "error", "text": f"{type(err).__name__}: {err}"}, [])
+
+    def result(self):
+        """The refined image so far as a :class:`warp_spt.RenderResult` (image, per-pixel
+        ``std_error``, ``spp``, ``relative_error``, per-batch ``sums``/``counts``), or None."""
+        with self._cond:
+            acc = self._acc
+            if acc is None or acc.spp == 0:
+                return None
+            return _result(acc, self._settings, make_sky(self._settings))
+
+    def wait_for(self, spp: int = 1, timeout: float = 60.0):
+        """Block until the current view is refined to at least ``spp`` samples per pixel; returns
+        :meth:`result`. Raises TimeoutError (or RuntimeError with the page's error message)."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not (self._acc is not None and self._acc.version == self._version and self._acc.spp >= spp):
+                if self._error and self._scene is None:
+                    raise RuntimeError(self._error)
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"the view did not reach {spp} spp in {timeout} s")
+                self._cond.wait(min(left, 0.5))
+        return self.result()
+
+    def command_line(self, width: int | None = None, height: int | None = None, spp: int = 64,
+                     out: str = "view.png") -> str:
+        """The ``warp-spt`` command that renders the current view at ``width`` x ``height``
+        (default: the view's size; one given alone keeps the view's aspect) with ``spp`` samples."""
+        s = self._settings
+        if width and not height:
+            height = max(1, round(width * s.height / s.width))
+        elif height and not width:
+            width = max(1, round(height * s.width / s.height))
+        sky, colour = sky_command(s)
+        spec = CommandSpec(self.objs, self.mtls, self._up, int(width or s.width), int(height or s.height),
+                           int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out)
+        camera = self.camera
+        if camera is None:
+            raise ValueError("the scene is not loaded yet")
+        return command_line(camera, spec)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the refined image: .png/.jpg tone mapped as shown (exposure included), .npy, .pfm
+        and .exr linear (exposure not applied), through :func:`warp_spt.save_image`."""
+        import warp_spt
+
+        res = self.result()
+        if res is None:
+            raise ValueError("nothing is rendered yet")
+        s = self._settings
+        image = res.image
+        if Path(path).suffix.lower() in (".png", ".jpg", ".jpeg"):
+            image = display.exposed(image, s.exposure)
+        warp_spt.save_image(path, image, tonemap=s.tonemap)
+
+    def close(self, timeout: float = 10.0) -> None:
+        """Stop the render thread (it finishes the band it is rendering) and drop the listeners."""
+        with self._cond:
+            self._closed = True
+            self._listeners.clear()
+            self._cond.notify_all()
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout)
+
+    def state(self) -> dict:
+        """The "state" message: settings, choices, material parameters, error, files."""
+        import warp_spt
+
+        with self._cond:
+            return {"type": "state", "settings": asdict(self._settings), "up": self._up,
+                    "integrators": sorted(warp_spt.INTEGRATORS), "samplers": sorted(warp_spt.SAMPLERS),
+                    "skies": list(SKY_NAMES), "params": self._param_list(), "error": self._error,
+                    "loading": self._scene is None and self._error is None, "can_reload": self._can_reload,
+                    "objs": list(self.objs), "mtls": list(self.mtls), "formats": save_formats(),
+                    "camera": None if self._rig is None else camera_info(self._rig)}
+
+    def preview_fps(self) -> float:
+        """Previews rendered per second over the last drag (render time only, no transport)."""
+        times = self._preview_times[-20:]
+        return 0.0 if len(times) < 2 else (len(times) - 1) / max(times[-1] - times[0], 1e-9)
+
+    # ------------------------------------------------------------------ messages
+    def _on_hello(self, msg, reply) -> None:
+        reply(self.state(), [])
+        if self._frame is not None:
+            reply(*self._frame)
+
+    def _on_interact(self, msg, reply) -> None:
+        with self._cond:
+            self._interacting = bool(msg.get("active"))
+            self._last_change = time.monotonic()
+            self._cond.notify_all()
+
+    def _on_orbit(self, msg, reply) -> None:
+        self._navigate(lambda rig: navigation.orbit(rig, float(msg["dx"]), float(msg["dy"])))
+
+    def _on_pan(self, msg, reply) -> None:
+        aspect = self._settings.width / self._settings.height
+        self._navigate(lambda rig: navigation.pan(rig, float(msg["dx"]), float(msg["dy"]), aspect))
+
+    def _on_dolly(self, msg, reply) -> None:
+        self._navigate(lambda rig: navigation.dolly(rig, float(msg["steps"]), 1e-6 * self._scene_size()))
+
+    def _on_zoom(self, msg, reply) -> None:
+        self._navigate(lambda rig: navigation.zoom(rig, float(msg["steps"])))
+
+    def _on_pick(self, msg, reply) -> None:
+        rig, scene = self._rig, self._scene
+        if rig is None or scene is None:
+            return
+        s = self._settings
+        d = navigation.pixel_ray(rig, float(msg["x"]), float(msg["y"]), s.width / s.height)
+        t = first_hit(scene, rig.position, d)
+        if t is None:
+            reply({"type": "notice", "level": "info", "text": "nothing there: the orbit target is unchanged"}, [])
+            return
+        self._navigate(lambda r: navigation.retarget(r, r.position + d * t))
+
+    def _on_frame(self, msg, reply) -> None:
+        if self._scene is not None:
+            self._set_rig(self._framed(self._up))
+
+    def _on_reset(self, msg, reply) -> None:
+        with self._cond:
+            if self._home is None:
+                return
+            rig, self._up = self._home
+        self._set_rig(rig)
+
+    def _on_up(self, msg, reply) -> None:
+        axis = str(msg["axis"])
+        if axis not in ("x", "y", "z", "-x", "-y", "-z"):
+            raise ValueError(f"up axis must be x, y or z (or negated), got {axis!r}")
+        if self._scene is None:
+            return
+        with self._cond:
+            self._up = axis
+        self._set_rig(self._framed(axis))
+        reply(self.state(), [])
+
+    def _on_set(self, msg, reply) -> None:
+        key, value = msg["key"], msg["value"]
+        if key in ("fov", "aperture"):
+            self._navigate(lambda rig: navigation.with_fov(rig, float(value)) if key == "fov"
+                           else replace(rig, aperture=_non_negative(value, "aperture")))
+            return
+        with self._cond:
+            self._settings = checked_settings(self._settings, key, value)
+            if key not in DISPLAY_KEYS:
+                self._changed()
+        if key in DISPLAY_KEYS:
+            self._redraw()
+        self._broadcast(self.state(), [])
+
+    def _on_param(self, msg, reply) -> None:
+        name = str(msg["name"])
+        with self._cond:
+            if self._params is None or name not in self._params:
+                raise KeyError(f"no parameter {name!r}")
+            self._pending[name] = msg["value"]      # applied on the render thread, between renders
+            self._changed()
+
+    def _on_command(self, msg, reply) -> None:
+        text = self.command_line(msg.get("width"), msg.get("height"), int(msg.get("spp", 64)),
+                                 str(msg.get("out") or "view.png"))
+        notes = []
+        if self._edits:
+            notes.append("edited material values are not on the command line: write them into the MTL file")
+        if self._settings.exposure:
+            notes.append("the exposure is not on the command line (it scales the image by 2^exposure)")
+        reply({"type": "command", "text": text, "notes": notes}, [])
+
+    def _on_save(self, msg, reply) -> None:
+        fmt = str(msg.get("format", "png")).lower()
+        if fmt not in save_formats():
+            raise ValueError(f"cannot save as {fmt!r}; choose from {', '.join(save_formats())}")
+        res = self.result()
+        if res is None:
+            raise ValueError("nothing is rendered yet: wait for the first refined pass")
+        name = f"view_{res.spp_total}spp.{fmt}"
+        with tempfile.TemporaryDirectory() as tmp:
+            self.save(Path(tmp) / name)
+            data = (Path(tmp) / name).read_bytes()
+        reply({"type": "file", "name": name, "mime": _MIME.get(fmt, "application/octet-stream")}, [data])
+
+    def _on_reload(self, msg, reply) -> None:
+        if not self._can_reload:
+            raise ValueError("this view was given a scene object, not files: nothing to reload")
+        with self._cond:
+            self._reload = True
+            self._error = None
+            self._cond.notify_all()
+        self._broadcast(self.state(), [])
+
+    # ------------------------------------------------------------------ camera helpers
+    def _navigate(self, op: Callable) -> None:
+        """Apply a navigation step; one that would give an invalid camera is ignored."""
+        with self._cond:
+            if self._rig is None:
+                return
+            rig = op(self._rig)
+            rig_camera(rig)          # raises ValueError for a camera the renderer refuses
+            self._rig = rig
+            self._changed()
+
+    def _set_rig(self, rig) -> None:
+        self._navigate(lambda _: rig)
+
+    def _framed(self, up: str):
+        from warp_spt import Camera
+
+        s = self._settings
+        # called on a camera, frame() takes it as the template: the current fov is kept
+        template = Camera if self._rig is None else rig_camera(self._rig)
+        cam = template.frame(self._scene, up=up, aspect=s.width / s.height)
+        return navigation.rig_from_view(cam.position, cam.direction, cam.up, cam.focus, fov=cam.fov,
+                                        aperture=cam.aperture)
+
+    def _initial_rig(self):
+        """The given camera with its pivot at the scene centre's depth, or the default view."""
+        from warp_spt import Camera
+
+        cam = self._given_camera
+        if cam is None and not self.objs and self._up == "z":
+            cam = Camera()                  # the built-in demo keeps the seed's camera, as the CLI does
+        if cam is None:
+            return self._framed(self._up)
+        centre = self._scene.bounds.mean(axis=0)
+        d = np.asarray(cam.direction, dtype=np.float64) / np.linalg.norm(cam.direction)
+        depth = float(np.dot(centre - np.asarray(cam.position), d))
+        return navigation.rig_from_view(cam.position, d, cam.up, depth if depth > 0 else cam.focus,
+                                        fov=cam.fov, aperture=cam.aperture, focus=cam.focus)
+
+    def _scene_size(self) -> float:
+        scene = self._scene
+        return 1.0 if scene is None else float(np.linalg.norm(np.ptp(scene.bounds, axis=0))) or 1.0
+
+    def _changed(self) -> None:
+        """Call with the lock held: a render-affecting change."""
+        self._version += 1
+        self._last_change = time.monotonic()
+        self._cond.notify_all()
+
+    def _param_list(self) -> list[dict]:
+        """Colours and numbers of materials and procedural textures, for the page's editors."""
+        p = self._params
+        if p is None:
+            return []
+        out = []
+        for name in p.names():
+            info = p.info(name)
+            if info.kind in ("material", "proc") and info.shape in ((3,), ()):
+                value = p[name]
+                out.append({"name": name, "group": name.split(".")[0], "field": name.split(".", 1)[1],
+                            "kind": "color" if info.shape == (3,) else "number",
+                            "value": [float(v) for v in value] if info.shape else float(value)})
+        return out
+
+    # ------------------------------------------------------------------ the render thread
+    def _run(self) -> None:
+        while True:
+            job = self._next_job()
+            if job is None:
+                return
+            try:
+                job()
+            except Exception as err:      # shown on the page; the thread waits for the next change
+                if os.environ.get("WARP_SPT_TRACEBACK"):
+                    traceback.print_exc()
+                self._fail(f"{type(err).__name__}: {err}" if not _is_scene_error(err) else str(err))
+
+    def _next_job(self) -> Callable | None:
+        """What to do next, waiting until there is something; None when closed."""
+        with self._cond:
+            while not self._closed:
+                if self._reload:
+                    self._reload = False
+                    return self._load
+                if self._scene is None or self._rig is None:
+                    self._cond.wait()
+                    continue
+                if self._pending:
+                    return self._apply_params
+                job, wait = self._choose()
+                if job is not None:
+                    return job
+                self._cond.wait(wait)
+            return None
+
+    def _choose(self) -> tuple[Callable | None, float | None]:
+        """(job, None) or (None, seconds to wait; None: until notified). Lock held."""
+        if self._failed_version == self._version:
+            return None, None
+        quiet = time.monotonic() - self._last_change
+        moving = quiet < SETTLE_SECONDS or (self._interacting and quiet < DRAG_TIMEOUT)
+        if moving:
+            if self._preview_version != self._version:
+                return self._preview, None
+            return None, (SETTLE_SECONDS - quiet if quiet < SETTLE_SECONDS else DRAG_TIMEOUT - quiet)
+        s = self._settings
+        if self._acc is None or self._acc.version != self._version or (self._acc.height, self._acc.width) != (s.height, s.width):
+            self._acc = Accumulator(self._version, s.height, s.width)
+        if self._acc.spp < s.max_spp:
+            return self._refine, None
+        return None, None
+
+    def _snapshot(self):
+        with self._cond:
+            return self._version, self._settings, rig_camera(self._rig), self._params.scene
+
+    def _preview(self) -> None:
+        import warp_spt
+
+        version, s, camera, dev = self._snapshot()
+        w, h = preview_size(s, PREVIEW_SECONDS * self._preview_rate)
+        rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth, sky=make_sky(s),
+                                     integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
+        start = time.perf_counter()
+        res = self._timed(warp_spt.render_scene, dev, camera, rs)
+        seconds = time.perf_counter() - start
+        self._measure(w * h * PREVIEW_SPP, seconds)
+        rate = w * h * PREVIEW_SPP / max(seconds, 1e-9)
+        self._preview_rate = rate if not self._preview_rate else 0.5 * self._preview_rate + 0.5 * rate
+        with self._cond:
+            self._preview_version = version
+            self._preview_times = [t for t in self._preview_times[-40:] if time.monotonic() - t < 2.0]
+            self._preview_times.append(time.monotonic())
+        self._show(res.image, None, {"mode": "preview", "spp": PREVIEW_SPP, "error": None,
+                                     "rate": w * h * PREVIEW_SPP / max(seconds, 1e-9), "fps": self.preview_fps(),
+                                     "size": [w, h]}, version)
+
+    def _refine(self) -> None:
+        """One pass: ``spp`` more samples of one batch in every pixel, rendered in bands of rows."""
+        import warp_spt
+
+        version, s, camera, dev = self._snapshot()
+        acc = self._acc
+        b, n = acc.next_batch, s.width * s.height
+        spp = acc.pass_spp(min(MAX_PASS_SPP, int(PASS_SECONDS * self._rate / n)), s.max_spp)
+        band = max(1, int(BAND_SECONDS * max(self._rate, 1.0) / (s.width * spp))) if self._rate > 0 else 8
+        rs = warp_spt.RenderSettings(width=s.width, height=s.height, spp=spp, max_depth=s.max_depth,
+                                     sky=make_sky(s), integrator=s.integrator, sampler=s.sampler,
+                                     seed=acc.seeds[b], sample_offset=int(acc.counts[b]),
+                                     tile_pixels=_tile(min(band, s.height) * s.width))
+        sums = np.empty((s.height, s.width, 3))
+        start = time.perf_counter()
+        for r0 in range(0, s.height, band):
+            if self._version != version or self._closed:
+                return                      # abandoned: the view changed
+            r1 = min(s.height, r0 + band)
+            t0 = time.perf_counter()
+            res = self._timed(warp_spt.render_scene, dev, camera, rs, rows=(r0, r1))
+            self._measure((r1 - r0) * s.width * spp, time.perf_counter() - t0)
+            sums[r0:r1] = res.film.sum
+        with self._cond:
+            if self._version != version or acc is not self._acc:
+                return
+            acc.add(b, sums, spp, time.perf_counter() - start)
+            mean, se = acc.statistics()
+            self._cond.notify_all()
+        self._show(mean, se, {"mode": "refine", "spp": acc.spp, "error": _finite(warp_spt.relative_error(se, mean)),
+                              "rate": acc.spp * n / max(acc.seconds, 1e-9), "passes": acc.passes,
+                              "size": [s.width, s.height]}, version)
+
+    def _timed(self, call: Callable, *args, **kw):
+        """Run a render call; if it is slow (a kernel compiling), tell the page while it runs."""
+        timer = threading.Timer(SLOW_CALL_SECONDS, lambda: self._broadcast(
+            {"type": "status", "text": "compiling the render kernel for these settings (first time only)..."}, []))
+        timer.daemon = True
+        timer.start()
+        try:
+            return call(*args, **kw)
+        finally:
+            timer.cancel()
+
+    def _measure(self, samples: int, seconds: float) -> None:
+        rate = samples / max(seconds, 1e-9)
+        self._rate = rate if self._rate <= 0 else 0.7 * self._rate + 0.3 * rate
+
+    def _apply_params(self) -> None:
+        """Material edits change the uploaded scene: done here, never while a render runs."""
+        with self._cond:
+            pending, self._pending = self._pending, {}
+        for name, value in pending.items():
+            try:
+                self._params[name] = value
+                self._edits.add(name)
+            except (ValueError, TypeError) as err:
+                self._broadcast({"type": "notice", "level": "error", "text": str(err)}, [])
+        with self._cond:
+            self._changed()
+        self._broadcast(self.state(), [])
+
+    def _load(self) -> None:
+        """(Re)load the scene from the loader; on success keep the view (or make the first one)."""
+        import warp_spt
+
+        self._broadcast(self.state(), [])
+        try:
+            scene = self._loader()
+        except Exception as err:
+            self._fail(str(err) if _is_scene_error(err) else f"{type(err).__name__}: {err}", scene_lost=True)
+            return
+        params = warp_spt.parameters(scene)        # uploads the scene once; edits go through it
+        with self._cond:
+            self._scene, self._params, self._error, self._edits = scene, params, None, set()
+            self._pending.clear()
+            if self._rig is None:
+                self._rig = self._initial_rig()
+                self._home = (self._rig, self._up)
+            self._changed()
+        self._broadcast(self.state(), [])
+
+    def _fail(self, text: str, scene_lost: bool = False) -> None:
+        with self._cond:
+            self._error = text
+            if scene_lost:
+                self._scene = self._params = None
+            self._failed_version = self._version      # no retry until something changes
+        self._broadcast(self.state(), [])
+
+    # ------------------------------------------------------------------ publishing
+    def _show(self, image: np.ndarray, std_error, meta: dict, version: int) -> None:
+        with self._cond:
+            if version != self._version and meta["mode"] == "refine":
+                return
+            meta = {**meta, "camera": camera_info(self._rig), "view": [self._settings.width, self._settings.height],
+                    "version": version}
+            self._shown = _Shown(image, std_error, meta)
+            cleared, self._error = self._error is not None, None     # a render worked: the error is past
+        if cleared:
+            self._broadcast(self.state(), [])
+        self._redraw()
+
+    def _redraw(self) -> None:
+        """Encode the last picture with the current display settings and send it."""
+        shown, s = self._shown, self._settings
+        if shown is None:
+            return
+        if s.error_map and shown.std_error is not None:
+            rgb = display.error_colours(display.relative_map(shown.std_error, shown.image))
+        else:
+            rgb = display.tonemapped(shown.image, s.exposure, s.tonemap)
+        msg = {"type": "frame", **shown.meta, "error_map": bool(s.error_map and shown.std_error is not None),
+               "error_range": list(display.ERROR_MAP_RANGE)}
+        frame = (msg, [display.encode(rgb)])
+        self._frame = frame
+        self._broadcast(*frame)
+
+    def _broadcast(self, msg: dict, buffers: list) -> None:
+        with self._cond:
+            listeners = list(self._listeners)
+        for listener in listeners:
+            listener(msg, buffers)
+
+
+def open_session(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[str] = (), **kw):
+    """A :class:`Session` of ``scene``, or of the files (the built-in demo when ``objs`` is empty),
+    loaded on the render thread so that a bad file is reported on the page."""
+    if scene is not None:
+        return Session(scene, camera, objs=objs, mtls=mtls, **kw)
+    return Session(camera=camera, loader=file_loader(objs, mtls), objs=objs, mtls=mtls, **kw)
+
+
+def file_loader(objs: Sequence[str], mtls: Sequence[str]):
+    """A function loading the files as the command line does (``default_material="auto"``)."""
+    def load():
+        import warp_spt
+        from warp_spt.demo import demo_files
+
+        files = (list(objs), list(mtls)) if objs else demo_files()
+        return warp_spt.load_scene(*files, default_material="auto")
+    return load
+
+
+# ---------------------------------------------------------------------- helpers
+_MIME = {"png": "image/png", "exr": "image/x-exr", "npy": "application/octet-stream", "pfm": "image/x-pfm"}
+
+
+def save_formats() -> list[str]:
+    """What "save image" offers: PNG, linear NPY and PFM, and EXR when OpenEXR is installed."""
+    import importlib.util
+
+    return ["png"] + (["exr"] if importlib.util.find_spec("OpenEXR") else []) + ["npy", "pfm"]
+
+
+def rig_camera(rig: navigation.Rig):
+    """The :class:`warp_spt.Camera` of a rig (validated: ValueError for one the renderer refuses)."""
+    from warp_spt import Camera
+
+    return Camera.look_at(rig.position, rig.target, up=rig.up, fov=rig.fov, aperture=rig.aperture,
+                          focus=rig.focus_distance)
+
+
+def camera_info(rig: navigation.Rig) -> dict:
+    cam = rig_camera(rig)
+    return {"position": list(cam.position), "direction": list(cam.direction), "target": rig.target.tolist(),
+            "fov": cam.fov, "focus": cam.focus, "aperture": cam.aperture}
+
+
+def _result(acc: Accumulator, s: ViewSettings, sky):
+    """A :class:`warp_spt.RenderResult` of an accumulation (lock held)."""
+    import warp_spt
+
+    mean, se = acc.statistics()
+    h, w = mean.shape[:2]
+    stats = warp_spt.RenderStats(integrator=s.integrator, sampler=s.sampler, seconds=acc.seconds,
+                                 passes=acc.passes, pixel_samples=acc.spp * h * w, render_seconds=acc.seconds,
+                                 stopped_by="callback")
+    settings = warp_spt.RenderSettings(width=w, height=h, spp=acc.spp, max_depth=s.max_depth, sky=sky,
+                                       integrator=s.integrator, sampler=s.sampler)
+    counts = np.broadcast_to(acc.counts[:, None, None], (len(acc.counts), h, w)).copy()
+    return warp_spt.RenderResult(warp_spt.Film(acc.sums.sum(axis=0), acc.spp), stats, settings, mean, se,
+                                 np.full((h, w), acc.spp, dtype=np.int64), warp_spt.relative_error(se, mean),
+                                 acc.sums.copy(), counts)
+
+
+def _tile(pixels: int) -> int:
+    """Tile size that gives every core two tiles of a small render (the default 4096 would leave
+    a 128x96 preview on three tiles)."""
+    threads = os.cpu_count() or 1
+    return max(256, min(4096, math.ceil(pixels / (2 * threads))))
+
+
+def _axis_name(up) -> str:
+    v = tuple(float(x) for x in up)
+    names = {(1.0, 0.0, 0.0): "x", (0.0, 1.0, 0.0): "y", (0.0, 0.0, 1.0): "z",
+             (-1.0, 0.0, 0.0): "-x", (0.0, -1.0, 0.0): "-y", (0.0, 0.0, -1.0): "-z"}
+    if v not in names:
+        raise ValueError(f"the viewer needs an up axis along x, y or z, got {up!r}")
+    return names[v]
+
+
+def _non_negative(value, what: str) -> float:
+    v = float(value)
+    if not (math.isfinite(v) and v >= 0):
+        raise ValueError(f"{what} must be a number >= 0, got {value!r}")
+    return v
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _is_scene_error(err: BaseException) -> bool:
+    import warp_spt
+
+    return isinstance(err, warp_spt.SceneError)

@@ -215,7 +215,7 @@ def test_save_gif_writes_every_frame(tmp_path):
     (["-obj", "w_{frame}.obj", "--frames", "0:4", "-out", "one.png"], r"put \{frame\} in the name"),
     (["--frames", "0:2", "--gif", "a.png"], "must end in .gif"),
     (["-cam", "0", "0", "0", "0", "1", "0", "40", "1", "0", "--camera-path", "p.json"], "either -cam or --camera-path"),
-    (["-obj", "w_{frame:q}.obj", "--frames", "0:2"], "cannot format"),
+    (["-obj", "w_{frame:q}.obj", "--frames", "0:2"], r"may hold only \{frame\}"),
     (["--frames", "0:2", "-out", "f_{frame}.tif"], r"\.png, \.jpg, \.npy, \.pfm or \.exr"),
 ])
 def test_animation_flags_are_validated(argv, message):

@@ -34,7 +34,9 @@ from .test_parse_fuzz import MTL_SEED, OBJ_SEED, PIECES, mutated
 
 # Pieces that push values to the bounds (float32 range, underflow, the coordinate limit) and line ends.
 EXTREME = [b"1e38", b"3e38", b"1e-46", b"1e-40", b"1e15", b"1e16", b"1e30", b"1e31", b"0.999", b"1.0001",
-           b"\r", b"\r\n", b"\n", b"-0", b"Kl", b"Kd", b"Kn", b"Ni", b"map_Kd", b"mtllib", b"b", b"f"]
+           b"\r", b"\r\n", b"\n", b"-0", b"Kl", b"Kd", b"Kn", b"Ni", b"map_Kd", b"mtllib", b"b", b"f",
+           # issue 21: a byte-order mark anywhere, invisible characters, integers of thousands of digits
+           b"\xef\xbb\xbf", b"\xe2\x80\x8b", b"\xc2\xa0", b"9" * 5000, b"illum " + b"7" * 4400]
 ALL_PIECES = PIECES + EXTREME
 # A scene the camera sees: the OBJ seed's geometry lies within [0, 3] around the origin.
 CAMERA = Camera(position=(0.5, 0.5, 6.0), direction=(0.0, 0.0, -1.0), fov=60.0, focus=6.0, aperture=0.0)

@@ -36,6 +36,8 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import ObjData, Scene
 from warp_spt.scene.sky import Sky
 
+MAX_CAMERA_PATH_BYTES = 64 << 20   # keyframes of a long animation fit in a fraction of this
+
 # prepares one frame as a single render would: (scene, camera) -> (scene, camera, sky or None)
 View = Callable[[Scene, Camera], tuple[Scene, Camera, 'Sky | None']]
 
@@ -110,20 +112,26 @@ class CameraPath:
     @classmethod
     def load(cls, path: str | Path) -> "CameraPath":
         """Read a JSON camera path (see :meth:`from_json`); errors name the file and keyframe."""
+        from warp_spt.io.tokens import normalise_text, read_file
+
+        path = str(path)
+        raw = normalise_text(read_file(path, "camera path", limit=MAX_CAMERA_PATH_BYTES), path, "camera path")
         try:
-            text = Path(path).read_text(encoding="utf-8")
-        except OSError as err:
-            raise SceneError(str(path), 0, f"cannot read camera path: {err.strerror or err}") from None
+            text = raw.decode("utf-8")
         except UnicodeDecodeError:
-            raise SceneError(str(path), 0, "camera path is not UTF-8 text") from None
+            raise SceneError(path, 0, "camera path is not UTF-8 text") from None
         try:
             data = json.loads(text)
         except json.JSONDecodeError as err:
-            raise SceneError(str(path), err.lineno, f"invalid JSON: {err.msg}") from None
+            raise SceneError(path, err.lineno, f"invalid JSON: {err.msg}") from None
+        except RecursionError:
+            raise SceneError(path, 0, "invalid camera path: JSON nested too deeply") from None
+        except ValueError as err:       # e.g. an integer past Python's 4,300-digit limit
+            raise SceneError(path, 0, f"invalid JSON: {err}") from None
         try:
             return cls.from_json(data)
         except ValueError as err:
-            raise SceneError(str(path), 0, str(err)) from None
+            raise SceneError(path, 0, str(err)) from None
 
     @classmethod
     def from_json(cls, data) -> "CameraPath":

@@ -10,9 +10,7 @@ imported, so that a Ctrl-C during start-up gets the same one-line message.
 from __future__ import annotations
 
 import argparse
-import math
 import os
-import re
 import time
 import unicodedata
 from dataclasses import replace
@@ -20,6 +18,7 @@ from pathlib import Path
 from typing import Sequence, TextIO
 
 from warp_spt.demo import demo_files
+from warp_spt.io.numbers import plain_float, plain_int
 
 PROG = "warp-spt"
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
@@ -41,18 +40,13 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-# Plain ASCII numbers only, as in OBJ files: int() and float() would also take "1_0", "inf", and
-# Arabic-Indic or full-width digits.
-_INT_RE = re.compile(r"[+-]?[0-9]+")
-_FLOAT_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-
-
 def int_at_least(low: int, high: int | None = None):
     """An argparse ``type``: a plain decimal integer in [low, high] (no upper bound when ``high`` is None)."""
     def convert(text: str) -> int:
-        if not _INT_RE.fullmatch(text):
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
-        value = int(text)
+        try:
+            value = plain_int(text)
+        except ValueError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
         if value < low:
             raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
         if high is not None and value > high:
@@ -63,13 +57,11 @@ def int_at_least(low: int, high: int | None = None):
 
 
 def finite_float(text: str) -> float:
-    """An argparse ``type``: a plain decimal number, finite."""
-    if not _FLOAT_RE.fullmatch(text):
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
-    value = float(text)
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
+    """An argparse ``type``: a plain decimal number, finite (:func:`warp_spt.io.numbers.plain_float`)."""
+    try:
+        return plain_float(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def one_line(text: str) -> str:

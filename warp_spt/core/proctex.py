@@ -40,6 +40,7 @@ Built-ins, written the same way: ``checker`` (the seed's pattern, bit-identical)
 from __future__ import annotations
 
 import hashlib
+import importlib.machinery
 import importlib.util
 import inspect
 import math
@@ -223,10 +224,15 @@ def load_texture_module(path: str) -> list[str]:
     if not file.is_file():
         raise SceneError(str(path), 0, "texture module not found")
     before = dict(_REGISTRY)
-    spec = importlib.util.spec_from_file_location(f"warp_spt_user_textures_{file.stem}", file)
+    # a source loader whatever the file's suffix: spec_from_file_location gives None for "tex.txt"
+    loader = importlib.machinery.SourceFileLoader(f"warp_spt_user_textures_{file.stem}", str(file))
+    spec = importlib.util.spec_from_loader(loader.name, loader)
     module = importlib.util.module_from_spec(spec)
     try:
-        spec.loader.exec_module(module)
+        loader.exec_module(module)
+    except SystemExit as err:  # the user's code must not end the render, with any status
+        raise SceneError(str(file), _user_line(err, str(file)),
+                         f"the texture module called sys.exit({err.code!r}) while it was imported") from None
     except Exception as err:   # the user's code: report it as one line naming their file
         line = _user_line(err, str(file))
         raise SceneError(str(file), line, f"cannot import texture module: {type(err).__name__}: {err}") from None

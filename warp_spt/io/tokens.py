@@ -19,11 +19,12 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+from warp_spt.io.numbers import FLOAT_PATTERN, INT_PATTERN, MAX_TOKEN_DIGITS
 from warp_spt.scene.errors import SceneError
 
 # Strict decimal syntax; Python's float() would also take "nan", "inf", "1_0" and "0x1p3".
-_FLOAT_RE = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
-_INT_RE = re.compile(rb"[+-]?\d+")
+_FLOAT_RE = re.compile(FLOAT_PATTERN.encode())
+_INT_RE = re.compile(INT_PATTERN.encode())
 
 
 def iter_lines(data: bytes) -> Iterator[tuple[int, list[bytes]]]:
@@ -92,12 +93,16 @@ def parse_int(tok: bytes, path: str, lineno: int, what: str) -> int:
     """One decimal integer (an OBJ index), or a SceneError."""
     if not _INT_RE.fullmatch(tok):
         raise SceneError(path, lineno, f"expected an integer {what}, got {show(tok)}")
+    digits = len(tok.lstrip(b"+-"))
+    if digits > MAX_TOKEN_DIGITS:   # int() would refuse past 4,300 digits with an error of its own
+        raise SceneError(path, lineno, f"expected an integer {what}, got a number of {digits:,} digits")
     return int(tok)
 
 
 # Bounds on what a scene file may hold before it is refused with a clear error (docs/limits.md).
 MAX_FILE_BYTES = 2 << 30          # 2 GiB: an OBJ of about 20 million triangles
 MAX_LINE_BYTES = 1 << 20          # 1 MiB: a polygon of ~100,000 corners; no real line needs more
+HEAD_BYTES = 1 << 16              # read and checked first: binary data is refused before the rest is read
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
@@ -127,29 +132,47 @@ def is_regular_file(path: str | os.PathLike[str]) -> bool:
     return file_problem(path) is None
 
 
-def read_file(path: str, kind: str) -> bytes:
-    """The whole file as bytes (read once), or a SceneError naming it.
+def read_file(path: str, kind: str, *, limit: int | None = None, text: bool = True) -> bytes:
+    """The whole file as bytes (read once), or a SceneError naming it: the one guarded opener of
+    every input reader (OBJ, MTL, camera paths).
 
     Only regular files are read (symbolic links are followed): a FIFO, a device such as
     ``/dev/zero`` or a directory is refused before anything is read, so nothing can block or grow
-    without end. The file may hold at most MAX_FILE_BYTES, and no line more than MAX_LINE_BYTES.
+    without end. A file larger than ``limit`` bytes (default MAX_FILE_BYTES) is refused from its size, before any of it is
+    read; a ``text`` file whose first bytes are binary (NUL bytes, a PNG, UTF-16) is refused after
+    reading only those (:func:`normalise_text` names the line). Lines are checked by normalise_text.
     """
+    limit = MAX_FILE_BYTES if limit is None else limit
     try:
         # O_NONBLOCK: opening a FIFO must not wait for a writer; regular files ignore the flag
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     except (OSError, ValueError) as err:     # ValueError: a NUL byte in the name
         raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
-    with os.fdopen(fd, "rb") as f:
-        special = describe_special(os.fstat(fd).st_mode)
+    try:
+        info = os.fstat(fd)
+        special = describe_special(info.st_mode)       # before fdopen, which refuses a directory by fd number
         if special:
             raise SceneError(path, 0, f"cannot read {kind} file: it is {special}, not a regular file")
-        try:
-            data = f.read(MAX_FILE_BYTES + 1)
-        except OSError as err:
-            raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
-    if len(data) > MAX_FILE_BYTES:
-        raise SceneError(path, 0, f"{kind} file is larger than the {MAX_FILE_BYTES >> 30} GiB limit")
+        if info.st_size > limit:
+            raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
+        with os.fdopen(fd, "rb") as f:
+            fd = -1                                    # the file object owns it now
+            head = f.read(HEAD_BYTES)
+            if text:
+                normalise_text(head, path, kind)       # binary data is refused from its first bytes
+            data = head + f.read(limit + 1 - len(head))
+    except OSError as err:
+        raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
+    finally:
+        if fd >= 0:
+            os.close(fd)
+    if len(data) > limit:                              # it grew while we read it
+        raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
     return data
+
+
+def _size(n: int) -> str:
+    return f"{n >> 30} GiB" if n >= 1 << 30 else f"{n >> 20} MiB"
 
 
 def _reason(err: BaseException) -> str:
@@ -166,6 +189,8 @@ def normalise_text(data: bytes, path: str, kind: str) -> bytes:
     """
     if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
         raise SceneError(path, 1, f"UTF-16 text is not supported: save the {kind} file as UTF-8 or ASCII")
+    if data.startswith(UTF8_BOM):       # editors on Windows write one; it is not part of the first statement
+        data = data[len(UTF8_BOM):]
     if b"\r" in data:
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     if data.startswith(b"\x89PNG"):
@@ -176,7 +201,27 @@ def normalise_text(data: bytes, path: str, kind: str) -> bytes:
         utf16 = " (UTF-16 text is not supported: save it as UTF-8)" if looks_utf16 else ""
         raise SceneError(path, data.count(b"\n", 0, nul) + 1, f"not {kind} text: binary data (a NUL byte){utf16}")
     _check_line_lengths(data, path)
+    _check_invisible(data, path, kind)
     return data
+
+
+UTF8_BOM = b"\xef\xbb\xbf"
+# Characters that print as nothing (or as a plain space) but are not white space to the tokenizer: a
+# statement starting with one is an unknown tag and would be dropped silently.
+INVISIBLE = {b"\xef\xbb\xbf": "a byte-order mark (U+FEFF)", b"\xe2\x80\x8b": "a zero-width space (U+200B)",
+             b"\xe2\x80\x8c": "a zero-width non-joiner (U+200C)", b"\xe2\x80\x8d": "a zero-width joiner (U+200D)",
+             b"\xe2\x80\x8e": "a left-to-right mark (U+200E)", b"\xe2\x80\x8f": "a right-to-left mark (U+200F)",
+             b"\xe2\x81\xa0": "a word joiner (U+2060)", b"\xc2\xa0": "a no-break space (U+00A0)"}
+
+
+def _check_invisible(data: bytes, path: str, kind: str) -> None:
+    """A SceneError at the first invisible character (see INVISIBLE), naming it and its line."""
+    found = [(at, name) for junk, name in INVISIBLE.items() if (at := data.find(junk)) >= 0]
+    if found:
+        at, name = min(found)
+        raise SceneError(path, data.count(b"\n", 0, at) + 1,
+                         f"{name} in the {kind} text: an invisible character that would change the "
+                         "statement; delete it (or save the file as plain UTF-8)")
 
 
 def _check_line_lengths(data: bytes, path: str) -> None:

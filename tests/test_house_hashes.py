@@ -2,6 +2,10 @@
 made them (issue 20). The hashes were made from that commit by tests/data/make_house_hashes.py,
 which this test imports for the cases, so old and new run exactly the same calls.
 
+One case is numbers, not a hash: the sky's gradient, which the lights' restructure sums in another
+order (the sky's colours became a device array aliased like a material colour): it agrees with the
+old commit to 1e-6 relative (4.6e-7 measured); the image and the other gradients stay bit-identical.
+
 The two seams fixed on purpose (--frames/--workers rendering what a single render renders, and
 positions kept in float64 until recentring) change no image here: their own tests cover them
 (tests/test_seams.py).
@@ -13,6 +17,7 @@ import importlib.util
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 DATA = Path(__file__).parent / "data"
@@ -37,4 +42,7 @@ def test_api_images_unchanged(name, fn):
     got = fn()
     if got is None:
         pytest.skip("needs dask.distributed")
+    if isinstance(EXPECTED[name], list):     # numbers whose summation order changed on purpose
+        np.testing.assert_allclose(got, EXPECTED[name], rtol=1e-6, err_msg=name)
+        return
     assert got == EXPECTED[name], f"{name}: the image changed"

@@ -30,7 +30,7 @@ INTEGRATORS: dict[str, Integrator] = {
     "seed": seed.INTEGRATOR,
     "nee": nee.INTEGRATOR,
 }
-DEFAULT_INTEGRATOR = "nee"      # see README, "Speed and accuracy": several times the seed's efficiency
+DEFAULT_INTEGRATOR = "nee"      # see docs/performance.md, Light transport: several times the seed's efficiency
 
 
 def register(integrator: Integrator) -> Integrator:

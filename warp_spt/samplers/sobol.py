@@ -85,7 +85,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_spt.samplers import Sampler, SamplerState, detach_requests, sampler_state
+from warp_spt.samplers.base import Sampler, SamplerState, detach_requests, sampler_state
 
 # Python-int spellings of the constants, shared with the numpy reference in the tests.
 LOWBIAS_MUL1 = 0x7FEB352D

@@ -238,3 +238,17 @@ def test_process_bad_input_is_one_line_without_traceback(args):
     done = run_process(*args)
     assert done.returncode in (1, 2) and done.stdout == ""
     assert done.stderr.count("\n") == 1 and done.stderr.startswith("warp-spt: error: ")
+
+
+def test_help_lists_the_registries_plugins_with_their_summaries(capsys):
+    """--integrator and --sampler help is generated from the registries (a new plugin shows up)."""
+    from warp_spt.cli.main import main as cli_main
+    from warp_spt.integrators import INTEGRATORS
+    from warp_spt.samplers import SAMPLERS, get_sampler
+
+    assert cli_main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for name, record in INTEGRATORS.items():
+        assert f"{name} ({' '.join(record.summary.split())}" in text
+    for name in SAMPLERS:
+        assert f"{name} ({' '.join(get_sampler(name).summary.split())}" in text

@@ -109,6 +109,10 @@ PROBE = textwrap.dedent('''
     assert params["red.sheen"].max() == 1.0
     bw = _Backward.__new__(_Backward)                   # only what _tile_inputs reads
     bw.dev, bw.tex, bw.mode, bw.nbytes = dev, dev.textures(), "prb", 0
+    from types import SimpleNamespace
+    from warp_spt.core.lights import light_table
+    from warp_spt.scene.sky import Sky
+    bw.bound = SimpleNamespace(lights=light_table(dev, Sky.black()))
     bw.wants_texels = bw.wants_proc = False
     m = bw._tile_inputs(0, 1)[0]
     assert m.sheen.grad is not None and m.sheen.ptr == dev.materials.sheen.ptr          # the gradient alias

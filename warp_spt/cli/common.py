@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+import types
 import unicodedata
 from dataclasses import replace
 from pathlib import Path
@@ -181,6 +182,22 @@ def check_registry_names(opts) -> None:
     for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
         if name is not None and name not in registry:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
+
+
+def registry_help() -> dict[str, str]:
+    """The --integrator and --sampler help text, generated from their registries (name, one-line
+    summary, the default marked). Imports Warp (quietly): only ``--help`` asks for it."""
+    init_warp(types.SimpleNamespace(verbose=False, quiet=True))
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
+    from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS, get_sampler
+
+    def listing(what: str, entries: dict[str, str], default: str) -> str:
+        items = [f"{n} ({s}{', default' if n == default else ''})" for n, s in sorted(entries.items())]
+        return f"{what}: " + "; ".join(items)
+
+    return {"--integrator": listing("light transport", {n: r.summary for n, r in INTEGRATORS.items()},
+                                    DEFAULT_INTEGRATOR),
+            "--sampler": listing("random numbers", {n: get_sampler(n).summary for n in SAMPLERS}, DEFAULT_SAMPLER)}
 
 
 def process_start() -> float:

@@ -26,6 +26,7 @@ from warp_spt.cli.common import (
     UsageError,
     fail,
     process_start,
+    registry_help,
 )
 from warp_spt.cli.options import Options, build_parser, parse_args
 from warp_spt.runtime.signals import (
@@ -90,7 +91,7 @@ def _main(argv: list[str], stderr: TextIO, started: float) -> int:
     try:
         opts = parse_args(argv)
         if opts.action == "help":
-            print(build_parser().format_help(), end="")
+            print(build_parser(registry_help()).format_help(), end="")
             return EXIT_OK
         if opts.action == "version":
             print(f"{PROG} {__version__}")

@@ -127,8 +127,13 @@ def _sky_index(text: str) -> int:
     return int(text)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser; single-dash multi-letter flags are the seed's, ``--`` flags are new."""
+def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentParser:
+    """The argument parser; single-dash multi-letter flags are the seed's, ``--`` flags are new.
+
+    ``plugins`` maps "--integrator" and "--sampler" to help text generated from their registries
+    (:func:`warp_spt.cli.common.registry_help`, for ``--help``); parsing needs none, so it stays
+    Warp-free: the names are checked against the registries after Warp starts."""
+    plugins = plugins or {}
     p = Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
@@ -165,10 +170,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="also show Warp's own messages (banner, module loads, missing CUDA driver)")
     # Names are checked against the registries in run(): importing them imports Warp, which must
     # first be initialised as --verbose says (and parsing stays Warp-free).
-    new.add_argument("--integrator", metavar="NAME",
-                     help="light transport: nee (light sampling with MIS, default) or seed (pure path tracing)")
-    new.add_argument("--sampler", metavar="NAME",
-                     help="random numbers: sobol (Owen-scrambled Sobol', default) or independent (PCG streams)")
+    new.add_argument("--integrator", metavar="NAME", help=plugins.get("--integrator", "light transport, by name"))
+    new.add_argument("--sampler", metavar="NAME", help=plugins.get("--sampler", "random numbers, by name"))
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     add_flags(p, int_at_least)

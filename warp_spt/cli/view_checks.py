@@ -12,7 +12,6 @@ checks cost about one scene upload (``benchmarks/bench_view_checks.py``); Warp i
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Sequence
@@ -20,6 +19,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from warp_spt.cli.common import CompileNotice
+from warp_spt.runtime import kernel_cache
 from warp_spt.scene.camera import Camera, frame_camera
 from warp_spt.scene.model import Scene
 from warp_spt.scene.recentre import format_point, recentre
@@ -73,7 +73,7 @@ class Probe:
         return float(self.hits.mean())
 
 
-@functools.cache
+@kernel_cache.memoize("view checks")
 def _kernels():
     """The probe's two kernels, built on first use so that importing this module needs no Warp."""
     import warp as wp
@@ -101,15 +101,12 @@ def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | N
     """Cast one pinhole ray through each pixel centre of a small image (default 64 wide)."""
     import warp as wp
 
+    from warp_spt.core.camera_rays import pinhole_directions  # the kernels' camera frame
+
     height = height or max(1, round(width))
-    plane = camera.image_plane(width, height)
-    xs, ys = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
-    target = plane["upper_left"] + xs[..., None] * plane["x_step"] - ys[..., None] * plane["y_step"]
-    dirs = target - plane["origin"]
-    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+    origin, dirs = pinhole_directions(camera, width, height)
     flat = dirs.reshape(-1, 3)
     t = np.full(len(flat), np.inf)
-    origin = plane["origin"]
     if scene.meshes:
         d_dirs = wp.array(flat.astype(np.float32), dtype=wp.vec3, device=device)
         for m in scene.meshes:

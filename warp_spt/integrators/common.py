@@ -64,6 +64,7 @@ class Integrator:
     tape: bool = True
     prepare: Callable | None = None
     passes: Callable | None = None
+    summary: str = ""            # one line for --help and the docs
 
     @property
     def replayable(self) -> bool:

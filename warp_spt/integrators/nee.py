@@ -83,7 +83,8 @@ def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None
     return make_path_vertex(features, sampler, light_sampling=True, inline=inline, replay=True)
 
 
-INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE)
+INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE,
+                        summary="next-event estimation: a light sample at every vertex, MIS with the BSDF")
 
 
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):

@@ -24,4 +24,5 @@ def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None
     return make_path_vertex(features, sampler, light_sampling=False, inline=inline, replay=True)
 
 
-INTEGRATOR = Integrator("seed", make, make_vertex, SEED_STRIDE)
+INTEGRATOR = Integrator("seed", make, make_vertex, SEED_STRIDE,
+                        summary="the seed's pure path tracing: lights are found only by bouncing into them")

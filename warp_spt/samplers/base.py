@@ -28,6 +28,7 @@ class Sampler:
     next_1d: object
     next_2d: object
     random_access: bool = False    # any dimension costs the same, so unused ones are simply not drawn
+    summary: str = ""              # one line for --help and the docs
 
 
 @wp.func

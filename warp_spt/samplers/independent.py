@@ -42,4 +42,4 @@ def make() -> Sampler:
         return wp.vec2(a, b), s2
 
     detach_requests(next_1d, next_2d)
-    return Sampler("independent", start, next_1d, next_2d)
+    return Sampler("independent", start, next_1d, next_2d, summary="independent PCG streams per pixel and sample")

@@ -269,4 +269,5 @@ def make():
         return sobol_2d_keyed(state.rng, state.index, dim), state
 
     detach_requests(next_1d, next_2d)
-    return Sampler("sobol", start, next_1d, next_2d, random_access=True)
+    return Sampler("sobol", start, next_1d, next_2d, random_access=True,
+                   summary="Owen-scrambled Sobol' points, a (0,2)-sequence per pixel")

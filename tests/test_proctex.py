@@ -150,14 +150,15 @@ def test_noise_marble_wood_are_finite_and_bounded():
 
 
 def test_mtl_syntax_errors_name_file_and_line():
-    ok = parse_mtl_bytes(b"newmtl m\nmap_Kd proc:t_const color=1,2,3\n", "a.mtl")["m"]
-    assert ok.diffuse_map.name == "t_const" and ok.diffuse_map.params[:3] == (1.0, 2.0, 3.0)
+    ok = parse_mtl_bytes(b"newmtl m\nmap_Kd proc:t_const color=0.25,0.5,1\n", "a.mtl")["m"]
+    assert ok.diffuse_map.name == "t_const" and ok.diffuse_map.params[:3] == (0.25, 0.5, 1.0)
     assert ok.reflect_map == ok.diffuse_map
     for text, want in ((b"map_Kd proc:nope", "unknown procedural texture 'nope'"),
                        (b"map_Kd proc:t_const colour=1", "keys: color"),
                        (b"map_Kl proc:t_const color=1,2", "expected 3 finite"),
                        (b"map_Kt proc:t_const color=1,nan,2", "expected 3 finite"),
-                       (b"map_Kd proc:t_const color", "key=value")):
+                       (b"map_Kd proc:t_const color", "key=value"),
+                       (b"map_Kd proc:t_const color=1,2,3", "fills 'map_Kd'")):      # reflectance: at most 1
         with pytest.raises(SceneError, match=want) as err:
             parse_mtl_bytes(b"newmtl m\n\n" + text + b"\n", "b.mtl")
         assert err.value.path == "b.mtl" and err.value.line == 3

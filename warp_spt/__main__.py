@@ -45,6 +45,10 @@ def _exit_now(status: int) -> None:
     (files are written atomically and closed, worker threads have finished); atexit handlers still
     run and the standard streams are flushed, then the process ends with ``status``.
     """
+    if status in (130, 143):
+        # interrupted: the one line is printed; libraries' exit hooks (Dask's, closing a cluster whose
+        # start the Ctrl-C cut short) say nothing more
+        sys.stderr = open(os.devnull, "w")
     atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):
         try:

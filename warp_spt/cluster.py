@@ -437,8 +437,10 @@ def render_scene(client, scene: Scene, camera: Camera | None = None, settings: R
                  options: ClusterOptions | None = None, *, progress: bool | ProgressFn = False) -> RenderResult:
     """Like :func:`warp_spt.rendering.tiles.render_scene`, on the cluster behind ``client``: the same film bit
     for bit (a host Scene far from the origin is recentred here first, as the renderer does)."""
+    from warp_spt.rendering.setup import check_inputs
     from warp_spt.scene.recentre import recentre
 
+    check_inputs(scene, camera)
     rs = cluster_settings(settings or RenderSettings())
     if isinstance(scene, Scene):
         scene, camera, _ = recentre(scene, camera)

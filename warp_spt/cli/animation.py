@@ -18,6 +18,9 @@ from warp_spt.cli.options import settings_of
 from warp_spt.cli.view_checks import frame_view
 from warp_spt.io.images import save_gif
 from warp_spt.io.templates import frame_path
+from warp_spt.runtime.signals import ignored_by_children
+
+CONNECT_SECONDS = 5.0      # a scheduler on the network answers at once; waiting 30 s says nothing more
 
 
 def _run_budgeted(opts, scene, say, started: float | None) -> int:
@@ -55,18 +58,34 @@ def cluster_client(opts):
     except ImportError as err:
         raise RunError(str(err)) from None
     if opts.workers:
-        with cluster.local_client(opts.workers) as client:
+        with quiet_local_workers(), cluster.local_client(opts.workers) as client:
             yield client
         return
     try:
-        context = cluster.connect(opts.cluster)
+        context = cluster.connect(opts.cluster, timeout=CONNECT_SECONDS)
         client = context.__enter__()
-    except (OSError, TimeoutError, ValueError) as err:
-        raise RunError(f"cannot connect to the cluster at {opts.cluster}: {err}") from None
+    except (OSError, TimeoutError, ValueError, TypeError) as err:
+        raise RunError(f"cannot connect to the cluster at {opts.cluster} within {CONNECT_SECONDS:g} s: "
+                       f"{err}") from None
     try:
         yield client
     finally:
         context.__exit__(None, None, None)
+
+
+@contextmanager
+def quiet_local_workers():
+    """Local workers forked from a fork server that ignores SIGINT: a Ctrl-C in the terminal reaches
+    the whole process group, and workers starting up printed tracebacks; this process alone handles
+    it (one line, status 130) and stops the workers through their client."""
+    import multiprocessing.forkserver
+
+    import dask
+
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        with ignored_by_children():
+            multiprocessing.forkserver.ensure_running()
+        yield
 
 
 def run_cli(opts, err, started: float | None = None) -> int:

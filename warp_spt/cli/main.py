@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+import warnings
 from typing import Sequence, TextIO
 
 # Only light modules here (stdlib, no numpy, no Warp): main() installs the SIGINT/SIGTERM handling
@@ -25,6 +26,7 @@ from warp_spt.cli.common import (
     RunError,
     UsageError,
     fail,
+    one_line,
     process_start,
     registry_help,
 )
@@ -71,11 +73,16 @@ def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = 
     """
     started = time.perf_counter() if started is None else started
     err = stderr or sys.stderr
-    if opts.animated or opts.cluster or opts.workers:
-        from warp_spt.cli.animation import run_cli
-        return run_cli(opts, err, started)
-    from warp_spt.cli.render import run_image
-    return run_image(opts, err, started)
+    with warnings.catch_warnings():
+        # a library's warning is one line like every message, and none with --quiet (not Python's
+        # two lines with a source line)
+        warnings.showwarning = lambda message, *args, **kw: None if opts.quiet else print(
+            f"{PROG}: warning: {one_line(str(message))}", file=err)
+        if opts.animated or opts.cluster or opts.workers:
+            from warp_spt.cli.animation import run_cli
+            return run_cli(opts, err, started)
+        from warp_spt.cli.render import run_image
+        return run_image(opts, err, started)
 
 
 def _main(argv: list[str], stderr: TextIO, started: float) -> int:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
@@ -120,6 +121,23 @@ class Options:
         return not self.objs
 
 
+_ADDRESS = re.compile(r"(?:tcp://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):([0-9]{1,5})")
+
+
+def cluster_address(text: str) -> str:
+    """An argparse ``type``: a Dask scheduler's address, ``tcp://HOST:PORT`` (or ``HOST:PORT``).
+
+    Other protocols need set-up this command does not do (tls:// certificates, ucx:// its package),
+    and reached Dask as an internal error; an empty address was silently ignored."""
+    m = _ADDRESS.fullmatch(text)
+    if not m or not 0 < int(m.group(2)) < 65536:
+        scheme = text.partition("://")[0] if "://" in text else ""
+        why = (f"the {scheme}:// protocol is not supported (only tcp://)" if scheme and scheme != "tcp" else
+               "expected tcp://HOST:PORT, e.g. tcp://scheduler:8786")
+        raise argparse.ArgumentTypeError(f"{why}, got {text!r}")
+    return text if text.startswith("tcp://") else f"tcp://{text}"
+
+
 def _sky_index(text: str) -> int:
     # The seed mapped any unknown integer to BlackSky; a modern CLI reports the typo instead.
     if text not in ("0", "1", "2"):
@@ -177,7 +195,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     add_flags(p, int_at_least)
     _add_model_flags(p.add_argument_group("your own models"))
     more = p.add_argument_group("clusters and animation")
-    more.add_argument("--cluster", metavar="ADDRESS", help="render on a running Dask scheduler, e.g. tcp://host:8786")
+    more.add_argument("--cluster", type=cluster_address, metavar="ADDRESS",
+                      help="render on a running Dask scheduler, e.g. tcp://host:8786")
     more.add_argument("--workers", type=int_at_least(1, 1024), metavar="N",
                       help="render on a local cluster of N worker processes")
     more.add_argument("--frames", metavar="A:B[:STEP]", help="render frames A..B-1; -obj may name "

@@ -10,11 +10,13 @@ of saving (:func:`finish_seconds`): the wall time the user sees (docs/error.md, 
 from __future__ import annotations
 
 import math
+import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from warp_spt.cli.budget_flags import BudgetOptions
+from warp_spt.cli.common import PROG
 
 if TYPE_CHECKING:
     import numpy as np
@@ -53,11 +55,13 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
                                  denoise=b.denoise)
         render_budget = max(b.time_budget - reserve, 1e-3)
 
+    side = SideOutputs()
+
     def on_pass(res) -> None:
         say(f"pass {res.stats.passes}: {_spp_text(res.spp)}, {res.stats.seconds:.1f} s, "
             f"estimated relative error {_pct(res.relative_error)}")
         if b.progressive:
-            save_image(b.progressive, res.image, tonemap=opts.tonemap)
+            side.write("--progressive", b.progressive, lambda: save_image(b.progressive, res.image, tonemap=opts.tonemap))
 
     rs = settings_of(opts, spp=spp)
     # the batches own the sample indices and the tiling: every other setting as the command gave it
@@ -73,12 +77,14 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         image = denoise(res.image, *aux)
         say("denoised with Intel Open Image Denoise (albedo and normal of the first non-specular hit): the image "
             "is smoother but biased; the error figures below are those of the image before denoising")
-    save_image(opts.out, image, tonemap=opts.tonemap)
+    save_image(opts.out, image, tonemap=opts.tonemap)        # the main output first, then the side outputs
     if b.error_map:
-        save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image))
+        side.write("--error-map", b.error_map,
+                   lambda: save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image)))
     if b.spp_map:
         counts = res.spp.astype(np.float32)
-        save_map(b.spp_map, np.repeat(counts[..., None], 3, axis=2), counts / max(1.0, float(counts.max())))
+        side.write("--spp-map", b.spp_map, lambda: save_map(
+            b.spp_map, np.repeat(counts[..., None], 3, axis=2), counts / max(1.0, float(counts.max()))))
     s = res.stats
     if render_budget is not None and s.pass_seconds and s.pass_seconds[0] > render_budget:
         say(f"warning: --time-budget {b.time_budget:g} s is less than start-up ({s.setup_seconds:.1f} s: Python, Warp, "
@@ -93,6 +99,26 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         say("interrupted: the partial image was saved (--save-partial)")
         return 130
     return 0
+
+
+class SideOutputs:
+    """Writes the outputs beside the image (--progressive, --error-map, --spp-map): a failure (a full
+    disk, a missing directory) is one warning, shown even with --quiet, and the render goes on; a
+    flag that failed is not tried again. The image itself (-out) is written before any side output
+    of the final pass, and its failure is an error."""
+
+    def __init__(self, err=None) -> None:
+        self.err = err or sys.stderr
+        self.failed: set[str] = set()
+
+    def write(self, flag: str, path: str, write: Callable[[], None]) -> None:
+        if flag in self.failed:
+            return
+        try:
+            write()
+        except OSError as error:
+            self.failed.add(flag)
+            print(f"{PROG}: warning: {flag}: {error.strerror or error}; the render goes on without it", file=self.err)
 
 
 EXIT_SECONDS = 0.1     # from the last file written to the end of the process (__main__._exit_now)

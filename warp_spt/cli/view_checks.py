@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from warp_spt.cli.common import CompileNotice
+from warp_spt.cli.common import CompileNotice, RunError
 from warp_spt.runtime import kernel_cache
 from warp_spt.scene.camera import Camera, frame_camera
 from warp_spt.scene.model import Scene
@@ -255,8 +255,11 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
         pr = probe(scene, camera, PROBE_SIZE, max(1, round(PROBE_SIZE * opts.height / opts.width)))
         why = _why_frame(opts, scene, camera, pr.coverage)
         if why:
-            camera = frame_camera(scene, up=opts.up, aspect=opts.width / opts.height, template=camera).with_(
-                aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture)
+            try:
+                camera = frame_camera(scene, up=opts.up, aspect=opts.width / opts.height, template=camera).with_(
+                    aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture)
+            except ValueError as err:       # e.g. a --fov so narrow that the camera would stand too far
+                raise RunError(f"cannot frame the scene ({why}): {err}") from None
             say(f"framed the scene ({why}): -cam {' '.join(f'{v:.6g}' for v in _cam_numbers(camera, offset))}")
             pr = None
     for warning in view_warnings(scene, camera, opts.width, opts.height, pr, offset):

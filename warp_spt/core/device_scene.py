@@ -117,6 +117,8 @@ class DeviceScene:
     """
 
     def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be a warp_spt.Scene (from warp_spt.load_scene), got {type(scene).__name__}")
         scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
         validate_scene(scene)
         init_warp()            # quietly, once, before the first Warp array (not at import time)

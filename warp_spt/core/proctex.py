@@ -55,10 +55,26 @@ import warp as wp
 from warp_spt.core.textures import checker as _seed_checker
 from warp_spt.runtime import kernel_cache
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.limits import MAX_RADIANCE
 
 MAX_PARAMS = 16
 ProcParams = wp.types.vector(length=MAX_PARAMS, dtype=wp.float32)
 PREFIX = "proc:"
+
+
+@dataclass(frozen=True)
+class ProcParam:
+    """A declared parameter: its default and the range its numbers may take (``texture(name,
+    scale=ProcParam(1.0, 1e-6, 1e6))``). A plain number or RGB triple declares the default range:
+    numbers within +-MAX_PARAMETER; an RGB triple is a colour, whose limits are those of the slot it
+    fills (reflectance in [0, 1], emission in [0, MAX_RADIANCE]: :func:`colour_limit`)."""
+
+    default: object
+    low: float | None = None
+    high: float | None = None
+
+
+MAX_PARAMETER = 1e15      # undeclared numbers: as far as a coordinate may go (scene.limits.MAX_COORDINATE)
 
 
 @dataclass(frozen=True)
@@ -72,6 +88,7 @@ class ProcTexture:
     file: str
     line: int
     source_hash: str
+    ranges: tuple[tuple[float, float], ...] = ()        # (low, high) per key, in layout order
 
     def layout(self) -> dict[str, tuple[int, int]]:
         """``{key: (offset, size)}`` in the parameter vector."""
@@ -80,6 +97,20 @@ class ProcTexture:
             out[key] = (offset, len(default))
             offset += len(default)
         return out
+
+    def colours(self) -> tuple[int, ...]:
+        """Offsets of the RGB triples (colours) in the parameter vector."""
+        return tuple(off for off, size in self.layout().values() if size == 3)
+
+    def check(self, key: str, vals: tuple[float, ...]) -> str | None:
+        """Why ``vals`` cannot be ``key``'s values (a scalar outside its declared range; colours are
+        checked against their slot, see :func:`colour_limit`), or None."""
+        low, high = dict(zip((k for k, _ in self.params), self.ranges))[key]
+        if len(vals) == 1 and not low <= vals[0] <= high:
+            return f"{key} of proc:{self.name} must lie in [{low:g}, {high:g}], got {vals[0]:g}"
+        if len(vals) == 3 and not all(0.0 <= v <= MAX_RADIANCE for v in vals):
+            return f"{key} of proc:{self.name} is a colour: each value in [0, {MAX_RADIANCE:g}], got {vals}"
+        return None
 
     def pack(self, values: dict[str, tuple[float, ...]] | None = None) -> tuple[float, ...]:
         """The parameter vector (MAX_PARAMS floats): defaults overridden by ``values``."""
@@ -109,7 +140,10 @@ def register_texture(name: str, fn, **params) -> ProcTexture:
     """Register ``fn`` (``(uv, p, n[, prm]) -> vec3``) as ``name``; see :func:`texture`."""
     if not name or not all(c.isalnum() or c in "_-" for c in name):
         raise ValueError(f"procedural texture name {name!r}: use letters, digits, '_' or '-'")
-    layout = tuple((k, _default(name, k, v)) for k, v in params.items())
+    declared = {k: v if isinstance(v, ProcParam) else ProcParam(v) for k, v in params.items()}
+    layout = tuple((k, _default(name, k, d.default)) for k, d in declared.items())
+    ranges = tuple((-MAX_PARAMETER if d.low is None else d.low, MAX_PARAMETER if d.high is None else d.high)
+                   for d in declared.values())
     if sum(len(d) for _, d in layout) > MAX_PARAMS:
         raise ValueError(f"procedural texture {name!r}: at most {MAX_PARAMS} parameter values")
     py = getattr(fn, "func", fn)                  # the Python function behind a wp.Function
@@ -122,7 +156,8 @@ def register_texture(name: str, fn, **params) -> ProcTexture:
     tex = ProcTexture(name=name, func=user if nargs == 4 else _with_params(user), user_func=user,
                       params=layout, file=inspect.getsourcefile(py) or "<unknown>",
                       line=py.__code__.co_firstlineno,
-                      source_hash=hashlib.sha1((source + py.__qualname__ + repr(layout)).encode()).hexdigest()[:16])
+                      source_hash=hashlib.sha1((source + py.__qualname__ + repr(layout)).encode()).hexdigest()[:16],
+                      ranges=ranges)
     _REGISTRY[name] = tex
     return tex
 
@@ -140,7 +175,8 @@ def _source_of(py) -> str:
 
 def _default(name: str, key: str, value) -> tuple[float, ...]:
     vals = (value,) if isinstance(value, (int, float)) else tuple(value)
-    if len(vals) not in (1, 3) or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
+    if len(vals) not in (1, 3) or not all(isinstance(v, (int, float)) and math.isfinite(v)
+                                          and abs(v) <= MAX_PARAMETER for v in vals):
         raise ValueError(f"procedural texture {name!r}: parameter {key!r} must be a finite number or "
                          f"an RGB triple, got {value!r}")
     return tuple(float(v) for v in vals)
@@ -176,6 +212,7 @@ class ProcRef:
     params: tuple[float, ...]
     mtl_file: str = field(default="<api>", compare=False)     # instances are equal by (name, params)
     line: int = field(default=0, compare=False)
+    colours: tuple[int, ...] = field(default=(), compare=False)   # offsets of its RGB triples (validation)
 
 
 def proc_texture(name: str, **values) -> ProcRef:
@@ -185,7 +222,12 @@ def proc_texture(name: str, **values) -> ProcRef:
     unknown = set(values) - set(tex.layout())
     if unknown:
         raise ValueError(f"proc:{name} has no parameter(s) {', '.join(sorted(unknown))}")
-    return ProcRef(name, tex.pack({k: _default(name, k, v) for k, v in values.items()}))
+    given = {k: _default(name, k, v) for k, v in values.items()}
+    for key, vals in given.items():
+        problem = tex.check(key, vals)
+        if problem:
+            raise ValueError(problem)
+    return ProcRef(name, tex.pack(given), colours=tex.colours())
 
 
 def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str) -> ProcRef | None:
@@ -211,8 +253,24 @@ def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str) -> ProcR
         size = layout[key][1]
         if len(vals) != size or not all(math.isfinite(v) for v in vals):
             raise SceneError(path, lineno, f"expected {size} finite number(s) for {key} of proc:{name}, got {text!r}")
+        problem = tex.check(key, vals) or (size == 3 and colour_problem(tag, key, name, vals))
+        if problem:
+            raise SceneError(path, lineno, problem)
         values[key] = vals
-    return ProcRef(name, tex.pack(values), path, lineno)
+    return ProcRef(name, tex.pack(values), path, lineno, colours=tex.colours())
+
+
+def colour_limit(tag: str) -> float:
+    """The largest value a colour may hold in the slot ``tag`` fills: emission (map_Ke, the seed's
+    map_Kl) up to MAX_RADIANCE, reflectance (diffuse, reflect, refract) up to 1."""
+    return MAX_RADIANCE if tag.lower() in ("map_ke", "map_kl") else 1.0
+
+
+def colour_problem(tag: str, key: str, name: str, vals) -> str | None:
+    high = colour_limit(tag)
+    if all(0.0 <= v <= high for v in vals):
+        return None
+    return f"{key} of proc:{name} fills '{tag}': each value in [0, {high:g}], got {tuple(vals)}"
 
 
 def load_texture_module(path: str) -> list[str]:
@@ -429,9 +487,16 @@ def _grad(h: int, x: float, y: float, z: float) -> float:
     return a + b
 
 
+NOISE_RANGE = 1.0e7        # beyond 2^23 a float32 has no fractional part: noise is 0 there
+
+
 @wp.func
 def perlin(q: wp.vec3) -> float:
-    """Perlin's improved gradient noise in about [-1, 1]; 0 at every lattice point."""
+    """Perlin's improved gradient noise in about [-1, 1]; 0 at every lattice point, and 0 far out
+    (|q| >= NOISE_RANGE, where float32 has no fraction left and int() would overflow) or at a
+    non-finite q, so that no parameter makes a texture NaN."""
+    if not (wp.abs(q[0]) < NOISE_RANGE and wp.abs(q[1]) < NOISE_RANGE and wp.abs(q[2]) < NOISE_RANGE):
+        return 0.0
     fx = wp.floor(q[0])
     fy = wp.floor(q[1])
     fz = wp.floor(q[2])
@@ -476,32 +541,37 @@ def _rgb(prm: ProcParams, i: int) -> wp.vec3:
     return wp.vec3(prm[i], prm[i + 1], prm[i + 2])
 
 
-@texture("noise", scale=4.0, color1=(0.0, 0.0, 0.0), color2=(1.0, 1.0, 1.0))
+@texture("noise", scale=ProcParam(4.0, -1e6, 1e6), color1=(0.0, 0.0, 0.0), color2=(1.0, 1.0, 1.0))
 def noise(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Perlin noise of the world position: color1 at -1 to color2 at +1 (prm: scale, color1, color2)."""
     t = wp.clamp(0.5 + 0.5 * perlin(p * prm[0]), 0.0, 1.0)
     return wp.lerp(_rgb(prm, 1), _rgb(prm, 4), t)
 
 
-@texture("marble", scale=2.0, turbulence=4.0, color1=(0.92, 0.92, 0.9), color2=(0.25, 0.25, 0.3))
+@texture("marble", scale=ProcParam(2.0, -1e6, 1e6), turbulence=ProcParam(4.0, -1e6, 1e6), color1=(0.92, 0.92, 0.9), color2=(0.25, 0.25, 0.3))
 def marble(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Veins along x: 0.5 + 0.5 sin(scale x + turbulence * turb(p)), between color2 and color1."""
     q = p * prm[0]
-    t = 0.5 + 0.5 * wp.sin(q[0] + prm[1] * turbulence(q))
+    angle = q[0] + prm[1] * turbulence(q)
+    if not wp.abs(angle) < NOISE_RANGE:       # sin of a huge or infinite angle: no veins to draw
+        angle = 0.0
+    t = 0.5 + 0.5 * wp.sin(angle)
     return wp.lerp(_rgb(prm, 5), _rgb(prm, 2), t)
 
 
-@texture("wood", scale=1.0, rings=5.0, color1=(0.75, 0.52, 0.3), color2=(0.45, 0.28, 0.14))
+@texture("wood", scale=ProcParam(1.0, -1e6, 1e6), rings=ProcParam(5.0, -1e6, 1e6), color1=(0.75, 0.52, 0.3), color2=(0.45, 0.28, 0.14))
 def wood(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Rings around the y axis, distorted by noise: frac(rings * (r + 0.1 noise)) between the colours."""
     q = p * prm[0]
     r = wp.sqrt(q[0] * q[0] + q[2] * q[2]) + 0.1 * perlin(q)
     t = r * prm[1]
+    if not wp.abs(t) < NOISE_RANGE:           # rings finer than float32 resolves (or r infinite)
+        t = 0.0
     t = t - wp.floor(t)
     return wp.lerp(_rgb(prm, 2), _rgb(prm, 5), t * t)
 
 
-@texture("grid", cells=10.0, width=0.05, line=(0.05, 0.05, 0.05), fill=(0.9, 0.9, 0.9))
+@texture("grid", cells=ProcParam(10.0, -1e6, 1e6), width=ProcParam(0.05, 0.0, 1.0), line=(0.05, 0.05, 0.05), fill=(0.9, 0.9, 0.9))
 def grid(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Lines of relative ``width`` at every 1/cells in u and in v (colour ``line``), else ``fill``."""
     su = uv[0] * prm[0]

@@ -36,6 +36,8 @@ from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.proctex import get_texture
 from warp_spt.core.textures import tile_view
 from warp_spt.scene.camera import Camera
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.limits import MAX_RADIANCE
 from warp_spt.scene.material_schema import (
     COLOR,
     COLUMN,
@@ -45,6 +47,7 @@ from warp_spt.scene.material_schema import (
 )
 from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import Sky
+from warp_spt.scene.validate import check_procedural_colours
 
 # the material schema's differentiable columns (warp_spt.scene.material_schema), in its order
 MATERIAL_FIELDS = tuple(c.name for c in DIFFERENTIABLE)
@@ -124,6 +127,10 @@ class SceneParameters:
         if v.shape != p.shape:
             raise ValueError(f"{name}: expected shape {p.shape}, got {v.shape}")
         _check_value(p, v)
+        if p.kind == "proc":
+            self._check_proc(p, v)
+        elif p.kind == "camera":       # the camera the renderer would refuse is refused here
+            replace(self.camera, **{p.field: tuple(float(x) for x in v)}).validate()
         if p.kind == "material":
             self._set_material(p, v)
         elif p.kind == "texture":
@@ -157,6 +164,23 @@ class SceneParameters:
         tile_view(host, tiles.numpy()[p.index])[...] = v
         texels.assign(host)
         self._refresh()
+
+    def _check_proc(self, p: ParamInfo, v: np.ndarray) -> None:
+        """The loader's rules for a procedural texture's parameter (its declared range; a colour
+        within the range of the slots it fills), checked before anything is written."""
+        ref = self.scene.scene.procedural[p.index]
+        problem = get_texture(ref.name).check(p.field, tuple(float(x) for x in v.reshape(-1)))
+        if problem:
+            raise ValueError(f"{p.name}: {problem}")
+        off, size = proc_slice(self.scene.scene, p)
+        vec = list(ref.params)
+        vec[off:off + size] = (float(np.float32(x)) for x in v.reshape(-1))
+        procedural = list(self.scene.scene.procedural)
+        procedural[p.index] = replace(ref, params=tuple(vec))
+        try:
+            check_procedural_colours(replace(self.scene.scene, procedural=procedural))
+        except SceneError as err:
+            raise ValueError(f"{p.name}: {err.message}") from None
 
     def _set_proc(self, p: ParamInfo, v: np.ndarray) -> None:
         dev = self.scene
@@ -252,7 +276,11 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
     and a procedural texture's numbers any finite value."""
     if p.kind == "material":
         return COLUMN[p.field].low, COLUMN[p.field].high
-    if p.kind in ("texture", "sky") or (p.kind == "proc" and p.shape == (3,)):
+    if p.kind == "texture":
+        return 0.0, 1.0                         # texels, as validate_scene requires
+    if p.kind == "sky":
+        return 0.0, MAX_RADIANCE
+    if p.kind == "proc" and p.shape == (3,):
         return 0.0, None
     return None, None
 
@@ -262,9 +290,12 @@ def non_negative(p: ParamInfo) -> bool:
     return value_range(p)[0] == 0.0
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def _check_value(p: ParamInfo, v: np.ndarray) -> None:
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{p.name}: values must be finite")
+    if not np.all(np.isfinite(v)) or np.any(np.abs(v) > FLOAT32_MAX):     # 1e39 is inf on the device
+        raise ValueError(f"{p.name}: values must be finite (in float32 too, at most {FLOAT32_MAX:.3g})")
     low, high = value_range(p)
     if (low is not None and np.any(v < low)) or (high is not None and np.any(v > high)):
         if p.kind == "material" and p.shape == ():

@@ -76,6 +76,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
     including a scene with no triangles and no spheres. See the module docs for the rules.
     """
+    for what, given in (("objs", objs), ("mtls", mtls)):
+        if isinstance(given, (str, bytes, os.PathLike)):      # iterated, a path is its characters
+            raise TypeError(f"{what} must be a list of files, got one {type(given).__name__}: [{str(given)!r}]?")
     notes: list[str] = []
 
     def note(message: str) -> None:

@@ -119,8 +119,26 @@ class Bound:
                 self.cam, rp]
 
 
+def check_inputs(scene, camera) -> None:
+    """TypeError, naming what was expected, for a scene or camera of the wrong type (the API's
+    callers; an AttributeError from deep inside said nothing)."""
+    if not isinstance(scene, (Scene, DeviceScene)):
+        raise TypeError(f"scene must be a warp_spt.Scene (from warp_spt.load_scene) or a DeviceScene, "
+                        f"got {type(scene).__name__}")
+    check_camera_type(camera)
+
+
+def check_camera_type(camera) -> None:
+    """TypeError unless ``camera`` is a Camera or None."""
+    if camera is not None and not isinstance(camera, Camera):
+        raise TypeError(f"camera must be a warp_spt.Camera or None, got {type(camera).__name__}")
+
+
 def check(rs: RenderSettings, camera: Camera | None, rows: tuple[int, int] | None = None) -> None:
     """Raise ValueError for settings, a camera or rows a kernel must not see (before any upload)."""
+    if not isinstance(rs, RenderSettings):
+        raise TypeError(f"settings must be a warp_spt.RenderSettings, got {type(rs).__name__}")
+    check_camera_type(camera)
     check_args(rs)
     (camera or Camera()).validate(rs.width, rs.height)
     check_rows(rows, rs.height)
@@ -149,7 +167,8 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     every renderer. The kernel is loaded on the calling thread, before any worker launches it."""
     rs = settings or RenderSettings()
     kind = kernel_kind(mode)
-    check(rs, camera, rows)
+    check(rs, camera, rows)                 # settings first: ValueErrors name them before the scene's type
+    check_inputs(scene, camera)
     dev, camera = upload(scene, camera, rs.device)
     sky = rs.sky or Sky.black()
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)

@@ -204,3 +204,24 @@ def finish_cli_handlers(previous: dict[int, object], *, program: bool) -> None:
         _restore(previous)
         if sys.unraisablehook is _cli_unraisable:
             sys.unraisablehook = _cli_state["unraisablehook"]
+
+
+@contextmanager
+def ignored_by_children() -> "Iterator[None]":
+    """Processes started inside this block, and all they fork, ignore SIGINT for good.
+
+    A terminal's Ctrl-C goes to the whole process group: local Dask workers that were starting up
+    printed dozens of lines of tracebacks before the command's one line. An ignored disposition is
+    inherited across fork and exec (a blocked mask is not: multiprocessing resets it), and Python keeps
+    it at start-up. Start a fork server here and every worker forked from it later ignores the
+    signal too. The parent ignores it only for the moment the block lasts (a Ctrl-C in that moment
+    is lost; start only something quick here).
+    """
+    if not _on_main_thread() or not hasattr(signal, "SIGINT"):
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)

@@ -16,6 +16,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from warp_spt.scene.limits import (
+    MAX_CAMERA_COORDINATE,
     MAX_COORDINATE,
     MAX_IMAGE_PLANE,
     MIN_DIRECTION,
@@ -173,18 +174,18 @@ def camera_problem(cam: Camera, width: int = 1, height: int = 1) -> str | None:
         return "camera position, direction and up must have three components each"
     if not all(math.isfinite(v) for v in (*pos, *d, *u, fov, focus, aperture)):
         return "camera values must be finite numbers"
-    if max(abs(v) for v in pos) > MAX_COORDINATE:
-        return f"camera position must lie within +-{MAX_COORDINATE:g}"
+    if max(abs(v) for v in pos) > MAX_CAMERA_COORDINATE:
+        return f"camera position must lie within +-{MAX_CAMERA_COORDINATE:g}"
     for name, vec in (("view direction", d), ("up vector", u)):
         if not MIN_DIRECTION <= max(abs(v) for v in vec) <= MAX_COORDINATE:
             return (f"camera {name} must not be zero or huge: its largest component must lie in "
                     f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}] in size")
     if not 0.0 < fov < 180.0:
         return f"camera fov must be in (0, 180) degrees, got {fov:g}"
-    if not MIN_FOCUS <= focus <= MAX_COORDINATE:
-        return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_COORDINATE:g}], got {focus:g}"
-    if not 0.0 <= aperture <= MAX_COORDINATE:
-        return f"camera aperture must lie in [0, {MAX_COORDINATE:g}], got {aperture:g}"
+    if not MIN_FOCUS <= focus <= MAX_CAMERA_COORDINATE:
+        return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_CAMERA_COORDINATE:g}], got {focus:g}"
+    if not 0.0 <= aperture <= MAX_CAMERA_COORDINATE:
+        return f"camera aperture must lie in [0, {MAX_CAMERA_COORDINATE:g}], got {aperture:g}"
     half = focus * math.tan(math.radians(fov) / 2.0) * max(1.0, height / width)
     if half > MAX_IMAGE_PLANE:
         return (f"camera image plane is too large for float32: focus x tan(fov/2) x max(1, height/width) "
@@ -253,6 +254,7 @@ def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = N
     x, y, z = corners @ right, corners @ img_up, corners @ d
     dist = float(max(np.max(np.abs(x) / tx - z), np.max(np.abs(y) / ty - z)))
     size = float(np.linalg.norm(b[1] - b[0]))
-    dist = max(dist, float(np.max(-z)) + 1e-3 * size, 1e-6 * max(size, float(np.max(np.abs(centre)))), 1e-12)
+    # at least MIN_FOCUS away (a scene smaller than that is framed as a dot, not refused)
+    dist = max(dist, float(np.max(-z)) + 1e-3 * size, 1e-6 * max(size, float(np.max(np.abs(centre)))), 2 * MIN_FOCUS)
     return Camera(position=tuple(float(v) for v in centre - d * dist), direction=tuple(float(v) for v in d),
                   fov=fov, aperture=0.0, focus=dist, up=tuple(float(v) for v in u))

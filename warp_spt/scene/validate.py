@@ -13,6 +13,7 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_COORDINATE, MAX_IOR, MAX_RADIANCE, MIN_IOR  # noqa: F401 (obj, mtl import them from here)
 from warp_spt.scene.material_schema import (
     COLUMNS,
+    SLOT_COLUMNS,
     SLOTS,
     host_dtype,
     range_text,
@@ -100,6 +101,7 @@ def validate_scene(scene: Scene) -> None:
     """
     n_mat = len(scene.materials.names)
     _check_materials(scene.materials, len(scene.textures), len(scene.procedural))
+    check_procedural_colours(scene)
     for k, tex in enumerate(scene.textures):
         _check_array(tex, f"textures[{k}]", np.float32, (None, None, 3))
         if tex.shape[0] == 0 or tex.shape[1] == 0 or tex.min(initial=0) < 0 or tex.max(initial=0) > 1:
@@ -113,3 +115,18 @@ def validate_scene(scene: Scene) -> None:
     _check_index(smat, "sphere_material", n_mat)
     if scene.num_triangles == 0 and len(spheres) == 0:
         _fail("the scene has no geometry: no triangles and no spheres")
+
+
+def check_procedural_colours(scene: Scene) -> None:
+    """A procedural texture's colours within the range of the slot it fills (a reflectance colour
+    in [0, 1], an emitted one up to MAX_RADIANCE), as a plain colour of that slot would be."""
+    tex = scene.materials.tex
+    for column in SLOT_COLUMNS:
+        for row in np.flatnonzero(tex[:, column.slot] <= TEX_PROC_BASE):
+            ref = scene.procedural[TEX_PROC_BASE - int(tex[row, column.slot])]
+            values = np.array([ref.params[o:o + 3] for o in ref.colours], dtype=np.float64).reshape(-1)
+            low = 0.0 if column.low is None else column.low
+            high = MAX_RADIANCE if column.high is None else column.high
+            if values.size and (values.min() < low or values.max() > high):
+                _fail(f"proc:{ref.name} fills {scene.materials.names[row]}.{column.name}: its colours must "
+                      f"lie in [{low:g}, {high:g}]")

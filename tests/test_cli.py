@@ -252,3 +252,15 @@ def test_help_lists_the_registries_plugins_with_their_summaries(capsys):
         assert f"{name} ({' '.join(record.summary.split())}" in text
     for name in SAMPLERS:
         assert f"{name} ({' '.join(get_sampler(name).summary.split())}" in text
+
+
+def test_view_without_its_extra_says_how_to_install_it(monkeypatch, capsys):
+    import importlib.util
+
+    from warp_spt.cli.main import main as cli_main
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "aiohttp" else real(name, *a))
+    assert cli_main(["view", "--no-browser"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and 'pip install "warp-spt[view]"' in err and "internal error" not in err

@@ -7,6 +7,7 @@ command that renders the current view.
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from typing import Sequence
 
@@ -60,10 +61,11 @@ def main(argv: Sequence[str]) -> int:
             camera = _camera(ns.cam).with_(up=AXES[ns.up])
     except UsageError as err:
         return fail(f"{err} (see {PROG} --help)", EXIT_USAGE, sys.stderr)
-    try:
-        from warp_spt.viewer.server import serve
-    except ImportError as err:
-        return fail(f"the viewer needs its extra: pip install \"warp-spt[view]\" ({err})", 1, sys.stderr)
+    missing = [m for m in ("aiohttp",) if importlib.util.find_spec(m) is None]
+    if missing:
+        return fail(f"the viewer needs {', '.join(missing)}: pip install \"warp-spt[view]\" (from a clone: "
+                    f"pip install \".[view]\")", 1, sys.stderr)
+    from warp_spt.viewer.server import serve
     width, height = ns.res or DEFAULT_VIEW
     try:
         status = serve(camera=camera, objs=ns.obj, mtls=ns.mtl, up=ns.up, port=ns.port or None,

@@ -102,7 +102,7 @@ class Options:
     studio: bool = False
     default_material: str = "auto"
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
-    budget: BudgetOptions = field(default_factory=BudgetOptions)   # cli_progressive's flags
+    budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
     cluster: str | None = None
     workers: int | None = None

@@ -58,7 +58,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
         f"{opts.spp} spp, depth {opts.depth}")
     notice = CompileNotice(say)
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
-    if opts.budget.active:      # passes, budgets and error estimates (cli_progressive)
+    if opts.budget.active:      # passes, budgets and error estimates (cli/progressive.py)
         return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started)
     settings = settings_of(opts, sky=sky)
     with notice:

@@ -391,3 +391,12 @@ def test_fuzzed_parameter_values_are_taken_or_refused_leaving_a_valid_scene(lit_
     validate_scene(lit_params.scene.scene)
     lit_params.camera.validate(8, 8)
     lit_params[name] = before                          # the next example starts from the same scene
+
+
+@pytest.mark.parametrize("entry", ["render_scene", "render_progressive"])
+def test_cluster_entry_points_check_the_scene_type_before_the_client(entry):
+    pytest.importorskip("dask.distributed")
+    from warp_spt import cluster
+
+    with pytest.raises(TypeError, match="scene must be"):
+        getattr(cluster, entry)(None, None)

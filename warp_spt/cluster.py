@@ -492,11 +492,13 @@ def render_progressive(client, scene: Scene, camera: Camera | None = None, setti
     """
     from warp_spt.rendering.result import RenderStats
     from warp_spt.rendering.schedule import DEFAULT_BATCHES, batch_seed
+    from warp_spt.rendering.setup import check_inputs
     from warp_spt.scene.recentre import recentre
 
     t0 = time.perf_counter() if started is None else started
     rs = cluster_settings(settings or RenderSettings())
     batches = DEFAULT_BATCHES if batches is None else batches
+    check_inputs(scene, camera)
     check_settings(rs)
     _check_budget(rs, time_budget, target_error, batches)
     options = options or ClusterOptions()

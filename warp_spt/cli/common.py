@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import os
 import time
-import types
 import unicodedata
 from dataclasses import replace
 from pathlib import Path
@@ -187,7 +186,9 @@ def check_registry_names(opts) -> None:
 def registry_help() -> dict[str, str]:
     """The --integrator and --sampler help text, generated from their registries (name, one-line
     summary, the default marked). Imports Warp (quietly): only ``--help`` asks for it."""
-    init_warp(types.SimpleNamespace(verbose=False, quiet=True))
+    from warp_spt.runtime.warp_init import init_warp as start_warp
+
+    start_warp(False, quiet=True)
     from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
     from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS, get_sampler
 

@@ -172,23 +172,25 @@ class SceneParameters:
         problem = get_texture(ref.name).check(p.field, tuple(float(x) for x in v.reshape(-1)))
         if problem:
             raise ValueError(f"{p.name}: {problem}")
-        off, size = proc_slice(self.scene.scene, p)
-        vec = list(ref.params)
-        vec[off:off + size] = (float(np.float32(x)) for x in v.reshape(-1))
         procedural = list(self.scene.scene.procedural)
-        procedural[p.index] = replace(ref, params=tuple(vec))
+        procedural[p.index] = self._proc_with(p, v)
         try:
             check_procedural_colours(replace(self.scene.scene, procedural=procedural))
         except SceneError as err:
             raise ValueError(f"{p.name}: {err.message}") from None
 
+    def _proc_with(self, p: ParamInfo, v: np.ndarray):
+        """The procedural instance of ``p`` with ``v`` in its parameter vector (rounded as uploaded)."""
+        ref = self.scene.scene.procedural[p.index]
+        off, size = proc_slice(self.scene.scene, p)
+        vec = list(ref.params)
+        vec[off:off + size] = (float(np.float32(x)) for x in v.reshape(-1))
+        return replace(ref, params=tuple(vec))
+
     def _set_proc(self, p: ParamInfo, v: np.ndarray) -> None:
         dev = self.scene
         off, size = proc_slice(dev.scene, p)
-        ref = dev.scene.procedural[p.index]
-        vec = list(ref.params)
-        vec[off:off + size] = (float(np.float32(x)) for x in v.reshape(-1))
-        dev.scene.procedural[p.index] = replace(ref, params=tuple(vec))
+        dev.scene.procedural[p.index] = self._proc_with(p, v)
         host = dev.proc_params.numpy()
         host[p.index, off:off + size] = v.reshape(-1)
         dev.proc_params.assign(host)

@@ -132,15 +132,16 @@ def is_regular_file(path: str | os.PathLike[str]) -> bool:
     return file_problem(path) is None
 
 
-def read_file(path: str, kind: str, *, limit: int | None = None, text: bool = True) -> bytes:
+def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
     """The whole file as bytes (read once), or a SceneError naming it: the one guarded opener of
     every input reader (OBJ, MTL, camera paths).
 
     Only regular files are read (symbolic links are followed): a FIFO, a device such as
     ``/dev/zero`` or a directory is refused before anything is read, so nothing can block or grow
-    without end. A file larger than ``limit`` bytes (default MAX_FILE_BYTES) is refused from its size, before any of it is
-    read; a ``text`` file whose first bytes are binary (NUL bytes, a PNG, UTF-16) is refused after
-    reading only those (:func:`normalise_text` names the line). Lines are checked by normalise_text.
+    without end. A file larger than ``limit`` bytes (default MAX_FILE_BYTES) is refused from its
+    size, before any of it is read; a file whose first bytes are binary (NUL bytes, a PNG, UTF-16)
+    is refused after reading only those (:func:`normalise_text` names the line). Every reader is a
+    text reader; the caller checks the whole text with normalise_text.
     """
     limit = MAX_FILE_BYTES if limit is None else limit
     try:
@@ -158,8 +159,7 @@ def read_file(path: str, kind: str, *, limit: int | None = None, text: bool = Tr
         with os.fdopen(fd, "rb") as f:
             fd = -1                                    # the file object owns it now
             head = f.read(HEAD_BYTES)
-            if text:
-                normalise_text(head, path, kind)       # binary data is refused from its first bytes
+            normalise_text(head, path, kind)           # binary data is refused from its first bytes
             data = head + f.read(limit + 1 - len(head))
     except OSError as err:
         raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None

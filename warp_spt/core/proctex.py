@@ -67,7 +67,7 @@ class ProcParam:
     """A declared parameter: its default and the range its numbers may take (``texture(name,
     scale=ProcParam(1.0, 1e-6, 1e6))``). A plain number or RGB triple declares the default range:
     numbers within +-MAX_PARAMETER; an RGB triple is a colour, whose limits are those of the slot it
-    fills (reflectance in [0, 1], emission in [0, MAX_RADIANCE]: :func:`colour_limit`)."""
+    fills (reflectance in [0, 1], emission in [0, MAX_RADIANCE]: the material schema's ranges)."""
 
     default: object
     low: float | None = None
@@ -104,7 +104,7 @@ class ProcTexture:
 
     def check(self, key: str, vals: tuple[float, ...]) -> str | None:
         """Why ``vals`` cannot be ``key``'s values (a scalar outside its declared range; colours are
-        checked against their slot, see :func:`colour_limit`), or None."""
+        checked against their slot by the MTL reader and validate_scene), or None."""
         low, high = dict(zip((k for k, _ in self.params), self.ranges))[key]
         if len(vals) == 1 and not low <= vals[0] <= high:
             return f"{key} of proc:{self.name} must lie in [{low:g}, {high:g}], got {vals[0]:g}"
@@ -230,8 +230,10 @@ def proc_texture(name: str, **values) -> ProcRef:
     return ProcRef(name, tex.pack(given), colours=tex.colours())
 
 
-def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str) -> ProcRef | None:
-    """The MTL hook: a :class:`ProcRef` if the statement's arguments start with ``proc:``, else None."""
+def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str,
+                   colour_high: float = MAX_RADIANCE) -> ProcRef | None:
+    """The MTL hook: a :class:`ProcRef` if the statement's arguments start with ``proc:``, else None.
+    ``colour_high``: the largest value the slots that ``tag`` fills take (the material schema's)."""
     if not args or not args[0].decode("latin-1").startswith(PREFIX):
         return None
     name = args[0].decode("latin-1")[len(PREFIX):]
@@ -253,21 +255,15 @@ def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str) -> ProcR
         size = layout[key][1]
         if len(vals) != size or not all(math.isfinite(v) for v in vals):
             raise SceneError(path, lineno, f"expected {size} finite number(s) for {key} of proc:{name}, got {text!r}")
-        problem = tex.check(key, vals) or (size == 3 and colour_problem(tag, key, name, vals))
+        problem = tex.check(key, vals) or (size == 3 and colour_problem(tag, colour_high, key, name, vals))
         if problem:
             raise SceneError(path, lineno, problem)
         values[key] = vals
     return ProcRef(name, tex.pack(values), path, lineno, colours=tex.colours())
 
 
-def colour_limit(tag: str) -> float:
-    """The largest value a colour may hold in the slot ``tag`` fills: emission (map_Ke, the seed's
-    map_Kl) up to MAX_RADIANCE, reflectance (diffuse, reflect, refract) up to 1."""
-    return MAX_RADIANCE if tag.lower() in ("map_ke", "map_kl") else 1.0
-
-
-def colour_problem(tag: str, key: str, name: str, vals) -> str | None:
-    high = colour_limit(tag)
+def colour_problem(tag: str, high: float, key: str, name: str, vals) -> str | None:
+    """Why colour ``vals`` cannot fill ``tag``'s slots, whose values lie in [0, ``high``], or None."""
     if all(0.0 <= v <= high for v in vals):
         return None
     return f"{key} of proc:{name} fills '{tag}': each value in [0, {high:g}], got {tuple(vals)}"

@@ -268,7 +268,8 @@ def _proc_map(args: list[bytes], path: str, lineno: int, tag: str):
     from warp_spt.core.proctex import (
         parse_proc_map,  # imports Warp: only for scenes that use procedural textures
     )
-    return parse_proc_map(args, path, lineno, tag)
+    high = min(COLUMN[slot].high for slot in _MAP_SLOTS[tag.lower()])     # the schema's, as for colours
+    return parse_proc_map(args, path, lineno, tag, high)
 
 
 def _is_number(tok: bytes) -> bool:

@@ -6,6 +6,7 @@ The library half (camera paths, OBJ sequences, :func:`warp_spt.animation.render_
 
 from __future__ import annotations
 
+import sys
 import time
 from contextlib import contextmanager
 from dataclasses import replace
@@ -82,6 +83,12 @@ def quiet_local_workers():
 
     import dask
 
+    # The fork server starts multiprocessing's resource tracker, a process that outlives this one and,
+    # after a Ctrl-C cut the cluster's start short, warned on our stderr about the semaphores it
+    # cleans up. It takes the interpreter's -W options from sys.warnoptions: silence just that.
+    tracker_quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
+    if tracker_quiet not in sys.warnoptions:
+        sys.warnoptions.append(tracker_quiet)
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         with ignored_by_children():
             multiprocessing.forkserver.ensure_running()

@@ -1,48 +1,105 @@
-"""Every notebook in notebooks/ runs top to bottom in a real Jupyter kernel (nbclient + ipykernel).
+"""Every notebook in notebooks/ runs top to bottom in a real Jupyter kernel (nbclient + ipykernel)
+and prints no warning (issue 22).
 
-A cell that raises fails the test with the cell's traceback. The kernel inherits this process's
-environment (PYTHONPATH included), so it imports the same warp_spt; the working directory is a
-temporary folder, so notebooks cannot rely on files beside them.
+A cell that raises fails the test with the cell's traceback; so does a warning, whether this process
+emits it (nbformat reading a notebook, nbclient running it) or the kernel prints it into a cell's
+output. The kernel inherits this process's environment (PYTHONPATH included), so it imports the
+same warp_spt; it starts in the notebook's folder, as Jupyter starts it (the notebooks write no files).
 """
 
 from __future__ import annotations
 
+import contextlib
+import re
+import tempfile
+import warnings
 from pathlib import Path
 
 import pytest
 
-NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+REPO = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 600      # seconds per cell: generous for a loaded 2-core CI machine
+WARNING = re.compile(r"\w*Warning\b")
+
+
+def _jupyter():
+    nbformat = pytest.importorskip("nbformat", reason="the test extra installs nbformat, nbclient and ipykernel")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    return nbformat, nbclient
+
+
+def read(path: Path):
+    """The notebook, read as nbformat 4; a warning while reading (a cell without an id) fails."""
+    nbformat, _ = _jupyter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        nb = nbformat.read(path, as_version=4)
+    assert not caught, f"{path.name}: {[f'{w.category.__name__}: {w.message}' for w in caught]}"
+    return nb
+
+
+@contextlib.contextmanager
+def kernel_client(nb, cwd: Path, timeout: int = CELL_TIMEOUT):
+    """An nbclient client whose kernel starts in ``cwd`` and talks over local sockets (IPC) in a
+    folder of their own: over TCP, ipykernel logs a warning that the traffic is not encrypted."""
+    from traitlets.config import Config
+
+    _, nbclient = _jupyter()
+    with tempfile.TemporaryDirectory(prefix="nbk") as sockets:
+        config = Config({"KernelManager": {"transport": "ipc", "ip": str(Path(sockets) / "kernel")}})
+        yield nbclient.NotebookClient(nb, config=config, timeout=timeout, kernel_name="python3",
+                                      resources={"metadata": {"path": str(cwd)}})
+
+
+def execute(nb, cwd: Path, name: str = "notebook"):
+    """Run ``nb`` in a fresh kernel started in ``cwd``; fail on an error or on any warning."""
+    _, nbclient = _jupyter()
+    with kernel_client(nb, cwd) as client, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            client.execute()
+        except nbclient.exceptions.CellExecutionError as err:
+            pytest.fail(f"{name}: a cell failed:\n{err}", pytrace=False)
+    assert not caught, f"{name}: {[f'{w.category.__name__}: {w.message}' for w in caught]}"
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    errors = [o for o in outputs if o.output_type == "error"]
+    assert not errors, errors
+    printed = [o.text for o in outputs if o.output_type == "stream" and WARNING.search(o.text)]
+    assert not printed, f"{name}: the kernel printed a warning:\n" + "\n".join(printed)
+    return outputs
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
 def test_notebook_runs(path):
-    nbformat = pytest.importorskip("nbformat", reason="the test extra installs nbformat, nbclient and ipykernel")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
-    nb = nbformat.read(path, as_version=4)
-    # the kernel starts in the notebook's folder, as Jupyter starts it (the notebooks write no files)
-    client = nbclient.NotebookClient(nb, timeout=CELL_TIMEOUT, kernel_name="python3",
-                                     resources={"metadata": {"path": str(path.parent)}})
-    try:
-        client.execute()
-    except nbclient.exceptions.CellExecutionError as err:
-        pytest.fail(f"{path.name}: a cell failed:\n{err}", pytrace=False)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "error"]
-    assert not errors, errors
+    execute(read(path), path.parent, path.name)
 
 
 def test_there_is_a_notebook():
     assert NOTEBOOKS, "notebooks/ should hold at least one notebook"
 
 
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebook_is_normalised(path):
+    """nbformat 4.5 or later, and every cell has its own id: nbformat reads it without a warning."""
+    nb = read(path)
+    assert (nb.nbformat, nb.nbformat_minor) >= (4, 5)
+    ids = [c.get("id") for c in nb.cells]
+    assert all(ids) and len(set(ids)) == len(ids), ids
+
+
 def test_a_failing_cell_fails(tmp_path):
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
+    nbformat, nbclient = _jupyter()
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("x = 1"),
                                          nbformat.v4.new_code_cell("raise ValueError('broken cell')")])
-    client = nbclient.NotebookClient(nb, timeout=60, kernel_name="python3",
-                                     resources={"metadata": {"path": str(tmp_path)}})
-    with pytest.raises(nbclient.exceptions.CellExecutionError, match="broken cell"):
-        client.execute()
+    with kernel_client(nb, tmp_path, timeout=60) as client:
+        with pytest.raises(nbclient.exceptions.CellExecutionError, match="broken cell"):
+            client.execute()
+
+
+def test_a_warning_in_a_cell_fails(tmp_path):
+    nbformat, _ = _jupyter()
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("import warnings; warnings.warn('odd')")])
+    with pytest.raises(AssertionError, match="UserWarning: odd"):
+        execute(nb, tmp_path)

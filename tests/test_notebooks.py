@@ -103,3 +103,29 @@ def test_a_warning_in_a_cell_fails(tmp_path):
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("import warnings; warnings.warn('odd')")])
     with pytest.raises(AssertionError, match="UserWarning: odd"):
         execute(nb, tmp_path)
+
+
+@pytest.mark.parametrize("widgets", [True, False], ids=["ipywidgets", "no-ipywidgets"])
+def test_progress_bar_in_jupyter_warns_not(widgets, tmp_path):
+    """progress=True in Jupyter: a widget with ipywidgets (the notebook extra), else a text bar on
+    stderr, and no TqdmWarning ('IProgress not found') either way."""
+    nbformat, _ = _jupyter()
+    hide = "" if widgets else "import sys; sys.modules['ipywidgets'] = None   # as if it were not installed\n"
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(
+        hide + "import warnings\n"
+        "from warp_spt.runtime.progress import ProgressBar\n"
+        "with warnings.catch_warnings(record=True) as caught:\n"
+        "    warnings.simplefilter('always')\n"
+        "    bar = ProgressBar(1000, delay=0.0)\n"
+        "    bar(1, 2); bar(2, 2); bar.close()\n"
+        "print('caught', [f'{w.category.__name__}: {w.message}' for w in caught])")])
+    outputs = execute(nb, tmp_path)
+    stdout = "".join(o.text for o in outputs if o.output_type == "stream" and o.name == "stdout")
+    stderr = "".join(o.text for o in outputs if o.output_type == "stream" and o.name == "stderr")
+    assert "caught []" in stdout, stdout
+    widget = [o for o in outputs if o.output_type == "display_data"
+              and "application/vnd.jupyter.widget-view+json" in o.data]
+    if widgets:
+        assert widget and not stderr, (outputs, stderr)
+    else:
+        assert not widget and "rendering: 100%" in stderr, (outputs, stderr)

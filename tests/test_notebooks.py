@@ -1,10 +1,11 @@
-"""Every notebook in notebooks/ runs top to bottom in a real Jupyter kernel (nbclient + ipykernel)
-and prints no warning (issue 22).
+"""Every notebook in notebooks/ runs top to bottom in a real Jupyter kernel (nbclient + ipykernel),
+started in the repository's root and in an empty temporary folder (issue 22), and prints no warning.
 
 A cell that raises fails the test with the cell's traceback; so does a warning, whether this process
 emits it (nbformat reading a notebook, nbclient running it) or the kernel prints it into a cell's
 output. The kernel inherits this process's environment (PYTHONPATH included), so it imports the
-same warp_spt; it starts in the notebook's folder, as Jupyter starts it (the notebooks write no files).
+same warp_spt; its working directory is not the notebooks' folder, so a notebook cannot rely on
+files beside it (it finds its data through the package, e.g. ``warp_spt.demo``).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ REPO = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 600      # seconds per cell: generous for a loaded 2-core CI machine
 WARNING = re.compile(r"\w*Warning\b")
+# what makes a notebook depend on where it was started or on files outside the package
+CWD_TRICKS = ("sys.path", "chdir", "cwd()", "getcwd", "../", "..\\")
 
 
 def _jupyter():
@@ -71,9 +74,10 @@ def execute(nb, cwd: Path, name: str = "notebook"):
     return outputs
 
 
+@pytest.mark.parametrize("where", ["root", "tmp"])
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
-def test_notebook_runs(path):
-    execute(read(path), path.parent, path.name)
+def test_notebook_runs(path, where, tmp_path):
+    execute(read(path), REPO if where == "root" else tmp_path, path.name)
 
 
 def test_there_is_a_notebook():
@@ -87,6 +91,15 @@ def test_notebook_is_normalised(path):
     assert (nb.nbformat, nb.nbformat_minor) >= (4, 5)
     ids = [c.get("id") for c in nb.cells]
     assert all(ids) and len(set(ids)) == len(ids), ids
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebook_does_not_depend_on_where_it_runs(path):
+    """No notebook edits sys.path, changes or reads the working directory, or reaches for files
+    above it: the installed package is all it needs, wherever Jupyter starts its kernel."""
+    code = [c.source for c in read(path).cells if c.cell_type == "code"]
+    found = [(trick, src.splitlines()[0]) for src in code for trick in CWD_TRICKS if trick in src]
+    assert not found, found
 
 
 def test_a_failing_cell_fails(tmp_path):

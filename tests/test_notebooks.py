@@ -102,6 +102,19 @@ def test_notebook_does_not_depend_on_where_it_runs(path):
     assert not found, found
 
 
+def test_explore_teaches_render_gradients():
+    """explore.ipynb shows gradients by parameter name (warp_spt.render_gradients), not the old
+    wp.Tape workflow, and says in a markdown cell what each code cell shows."""
+    cells = read(REPO / "notebooks" / "explore.ipynb").cells
+    code = "\n".join(c.source for c in cells if c.cell_type == "code")
+    assert "warp_spt.render_gradients(" in code and "warp_spt.parameters(" in code
+    for old in ("wp.Tape", "tape.backward", "render_differentiable", "enable_material_gradients", "import warp "):
+        assert old not in code, old
+    unexplained = [c.source.splitlines()[0] for prev, c in zip(cells, cells[1:])
+                   if c.cell_type == "code" and prev.cell_type != "markdown"]
+    assert cells[0].cell_type == "markdown" and not unexplained, unexplained
+
+
 def test_a_failing_cell_fails(tmp_path):
     nbformat, nbclient = _jupyter()
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("x = 1"),

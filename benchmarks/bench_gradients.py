@@ -167,13 +167,12 @@ def bench_growth(size: int, spp: int, depth: int, integrator: str, sampler: str)
 
 
 def bench_texels(size: int, spp: int) -> None:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-    import inverse_rendering as ir
+    from warp_spt.diff.inverse_demo import textured_quad
 
     print(f"\nTexel gradients, quad {size}x{size}, spp {spp}, depth 2, nearest; backward time best of 3")
     for n in (2, 16, 256):
         with tempfile.TemporaryDirectory() as tmp:
-            scene, camera = ir.textured_quad(Path(tmp), n)
+            scene, camera = textured_quad(Path(tmp), n)
         params = parameters(scene, camera, warp_spt.Sky.constant(1, 1, 1))
         rs = RenderSettings(width=size, height=size, spp=spp, max_depth=2, tile_pixels=1024, integrator="seed")
         adj = np.ones((size, size, 3))

@@ -2,5 +2,6 @@
 
 ``params`` (SceneParameters: what can be edited and differentiated, by name), ``gradients``
 (render_gradients: path replay or the tape), ``prb`` (path-replay backpropagation), ``optim`` (Adam
-and bounds). Losses are in :mod:`warp_spt.losses`.
+and bounds), ``inverse_demo`` (the inverse-rendering demos of examples/ and notebooks/). Losses are
+in :mod:`warp_spt.losses`.
 """

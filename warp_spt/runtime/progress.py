@@ -4,14 +4,16 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from typing import Callable, TextIO
 
 
 class ProgressBar:
     """Adapts the renderer's ``(done_units, total_units)`` callback to a tqdm bar counted in samples.
 
-    Counting samples (pixels x spp) makes tqdm show the rate as samples/s and an ETA. tqdm.auto
-    draws a widget in Jupyter and text on stderr elsewhere; ``delay`` keeps quick renders silent.
+    Counting samples (pixels x spp) makes tqdm show the rate as samples/s and an ETA. The bar is a
+    widget in Jupyter when ipywidgets is installed, text on stderr elsewhere (:func:`bar_class`);
+    ``delay`` keeps quick renders silent.
     """
 
     def __init__(self, total_samples: int, *, file: TextIO | None = None, delay: float = 0.5):
@@ -22,12 +24,12 @@ class ProgressBar:
 
     def __call__(self, done: int, total: int) -> None:
         if self._bar is None:
-            from tqdm.auto import (
-                tqdm,  # lazy: tqdm.auto probes for Jupyter when imported
-            )
+            tqdm = bar_class()
             file = self._file or sys.stderr
-            # Redrawing is for terminals and notebooks; into a log file, a line every 15 s is plenty.
-            live = "notebook" in tqdm.__module__ or getattr(file, "isatty", lambda: False)()
+            # Redrawing is for terminals and notebooks (a widget, or text in a Jupyter kernel's stream);
+            # into a log file, a line every 15 s is plenty.
+            live = (_is_widget(tqdm) or type(file).__module__.startswith("ipykernel")
+                    or getattr(file, "isatty", lambda: False)())
             self._bar = tqdm(total=self.total_samples, unit="sample", unit_scale=True, desc="rendering",
                              file=file, delay=self._delay, dynamic_ncols=True,
                              mininterval=0.1 if live else 15.0)
@@ -38,6 +40,26 @@ class ProgressBar:
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
+
+
+def bar_class() -> type:
+    """tqdm.auto's choice of bar class (a widget in a Jupyter kernel, text elsewhere), made quietly.
+
+    In a Jupyter kernel without ipywidgets, tqdm.auto falls back to its text bar but warns first
+    (``TqdmWarning: IProgress not found``); the text bar is a fine progress display there, so that
+    one warning is silenced (the ``notebook`` extra installs ipywidgets for the widget). Imported
+    lazily: tqdm.auto probes for Jupyter when it is imported.
+    """
+    from tqdm.std import TqdmWarning
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="IProgress not found", category=TqdmWarning)
+        from tqdm.auto import tqdm
+    return tqdm
+
+
+def _is_widget(cls: type) -> bool:
+    return any(c.__module__ == "tqdm.notebook" for c in cls.__mro__)
 
 
 def progress_reporter(progress: bool | ProgressFn, total: int) -> Callable[[int | None], None]:

@@ -1,4 +1,4 @@
-"""docs/models.png: a generated Y-up "bunny" as a new user first saw it, framed with --up y, and with --studio.
+"""docs/models.png: a generated Y-up "bunny" as the previous release first showed it, as it does now, and --view left.
 
 The model comes from tests/models.py (procedural, no downloaded data). Each panel is one warp-spt
 command line run in-process; the commands are printed.
@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from tests.models import write_model  # noqa: E402
 from warp_spt.cli.options import parse_args  # noqa: E402
-from warp_spt.cli.render import run  # noqa: E402
+from warp_spt.cli.main import run  # noqa: E402
 
 
 def main() -> None:
@@ -33,9 +33,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         obj = str(write_model(Path(tmp) / "bunny.obj", "bunny", up="y"))
         size = ["-res", str(args.size), str(args.size), "-sr", str(args.spp), "--tonemap", "srgb"]
-        panels = [["-cam", *"4 -55 16 0 1 0 38 27 0.001".split()],   # the seed's camera, as before issue 10
-                  ["--up", "y"],
-                  ["--up", "y", "--studio"]]
+        panels = [["--up", "z", "--no-studio"],    # before issue 22: Z up, framed, clay on the seed's blue sky
+                  [],                              # a new user's first command now
+                  ["--view", "left"]]
         images = []
         for k, extra in enumerate(panels):
             out = str(Path(tmp) / f"p{k}.png")

@@ -159,7 +159,7 @@ class FakeEngine:
             raise self.render_effect
         return np.zeros((kw["height"], kw["width"], 3), np.float32)
 
-    def _save(self, path, img, tonemap="seed"):
+    def _save(self, path, img, tonemap="seed", exposure=0.0):
         self.calls["save"] = (path, img.shape, tonemap)
         Path(path).write_bytes(b"image")
 

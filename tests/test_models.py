@@ -205,8 +205,19 @@ def test_default_material_rule(scene_dir):
     assert load_scene([bare], default_material="auto").materials.tex[0, 0] == -1           # clay
     assert load_scene([bare]).materials.tex[0, 0] == -2                                    # API: checker
     named = scene_dir / "named.obj"
-    named.write_text("usemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl Inner_CheckerTexture\n")
-    assert load_scene([str(named)], default_material="auto", warn=lambda m: None).materials.tex[0, 0] == -2
+    named.write_text("usemtl None\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl Inner_CheckerTexture\n")
+    said: list[str] = []
+    scene = load_scene([str(named)], default_material="auto", warn=said.append)
+    # usemtl names that no library defines (an exporter's "None"): still a bare model, clay, said so
+    assert scene.materials.tex[0, 0] == -1 and scene.bare
+    assert said == [f"{named}:1: unknown material 'None'; using the default material (clay)"]
+    said.clear()
+    assert load_scene([str(named)], default_material="clay", warn=said.append).materials.tex[0, 0] == -1
+    assert "using the default material (clay)" in said[0]
+    lib = scene_dir / "lib.mtl"
+    lib.write_text("newmtl other\nKd 1 0 0\n")
+    with_lib = load_scene([str(named)], [str(lib)], default_material="auto", warn=lambda m: None)
+    assert with_lib.materials.tex[0, 0] == -2 and not with_lib.bare                       # a library: checker
 
 
 # --------------------------------------------------------------------------------------------

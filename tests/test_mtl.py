@@ -24,7 +24,8 @@ def one(text: str):
 
 
 def test_defaults_of_a_new_material():
-    m = one("")
+    m = mtl("newmtl m\nnewmtl seed\nFuzz 0.5\n")["m"]      # a seed tag anywhere: the seed's dialect
+    assert m.seed_dialect
     assert m.name == "m" and m.source == "lib/m.mtl" and m.line == 1
     assert m.diffuse == pytest.approx(SEED_DIFFUSE) and m.diffuse == pytest.approx((0.62109375, 0.55859375, 0.484375))
     assert m.reflect == pytest.approx(SEED_REFLECT)
@@ -93,12 +94,12 @@ def test_standard_tags():
 
 
 @pytest.mark.parametrize("text, rough, fuzz, refractable", [
-    ("illum 2\n", 0.85, 0.62, False),
+    ("illum 2\n", 1.0, 0.62, False),              # standard files: no Ks, no specular lobe
     ("illum 3\n", 0.0, 0.0, False),
     ("illum 5\n", 0.0, 0.0, False),
     ("illum 4\n", 0.0, 0.0, True),
     ("illum 7\n", 0.0, 0.0, True),
-    ("d 1\n", 0.85, 0.62, False),
+    ("d 1\n", 1.0, 0.62, False),
     ("d 0.25\n", 0.25, 0.62, True),
     ("Tr 0.75\n", 0.25, 0.62, True),
     ("illum 3\nd 0.5\n", 0.0, 0.0, True),
@@ -160,3 +161,16 @@ def test_seed_demo_library(seed_demo):
     assert lib["Texture2"].diffuse == pytest.approx((0.87, 0.783, 0.83955), abs=1e-6)
     alt = load_mtl(seed_demo / "testMiku_ior1.62.mtl")["Ball2"]
     assert (alt.ior, alt.fuzz) == (1.62, 0.18)
+
+
+def test_a_kd_only_material_is_matte_in_a_standard_file_and_keeps_the_seed_lobe_in_the_seeds():
+    standard = mtl("newmtl plain\nKd 0.8 0.8 0.8\nnewmtl shiny\nKd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nNs 98\n"
+                   "newmtl blurred\nKd 0.5 0.5 0.5\nNs 18\n")
+    assert standard["plain"].roughness == 1.0 and not standard["plain"].seed_dialect
+    assert standard["shiny"].roughness == pytest.approx(0.5)                    # Ks: max(Kd)/(max(Kd)+max(Ks))
+    assert standard["blurred"].roughness == 0.85 and standard["blurred"].fuzz == pytest.approx(0.5)  # Ns alone
+    # the same Kd-only material in a file that uses one of the seed's own tags, before or after it
+    for text in ("newmtl plain\nKd 0.8 0.8 0.8\nnewmtl lamp\nKl 1 1 1\n",
+                 "newmtl lamp\nKl 1 1 1\nnewmtl plain\nKd 0.8 0.8 0.8\n"):
+        seed = mtl(text)["plain"]
+        assert seed.roughness == 0.85 and seed.fuzz == pytest.approx(0.62) and seed.seed_dialect

@@ -70,6 +70,8 @@ _EXPORTS = {
     "texture": "core.proctex",
     "tonemap_seed": "io.images",
     "tonemap_srgb": "io.images",
+    "to_display": "io.images",
+    "up_axis": "scene.conventions",
 }
 
 _SUBMODULES = ("demo", "losses")    # reached as warp_spt.losses.l2 etc.
@@ -87,7 +89,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.diff.gradients import GradientResult, render_gradients
     from warp_spt.diff.params import SceneParameters, parameters
     from warp_spt.integrators import INTEGRATORS
-    from warp_spt.io.images import save_image, tonemap_seed, tonemap_srgb
+    from warp_spt.io.images import save_image, to_display, tonemap_seed, tonemap_srgb
     from warp_spt.io.loader import load_scene
     from warp_spt.io.mtl import load_mtl
     from warp_spt.io.obj import load_obj
@@ -103,6 +105,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.rendering.tiles import render, render_film, render_scene
     from warp_spt.samplers import SAMPLERS
     from warp_spt.scene.camera import Camera
+    from warp_spt.scene.conventions import up_axis
     from warp_spt.scene.errors import SceneError
     from warp_spt.scene.model import Material, ObjData, Scene
     from warp_spt.scene.sky import Sky

@@ -41,7 +41,7 @@ def _run_budgeted(opts, scene, say, started: float | None) -> int:
         from warp_spt import cluster
         res = cluster.render_progressive(client, scene, opts.camera, rs, time_budget=b.time_budget,
                                          target_error=b.target_error, on_pass=on_pass, started=started)
-    save_image(opts.out, res.image, tonemap=opts.tonemap)
+    save_image(opts.out, res.image, tonemap=opts.tonemap, exposure=opts.exposure)
     say(f"wrote {opts.out} ({res.spp_total} spp, {res.stats.seconds:.1f} s since start, stopped by "
         f"{res.stats.stopped_by}); estimated relative error of the image: {100 * res.relative_error:.2f}%")
     return EXIT_OK
@@ -103,7 +103,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
         init_warp,
         scene_files,
     )
-    from warp_spt.io.images import _TONEMAPS, save_image
+    from warp_spt.io.images import save_image, to_display
     from warp_spt.runtime.progress import ProgressBar
 
     say = say_for(opts, err)
@@ -151,9 +151,9 @@ def run_cli(opts, err, started: float | None = None) -> int:
         with cluster_client(opts) as client:
             for k, image in images(client, bar or False):
                 if opts.out:
-                    save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap)
+                    save_image(frame_path(opts.out, k), image, tonemap=opts.tonemap, exposure=opts.exposure)
                 if opts.gif:
-                    previews[k] = _TONEMAPS[opts.tonemap](image)
+                    previews[k] = to_display(image, opts.tonemap, opts.exposure)
     finally:
         if bar is not None:
             from warp_spt.runtime.signals import deferred_signals

@@ -53,7 +53,8 @@ examples:
   warp-spt --demo 512p16s                    the seed's quick demo script (512x512, 16 spp)
   warp-spt -mtl scene.mtl -obj room.obj -obj balls.obj -sky 1 -res 512 512 -sr 32 -out room.png
   warp-spt -obj model.obj -cam 4 -55 16 0 1 0 38 27 0.001 --sky-color 0 0 0 -out model.pfm
-  warp-spt -obj bunny.obj --up y --studio -sr 64 -out bunny.exr    a Y-up model, framed, product shot
+  warp-spt -obj bunny.obj -sr 64 -out bunny.png        your model: Y up, framed, studio look
+  warp-spt -obj bunny.obj --view left --exposure -0.5   from its left side, half a stop darker
 
 -cam takes the order of the seed's design document: px py pz dx dy dz fov focus aperture
 (the seed's Java code read fov aperture focus). d is a view direction, not a target; fov is the
@@ -63,13 +64,21 @@ horizontal angle in degrees. --look-at, --fov and --aperture override single fie
 Exit status: 0 ok, 1 failure, 2 bad arguments, 130 interrupted (Ctrl-C, SIGINT), 143 terminated
 (SIGTERM).
 
-Z is up, as in the seed. Most exported models are Y-up: add --up y (any of x y z -x -y -z) to
-stand them upright; it sets the camera's up axis and the framing's.
+Up axis: --up wins (x y z -x -y -z). Otherwise the seed's scenes (the demo, OBJ spheres 'b', MTL
+files with the seed's tags such as Roughness or Kl) and any command with -cam keep the seed's Z up;
+any other model is Y up, as OBJ exporters write them. The "framed" line says what was assumed.
 
-With -obj and no -cam the scene is framed automatically (a three-quarter view from the front,
-the whole model in view, pinhole) when the seed's default camera would stand inside the scene's
-bounds, see almost none of it or be too close to see it whole, and whenever --up is not z;
---frame always frames. The seed's own scenes are seen whole by the default camera and keep it.
+Your own model (a standard OBJ, no -cam) is framed: the whole model in view, pinhole, a
+three-quarter view from the front, or face-on for a flat cut-out; --view front|back|left|right|
+top|bottom|AZ,EL (or --orbit AZ EL, degrees) chooses the side, --look-at the point looked at,
+--fov the lens. The printed -cam reproduces the view. A scene in the seed's dialect keeps the
+seed's default camera unless it would stand inside the scene, see almost none of it or be too
+close to see it whole; --frame always frames.
+
+A bare model (no material library, no sky flag) gets the studio look: grey clay, a ground, a key
+light placed from the camera (above, to the left, in front), a soft grey sky. --no-studio or a
+sky flag turns it off; --studio turns it on for any model. --exposure EV brightens (or, negative,
+darkens) the tone-mapped .png/.jpg by 2^EV; linear .npy/.pfm/.exr keep the scene's radiance.
 """
 
 
@@ -96,10 +105,15 @@ class Options:
     demo: str | None = None
     integrator: str | None = None     # None: the renderer's default
     sampler: str | None = None
-    up: str = "z"
+    up: str | None = None            # --up; None: the rule of warp_spt.scene.conventions.up_axis
     cam_given: bool = False          # -cam or --look-at placed the camera: never frame automatically
+    cam_explicit: bool = False       # -cam itself (the seed's Z-up convention)
+    look_at: tuple[float, float, float] | None = None
+    view: tuple[float, float] | None = None   # --view / --orbit: (azimuth, elevation) in degrees
     frame: bool = False              # --frame: always frame
-    studio: bool = False
+    studio: bool | None = None       # --studio / --no-studio; None: wants_studio's rule
+    sky_given: bool = False          # -sky, --sky-color or a --demo preset chose the sky
+    exposure: float = 0.0            # --exposure, in stops, for tone-mapped outputs
     default_material: str = "auto"
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
@@ -244,11 +258,27 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
-        up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, frame=ns.frame,
-        studio=ns.studio, default_material=ns.default_material,
+        up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
+        look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
+        studio=ns.studio, sky_given=ns.sky is not None or ns.sky_color is not None or preset is not None,
+        exposure=ns.exposure, default_material=ns.default_material,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
-    return with_animation_options(opts, ns, explicit_out=ns.out is not None)
+    return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
+
+
+MAX_EXPOSURE = 20.0     # stops: 2^20 either way is far past any display; the viewer's range too
+TONE_MAPPED = (".png", ".jpg", ".jpeg")
+
+
+def _check_exposure(opts: Options) -> Options:
+    """--exposure within +-MAX_EXPOSURE, and only where some output is tone mapped."""
+    if not abs(opts.exposure) <= MAX_EXPOSURE:
+        raise UsageError(f"--exposure must lie in [-{MAX_EXPOSURE:g}, {MAX_EXPOSURE:g}] stops, got {opts.exposure:g}")
+    if opts.exposure and not opts.gif and Path(opts.out).suffix.lower() not in TONE_MAPPED:
+        raise UsageError(f"--exposure changes tone-mapped .png/.jpg images; -out {opts.out!r} holds the scene's "
+                         "linear radiance (scale it when you display it)")
+    return opts
 
 
 def _reject_unknown_flags(argv: Sequence[str], parser: argparse.ArgumentParser) -> None:
@@ -294,39 +324,76 @@ def _sky(index: int | None, colour: list[float] | None, fallback: int) -> Sky:
 
 
 def _add_model_flags(g) -> None:
-    g.add_argument("--up", choices=UP_AXES, default="z", metavar="AXIS",
-                   help="the world's up axis: x, y, z (default, as the seed), -x, -y or -z; "
-                        "most exported models need --up y")
+    g.add_argument("--up", choices=UP_AXES, metavar="AXIS",
+                   help="the world's up axis: x, y, z, -x, -y or -z (default: z for the seed's scenes and "
+                        "with -cam, y for other models; see below)")
+    g.add_argument("--view", type=view_angles, metavar="SIDE",
+                   help="frame your model from front, back, left, right, top, bottom or AZ,EL (degrees)")
+    g.add_argument("--orbit", nargs=2, type=finite_float, metavar=("AZ", "EL"),
+                   help="frame your model from azimuth AZ (from the front towards the right) and "
+                        "elevation EL, in degrees")
     g.add_argument("--look-at", nargs=3, type=finite_float, metavar=("TX", "TY", "TZ"),
                    help="aim the camera (-cam's or the default position) at this point and focus on it")
     g.add_argument("--fov", type=finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
     g.add_argument("--aperture", type=finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
     g.add_argument("--frame", action="store_true",
                    help="frame the scene: three-quarter view from the front, all of it in view, pinhole")
-    g.add_argument("--studio", action="store_true",
+    g.add_argument("--studio", action=argparse.BooleanOptionalAction, default=None,
                    help="neutral sky, a ground plane under the model and a key light (adds geometry, "
-                        "never edits your files)")
+                        "never edits your files); default: on for a bare model with no sky flag")
+    g.add_argument("--exposure", type=finite_float, default=0.0, metavar="EV",
+                   help="scale the tone-mapped image by 2^EV (default 0)")
     g.add_argument("--default-material", choices=("auto", "clay", "checker"), default="auto",
                    help="material of faces with no usemtl: clay (grey) or checker (the seed's); "
                         "auto (default): checker if any MTL is given or any OBJ names a material, else clay")
 
 
 def _join_up_operand(argv: Sequence[str]) -> list[str]:
-    """``--up -y`` as ``--up=-y``: argparse would take ``-y`` for a flag."""
+    """``--up -y`` as ``--up=-y`` and ``--view -30,10`` as ``--view=-30,10``: argparse would take
+    an operand starting with a dash for a flag."""
     out: list[str] = []
     for token in argv:
-        if out and out[-1] == "--up" and token in UP_AXES:
-            out[-1] = f"--up={token}"
+        if out and ((out[-1] == "--up" and token in UP_AXES) or (out[-1] == "--view" and token.startswith("-"))):
+            out[-1] = f"{out[-1]}={token}"
         else:
             out.append(token)
     return out
 
 
+def view_angles(text: str) -> tuple[float, float]:
+    """An argparse ``type`` for --view: a named side or ``AZ,EL`` in degrees."""
+    from warp_spt.scene.camera import VIEWS
+
+    if text.lower() in VIEWS:
+        return VIEWS[text.lower()]
+    parts = text.split(",")
+    try:
+        az, el = (finite_float(p) for p in parts) if len(parts) == 2 else (None, None)
+    except argparse.ArgumentTypeError:
+        az = el = None
+    if az is None or not -90.0 <= el <= 90.0:
+        raise argparse.ArgumentTypeError(f"expected {', '.join(VIEWS)} or AZ,EL in degrees "
+                                         f"(EL in [-90, 90]), got {text!r}")
+    return az, el
+
+
+def _view_angles(ns: argparse.Namespace) -> tuple[float, float] | None:
+    if ns.orbit is not None:
+        return view_angles(",".join(str(v) for v in ns.orbit))
+    return ns.view
+
+
 def _check_model_flags(ns: argparse.Namespace) -> None:
     if ns.frame and (ns.cam is not None or ns.look_at is not None):
         raise UsageError("--frame places the camera itself; it cannot be combined with -cam or --look-at")
-    if (ns.frame or ns.studio) and not ns.obj:
-        raise UsageError("--frame and --studio are for your own -obj files, not the built-in demo")
+    if ns.view is not None and ns.orbit is not None:
+        raise UsageError("give either --view or --orbit, not both")
+    if (ns.view is not None or ns.orbit is not None) and ns.cam is not None:
+        raise UsageError("--view and --orbit place the camera themselves; they cannot be combined with -cam")
+    for flag, given in (("--frame", ns.frame), ("--studio", ns.studio), ("--view", ns.view is not None),
+                        ("--orbit", ns.orbit is not None)):
+        if given and not ns.obj:
+            raise UsageError(f"{flag} is for your own -obj files, not the built-in demo")
 
 
 def _model_camera(ns: argparse.Namespace) -> Camera:
@@ -334,10 +401,11 @@ def _model_camera(ns: argparse.Namespace) -> Camera:
     from warp_spt.scene.camera import AXES, Camera
 
     cam = _camera(ns.cam)
+    up = ns.up or "z"       # the rule's axis is set once the scene is read (cli/view_checks.py)
     try:     # look_at and with_ validate the camera they return
         if ns.look_at is not None:
-            cam = Camera.look_at(cam.position, ns.look_at, up=ns.up, fov=cam.fov, aperture=cam.aperture)
-        return cam.with_(up=AXES[ns.up], fov=ns.fov, aperture=ns.aperture)
+            cam = Camera.look_at(cam.position, ns.look_at, up=up, fov=cam.fov, aperture=cam.aperture)
+        return cam.with_(up=AXES[up], fov=ns.fov, aperture=ns.aperture)
     except ValueError as err:
         raise UsageError(f"camera: {err}") from None
 

@@ -61,7 +61,8 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         say(f"pass {res.stats.passes}: {_spp_text(res.spp)}, {res.stats.seconds:.1f} s, "
             f"estimated relative error {_pct(res.relative_error)}")
         if b.progressive:
-            side.write("--progressive", b.progressive, lambda: save_image(b.progressive, res.image, tonemap=opts.tonemap))
+            side.write("--progressive", b.progressive,
+                       lambda: save_image(b.progressive, res.image, tonemap=opts.tonemap, exposure=opts.exposure))
 
     rs = settings_of(opts, spp=spp)
     # the batches own the sample indices and the tiling: every other setting as the command gave it
@@ -77,7 +78,7 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         image = denoise(res.image, *aux)
         say("denoised with Intel Open Image Denoise (albedo and normal of the first non-specular hit): the image "
             "is smoother but biased; the error figures below are those of the image before denoising")
-    save_image(opts.out, image, tonemap=opts.tonemap)        # the main output first, then the side outputs
+    save_image(opts.out, image, tonemap=opts.tonemap, exposure=opts.exposure)      # the main output first, then the side outputs
     if b.error_map:
         side.write("--error-map", b.error_map,
                    lambda: save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image)))

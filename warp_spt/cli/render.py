@@ -81,7 +81,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     if dropped:     # shown even with --quiet: the image is wrong somewhere (docs/limits.md)
         print(f"{PROG}: warning: {dropped} samples were not finite and were dropped; the image is biased "
               "there (please report this scene)", file=err)
-    save_image(opts.out, image, tonemap=opts.tonemap)
+    save_image(opts.out, image, tonemap=opts.tonemap, exposure=opts.exposure)
     rate = opts.width * opts.height * opts.spp / max(seconds, 1e-9)
     say(f"wrote {opts.out} ({seconds:.1f} s, {rate / 1e6:.2f} M samples/s)")
     return EXIT_OK

@@ -39,7 +39,8 @@ def build_parser() -> Parser:
                    help="start from this camera (as warp-spt -cam); default: the seed's for the demo, else framed")
     p.add_argument("-res", nargs=2, type=int_at_least(8, 4096), metavar=("W", "H"),
                    help=f"view size in pixels (default {DEFAULT_VIEW[0]} {DEFAULT_VIEW[1]})")
-    p.add_argument("--up", choices=UP_AXES, default="z", metavar="AXIS", help="the world's up axis (default z)")
+    p.add_argument("--up", choices=UP_AXES, metavar="AXIS",
+                   help="the world's up axis (default: z for the seed's scenes and with -cam, y for other models)")
     p.add_argument("--port", type=int_at_least(0, 65535), default=0, help="port on 127.0.0.1 (default: a free one)")
     p.add_argument("--no-browser", action="store_true", help="only print the URL")
     return p
@@ -58,7 +59,7 @@ def main(argv: Sequence[str]) -> int:
         if ns.cam is not None:
             from warp_spt.scene.camera import AXES
 
-            camera = _camera(ns.cam).with_(up=AXES[ns.up])
+            camera = _camera(ns.cam).with_(up=AXES[ns.up or "z"])     # -cam: the seed's Z unless --up
     except UsageError as err:
         return fail(f"{err} (see {PROG} --help)", EXIT_USAGE, sys.stderr)
     missing = [m for m in ("aiohttp",) if importlib.util.find_spec(m) is None]

@@ -7,7 +7,8 @@ checks cost about one scene upload (``benchmarks/bench_view_checks.py``); Warp i
 
 * :func:`should_frame`: the CLI's rule for telling a user's model from the seed's setups.
 * :func:`view_warnings`: camera inside a closed mesh, camera sees no geometry, lens blur too large.
-* :func:`prepare_view`: all of the above for one command, then the upload.
+* :func:`prepare_view`: all of the above for one command (with the up axis and studio rules of
+  :mod:`warp_spt.scene.conventions`), then the upload.
 """
 
 from __future__ import annotations
@@ -227,9 +228,10 @@ def prepare_view(opts, scene, say, notice: "CompileNotice | None" = None) -> tup
 
 def frame_view(opts, say):
     """The view of each frame of an animation: :func:`_view`, the very preparation of a single image,
-    with the frame's camera; a camera path, like -cam, is never replaced by framing. A message that
-    every frame repeats is said once."""
+    with the frame's camera; a camera path, like -cam, is never replaced by framing and keeps the
+    seed's Z up unless --up says otherwise. A message that every frame repeats is said once."""
     fixed = opts.cam_given or bool(opts.camera_path)
+    explicit = opts.cam_explicit or bool(opts.camera_path)
     said: set[str] = set()
 
     def say_once(msg: str) -> None:
@@ -238,52 +240,95 @@ def frame_view(opts, say):
             say(msg)
 
     def view(scene, camera):
-        return _view(replace(opts, camera=camera, cam_given=fixed), scene, say_once)
+        return _view(replace(opts, camera=camera, cam_given=fixed, cam_explicit=explicit), scene, say_once)
     return view
 
 
 def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
-    from warp_spt.scene.camera import Camera
+    """Recentre, choose the up axis, place the camera (keep, or frame), warn, add the studio look."""
+    from warp_spt.scene.camera import AXES
+    from warp_spt.scene.conventions import up_axis, wants_studio
 
     scene, camera, offset = recentre(scene, opts.camera)
     if offset.any():
         say(f"recentred the scene by {format_point(-offset)} for precision (far from the origin)")
+    up = up_axis(opts.up, demo=opts.uses_demo_scene, seed_dialect=scene.seed_dialect, cam_given=opts.cam_explicit)
+    camera = camera.with_(up=AXES[up.axis])
     if opts.uses_demo_scene and opts.quiet:
         return scene, camera, opts.sky
     pr = None
-    if not opts.uses_demo_scene and not opts.cam_given:
-        pr = probe(scene, camera, PROBE_SIZE, max(1, round(PROBE_SIZE * opts.height / opts.width)))
-        why = _why_frame(opts, scene, camera, pr.coverage)
+    if not opts.uses_demo_scene and not (opts.cam_explicit or (opts.cam_given and scene.seed_dialect)):
+        why = _why_frame(opts, scene, up.axis)
+        if not why:      # a scene in the seed's dialect: frame only if the camera would not show it
+            pr = probe(scene, camera, PROBE_SIZE, max(1, round(PROBE_SIZE * opts.height / opts.width)))
+            if should_frame(scene, camera, pr.coverage):
+                why = "the default camera would not show it whole; -cam or --look-at to choose"
         if why:
-            try:
-                camera = frame_camera(scene, up=opts.up, aspect=opts.width / opts.height, template=camera).with_(
-                    aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture)
-            except ValueError as err:       # e.g. a --fov so narrow that the camera would stand too far
-                raise RunError(f"cannot frame the scene ({why}): {err}") from None
-            say(f"framed the scene ({why}): -cam {' '.join(f'{v:.6g}' for v in _cam_numbers(camera, offset))}")
+            camera, side = _framed(opts, scene, camera, up.axis, offset, why)
+            say(_framed_line(why, up, side, camera, offset))
             pr = None
     for warning in view_warnings(scene, camera, opts.width, opts.height, pr, offset):
         say(f"warning: {warning}")
     sky = opts.sky
-    if opts.studio:
+    if wants_studio(opts.studio, bare=scene.bare and not opts.uses_demo_scene, sky_given=opts.sky_given):
         from warp_spt.scene.studio import add_studio, studio_sky
-        scene = add_studio(scene, up=opts.up)
-        sky = studio_sky() if opts.sky == Sky.black() else opts.sky
+        if opts.studio is None:
+            say("studio look for a bare model: clay, a ground, a key light, a grey sky (--no-studio to turn off)")
+        scene = add_studio(scene, up=up.axis, camera=camera)
+        sky = opts.sky if opts.sky_given else studio_sky()
     return scene, camera, sky
 
 
-def _why_frame(opts, scene, camera: Camera, coverage: float) -> str:
-    """Why the scene is framed automatically, or "" to keep the camera (see the help's rule)."""
-
+def _why_frame(opts, scene, up: str) -> str:
+    """Why the scene is framed whatever the camera sees, or "" (see the help's rule)."""
     if opts.frame:
         return "--frame"
-    if opts.up != "z":
-        return f"--up {opts.up}: the seed's default camera is a Z-up one"
-    if should_frame(scene, camera, coverage):
-        return "the default camera would not show it whole; -cam or --look-at to choose"
+    if opts.view is not None:
+        return "--view"
+    if not scene.seed_dialect:
+        return "your own model; the seed's default camera is made for the seed's scenes"
+    if up != "z":
+        return f"--up {up}: the seed's default camera is a Z-up one"
     return ""
+
+
+def _framed(opts, scene, camera: Camera, up: str, offset, why: str) -> tuple[Camera, str]:
+    """The framing camera and the words for its side: --view's angles, or a three-quarter view
+    from the front (face-on for a flat cut-out), looking at --look-at's point or the centre."""
+    from warp_spt.scene.camera import AZIMUTH, ELEVATION, flat_normal, orbit_vector
+
+    target = None if opts.look_at is None else np.asarray(opts.look_at, dtype=np.float64) - offset
+    az, el = opts.view if opts.view is not None else (AZIMUTH, ELEVATION)
+    towards, side = None, (f"from azimuth {az:g}, elevation {el:g}" if opts.view is not None
+                           else "a three-quarter view from the front (--view to choose)")
+    if opts.view is None and target is None:
+        towards = flat_normal(scene, orbit_vector(up, AZIMUTH, ELEVATION))
+        if towards is not None:
+            side = "face-on: a flat model (--view to choose)"
+    try:
+        framed = frame_camera(scene, up=up, aspect=opts.width / opts.height, template=camera, azimuth=az,
+                              elevation=el, target=target, towards=towards)
+    except ValueError as err:       # e.g. a --fov so narrow that the camera would stand too far
+        raise RunError(f"cannot frame the scene ({why}): {err}") from None
+    return framed.with_(aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture), side
+
+
+def _framed_line(why: str, up, side: str, camera: Camera, offset) -> str:
+    """The one line that says how the scene was framed, what was assumed, and the -cam that
+    reproduces it (with --up when the axis is not the one -cam implies)."""
+    assumed = f"{up.note}, " if up.note else ""
+    again = " ".join(_short(v) for v in _cam_numbers(camera, offset))
+    axis = "" if up.axis == "z" else (f" --up={up.axis}" if up.axis.startswith("-") else f" --up {up.axis}")
+    return f"framed the scene ({why}): {assumed}{side}; -cam {again}{axis}"
 
 
 def _cam_numbers(cam: Camera, offset) -> list[float]:
     """A camera as -cam's nine numbers in world coordinates."""
     return [*(p + o for p, o in zip(cam.position, offset)), *cam.direction, cam.fov, cam.focus, cam.aperture]
+
+
+def _short(v: float) -> str:
+    """A -cam number that reads back as the very same float64 (so the printed -cam reproduces the
+    image bit for bit), without a trailing ".0"; -0 written as 0."""
+    text = repr(float(v)).removesuffix(".0")
+    return "0" if text == "-0" else text

@@ -187,12 +187,23 @@ _TONE_MAPPED = (".png", ".jpg", ".jpeg")
 _TONEMAPS = {"seed": tonemap_seed, "srgb": tonemap_srgb}
 
 
-def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed") -> None:
+def to_display(img: np.ndarray, curve: str = "seed", exposure: float = 0.0) -> np.ndarray:
+    """uint8 (H, W, 3): the linear image scaled by 2 ** ``exposure`` (stops), then tone mapped with
+    ``curve`` ("seed" or "srgb"). The one display transform of every front end."""
+    if curve not in _TONEMAPS:
+        raise ValueError(f"unknown tone map {curve!r}; expected one of {', '.join(_TONEMAPS)}")
+    if not np.isfinite(exposure):
+        raise ValueError(f"exposure must be a finite number of stops, got {exposure!r}")
+    img = np.asarray(img, dtype=np.float32)
+    return _TONEMAPS[curve](img if exposure == 0 else img * np.float32(2.0 ** exposure))
+
+
+def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed", exposure: float = 0.0) -> None:
     """Save a linear (H, W, 3) image; the format follows the extension (.png, .jpg, .npy, .pfm, .exr).
 
-    ``.png`` and ``.jpg`` are tone mapped with ``tonemap`` ("seed" or "srgb"); ``.npy``, ``.pfm``
-    and ``.exr`` (optional ``openexr`` package) keep float32 linear radiance. The write is atomic
-    (see :func:`atomic_write`).
+    ``.png`` and ``.jpg`` are tone mapped with ``tonemap`` ("seed" or "srgb") after ``exposure``
+    stops; ``.npy``, ``.pfm`` and ``.exr`` (optional ``openexr`` package) keep float32 linear
+    radiance (no exposure: they hold the scene's light). The write is atomic (see :func:`atomic_write`).
     """
     ext = Path(path).suffix.lower()
     if ext not in _WRITERS:
@@ -201,7 +212,7 @@ def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed") 
         raise ValueError(f"unknown tone map {tonemap!r}; expected one of {', '.join(_TONEMAPS)}")
     data = _check_rgb(img)
     if ext in _TONE_MAPPED:
-        data = _TONEMAPS[tonemap](data)
+        data = to_display(data, tonemap, exposure)
     atomic_write(path, lambda f: _WRITERS[ext](f, data))
 
 
@@ -266,10 +277,12 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     raise ValueError(f"{path}: unsupported image extension {ext!r}; supported: .png, .jpg, .npy, .pfm, .exr")
 
 
-def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.0, tonemap: str = "seed") -> None:
+def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.0, tonemap: str = "seed",
+             exposure: float = 0.0) -> None:
     """Write images as an animated GIF preview, one adaptive palette per frame, atomically.
 
-    Linear float images are tone mapped with ``tonemap``; uint8 ones are taken as they are.
+    Linear float images are tone mapped with ``tonemap`` after ``exposure`` stops; uint8 ones are
+    taken as they are.
     """
     from PIL import Image
 
@@ -278,7 +291,7 @@ def save_gif(path: str | Path, images: Sequence[np.ndarray], *, fps: float = 12.
         raise ValueError("a GIF needs at least one frame")
     if tonemap not in _TONEMAPS:
         raise ValueError(f"unknown tone map {tonemap!r}; expected one of {', '.join(_TONEMAPS)}")
-    pictures = [Image.fromarray(im if im.dtype == np.uint8 else _TONEMAPS[tonemap](np.asarray(im, np.float32))
+    pictures = [Image.fromarray(im if im.dtype == np.uint8 else to_display(im, tonemap, exposure)
                                 ).convert("P", palette=Image.Palette.ADAPTIVE, colors=256) for im in images]
     duration = max(20, round(1000.0 / fps))
 

@@ -19,9 +19,13 @@ A texture path is tried relative to its MTL file's folder, then to the working d
 
 The default material (faces and spheres before any ``usemtl``, table row 0) is the seed's
 ``Inner_CheckerTexture`` or a neutral grey clay, chosen by ``default_material``: ``"checker"`` (the
-API's default, the seed's), ``"clay"``, or ``"auto"`` (the CLI's default): checker when any MTL file
-is given or any OBJ names a material (``usemtl`` or ``mtllib``), as every seed scene does; clay for a
-bare model. Row 0 keeps its reserved name either way.
+API's default, the seed's), ``"clay"``, or ``"auto"`` (the CLI's default): checker when a material
+library was read (an MTL file given, or an OBJ's ``mtllib`` found), as in every seed scene; clay for
+a bare model, also one whose ``usemtl`` names resolve nowhere. Row 0 keeps its reserved name either way.
+
+The scene records where it came from (:attr:`Scene.seed_dialect`: an OBJ has the seed's spheres or
+an MTL file read uses the seed's own tags; :attr:`Scene.bare`: no material library was read), for
+the command line's conventions (:mod:`warp_spt.scene.conventions`).
 
 Warnings go to ``Scene.warnings`` and to the ``warn`` callback (by default
 ``warnings.warn(message, UserWarning)``; pass ``warn=lambda message: None`` to only collect them).
@@ -90,10 +94,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     mtls = [str(p) for p in mtls]
     data = [p if isinstance(p, ObjData) else load_obj(p) for p in objs]   # parsed ones: OBJ sequences
     _require_geometry(data)
-    library = _read_materials(data, mtls, note)
-    table_rows, obj_rows = _assign_rows(data, library, note)
-    if _default_is_clay(default_material, data, mtls):
-        table_rows[0] = builtin_clay()
+    library, libraries_read = _read_materials(data, mtls, note)
+    clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
+    table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
     textures = _TextureCache(note)
     scene = Scene(
         meshes=[_mesh(d, rows, note) for d, rows in zip(data, obj_rows) if len(d.faces)],
@@ -105,20 +108,14 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         procedural=textures.procedural,
         warnings=notes,
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
+        seed_dialect=any(len(d.spheres) for d in data) or any(m.seed_dialect for m in library.values()),
+        bare=not libraries_read,
     )
     for d in data:
         if d.dropped_degenerate:
             note(f"{d.path}: dropped {d.dropped_degenerate} zero-area triangles")
     validate_scene(scene)
     return scene
-
-
-def _default_is_clay(choice: str, data: list[ObjData], mtls: list[str]) -> bool:
-    """The rule for ``default_material="auto"``: clay only for bare models (see the module docs)."""
-    if choice != "auto":
-        return choice == "clay"
-    names_material = any(len(d.material_names) > 1 or d.mtllibs for d in data)
-    return not mtls and not names_material
 
 
 def _require_geometry(data: list[ObjData]) -> None:
@@ -140,10 +137,12 @@ def _require_geometry(data: list[ObjData]) -> None:
         [reasons[0].split(": ", 1)[1]] + reasons[1:]))
 
 
-def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[str, Material]:
-    """{name: Material}: existing mtllib files first, then the explicit files (which win)."""
+def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> tuple[dict[str, Material], bool]:
+    """({name: Material}, whether any library was read): existing mtllib files first, then the
+    explicit files (which win)."""
     library: dict[str, Material] = {}
     seen: set[str] = set()
+    read = bool(mtls)
     for d in data:
         for lib, line in zip(d.mtllibs, d.mtllib_lines or [0] * len(d.mtllibs)):
             if lib in seen:
@@ -152,6 +151,7 @@ def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[
             problem = file_problem(lib)
             if problem is None:
                 library.update(load_mtl(lib, note))
+                read = True
             else:
                 where = f"{d.path}:{line}" if line else d.path
                 why = "not found" if problem == "no such file or directory" else f"cannot be read ({problem})"
@@ -161,13 +161,14 @@ def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> dict[
     if CHECKER_NAME in library:
         m = library.pop(CHECKER_NAME)
         note(f"{m.source}:{m.line}: {CHECKER_NAME} is the built-in material; this definition is ignored")
-    return library
+    return library, read
 
 
-def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
+def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn, default: Material
                  ) -> tuple[list[Material], list[np.ndarray]]:
-    """Table rows (checker first, then used materials) and, per OBJ, its material index -> row."""
-    rows: list[Material] = [builtin_checker()]
+    """Table rows (``default`` first, then used materials) and, per OBJ, its material index -> row."""
+    rows: list[Material] = [default]
+    what = "the default material (clay)" if not default.checker else CHECKER_NAME
     row_of: dict[str, int] = {CHECKER_NAME: 0}
     warned: set[str] = set()
     obj_rows = []
@@ -178,7 +179,7 @@ def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
             if name not in library and name != CHECKER_NAME:
                 if name not in warned:
                     warned.add(name)
-                    note(f"{d.path}:{line}: unknown material {name!r}; using {CHECKER_NAME}")
+                    note(f"{d.path}:{line}: unknown material {name!r}; using {what}")
             elif k in used and name not in row_of:
                 row_of[name] = len(rows)
                 rows.append(library[name])

@@ -18,6 +18,12 @@ Seed tags (tag names are matched case-insensitively; colours take 3 numbers, or 
 A constant and a texture of the same slot replace each other: the later line wins (the seed
 kept one texture object per slot).
 
+A file that uses any of the seed's own tags (``Kr``, ``Kt``, ``Kl``, their maps, ``Roughness``,
+``Fuzz``, ``Kn``, ``Refractable``) is in the seed's dialect: its materials keep the seed's defaults
+(a 15% fuzzy specular lobe). In a standard file a material without ``Ks``, ``Ns``, ``Pm``/``Pr``
+or a reflecting/refracting ``illum``/``d`` is purely diffuse (roughness 1): a ``Kd``-only material
+is matte, as every other renderer draws it (``Material.seed_dialect`` records which).
+
 Standard tags mapped onto the same model:
 
 * ``Ke`` / ``map_Ke``: emission (as ``Kl``); ``Ks`` / ``map_Ks``: reflect colour (as ``Kr``);
@@ -81,6 +87,8 @@ _COLOUR_SLOTS = {"kd": ("diffuse", "reflect"), "kr": ("reflect",), "ks": ("refle
                  "tf": ("refract",), "kl": ("emission",), "ke": ("emission",)}
 _MAP_SLOTS = {"map_kd": ("diffuse", "reflect"), "map_kr": ("reflect",), "map_ks": ("reflect",),
               "map_kt": ("refract",), "map_kl": ("emission",), "map_ke": ("emission",)}
+# Tags only the seed's dialect has: a file using any of them keeps the seed's material defaults.
+SEED_TAGS = frozenset({"kr", "map_kr", "kt", "map_kt", "kl", "map_kl", "roughness", "fuzz", "kn", "refractable"})
 
 
 def builtin_checker() -> Material:
@@ -104,8 +112,12 @@ class _Draft:
     illum: int = -1
     phong: dict[str, float] = field(default_factory=dict)   # ks, ns, pr, pm as read
 
-    def finish(self) -> Material:
+    def finish(self, seed_dialect: bool) -> Material:
+        """The material as read; ``seed_dialect``: its file uses the seed's own tags (module docs)."""
         derived = self._phong_and_pbr()
+        if not seed_dialect and not self.phong and self.illum not in (3, 4, 5, 6, 7):
+            derived["roughness"] = 1.0       # a standard Kd-only material is matte
+        derived["seed_dialect"] = seed_dialect
         if self.illum in (3, 5, 4, 6, 7):
             derived.update(roughness=0.0, fuzz=0.0)
         if self.illum in (4, 6, 7) or self.opacity < 1.0:
@@ -144,28 +156,27 @@ def load_mtl(path: str | os.PathLike[str], warn: Callable[[str], None] | None = 
 def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], None] | None = None
                     ) -> dict[str, Material]:
     """Parse MTL text given as bytes; ``path`` names it in errors and in :class:`TextureRef`."""
-    out: dict[str, Material] = {}
+    drafts: dict[str, _Draft] = {}
     draft: _Draft | None = None
+    seed_dialect = False
     ignored: dict[str, None] = {}        # unsupported tags and texture options, in order of appearance
     data = normalise_text(data, path, "MTL")
     for lineno, toks in iter_lines(data):
         tag = toks[0].decode("latin-1").lower()
+        seed_dialect = seed_dialect or tag in SEED_TAGS     # anywhere in the file, even before newmtl
         if tag == "newmtl":
-            if draft is not None:
-                out[draft.mat.name] = draft.finish()
             if len(toks) < 2:
                 raise SceneError(path, lineno, "expected a material name after 'newmtl'")
             draft = _Draft(Material(name=decode_name(toks[1:]), source=path, line=lineno))
+            drafts[draft.mat.name] = draft             # a later definition of a name replaces it
         elif draft is not None:
             if not _statement(draft, tag, toks, path, lineno):
                 ignored[toks[0].decode("latin-1")] = None
             elif tag in _MAP_SLOTS:
                 ignored.update((f"texture option {o}", None) for o in _texture_options(toks[1:]))
-    if draft is not None:
-        out[draft.mat.name] = draft.finish()
     if warn is not None:
         _report(path, list(ignored), warn)
-    return out
+    return {name: d.finish(seed_dialect) for name, d in drafts.items()}
 
 
 def _report(path: str, ignored: list[str], warn: Callable[[str], None]) -> None:

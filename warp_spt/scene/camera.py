@@ -211,6 +211,14 @@ def _vec(v: Sequence[float] | np.ndarray) -> Vec3:
 # box's projection fills 1/MARGIN of the frame's half-width or half-height.
 AZIMUTH, ELEVATION, MARGIN = 35.0, 25.0, 1.05
 
+# Named views (--view): (azimuth, elevation) in degrees. Azimuth 90 stands at the side that is on
+# the image's right in the front view, as a CAD drawing's "right" view does.
+VIEWS: dict[str, tuple[float, float]] = {"front": (0.0, 0.0), "back": (180.0, 0.0), "right": (90.0, 0.0),
+                                         "left": (-90.0, 0.0), "top": (0.0, 90.0), "bottom": (0.0, -90.0)}
+
+# A model is flat (a cut-out in a plane) when its thinnest extent is below this share of its widest.
+FLAT_RATIO = 0.02
+
 
 def front_vector(up: np.ndarray) -> np.ndarray:
     """The direction from a model towards its viewer for an up axis: -Y for Z up (the seed's camera
@@ -222,6 +230,45 @@ def front_vector(up: np.ndarray) -> np.ndarray:
     return np.array([1.0, 0.0, 0.0])
 
 
+def orbit_vector(up: str | Sequence[float], azimuth: float, elevation: float) -> np.ndarray:
+    """Unit vector from a model towards a camera at ``azimuth`` (from the front towards the right)
+    and ``elevation`` (above the horizon), in degrees, for the up axis ``up``."""
+    u = up_vector(up)
+    front = front_vector(u)
+    side = np.cross(u, front)
+    az, el = math.radians(azimuth), math.radians(elevation)
+    return math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * u   # unit already
+
+
+def azimuth_of(up: str | Sequence[float], towards: Sequence[float]) -> float:
+    """The azimuth in degrees (see :func:`orbit_vector`) of the direction ``towards``."""
+    u = up_vector(up)
+    front = front_vector(u)
+    v = np.asarray(towards, dtype=np.float64)
+    return math.degrees(math.atan2(float(np.dot(v, np.cross(u, front))), float(np.dot(v, front))))
+
+
+def flat_normal(scene: Scene, towards: np.ndarray) -> np.ndarray | None:
+    """The unit normal of a flat model (a 2-D cut-out exported as a mesh: its thinnest extent below
+    FLAT_RATIO of its widest, no spheres), on the side its faces face (or, for a sheet seen from both
+    sides, the side of ``towards``); None for a solid model."""
+    points = [m.positions[np.unique(m.indices)].astype(np.float64) for m in scene.meshes if len(m.indices)]
+    if len(scene.spheres) or not points:
+        return None
+    p = np.concatenate(points)
+    p -= p.mean(0)
+    _, sv, vt = np.linalg.svd(p, full_matrices=False)
+    if len(sv) < 3 or not sv[0] > 0 or sv[2] > FLAT_RATIO * sv[0]:
+        return None
+    n = vt[2]
+    facing = sum(float(np.sum(np.cross(m.positions[m.indices[:, 1]] - m.positions[m.indices[:, 0]],
+                                      m.positions[m.indices[:, 2]] - m.positions[m.indices[:, 0]]) @ n))
+                 for m in scene.meshes if len(m.indices))
+    scale = max(float(sv[0]) ** 2 / len(p), 1e-300)
+    side = facing if abs(facing) > 1e-6 * scale else float(np.dot(n, towards))
+    return n if side >= 0.0 else -n
+
+
 def _box(scene_or_bounds: Scene | np.ndarray) -> np.ndarray:
     b = scene_or_bounds.bounds if isinstance(scene_or_bounds, Scene) else np.asarray(scene_or_bounds, np.float64)
     if b.shape != (2, 3) or not np.all(np.isfinite(b)):
@@ -230,21 +277,28 @@ def _box(scene_or_bounds: Scene | np.ndarray) -> np.ndarray:
 
 
 def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = None, *, fov: float | None = None,
-                 aspect: float = 1.0, margin: float = MARGIN, template: Camera | None = None) -> Camera:
-    """A camera that shows all of ``scene`` (or (2, 3) bounds) from the front, three-quarter view.
+                 aspect: float = 1.0, margin: float = MARGIN, template: Camera | None = None,
+                 azimuth: float = AZIMUTH, elevation: float = ELEVATION, target: Sequence[float] | None = None,
+                 towards: Sequence[float] | None = None) -> Camera:
+    """A camera that shows all of ``scene`` (or (2, 3) bounds), by default a three-quarter view from
+    the front.
 
     ``aspect`` is width / height of the image. ``fov`` defaults to the template's (the seed's 38°);
-    ``up`` to the template's up axis (Z). The result is a pinhole focused at the bounds' centre.
+    ``up`` to the template's up axis (Z). The camera looks at ``target`` (default: the bounds'
+    centre) from ``azimuth``/``elevation`` (degrees, see :func:`orbit_vector`) or along ``towards``
+    (a vector from the target to the camera), as close as shows the whole box. The result is a
+    pinhole focused at the target.
     """
     b = _box(scene)
     base = template or Camera()
     u = up_vector(up if up is not None else base.up)
     fov = float(fov if fov is not None else base.fov)
-    front = front_vector(u)
-    side = np.cross(u, front)
-    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
-    towards_camera = math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * u
-    centre = 0.5 * (b[0] + b[1])
+    if towards is None:
+        towards_camera = orbit_vector(u, azimuth, elevation)
+    else:
+        towards_camera = np.asarray(towards, dtype=np.float64)
+        towards_camera = towards_camera / np.linalg.norm(towards_camera)
+    centre = 0.5 * (b[0] + b[1]) if target is None else np.asarray(target, dtype=np.float64)
     probe_cam = Camera(position=tuple(centre), direction=tuple(-towards_camera), fov=fov, focus=1.0,
                        aperture=0.0, up=tuple(u))
     d, right, img_up = probe_cam.axes()

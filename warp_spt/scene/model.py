@@ -57,6 +57,7 @@ def _material_fields() -> list[tuple]:
             + [(c.name, types[c.type], field(default=c.default)) for c in COLUMNS if c.type in (SCALAR, FLAG, INDEX)]
             + [("checker", "bool", field(default=False)),      # the checker pattern fills the Column.checker slots
                ("source", "str", field(default="<builtin>")),  # file that defined it
+               ("seed_dialect", "bool", field(default=True)),  # its file uses the seed's own MTL tags
                ("line", "int", field(default=0))])             # line of its ``newmtl``
 
 
@@ -67,7 +68,8 @@ Its fields and defaults come from the material schema (``warp_spt.scene.material
 field per column (``roughness`` is the probability of the diffuse lobe, the seed's diffuseWeight;
 ``fuzz`` is 1 - reflectClearness; ``ior`` is the seed's ``Kn``), ``<colour>_map`` (a
 :class:`TextureRef` or a procedural texture) for each colour with a texture slot, and ``checker``
-(the built-in checker pattern), ``source`` and ``line`` (where it was defined).
+(the built-in checker pattern), ``source`` and ``line`` (where it was defined) and
+``seed_dialect`` (its file uses the seed's own MTL tags; see :mod:`warp_spt.io.mtl`).
 """})
 
 
@@ -176,6 +178,11 @@ class Scene:
     dropped_degenerate: int = 0
     # procedural texture instances (warp_spt.core.proctex.ProcRef); slot value TEX_PROC_BASE - k names k
     procedural: list = field(default_factory=list)
+    # Where it came from (the CLI's conventions, warp_spt.scene.conventions): written in the seed's
+    # dialect (its spheres or MTL tags), and bare (no material library read: every face has the
+    # default material). Scenes built in code count as the seed's and not bare.
+    seed_dialect: bool = True
+    bare: bool = False
 
     @property
     def num_triangles(self) -> int:

@@ -2,9 +2,10 @@
 
 It adds generated geometry to a loaded :class:`Scene` (the user's files are never edited): a large
 square ground under the model's bounds (along the up axis) in a mid-grey diffuse material, and an
-emissive sphere above and to the front-left of the model, sized and placed from the bounds, so a
-bare scanned model renders like a product shot with a soft shadow. The key light is an ordinary
-emitter: renders find it by path tracing (and by light sampling, where the integrator offers it).
+emissive sphere above, to the left and in front of the model as the camera sees it, sized and placed
+from the bounds, so a bare scanned model renders like a product shot with a soft shadow, from
+whichever side it is seen (a camera below the ground sees the model without it). The key light is an ordinary emitter: renders find it by path tracing
+(and by light sampling, where the integrator offers it).
 """
 
 from __future__ import annotations
@@ -14,15 +15,18 @@ from typing import Sequence
 
 import numpy as np
 
-from warp_spt.scene.camera import front_vector, up_vector
+from warp_spt.scene.camera import AZIMUTH, ELEVATION, Camera, front_vector, orbit_vector, up_vector
 from warp_spt.scene.model import Material, MaterialTable, MeshData, Scene
 from warp_spt.scene.sky import Sky
 
-SKY = (0.35, 0.35, 0.35)          # a neutral grey sky
-GROUND_ALBEDO = 0.5
+# Levels: a white (albedo 1) surface facing the key gets about 0.9 (no clipping in the seed's tone
+# map, which reaches 255 only well above 1); the clay (0.6) about 0.55; the backdrop is darker than
+# the clay (the sky 0.2, the ground 0.4 x its light), so a white or a grey model stands out from it.
+SKY = (0.2, 0.2, 0.2)             # a neutral grey sky
+GROUND_ALBEDO = 0.4
 GROUND_HALF_SIZE = 40.0           # in units of the model's bounding radius
 LIGHT_DISTANCE, LIGHT_RADIUS = 3.0, 1.5    # in units of the model's bounding radius: a big, soft key
-LIGHT_EMISSION = 4.0              # about 3x the sky's contribution on a surface facing it
+LIGHT_EMISSION = 2.0              # about 3.5x the sky's contribution on a surface facing it
 
 
 def studio_sky() -> Sky:
@@ -30,8 +34,12 @@ def studio_sky() -> Sky:
     return Sky.constant(*SKY)
 
 
-def add_studio(scene: Scene, up: str | Sequence[float] = "z") -> Scene:
-    """``scene`` plus a ground plane and a key-light sphere placed from its bounds."""
+def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | None = None) -> Scene:
+    """``scene`` plus a ground plane and a key-light sphere placed from its bounds and ``camera``.
+
+    The light keeps its place relative to the camera: where the default framing sees it (in front
+    of the model, to the image's left and top), whatever side the camera is on, so turning the view
+    keeps the model lit. Without a camera it stands where the default framing would see it so."""
     u = up_vector(up)
     b = scene.bounds
     centre = 0.5 * (b[0] + b[1])
@@ -50,13 +58,23 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z") -> Scene:
     ground = MeshData(name="studio ground", positions=quad.astype(np.float32), indices=faces,
                       corner_uv=np.zeros((2, 3, 2), np.float32), corner_normal=None,
                       face_material=np.full(2, ground_row, np.int32))
-    key_dir = 0.7 * front - 0.6 * side + 1.2 * u
+    key_dir = 0.7 * front - 0.6 * side + 1.2 * u       # as the default framing sees it
+    if camera is not None:
+        key_dir = _as_seen_by(key_dir, Camera.look_at(orbit_vector(u, AZIMUTH, ELEVATION), (0, 0, 0), up=u), camera)
     key = centre + LIGHT_DISTANCE * radius * key_dir / np.linalg.norm(key_dir)
     light = np.array([[*key, LIGHT_RADIUS * radius]], dtype=np.float32)
-    return replace(scene, meshes=[*scene.meshes, ground],
+    below = camera is not None and float(np.dot(np.asarray(camera.position) - floor, u)) < 0.0
+    return replace(scene, meshes=[*scene.meshes, *([] if below else [ground])],   # seen from below: no floor
                    spheres=np.concatenate([scene.spheres, light]).astype(np.float32),
                    sphere_material=np.concatenate([scene.sphere_material, [light_row]]).astype(np.int32),
                    materials=_with_rows(scene.materials))
+
+
+def _as_seen_by(v: np.ndarray, seen: Camera, camera: Camera) -> np.ndarray:
+    """The vector that ``camera`` sees as ``seen`` sees ``v``: same components along the view
+    direction, image right and image up."""
+    axes, to = seen.axes(), camera.axes()
+    return sum(float(np.dot(v, a)) * b for a, b in zip(axes, to))
 
 
 def _with_rows(t: MaterialTable) -> MaterialTable:

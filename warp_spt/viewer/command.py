@@ -36,6 +36,7 @@ class CommandSpec:
     sampler: str = "sobol"
     tonemap: str = "seed"
     out: str = "view.png"
+    exposure: float = 0.0       # stops, for a tone-mapped output
 
 
 def number(v: float) -> str:
@@ -63,8 +64,9 @@ def command_args(camera, spec: CommandSpec) -> list[str]:
     args += ["-res", str(spec.width), str(spec.height), "-sr", str(spec.spp), "-depth", str(spec.max_depth)]
     args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
     args += ["--integrator", spec.integrator, "--sampler", spec.sampler]
-    if spec.out.lower().endswith((".png", ".jpg", ".jpeg")) and spec.tonemap != "seed":
-        args += ["--tonemap", spec.tonemap]
+    if spec.out.lower().endswith((".png", ".jpg", ".jpeg")):
+        args += ["--tonemap", spec.tonemap] if spec.tonemap != "seed" else []
+        args += ["--exposure", number(spec.exposure)] if spec.exposure else []
     return args + ["-out", spec.out]
 
 

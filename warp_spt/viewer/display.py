@@ -17,17 +17,12 @@ ERROR_MAP_RANGE = (1e-2, 1.0)     # relative errors mapped to black .. white (lo
 ERROR_FLOOR_FRACTION = 0.1        # as warp_spt.relative_error: divide by max(value, 0.1 x image mean)
 
 
-def exposed(image: np.ndarray, exposure: float) -> np.ndarray:
-    """The linear image scaled by 2 ** ``exposure`` (stops)."""
-    return image if exposure == 0 else image * np.float32(2.0 ** exposure)
-
-
 def tonemapped(image: np.ndarray, exposure: float = 0.0, tonemap: str = "srgb") -> np.ndarray:
-    """uint8 (H, W, 3): the image after exposure and warp_spt's tone map ``"srgb"`` or ``"seed"``."""
+    """uint8 (H, W, 3): the image after exposure (stops) and warp_spt's tone map ``"srgb"`` or ``"seed"``
+    (:func:`warp_spt.io.images.to_display`, the CLI's --exposure too)."""
     import warp_spt
 
-    curve = warp_spt.tonemap_srgb if tonemap == "srgb" else warp_spt.tonemap_seed
-    return curve(exposed(np.asarray(image, dtype=np.float32), exposure))
+    return warp_spt.to_display(image, tonemap, exposure)
 
 
 def relative_map(std_error: np.ndarray, image: np.ndarray) -> np.ndarray:

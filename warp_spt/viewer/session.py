@@ -219,6 +219,7 @@ class Session:
         self._settings = ViewSettings(**settings)
         self._given_camera = camera
         self._up = up or _axis_name(camera.up if camera is not None else (0.0, 0.0, 1.0))
+        self._up_given = up is not None or camera is not None    # else warp_spt.up_axis's rule, on load
         # the scene is read (loader) and uploaded on the render thread, so a host starts at once;
         # material edits write through to the host scene, so a given one is copied, never changed
         self._loader = loader or (lambda: copy.deepcopy(scene))
@@ -327,7 +328,7 @@ class Session:
             width = max(1, round(height * s.width / s.height))
         sky, colour = sky_command(s)
         spec = CommandSpec(self.objs, self.mtls, self._up, int(width or s.width), int(height or s.height),
-                           int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out)
+                           int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out, s.exposure)
         camera = self.camera
         if camera is None:
             raise ValueError("the scene is not loaded yet")
@@ -342,10 +343,7 @@ class Session:
         if res is None:
             raise ValueError("nothing is rendered yet")
         s = self._settings
-        image = res.image
-        if Path(path).suffix.lower() in (".png", ".jpg", ".jpeg"):
-            image = display.exposed(image, s.exposure)
-        warp_spt.save_image(path, image, tonemap=s.tonemap)
+        warp_spt.save_image(path, res.image, tonemap=s.tonemap, exposure=s.exposure)
 
     def close(self, timeout: float = 10.0) -> None:
         """Stop the render thread (it finishes the band it is rendering) and drop the listeners."""
@@ -460,8 +458,9 @@ class Session:
         notes = []
         if self._edits:
             notes.append("edited material values are not on the command line: write them into the MTL file")
-        if self._settings.exposure:
-            notes.append("the exposure is not on the command line (it scales the image by 2^exposure)")
+        out = str(msg.get("out") or "view.png")
+        if self._settings.exposure and not out.lower().endswith((".png", ".jpg", ".jpeg")):
+            notes.append("the exposure is not on the command line: a linear image holds the scene's radiance")
         reply({"type": "command", "text": text, "notes": notes}, [])
 
     def _on_save(self, msg, reply) -> None:
@@ -700,6 +699,9 @@ class Session:
             self._scene, self._params, self._error, self._edits = scene, params, None, set()
             self._pending.clear()
             if self._rig is None:
+                if not self._up_given:     # the command line's rule: Z for the seed's scenes, Y for models
+                    self._up = warp_spt.up_axis(None, demo=not self.objs, seed_dialect=scene.seed_dialect,
+                                                cam_given=False).axis
                 self._rig = self._initial_rig()
                 self._home = (self._rig, self._up)
             self._changed()

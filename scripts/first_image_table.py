@@ -1,0 +1,59 @@
+"""The first image of each generated model (tests/first_image.py), before and after: a Markdown table.
+
+Runs ``python -m warp_spt -obj MODEL`` with no other flag (a new user's first command) from two
+source trees and judges each image with this tree's checks (upright, in frame, lit)::
+
+    git worktree add /tmp/before22 915f3df
+    python scripts/first_image_table.py --before /tmp/before22
+
+Each tree's own camera is judged: the one it printed when it framed the scene, else the seed's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.first_image import MODELS, SIZE, judge, write_case  # noqa: E402
+
+
+def render(tree: Path, obj: str, out: Path) -> tuple[np.ndarray, str]:
+    cmd = [sys.executable, "-m", "warp_spt", "-obj", obj, "-res", str(SIZE[0]), str(SIZE[1]), "-sr", "16",
+           "-out", str(out)]
+    done = subprocess.run(cmd, env={**os.environ, "PYTHONPATH": str(tree)}, capture_output=True, text=True, cwd=out.parent,
+                          check=True)
+    return np.load(out), done.stderr
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--before", type=Path, required=True, help="source tree of the commit before")
+    ap.add_argument("--after", type=Path, default=ROOT, help="source tree after (default: this one)")
+    args = ap.parse_args()
+    print("| model | before: upright, in frame, lit | after: upright, in frame, lit | after: up assumed |")
+    print("|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in MODELS:
+            folder = Path(tmp) / str(abs(hash(name)))
+            folder.mkdir()
+            obj, _ = write_case(folder, name)            # the case's flags are left out: a first command
+            cells = []
+            for tree in (args.before, args.after):
+                image, said = render(tree, obj, folder / "first.npy")
+                v = judge(obj, MODELS[name][1], image, said, "z")
+                cells.append(v)
+            print(f"| {name.replace(', --up z', ', no flags')} | {cells[0].row()} | {cells[1].row()} | "
+                  f"{cells[1].up} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -267,8 +267,9 @@ def test_save_and_download(session, tmp_path):
 def test_a_scene_error_is_shown_and_a_reload_recovers(tmp_path):
     objs, mtls = write_scene_files(tmp_path, "room", box_obj(material="wall"), "newmtl wall\nKd 0.5 oops 0.5\n")
     inbox = Inbox()
-    s = open_session(objs=objs, mtls=mtls, width=16, height=12, max_spp=4)
-    s.add_listener(inbox)
+    s = open_session(objs=objs, mtls=mtls, width=16, height=12, max_spp=4, start=False)
+    s.add_listener(inbox)        # before the render thread loads (and fails): no message is missed
+    s.start()
     try:
         with pytest.raises(RuntimeError, match=r"room\.mtl:2"):
             s.wait_for(1, timeout=TIMEOUT)
@@ -278,6 +279,20 @@ def test_a_scene_error_is_shown_and_a_reload_recovers(tmp_path):
         assert s.wait_for(1, timeout=TIMEOUT).image.shape == (12, 16, 3)
         assert s.error is None and s.state()["error"] is None
         assert any(m["error"] and "room.mtl:2" in m["error"] for m, _ in inbox.of("state"))
+    finally:
+        s.close()
+
+
+def test_a_model_is_y_up_by_the_command_lines_rule(tmp_path):
+    """A standard OBJ model with no --up is Y up in the viewer, as in warp-spt (warp_spt.up_axis);
+    the built-in demo stays Z up (test_frame_up_axis_and_reset)."""
+    from .models import write_model
+
+    obj = write_model(tmp_path / "cow.obj", "cow", up="y")
+    s = open_session(objs=[str(obj)], width=16, height=12, max_spp=1)
+    try:
+        s.wait_for(1, timeout=TIMEOUT)
+        assert s.state()["up"] == "y" and s.camera.up == (0.0, 1.0, 0.0)
     finally:
         s.close()
 

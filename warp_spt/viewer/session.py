@@ -246,6 +246,11 @@ class Session:
             self._thread.start()
 
     # ------------------------------------------------------------------ public surface
+    def start(self) -> None:
+        """Start the render thread of a session made with ``start=False`` (listeners added first
+        see every message, the load's included)."""
+        self._thread.start()
+
     @property
     def camera(self):
         """The current view as a :class:`warp_spt.Camera` (None before the scene is loaded)."""

@@ -96,9 +96,18 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
     say(f"estimated relative error of the image: {_pct(res.relative_error)} (RMS of standard error / "
         f"max(value, 0.1 x mean); docs/error.md)")
     if s.stopped_by == "interrupt":
-        say("interrupted: the partial image was saved (--save-partial)")
+        say(f"interrupted: saved the partial image (--save-partial): {_unsampled(res.spp)}")
         return 130
     return 0
+
+
+def _unsampled(spp: np.ndarray) -> str:
+    """How many pixels of a partial image have no samples (a Ctrl-C lands inside a pass, which renders
+    runs of pixels in turn): they are black in the saved image."""
+    empty = int((spp == 0).sum())
+    if not empty:
+        return "every pixel has samples"
+    return f"{empty:,} of {spp.size:,} pixels have no samples yet (black)"
 
 
 class SideOutputs:

@@ -70,6 +70,21 @@ def test_budgeted_render_writes_image_maps_and_the_error_line(tmp_path, lit_file
     assert capsys.readouterr().err == ""
 
 
+def test_the_start_up_line_says_what_a_budget_renders(tmp_path, lit_files, capsys):
+    """Budget runs announced "16 spp" (the -sr default) and rendered 18 to 853."""
+    assert parse_args([]).budget.samples(16) == "16 spp"
+    assert parse_args(["--time-budget", "10"]).budget.samples(16) == "until --time-budget 10 s"
+    assert parse_args(["--target-error", "1%", "-sr", "64"]).budget.samples(64) == \
+        "until --target-error 1% (at most 64 spp)"
+    assert parse_args(["--target-error", "0.025", "--time-budget", "5"]).budget.samples(16) == \
+        "until --target-error 2.5% or --time-budget 5 s"
+    assert parse_args(["--adaptive"]).budget.samples(16) == "up to 16 spp per pixel (--adaptive)"
+    out = tmp_path / "o.png"
+    assert main(lit_files + ["-res", "8", "6", "--target-error", "20%", "-out", str(out)]) == 0
+    start = capsys.readouterr().err.splitlines()[0]
+    assert "rendering 8x6, until --target-error 20%, depth 3" in start and "16 spp" not in start
+
+
 def test_false_colour_ends():
     c = false_colour(np.array([[0.0, 1.0, 2.0]]))
     assert c[0, 0].tolist() == [0, 0, 0] and c[0, 2].tolist() == [255, 255, 255]

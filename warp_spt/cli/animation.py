@@ -121,10 +121,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
         say(f"warning: {warning}")
     where = (f"the cluster at {opts.cluster}" if opts.cluster else
              f"{opts.workers} local worker processes" if opts.workers else "this machine")
-    b = opts.budget
-    spp = (f"{opts.spp} spp" if not b.active else
-           f"until {' or '.join(f for f, v in (('--time-budget', b.time_budget), ('--target-error', b.target_error)) if v)}"
-           + (f" (at most {opts.spp} spp)" if b.spp_given else ""))
+    spp = opts.budget.samples(opts.spp)
     say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
         f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
         f"{spp}, depth {opts.depth} on {where}")

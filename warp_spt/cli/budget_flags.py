@@ -37,6 +37,17 @@ class BudgetOptions:
         return any((self.time_budget, self.target_error, self.adaptive, self.save_partial, self.progressive,
                     self.error_map, self.spp_map, self.min_spp, self.denoise))
 
+    def samples(self, spp: int) -> str:
+        """What the render's start-up line says of its samples per pixel (``spp``: -sr or its default):
+        "16 spp" only when that is what every pixel gets. A budget renders until it is met (-sr given:
+        at most that many), adaptive sampling gives each pixel up to -sr."""
+        until = " or ".join(f"{flag} {value}" for flag, value in (
+            ("--target-error", f"{100 * self.target_error:g}%" if self.target_error else None),
+            ("--time-budget", f"{self.time_budget:g} s" if self.time_budget else None)) if value)
+        if until:
+            return f"until {until}" + (f" (at most {spp} spp)" if self.spp_given else "")
+        return f"up to {spp} spp per pixel (--adaptive)" if self.adaptive else f"{spp} spp"
+
 
 def _positive_float(text: str) -> float:
     try:

@@ -55,7 +55,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
-        f"{opts.spp} spp, depth {opts.depth}")
+        f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")
     notice = CompileNotice(say)
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
     if opts.budget.active:      # passes, budgets and error estimates (cli/progressive.py)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import signal
 import subprocess
@@ -83,6 +84,49 @@ def test_the_start_up_line_says_what_a_budget_renders(tmp_path, lit_files, capsy
     assert main(lit_files + ["-res", "8", "6", "--target-error", "20%", "-out", str(out)]) == 0
     start = capsys.readouterr().err.splitlines()[0]
     assert "rendering 8x6, until --target-error 20%, depth 3" in start and "16 spp" not in start
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_target_error_shows_one_updating_line_with_the_time_to_go(tmp_path, lit_files, monkeypatch):
+    """On a terminal the passes rewrite one line (they were dozens of "pass N" lines with no end in sight)."""
+    monkeypatch.setattr(sys, "stderr", _Terminal())
+    assert main(lit_files + ["-res", "16", "12", "--target-error", "4%", "-out", str(tmp_path / "o.png")]) == 0
+    lines = sys.stderr.getvalue().split("\n")
+    progress = [line for line in lines if "pass 1:" in line]
+    assert len(progress) == 1 and progress[0].count("\r") == progress[0].count("pass ") >= 3
+    assert "(target 4.00%), about" in progress[0] and "to go" in progress[0]
+    assert lines[lines.index(progress[0]) + 1].startswith("warp-spt: wrote ")     # the line was ended
+
+
+def test_the_time_to_go_follows_the_one_over_sqrt_spp_law():
+    from types import SimpleNamespace
+
+    from warp_spt.cli.progressive import PassLine, pass_status, time_to_go
+    from warp_spt.rendering.result import RenderStats
+
+    stats = RenderStats(passes=4, seconds=3.0, setup_seconds=1.0)         # 16 spp in 2 s: 0.125 s per spp
+    res = SimpleNamespace(stats=stats, spp=np.full((2, 2), 16), relative_error=0.02)
+    assert time_to_go(res, 0.01, None, None) == (6.0, "--target-error")   # 16 x (2% / 1%)^2 = 64 spp: 48 more
+    assert time_to_go(res, 0.01, None, 5.0) == (2.0, "--time-budget")    # the budget ends it first
+    assert time_to_go(res, None, 24, None) == (1.0, "-sr 24")
+    assert pass_status(res, 0.01, None, None) == "pass 4: 16 spp, 3.0 s, error 2.00% (target 1.00%), about 6.0 s to go"
+    assert pass_status(res, 0.01, None, 5.0).endswith("about 2.0 s to go (--time-budget)")
+    said, log = [], io.StringIO()
+    line = PassLine(said.append, log, live=True)          # not a terminal: a line per pass, as --verbose
+    line.show("a")
+    line.show("b")
+    line.close()
+    assert said == ["a", "b"] and log.getvalue() == ""
+    term = _Terminal()
+    line = PassLine(said.append, term, live=True)
+    line.show("a")
+    line.show("b")
+    line.close()
+    assert term.getvalue() == "\rwarp-spt: a\x1b[K\rwarp-spt: b\x1b[K\n" and said == ["a", "b"]
 
 
 def test_false_colour_ends():

@@ -13,28 +13,25 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, TextIO
 
 from warp_spt.cli.budget_flags import BudgetOptions
-from warp_spt.cli.common import PROG
+from warp_spt.cli.common import PROG, one_line
 
 if TYPE_CHECKING:
     import numpy as np
 
 
-def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) -> int:
+def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, err: TextIO | None = None) -> int:
     """Render ``opts`` progressively, save the image and maps, and report the relative error.
 
     Returns the exit status: 0, or 130 after a Ctrl-C with --save-partial (the partial image written).
+    ``err`` is where ``say`` writes (default stderr): on a terminal the passes rewrite one line there.
     """
-    from dataclasses import fields
-
     import numpy as np
 
-    from warp_spt.cli.options import settings_of
     from warp_spt.core.device_scene import DeviceScene
     from warp_spt.io.images import save_image
-    from warp_spt.rendering.progressive import render_progressive
 
     b: BudgetOptions = opts.budget
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)   # the CLI hands it uploaded
@@ -54,22 +51,12 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float) 
         reserve = finish_seconds(opts.out, opts.width, opts.height, opts.tonemap, 1 + bool(b.error_map) + bool(b.spp_map),
                                  denoise=b.denoise)
         render_budget = max(b.time_budget - reserve, 1e-3)
-
-    side = SideOutputs()
-
-    def on_pass(res) -> None:
-        say(f"pass {res.stats.passes}: {_spp_text(res.spp)}, {res.stats.seconds:.1f} s, "
-            f"estimated relative error {_pct(res.relative_error)}")
-        if b.progressive:
-            side.write("--progressive", b.progressive, lambda: save_image(b.progressive, res.image, tonemap=opts.tonemap))
-
-    rs = settings_of(opts, spp=spp)
-    # the batches own the sample indices and the tiling: every other setting as the command gave it
-    settings = {f.name: getattr(rs, f.name) for f in fields(rs) if f.name not in ("sample_offset", "tile_pixels")}
-    res = render_progressive(dev, opts.camera, time_budget=render_budget, target_error=b.target_error,
-                             adaptive=b.adaptive, min_spp=b.min_spp,
-                             **({"adaptive_metric": b.adaptive_metric} if b.adaptive_metric else {}),
-                             on_pass=on_pass, keep_partial=b.save_partial, started=started, **settings)
+    line = PassLine(say, err or sys.stderr, live=not (opts.quiet or opts.verbose))
+    side = SideOutputs(before=line.close)
+    try:
+        res = _render_passes(opts, dev, spp, render_budget, started, line, side)
+    finally:
+        line.close()                      # what follows (an error, "interrupted") starts a line of its own
     image = res.image
     if b.denoise:
         from warp_spt.rendering.denoise import denoise
@@ -110,14 +97,115 @@ def _unsampled(spp: np.ndarray) -> str:
     return f"{empty:,} of {spp.size:,} pixels have no samples yet (black)"
 
 
+def _render_passes(opts, dev, spp: int | None, render_budget: float | None, started: float, line: PassLine,
+                   side: SideOutputs):
+    """render_progressive as ``opts`` asks, showing each pass on ``line`` and writing --progressive."""
+    from dataclasses import fields
+
+    from warp_spt.cli.options import settings_of
+    from warp_spt.io.images import save_image
+    from warp_spt.rendering.progressive import render_progressive
+
+    b: BudgetOptions = opts.budget
+    spp_max = None if b.adaptive else spp       # adaptive: -sr bounds each pixel, not the mean
+
+    def on_pass(res) -> None:
+        if b.progressive:
+            side.write("--progressive", b.progressive, lambda: save_image(b.progressive, res.image, tonemap=opts.tonemap))
+        line.show(pass_status(res, b.target_error, spp_max, render_budget))
+
+    rs = settings_of(opts, spp=spp)
+    # the batches own the sample indices and the tiling: every other setting as the command gave it
+    settings = {f.name: getattr(rs, f.name) for f in fields(rs) if f.name not in ("sample_offset", "tile_pixels")}
+    return render_progressive(dev, opts.camera, time_budget=render_budget, target_error=b.target_error,
+                              adaptive=b.adaptive, min_spp=b.min_spp,
+                              **({"adaptive_metric": b.adaptive_metric} if b.adaptive_metric else {}),
+                              on_pass=on_pass, keep_partial=b.save_partial, started=started, **settings)
+
+
+def pass_status(res, target: float | None, spp_max: int | None, budget: float | None) -> str:
+    """The progress after a pass, short enough for a terminal's line: samples, seconds since start, the
+    estimated relative error (and its target), and the time to go (:func:`time_to_go`), naming the
+    limit that will end the render when there are several."""
+    s = res.stats
+    text = f"pass {s.passes}: {_spp_text(res.spp)}, {s.seconds:.1f} s, error {_pct(res.relative_error)}"
+    if target is not None:
+        text += f" (target {_pct(target)})"
+    end = time_to_go(res, target, spp_max, budget)
+    if end is None:
+        return text
+    several = sum(x is not None for x in (target, spp_max, budget)) > 1
+    return text + f", about {_duration(end[0])} to go" + (f" ({end[1]})" if several else "")
+
+
+def time_to_go(res, target: float | None, spp_max: int | None, budget: float | None) -> tuple[float, str] | None:
+    """(seconds, limit) until the soonest of the render's limits: -sr ``spp_max`` samples, the ``target``
+    error (the spp it needs by the 1/sqrt(spp) law, :func:`warp_spt.rendering.progressive.spp_for_error`),
+    the end of ``budget`` (seconds since start). Samples cost what they have cost so far: the seconds since
+    the first pass began over the mean spp. None before any estimate."""
+    from warp_spt.rendering.progressive import spp_for_error
+
+    s, spp = res.stats, float(res.spp.mean())
+    if spp <= 0 or s.seconds <= s.setup_seconds:
+        return None
+    per_spp = (s.seconds - s.setup_seconds) / spp
+    ends = []
+    if spp_max is not None:
+        ends.append((per_spp * max(0.0, spp_max - spp), f"-sr {spp_max}"))
+    if target is not None and math.isfinite(res.relative_error):
+        ends.append((per_spp * max(0.0, spp_for_error(spp, res.relative_error, target) - spp), "--target-error"))
+    if budget is not None:
+        ends.append((max(0.0, budget - s.seconds), "--time-budget"))
+    return min(ends) if ends else None
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 10:
+        return f"{seconds:.1f} s"
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
+
+
+class PassLine:
+    """Where the passes are shown: on a terminal one line, rewritten after every pass (dozens of "pass N"
+    lines said less than the last one); a line per pass into a log (stderr not a terminal) or with
+    --verbose (``live`` False); nothing with --quiet (``say`` says nothing)."""
+
+    def __init__(self, say: Callable[[str], None], err: TextIO, *, live: bool) -> None:
+        self.say, self.err = say, err
+        self.live = live and getattr(err, "isatty", lambda: False)()
+        self.open = False         # a rewritten line is on the terminal, without its newline
+
+    def show(self, text: str) -> None:
+        if not self.live:
+            self.say(text)
+            return
+        import shutil
+
+        # cut to the terminal's width: a carriage return goes back to the start of the last row only
+        width = shutil.get_terminal_size().columns - 1
+        self.err.write(f"\r{(PROG + ': ' + one_line(text))[:width]}\x1b[K")
+        self.err.flush()
+        self.open = True
+
+    def close(self) -> None:
+        """End the rewritten line, so that what is printed next starts a line of its own."""
+        if self.open:
+            self.err.write("\n")
+            self.err.flush()
+            self.open = False
+
+
 class SideOutputs:
     """Writes the outputs beside the image (--progressive, --error-map, --spp-map): a failure (a full
     disk, a missing directory) is one warning, shown even with --quiet, and the render goes on; a
     flag that failed is not tried again. The image itself (-out) is written before any side output
     of the final pass, and its failure is an error."""
 
-    def __init__(self, err=None) -> None:
+    def __init__(self, err=None, before: Callable[[], None] = lambda: None) -> None:
         self.err = err or sys.stderr
+        self.before = before          # called before a warning (PassLine.close)
         self.failed: set[str] = set()
 
     def write(self, flag: str, path: str, write: Callable[[], None]) -> None:
@@ -127,6 +215,7 @@ class SideOutputs:
             write()
         except OSError as error:
             self.failed.add(flag)
+            self.before()
             print(f"{PROG}: warning: {flag}: {error.strerror or error}; the render goes on without it", file=self.err)
 
 

@@ -59,7 +59,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     notice = CompileNotice(say)
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
     if opts.budget.active:      # passes, budgets and error estimates (cli/progressive.py)
-        return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started)
+        return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started, err=err)
     settings = settings_of(opts, sky=sky)
     with notice:
         warm_up(render_scene, scene, camera, settings)

@@ -361,7 +361,7 @@ class _Driver:
         e = result.relative_error
         if not math.isfinite(e):
             return n_total
-        need = math.ceil(spp_now * (e / plan.target_error) ** 2)
+        need = math.ceil(spp_for_error(spp_now, e, plan.target_error))
         return min(n_total, max(need, spp_now + 1))
 
     def _limit_by_time(self, plan: _Plan, rate, spp_now: int, n_total: int, pixels: int) -> int:
@@ -439,6 +439,12 @@ class _Driver:
                 return None, self._budget_reason(plan)
         out = batch_counts_per_pixel(done + inc, self.B) - self.counts
         return (out, cost), None
+
+
+def spp_for_error(spp: float, error: float, target: float) -> float:
+    """Samples per pixel at which an image with relative ``error`` at ``spp`` reaches ``target``: error
+    falls as 1/sqrt(spp), so spp x (error / target)^2 (the final pass's aim and the CLI's time to go)."""
+    return spp * (error / target) ** 2
 
 
 def batch_counts_per_pixel(spp: np.ndarray, batches: int) -> np.ndarray:

@@ -16,12 +16,9 @@ from PIL import Image
 
 from warp_spt.cli.common import process_start
 from warp_spt.cli.main import main
+from warp_spt.cli.maps import LEGEND_MIN_WIDTH, false_colour, with_legend
 from warp_spt.cli.options import parse_args
-from warp_spt.cli.progressive import (
-    EXIT_SECONDS,
-    false_colour,
-    finish_seconds,
-)
+from warp_spt.cli.progressive import EXIT_SECONDS, finish_seconds
 from warp_spt.io.images import load_image
 
 from .scenes import material
@@ -63,8 +60,10 @@ def test_budgeted_render_writes_image_maps_and_the_error_line(tmp_path, lit_file
     assert main(args + ["--error-map", str(err_png), "--spp-map", str(spp_png), "-out", str(out)]) == 0
     log = capsys.readouterr().err
     assert "estimated relative error of the image:" in log and "pass 1: 2 spp" in log
-    assert load_image(out).shape == (12, 16, 3) and load_image(err_png).shape == (12, 16, 3)
-    assert load_image(spp_png).shape == (12, 16, 3)
+    assert load_image(out).shape == (12, 16, 3)
+    for png in (err_png, spp_png):           # the map in the top-left corner, its legend below
+        h, w, _ = load_image(png).shape
+        assert h > 12 + 20 and w == LEGEND_MIN_WIDTH
     assert main(args + ["--error-map", str(err_npy), "--quiet", "-out", str(tmp_path / "o.npy")]) == 0
     se, img = np.load(err_npy), np.load(tmp_path / "o.npy")
     assert se.shape == img.shape and np.all(se[np.isfinite(se)] >= 0)
@@ -132,6 +131,23 @@ def test_the_time_to_go_follows_the_one_over_sqrt_spp_law():
 def test_false_colour_ends():
     c = false_colour(np.array([[0.0, 1.0, 2.0]]))
     assert c[0, 0].tolist() == [0, 0, 0] and c[0, 2].tolist() == [255, 255, 255]
+    stops = false_colour(np.array([[0.0, 0.25, 0.5, 0.75, 1.0]]), 1.0)[0].tolist()
+    assert stops == [[0, 0, 0], [0, 0, 255], [255, 0, 0], [255, 255, 0], [255, 255, 255]]   # docs/error.md
+
+
+def test_a_png_map_has_a_legend_with_the_values_of_its_colours():
+    from warp_spt.cli.maps import BAR_HEIGHT, PAD, tick_labels
+
+    img8 = false_colour(np.linspace(0.0, 1.0, 300 * 20).reshape(20, 300))
+    out = with_legend(img8, 0.112, "relative error", 100.0, "%")
+    assert out.shape[1] == 300 and out.shape[0] > 20 + BAR_HEIGHT and np.array_equal(out[:20], img8)
+    # the colour bar: rows of the strip black at its left end and white at its right
+    rows = [r for r in out[20:] if r[PAD].tolist() == [0, 0, 0] and r[-PAD - 1].tolist() == [255, 255, 255]]
+    assert len(rows) == BAR_HEIGHT
+    assert tick_labels(11.2, "%") == ["0.0%", "2.8%", "5.6%", "8.4%", "11.2%"]
+    assert tick_labels(16) == ["0", "4", "8", "12", "16"]
+    narrow = with_legend(img8[:3, :5], 1.0, "samples per pixel")
+    assert narrow.shape[1] == LEGEND_MIN_WIDTH and np.array_equal(narrow[:3, :5], img8[:3, :5])
 
 
 def test_process_start_is_in_the_past():

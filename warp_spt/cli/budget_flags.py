@@ -95,8 +95,9 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     g.add_argument("--progressive", metavar="PATH", help="rewrite this image after every pass")
     g.add_argument("--error-map", metavar="PATH",
                    help="write the per-pixel standard error (.npy/.pfm linear, .png false colour of the "
-                        "relative error)")
-    g.add_argument("--spp-map", metavar="PATH", help="write the samples per pixel (.npy/.pfm, or .png false colour)")
+                        "relative error with a legend)")
+    g.add_argument("--spp-map", metavar="PATH",
+                   help="write the samples per pixel (.npy/.pfm, or .png false colour with a legend)")
     g.add_argument("--denoise", action="store_true",
                    help="denoise the output with Intel Open Image Denoise (needs pyoidn: warp-spt[denoise]); "
                         "the error line and maps describe the image before denoising")

@@ -28,8 +28,7 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, 
     Returns the exit status: 0, or 130 after a Ctrl-C with --save-partial (the partial image written).
     ``err`` is where ``say`` writes (default stderr): on a terminal the passes rewrite one line there.
     """
-    import numpy as np
-
+    from warp_spt.cli.maps import save_error_map, save_spp_map
     from warp_spt.core.device_scene import DeviceScene
     from warp_spt.io.images import save_image
 
@@ -66,12 +65,9 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, 
             "is smoother but biased; the error figures below are those of the image before denoising")
     save_image(opts.out, image, tonemap=opts.tonemap)        # the main output first, then the side outputs
     if b.error_map:
-        side.write("--error-map", b.error_map,
-                   lambda: save_map(b.error_map, res.std_error, relative_map(res.std_error, res.image)))
+        side.write("--error-map", b.error_map, lambda: save_error_map(b.error_map, res.std_error, res.image))
     if b.spp_map:
-        counts = res.spp.astype(np.float32)
-        side.write("--spp-map", b.spp_map, lambda: save_map(
-            b.spp_map, np.repeat(counts[..., None], 3, axis=2), counts / max(1.0, float(counts.max()))))
+        side.write("--spp-map", b.spp_map, lambda: save_spp_map(b.spp_map, res.spp))
     s = res.stats
     if render_budget is not None and s.pass_seconds and s.pass_seconds[0] > render_budget:
         say(f"warning: --time-budget {b.time_budget:g} s is less than start-up ({s.setup_seconds:.1f} s: Python, Warp, "
@@ -262,41 +258,3 @@ def _pct(e: float) -> str:
 def _spp_text(spp: np.ndarray) -> str:
     lo, hi = int(spp.min()), int(spp.max())
     return f"{lo} spp" if lo == hi else f"{lo}..{hi} spp (mean {float(spp.mean()):.1f})"
-
-
-def relative_map(std_error: np.ndarray, image: np.ndarray) -> np.ndarray:
-    """Per-pixel relative error (mean over channels), with the floor of progressive.relative_error."""
-    import numpy as np
-
-    from warp_spt.rendering.result import ERROR_FLOOR_FRACTION
-
-    floor = max(ERROR_FLOOR_FRACTION * float(np.mean(image)), 1e-12)
-    rel = np.nan_to_num(std_error / np.maximum(image, floor), nan=0.0)
-    return np.sqrt(np.mean(rel**2, axis=2))
-
-
-def false_colour(x: np.ndarray, vmax: float | None = None) -> np.ndarray:
-    """A scalar map (H, W) as uint8 RGB: black -> blue -> red -> yellow -> white over [0, vmax]."""
-    import numpy as np
-
-    vmax = float(np.max(x)) if vmax is None else vmax
-    t = np.clip(np.nan_to_num(x / vmax if vmax > 0 else x * 0.0), 0.0, 1.0)
-    stops = np.array([[0, 0, 0], [0, 0, 255], [255, 0, 0], [255, 255, 0], [255, 255, 255]], dtype=np.float64)
-    pos = t * (len(stops) - 1)
-    i = np.minimum(pos.astype(int), len(stops) - 2)
-    f = (pos - i)[..., None]
-    return (stops[i] * (1 - f) + stops[i + 1] * f + 0.5).astype(np.uint8)
-
-
-def save_map(path: str, linear: np.ndarray, scalar: np.ndarray) -> None:
-    """``.npy``/``.pfm``/``.exr``: the linear (H, W, 3) map; ``.png``: false colour of ``scalar`` (0 .. its max)."""
-    import numpy as np
-    from PIL import Image
-
-    from warp_spt.io.images import atomic_write, save_image
-
-    if Path(path).suffix.lower() == ".png":
-        img8 = false_colour(scalar)
-        atomic_write(path, lambda f: Image.fromarray(img8).save(f, format="PNG"))
-    else:
-        save_image(path, np.asarray(linear, dtype=np.float32))     # NaN where there is no estimate yet

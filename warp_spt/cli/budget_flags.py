@@ -99,7 +99,8 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     g.add_argument("--spp-map", metavar="PATH",
                    help="write the samples per pixel (.npy/.pfm, or .png false colour with a legend)")
     g.add_argument("--denoise", action="store_true",
-                   help="denoise the output with Intel Open Image Denoise (needs pyoidn: warp-spt[denoise]); "
+                   help="denoise the output with Intel Open Image Denoise (needs pyoidn: pip install "
+                        "\".[denoise]\" in a clone, or \"warp-spt[denoise]\"); "
                         "the error line and maps describe the image before denoising")
 
 
@@ -125,6 +126,16 @@ def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
     """(flag, path) of every further file the render writes (for the early writability check)."""
     return [(f, p) for f, p in (("--progressive", b.progressive), ("--error-map", b.error_map),
                                 ("--spp-map", b.spp_map)) if p]
+
+
+def check_denoiser(b: BudgetOptions, error: Callable[[str], Exception]) -> None:
+    """--denoise needs pyoidn: one line naming the install command, before loading and rendering (it was
+    a RuntimeError reported as an internal error, after the scene was loaded)."""
+    if b.denoise:
+        from warp_spt.rendering.denoise import INSTALL_HINT, available
+
+        if not available():
+            raise error(INSTALL_HINT)
 
 
 def check_outputs(b: BudgetOptions, error: Callable[[str], Exception]) -> None:

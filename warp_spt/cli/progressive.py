@@ -35,12 +35,10 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, 
     b: BudgetOptions = opts.budget
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)   # the CLI hands it uploaded
     aux = None
-    if b.denoise:
+    if b.denoise:                         # pyoidn is there (run_image checked, budget_flags.check_denoiser)
         from warp_spt.rendering.aux_buffers import feature_buffers
-        from warp_spt.rendering.denoise import require
 
-        require()                         # before rendering, not after minutes of it
-        # before the render too, so that their kernel's compile counts against --time-budget
+        # before the render, so that their kernel's compile counts against --time-budget
         aux = feature_buffers(dev, opts.camera, opts.width, opts.height, seed=opts.seed,
                               texture_filter=opts.texture_filter)
     spp = opts.spp if (b.spp_given or not (b.time_budget or b.target_error)) else None

@@ -6,7 +6,7 @@ import time
 from dataclasses import replace
 from typing import TextIO
 
-from warp_spt.cli.budget_flags import check_outputs
+from warp_spt.cli.budget_flags import check_denoiser, check_outputs
 from warp_spt.cli.common import (
     EXIT_OK,
     PROG,
@@ -32,6 +32,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     check_outputs(opts.budget, RunError)
+    check_denoiser(opts.budget, RunError)
     say = say_for(opts, err)
     init_warp(opts)
     check_registry_names(opts)

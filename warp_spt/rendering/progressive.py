@@ -31,7 +31,6 @@ final, truncated pass) is bit-identical to ``render_progressive(..., spp=result.
 from __future__ import annotations
 
 import math
-import os
 import threading
 import time
 from dataclasses import dataclass
@@ -57,7 +56,7 @@ from warp_spt.rendering.schedule import (
 )
 from warp_spt.rendering.settings import TILE_PIXELS, RenderSettings, settings_from
 from warp_spt.rendering.setup import Bound, bind, check
-from warp_spt.runtime.threads import run_jobs
+from warp_spt.runtime.threads import cores, run_jobs
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
 
@@ -190,7 +189,7 @@ class _Driver:
         self.counters = [wp.zeros((self.n, 2), dtype=wp.int64, device=dev.device) for _ in range(batches)]
         self.counts = np.zeros((batches, self.n), dtype=np.int64)
         self.launches: dict = {}     # (batch, task slot) -> recorded launch
-        self.threads = max(1, rs.threads or os.cpu_count() or 1)
+        self.threads = max(1, rs.threads or cores())
         self.stop = threading.Event()
         self.cost_rate = 0.0         # cost (rays + SAMPLE_COST_RAYS per sample) per second in the last pass
         self.after_pass = 0.0        # seconds of snapshot and callback after the last pass

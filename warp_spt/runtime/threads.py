@@ -21,6 +21,7 @@ Which thread runs which job never changes a result as long as each job writes it
 
 from __future__ import annotations
 
+import os
 import queue
 import threading
 from typing import Callable, Sequence, TypeVar
@@ -34,6 +35,12 @@ ReportFn = Callable[[int], None]
 
 POLL_SECONDS = 0.1     # how often the waiting thread looks at the workers and the stop event
 ENDED = None           # what a worker puts on the progress queue when it returns
+
+
+def cores() -> int:
+    """The cores of this machine (os.cpu_count): the default number of render threads, which is why one
+    process already uses every core (the CLI warns when --workers asks for as many processes)."""
+    return os.cpu_count() or 1
 
 
 def run_jobs(jobs: Sequence[Job], work: WorkFn, threads: int, report: ReportFn) -> None:

@@ -264,3 +264,32 @@ def test_view_without_its_extra_says_how_to_install_it(monkeypatch, capsys):
     assert cli_main(["view", "--no-browser"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and 'pip install "warp-spt[view]"' in err and "internal error" not in err
+
+
+# ---------------------------------------------------------------- --workers on a small machine
+
+def test_workers_as_many_as_the_cores_warn_once(tmp_path, monkeypatch, capsys):
+    """Each worker renders on every core: --workers 2 on a 2-core machine was slower than one process."""
+    from contextlib import contextmanager
+
+    from warp_spt.cli import animation
+    from warp_spt.cli.common import RunError
+    from warp_spt.runtime import threads
+
+    @contextmanager
+    def no_cluster(opts):                     # the warning comes before any worker starts: stop there
+        raise RunError("no cluster in this test")
+        yield
+
+    monkeypatch.setattr(threads, "cores", lambda: 2)
+    monkeypatch.setattr(animation, "cluster_client", no_cluster)
+    obj = tmp_path / "a.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    base = ["-obj", str(obj), "-res", "8", "8", "-cam", "0.3", "0.3", "3", "0", "0", "-1", "40", "3", "0",
+            "-out", str(tmp_path / "o.png")]
+    status, _, err = run_main(base + ["--workers", "2"], capsys)
+    assert status == 1 and err.count("warning: --workers") == 1
+    assert ("warning: --workers 2 on a 2-core machine: each worker already uses every core; one process is "
+            "usually faster") in err
+    status, _, err = run_main(base + ["--workers", "1"], capsys)
+    assert status == 1 and "warning: --workers" not in err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import signal
 import subprocess
@@ -15,12 +16,9 @@ from PIL import Image
 
 from warp_spt.cli.common import process_start
 from warp_spt.cli.main import main
+from warp_spt.cli.maps import LEGEND_MIN_WIDTH, false_colour, with_legend
 from warp_spt.cli.options import parse_args
-from warp_spt.cli.progressive import (
-    EXIT_SECONDS,
-    false_colour,
-    finish_seconds,
-)
+from warp_spt.cli.progressive import EXIT_SECONDS, finish_seconds
 from warp_spt.io.images import load_image
 
 from .scenes import material
@@ -62,17 +60,94 @@ def test_budgeted_render_writes_image_maps_and_the_error_line(tmp_path, lit_file
     assert main(args + ["--error-map", str(err_png), "--spp-map", str(spp_png), "-out", str(out)]) == 0
     log = capsys.readouterr().err
     assert "estimated relative error of the image:" in log and "pass 1: 2 spp" in log
-    assert load_image(out).shape == (12, 16, 3) and load_image(err_png).shape == (12, 16, 3)
-    assert load_image(spp_png).shape == (12, 16, 3)
+    assert load_image(out).shape == (12, 16, 3)
+    for png in (err_png, spp_png):           # the map in the top-left corner, its legend below
+        h, w, _ = load_image(png).shape
+        assert h > 12 + 20 and w == LEGEND_MIN_WIDTH
     assert main(args + ["--error-map", str(err_npy), "--quiet", "-out", str(tmp_path / "o.npy")]) == 0
     se, img = np.load(err_npy), np.load(tmp_path / "o.npy")
     assert se.shape == img.shape and np.all(se[np.isfinite(se)] >= 0)
     assert capsys.readouterr().err == ""
 
 
+def test_the_start_up_line_says_what_a_budget_renders(tmp_path, lit_files, capsys):
+    """Budget runs announced "16 spp" (the -sr default) and rendered 18 to 853."""
+    assert parse_args([]).budget.samples(16) == "16 spp"
+    assert parse_args(["--time-budget", "10"]).budget.samples(16) == "until --time-budget 10 s"
+    assert parse_args(["--target-error", "1%", "-sr", "64"]).budget.samples(64) == \
+        "until --target-error 1% (at most 64 spp)"
+    assert parse_args(["--target-error", "0.025", "--time-budget", "5"]).budget.samples(16) == \
+        "until --target-error 2.5% or --time-budget 5 s"
+    assert parse_args(["--adaptive"]).budget.samples(16) == "up to 16 spp per pixel (--adaptive)"
+    out = tmp_path / "o.png"
+    assert main(lit_files + ["-res", "8", "6", "--target-error", "20%", "-out", str(out)]) == 0
+    start = capsys.readouterr().err.splitlines()[0]
+    assert "rendering 8x6, until --target-error 20%, depth 3" in start and "16 spp" not in start
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_target_error_shows_one_updating_line_with_the_time_to_go(tmp_path, lit_files, monkeypatch):
+    """On a terminal the passes rewrite one line (they were dozens of "pass N" lines with no end in sight)."""
+    monkeypatch.setattr(sys, "stderr", _Terminal())
+    assert main(lit_files + ["-res", "16", "12", "--target-error", "4%", "-out", str(tmp_path / "o.png")]) == 0
+    lines = sys.stderr.getvalue().split("\n")
+    progress = [line for line in lines if "pass 1:" in line]
+    assert len(progress) == 1 and progress[0].count("\r") == progress[0].count("pass ") >= 3
+    assert "(target 4.00%), about" in progress[0] and "to go" in progress[0]
+    assert lines[lines.index(progress[0]) + 1].startswith("warp-spt: wrote ")     # the line was ended
+
+
+def test_the_time_to_go_follows_the_one_over_sqrt_spp_law():
+    from types import SimpleNamespace
+
+    from warp_spt.cli.progressive import PassLine, pass_status, time_to_go
+    from warp_spt.rendering.result import RenderStats
+
+    stats = RenderStats(passes=4, seconds=3.0, setup_seconds=1.0)         # 16 spp in 2 s: 0.125 s per spp
+    res = SimpleNamespace(stats=stats, spp=np.full((2, 2), 16), relative_error=0.02)
+    assert time_to_go(res, 0.01, None, None) == (6.0, "--target-error")   # 16 x (2% / 1%)^2 = 64 spp: 48 more
+    assert time_to_go(res, 0.01, None, 5.0) == (2.0, "--time-budget")    # the budget ends it first
+    assert time_to_go(res, None, 24, None) == (1.0, "-sr 24")
+    assert pass_status(res, 0.01, None, None) == "pass 4: 16 spp, 3.0 s, error 2.00% (target 1.00%), about 6.0 s to go"
+    assert pass_status(res, 0.01, None, 5.0).endswith("about 2.0 s to go (--time-budget)")
+    said, log = [], io.StringIO()
+    line = PassLine(said.append, log, live=True)          # not a terminal: a line per pass, as --verbose
+    line.show("a")
+    line.show("b")
+    line.close()
+    assert said == ["a", "b"] and log.getvalue() == ""
+    term = _Terminal()
+    line = PassLine(said.append, term, live=True)
+    line.show("a")
+    line.show("b")
+    line.close()
+    assert term.getvalue() == "\rwarp-spt: a\x1b[K\rwarp-spt: b\x1b[K\n" and said == ["a", "b"]
+
+
 def test_false_colour_ends():
     c = false_colour(np.array([[0.0, 1.0, 2.0]]))
     assert c[0, 0].tolist() == [0, 0, 0] and c[0, 2].tolist() == [255, 255, 255]
+    stops = false_colour(np.array([[0.0, 0.25, 0.5, 0.75, 1.0]]), 1.0)[0].tolist()
+    assert stops == [[0, 0, 0], [0, 0, 255], [255, 0, 0], [255, 255, 0], [255, 255, 255]]   # docs/error.md
+
+
+def test_a_png_map_has_a_legend_with_the_values_of_its_colours():
+    from warp_spt.cli.maps import BAR_HEIGHT, PAD, tick_labels
+
+    img8 = false_colour(np.linspace(0.0, 1.0, 300 * 20).reshape(20, 300))
+    out = with_legend(img8, 0.112, "relative error", 100.0, "%")
+    assert out.shape[1] == 300 and out.shape[0] > 20 + BAR_HEIGHT and np.array_equal(out[:20], img8)
+    # the colour bar: rows of the strip black at its left end and white at its right
+    rows = [r for r in out[20:] if r[PAD].tolist() == [0, 0, 0] and r[-PAD - 1].tolist() == [255, 255, 255]]
+    assert len(rows) == BAR_HEIGHT
+    assert tick_labels(11.2, "%") == ["0.0%", "2.8%", "5.6%", "8.4%", "11.2%"]
+    assert tick_labels(16) == ["0", "4", "8", "12", "16"]
+    narrow = with_legend(img8[:3, :5], 1.0, "samples per pixel")
+    assert narrow.shape[1] == LEGEND_MIN_WIDTH and np.array_equal(narrow[:3, :5], img8[:3, :5])
 
 
 def test_process_start_is_in_the_past():
@@ -101,11 +176,38 @@ def test_save_partial_leaves_a_valid_image_on_sigint(tmp_path, lit_files):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 130, err
-    assert "partial image was saved" in err and "Traceback" not in err
+    assert "saved the partial image" in err and "Traceback" not in err
     with Image.open(out) as im:
         im.load()
         assert im.size == (32, 24)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["partial.png", "progress.png"]   # no temp files
+
+
+def test_a_partial_save_names_the_pixels_without_samples_and_a_plausible_rate(tmp_path, lit_files, monkeypatch,
+                                                                              capsys):
+    """Ctrl-C in the first pass of a 128 x 128 render (4 launches of 4,096 pixels per batch), after 3
+    launches: the image is saved, its unsampled pixels counted, and the rate is the samples rendered
+    over the time spent (it was divided by the finished passes' time, 0 here: "749568000.00 M samples/s")."""
+    import re
+
+    from warp_spt.rendering import progressive
+
+    launched, real = [], progressive._Driver._launch
+
+    def launch(self, *args, **kw):
+        real(self, *args, **kw)
+        launched.append(args)
+        if len(launched) == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(progressive._Driver, "_launch", launch)
+    out = tmp_path / "partial.png"
+    assert main(lit_files + ["-res", "128", "128", "--threads", "1", "--save-partial", "-out", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "4,096 of 16,384 pixels have no samples yet (black)" in err and len(launched) == 3
+    rate = float(re.search(r"([0-9.e+-]+) M samples/s", err).group(1))
+    assert 0 < rate < 1000               # a CPU path tracer renders millions of samples a second, not 1e15
+    assert load_image(out).shape == (128, 128, 3)
 
 
 def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatch):
@@ -119,7 +221,9 @@ def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatc
         assert np.load(out).shape == (12, 16, 3)
     monkeypatch.setattr(dn, "available", lambda: False)
     assert main(args) == 1
-    assert "warp-spt[denoise]" in capsys.readouterr().err
+    err = capsys.readouterr().err        # one line, before loading: it was "internal error: RuntimeError"
+    assert err.count("\n") == 1 and err.startswith("warp-spt: error: --denoise needs Intel Open Image Denoise")
+    assert 'pip install ".[denoise]"' in err and 'pip install "warp-spt[denoise]"' in err
 
 
 def fake_denoiser(monkeypatch, seconds_per_pixel: float) -> list:

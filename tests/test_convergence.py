@@ -12,10 +12,12 @@ import pytest
 from warp_spt.cli.main import main
 from warp_spt.rendering.convergence import (
     COLUMNS,
+    MAX_REPEATS,
     default_configs,
     fit_slope,
     levels,
     parse_config,
+    timed,
 )
 
 from .test_cli_progressive import lit_files  # noqa: F401  (fixture)
@@ -45,6 +47,13 @@ def test_slope_fit_and_warning():
     biased = fit_slope(spp, np.sqrt(0.09 / spp + 0.1**2))        # a bias of 0.1 flattens the curve
     assert biased.slope > -0.35 and "bias" in biased.warning
     assert fit_slope([1], [0.1]).warning
+
+
+def test_short_renders_are_timed_over_repeats():
+    """A render of a few ms is as long as the scheduler's noise: it is repeated and the mean taken."""
+    calls = []
+    value, seconds = timed(lambda: calls.append(1) or len(calls))
+    assert value == 1 and 1 < len(calls) <= MAX_REPEATS and seconds > 0
 
 
 def test_report_writes_the_documented_columns(tmp_path, lit_files, capsys):  # noqa: F811

@@ -7,6 +7,7 @@ identities (bit-identical sums). One small open scene (cheap paths) and the gene
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -177,6 +178,50 @@ def test_keep_partial_returns_what_was_rendered(open_scene):
     calls.clear()
     with pytest.raises(KeyboardInterrupt):
         render_progressive(open_scene, CAMERA, spp=4096, seed=2, on_pass=interrupt, **KW)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_signal_stops_a_pass_between_its_launches(open_scene, monkeypatch, threads):
+    """Ctrl-C inside a pass: the launches under way finish and no other starts (cancellation is checked
+    between launches of TILE_PIXELS pixels, not at the end of the pass); the partial result counts the
+    samples and the time of that pass (the CLI's rate divides the one by the other)."""
+    import os
+    import signal
+
+    from warp_spt.rendering import progressive
+
+    launched, real = [], progressive._Driver._launch
+
+    def launch(self, *args, **kw):
+        real(self, *args, **kw)
+        launched.append(args[0])
+        if len(launched) == 3:
+            os.kill(os.getpid(), signal.SIGINT)      # stop_on_signals turns it into the stop flag
+            time.sleep(0.05)                         # let it land while this launch is the one under way
+
+    monkeypatch.setattr(progressive._Driver, "_launch", launch)
+    kw = dict(KW, width=128, height=128, threads=threads)      # 4 runs of TILE_PIXELS per batch: 8 launches
+    res = render_progressive(open_scene, CAMERA, spp=64, seed=2, keep_partial=True, **kw)
+    assert res.stats.stopped_by == "interrupt" and res.stats.passes == 0
+    assert res.stats.launches == 8 and 3 <= len(launched) <= 2 + threads      # the others never started
+    assert res.stats.pixel_samples == int(res.spp.sum()) == len(launched) * 4096
+    assert 0 < res.stats.render_seconds <= res.stats.seconds
+    if threads == 1:                    # batch 0's runs in order: the fourth one never ran
+        assert int((res.spp == 0).sum()) == 4096
+
+
+def test_batch_statistics_are_the_same_in_blocks(monkeypatch):
+    """Blocks of pixels (a snapshot of a large image) give the statistics of the whole image bit for bit."""
+    from warp_spt.rendering import result
+
+    rng = np.random.default_rng(4)
+    counts = rng.integers(0, 3, (4, 9, 7))
+    counts[3] = 0                               # an empty batch (a Ctrl-C in the first pass)
+    sums = rng.random((4, 9, 7, 3)) * (counts[..., None] > 0)
+    whole = batch_statistics(sums, counts)
+    monkeypatch.setattr(result, "STATS_BLOCK_PIXELS", 5)
+    for a, b in zip(batch_statistics(sums, counts), whole):
+        assert np.array_equal(a, b, equal_nan=True) and a.shape == b.shape
 
 
 @pytest.mark.parametrize("bad", [dict(time_budget=0), dict(target_error=-1), dict(batches=1), dict(min_spp=0),

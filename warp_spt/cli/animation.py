@@ -47,6 +47,19 @@ def _run_budgeted(opts, scene, say, started: float | None) -> int:
     return EXIT_OK
 
 
+def workers_warning(workers: int) -> str | None:
+    """The warning for --workers N with N >= this machine's cores, else None: every worker process renders
+    on as many threads as there are cores (runtime.threads.cores), so N of them compete for the same
+    cores, and one process, without the cluster's overhead, is usually faster."""
+    from warp_spt.runtime.threads import cores
+
+    n = cores()
+    if workers < n:
+        return None
+    return (f"warning: --workers {workers} on a {n}-core machine: each worker already uses every core; "
+            "one process is usually faster")
+
+
 @contextmanager
 def cluster_client(opts):
     """The Dask client that ``--cluster`` or ``--workers`` asks for (closed after), or None."""
@@ -121,13 +134,12 @@ def run_cli(opts, err, started: float | None = None) -> int:
         say(f"warning: {warning}")
     where = (f"the cluster at {opts.cluster}" if opts.cluster else
              f"{opts.workers} local worker processes" if opts.workers else "this machine")
-    b = opts.budget
-    spp = (f"{opts.spp} spp" if not b.active else
-           f"until {' or '.join(f for f, v in (('--time-budget', b.time_budget), ('--target-error', b.target_error)) if v)}"
-           + (f" (at most {opts.spp} spp)" if b.spp_given else ""))
+    spp = opts.budget.samples(opts.spp)
     say(f"loaded frame {frames[0]}: {first.num_triangles:,} triangles, {len(first.spheres)} spheres in "
         f"{time.perf_counter() - start:.1f} s; rendering {len(frames)} frame(s) of {opts.width}x{opts.height}, "
         f"{spp}, depth {opts.depth} on {where}")
+    if opts.workers and (warning := workers_warning(opts.workers)):
+        say(warning)
     if opts.animated:
         def images(client, progress):
             return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,

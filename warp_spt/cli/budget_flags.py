@@ -37,6 +37,17 @@ class BudgetOptions:
         return any((self.time_budget, self.target_error, self.adaptive, self.save_partial, self.progressive,
                     self.error_map, self.spp_map, self.min_spp, self.denoise))
 
+    def samples(self, spp: int) -> str:
+        """What the render's start-up line says of its samples per pixel (``spp``: -sr or its default):
+        "16 spp" only when that is what every pixel gets. A budget renders until it is met (-sr given:
+        at most that many), adaptive sampling gives each pixel up to -sr."""
+        until = " or ".join(f"{flag} {value}" for flag, value in (
+            ("--target-error", f"{100 * self.target_error:g}%" if self.target_error else None),
+            ("--time-budget", f"{self.time_budget:g} s" if self.time_budget else None)) if value)
+        if until:
+            return f"until {until}" + (f" (at most {spp} spp)" if self.spp_given else "")
+        return f"up to {spp} spp per pixel (--adaptive)" if self.adaptive else f"{spp} spp"
+
 
 def _positive_float(text: str) -> float:
     try:
@@ -84,10 +95,12 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
     g.add_argument("--progressive", metavar="PATH", help="rewrite this image after every pass")
     g.add_argument("--error-map", metavar="PATH",
                    help="write the per-pixel standard error (.npy/.pfm linear, .png false colour of the "
-                        "relative error)")
-    g.add_argument("--spp-map", metavar="PATH", help="write the samples per pixel (.npy/.pfm, or .png false colour)")
+                        "relative error with a legend)")
+    g.add_argument("--spp-map", metavar="PATH",
+                   help="write the samples per pixel (.npy/.pfm, or .png false colour with a legend)")
     g.add_argument("--denoise", action="store_true",
-                   help="denoise the output with Intel Open Image Denoise (needs pyoidn: warp-spt[denoise]); "
+                   help="denoise the output with Intel Open Image Denoise (needs pyoidn: pip install "
+                        "\".[denoise]\" in a clone, or \"warp-spt[denoise]\"); "
                         "the error line and maps describe the image before denoising")
 
 
@@ -113,6 +126,16 @@ def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
     """(flag, path) of every further file the render writes (for the early writability check)."""
     return [(f, p) for f, p in (("--progressive", b.progressive), ("--error-map", b.error_map),
                                 ("--spp-map", b.spp_map)) if p]
+
+
+def check_denoiser(b: BudgetOptions, error: Callable[[str], Exception]) -> None:
+    """--denoise needs pyoidn: one line naming the install command, before loading and rendering (it was
+    a RuntimeError reported as an internal error, after the scene was loaded)."""
+    if b.denoise:
+        from warp_spt.rendering.denoise import INSTALL_HINT, available
+
+        if not available():
+            raise error(INSTALL_HINT)
 
 
 def check_outputs(b: BudgetOptions, error: Callable[[str], Exception]) -> None:

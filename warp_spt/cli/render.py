@@ -6,7 +6,7 @@ import time
 from dataclasses import replace
 from typing import TextIO
 
-from warp_spt.cli.budget_flags import check_outputs
+from warp_spt.cli.budget_flags import check_denoiser, check_outputs
 from warp_spt.cli.common import (
     EXIT_OK,
     PROG,
@@ -32,6 +32,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     objs, mtls = scene_files(opts)
     check_files(objs, mtls, opts.out)
     check_outputs(opts.budget, RunError)
+    check_denoiser(opts.budget, RunError)
     say = say_for(opts, err)
     init_warp(opts)
     check_registry_names(opts)
@@ -55,11 +56,11 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
-        f"{opts.spp} spp, depth {opts.depth}")
+        f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")
     notice = CompileNotice(say)
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
     if opts.budget.active:      # passes, budgets and error estimates (cli/progressive.py)
-        return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started)
+        return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started, err=err)
     settings = settings_of(opts, sky=sky)
     with notice:
         warm_up(render_scene, scene, camera, settings)

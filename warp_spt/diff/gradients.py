@@ -33,7 +33,6 @@ silhouettes that move with a parameter bias its gradient.
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, replace
 
@@ -81,7 +80,7 @@ from warp_spt.rendering.setup import (
 )
 from warp_spt.rendering.tiles import render_scene
 from warp_spt.runtime import kernel_cache
-from warp_spt.runtime.threads import run_jobs
+from warp_spt.runtime.threads import cores, run_jobs
 from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.sky import Sky
@@ -348,7 +347,7 @@ class _Backward:
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=tape_inputs(args, deltas, scratch),
                       adj_inputs=tape_inputs(adjoint_structs(args), deltas.grad, adj_image[lo:hi]), adjoint=True)
 
-        self.threads = max(1, min(threads or os.cpu_count() or 1, len(self.tiles)))
+        self.threads = max(1, min(threads or cores(), len(self.tiles)))
         # the renderer's tile runner: Ctrl-C stops the workers safely (no concurrent.futures, see parallel)
         run_jobs(list(range(len(self.tiles))), lambda k, stop, done: work(k), self.threads, lambda units: None)
         # reduce in tile order, in float64: independent of threads

@@ -138,10 +138,12 @@ def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
 
     Only regular files are read (symbolic links are followed): a FIFO, a device such as
     ``/dev/zero`` or a directory is refused before anything is read, so nothing can block or grow
-    without end. A file larger than ``limit`` bytes (default MAX_FILE_BYTES) is refused from its
-    size, before any of it is read; a file whose first bytes are binary (NUL bytes, a PNG, UTF-16)
-    is refused after reading only those (:func:`normalise_text` names the line). Every reader is a
-    text reader; the caller checks the whole text with normalise_text.
+    without end. An OBJ or MTL file in another scene format (PLY, glTF, FBX, STL...) is refused from
+    its first bytes or its suffix (:func:`refuse_other_format`). A file larger than ``limit`` bytes
+    (default MAX_FILE_BYTES) is refused from its size, before more than its first HEAD_BYTES are
+    read; a file whose first bytes are binary (NUL bytes, a PNG, UTF-16) is refused after reading
+    only those (:func:`normalise_text` names the line). Every reader is a text reader; the caller
+    checks the whole text with normalise_text.
     """
     limit = MAX_FILE_BYTES if limit is None else limit
     try:
@@ -154,11 +156,12 @@ def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
         special = describe_special(info.st_mode)       # before fdopen, which refuses a directory by fd number
         if special:
             raise SceneError(path, 0, f"cannot read {kind} file: it is {special}, not a regular file")
-        if info.st_size > limit:
-            raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
         with os.fdopen(fd, "rb") as f:
             fd = -1                                    # the file object owns it now
             head = f.read(HEAD_BYTES)
+            refuse_other_format(path, head, kind)      # a PLY, glTF, FBX... file: say so, not "binary data"
+            if info.st_size > limit:
+                raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
             normalise_text(head, path, kind)           # binary data is refused from its first bytes
             data = head + f.read(limit + 1 - len(head))
     except OSError as err:
@@ -169,6 +172,48 @@ def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
     if len(data) > limit:                              # it grew while we read it
         raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
     return data
+
+
+# Scene formats that are not OBJ, by the bytes they start with and by their suffix. Given as -obj (or
+# to load_scene) they were read as OBJ text and failed with "binary data (a NUL byte)" or "the scene has
+# no geometry", which did not say what to do.
+OTHER_FORMATS_BY_HEAD = ((b"ply\n", "PLY"), (b"ply\r", "PLY"), (b"glTF", "glTF"), (b"Kaydara FBX Binary", "FBX"),
+                         (b"; FBX", "FBX"), (b"solid ", "STL"), (b"BLENDER", "Blender (.blend)"),
+                         (b"PXR-USDC", "USD"), (b"#usda", "USD"), (b"OFF\n", "OFF"), (b"OFF\r", "OFF"),
+                         (b"PK\x03\x04", "ZIP (3MF, USDZ...)"))
+OTHER_FORMATS_BY_SUFFIX = {".ply": "PLY", ".gltf": "glTF", ".glb": "glTF", ".fbx": "FBX", ".stl": "STL",
+                           ".3ds": "3DS", ".dae": "COLLADA (.dae)", ".blend": "Blender (.blend)", ".usd": "USD",
+                           ".usda": "USD", ".usdc": "USD", ".usdz": "USD", ".abc": "Alembic", ".x3d": "X3D",
+                           ".wrl": "VRML", ".off": "OFF", ".3mf": "3MF", ".max": "3ds Max", ".c4d": "Cinema 4D",
+                           ".lwo": "LightWave", ".step": "STEP", ".stp": "STEP", ".iges": "IGES", ".igs": "IGES"}
+
+
+def other_format(path: str, head: bytes) -> str | None:
+    """The scene format other than OBJ that a file is in ("PLY", "glTF"...), from its first bytes (a JSON
+    object is glTF when it has an "asset", an XML document COLLADA or X3D by its root), else from its
+    suffix; None for anything else (OBJ, MTL, or text that the readers will judge)."""
+    start = head.lstrip(b" \t\r\n\xef\xbb\xbf")
+    by_head = next((name for magic, name in OTHER_FORMATS_BY_HEAD if head.startswith(magic)), None)
+    if by_head is None and start.startswith(b"{"):
+        by_head = "glTF" if b'"asset"' in start else "JSON"
+    elif by_head is None and start.startswith(b"<"):
+        by_head = "COLLADA (.dae)" if b"<COLLADA" in start else "X3D" if b"<X3D" in start else "XML"
+    return by_head or OTHER_FORMATS_BY_SUFFIX.get(os.path.splitext(str(path))[1].lower())
+
+
+def refuse_other_format(path: str, head: bytes, kind: str) -> None:
+    """For an OBJ or MTL file (``kind``; a camera path is JSON), a SceneError when ``head`` (its first
+    bytes) or ``path``'s suffix says it is in another scene format: one line naming the format and,
+    for OBJ, what to do."""
+    name = other_format(path, head) if kind in ("OBJ", "MTL") else None
+    if name is None:
+        return
+    if kind != "OBJ":
+        raise SceneError(path, 0, f"not {kind} text: a {name} file")
+    suffix_name = OTHER_FORMATS_BY_SUFFIX.get(os.path.splitext(str(path))[1].lower())
+    found = "" if suffix_name == name else f"the file holds {name} data, not OBJ text: "
+    raise SceneError(path, 0, f"{found}{name} files are not supported yet; convert to OBJ "
+                              "(e.g. with Blender or MeshLab)")
 
 
 def _size(n: int) -> str:

@@ -36,6 +36,10 @@ import numpy as np
 COLUMNS = ("config", "integrator", "sampler", "spp", "mean_spp", "seconds", "rmse", "rmse_raw", "relative_error",
            "estimated_relative_error", "efficiency")
 SLOPE_TOLERANCE = 0.15      # |slope + 0.5| above this is reported as suspicious
+MIN_TIMED_SECONDS = 0.05    # a row's render is repeated until this much time is measured (at most
+                            # MAX_REPEATS times): one render of a small image takes a few ms, as long as
+                            # the scheduler's noise, and the "error vs time" curve zig-zagged
+MAX_REPEATS = 20
 REF_SUFFIXES = (".npy", ".pfm")
 
 
@@ -132,7 +136,7 @@ def run_report(scene, camera, *, width: int, height: int, max_spp: int, referenc
             rows.append(_render_row(dev, camera, config, spp, seed + 1 + i, reference, ref_mse, kw))
             r = rows[-1]
             say(f"{config:>26} {spp:>6} spp: RMSE {r.rmse:.4g}, relative error {100 * r.relative_error:.2f}%, "
-                f"{r.seconds:.2f} s")
+                f"{r.seconds:.3g} s")
     fits = {c: fit_slope([r.spp for r in rows if r.config == c], [r.rmse for r in rows if r.config == c])
             for c in configs}
     return rows, fits, ref_info
@@ -184,23 +188,37 @@ def _render_row(dev, camera, config: str, spp: int, seed: int, reference, ref_ms
 
     integrator, sampler, mods = parse_config(config)
     kw = dict(kw, integrator=integrator, sampler=sampler)
-    t = time.perf_counter()
-    if "adaptive" in mods:
-        res = render_progressive(dev, camera, spp=16 * spp, sample_budget=spp * kw["width"] * kw["height"],
-                                 adaptive=True, min_spp=max(1, spp // 4), seed=seed, **kw)
-    else:
-        res = render_progressive(dev, camera, spp=spp, seed=seed, **kw)
-    image, estimated = res.image, res.relative_error
-    if "denoised" in mods:
-        from warp_spt.rendering.aux_buffers import feature_buffers
-        from warp_spt.rendering.denoise import denoise
 
-        aux = feature_buffers(dev, camera, kw["width"], kw["height"], seed=seed,
-                              texture_filter=kw.get("texture_filter", "nearest"), features=kw.get("features"))
-        image, estimated = denoise(res.image, *aux), float("nan")
-    seconds = time.perf_counter() - t
+    def render():
+        if "adaptive" in mods:
+            res = render_progressive(dev, camera, spp=16 * spp, sample_budget=spp * kw["width"] * kw["height"],
+                                     adaptive=True, min_spp=max(1, spp // 4), seed=seed, **kw)
+        else:
+            res = render_progressive(dev, camera, spp=spp, seed=seed, **kw)
+        image, estimated = res.image, res.relative_error
+        if "denoised" in mods:
+            from warp_spt.rendering.aux_buffers import feature_buffers
+            from warp_spt.rendering.denoise import denoise
+
+            aux = feature_buffers(dev, camera, kw["width"], kw["height"], seed=seed,
+                                  texture_filter=kw.get("texture_filter", "nearest"), features=kw.get("features"))
+            image, estimated = denoise(res.image, *aux), float("nan")
+        return res, image, estimated
+
+    (res, image, estimated), seconds = timed(render)
     return measure(config, integrator, sampler, spp, image, reference, ref_mse, seconds, float(res.spp.mean()),
                    estimated)
+
+
+def timed(render):
+    """(``render()``'s value, seconds per call): called again (the same seed: the same image) until
+    MIN_TIMED_SECONDS are measured or MAX_REPEATS calls were made, and the mean taken."""
+    t = time.perf_counter()
+    value, calls = render(), 1
+    while time.perf_counter() - t < MIN_TIMED_SECONDS and calls < MAX_REPEATS:
+        render()
+        calls += 1
+    return value, (time.perf_counter() - t) / calls
 
 
 # ---------------------------------------------------------------------------------------------
@@ -239,19 +257,22 @@ def write_plot(path: str | Path, rows: Sequence[Row], fits: dict[str, Fit], titl
     from warp_spt.io.images import atomic_write
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    # small images render in milliseconds: label the time axis in them rather than in 2x10^-3 s
+    unit, scale = ("milliseconds", 1e3) if max(r.seconds for r in rows) < 1.0 else ("seconds", 1.0)
     for config, fit in fits.items():
         rs = [r for r in rows if r.config == config and r.rmse > 0]
         label = f"{config} (slope {fit.slope:.2f})"
         axes[0].loglog([r.mean_spp for r in rs], [r.rmse for r in rs], "o-", label=label)
-        axes[1].loglog([r.seconds for r in rs], [r.rmse for r in rs], "o-", label=config)
+        axes[1].loglog([scale * r.seconds for r in rs], [r.rmse for r in rs], "o-", label=config)
     xs = np.array([min(r.mean_spp for r in rows), max(r.mean_spp for r in rows)])
     first = [r for r in rows if r.config == next(iter(fits))][0]
     axes[0].loglog(xs, first.rmse * (xs / first.mean_spp) ** -0.5, "k:", label="slope -0.5")
     axes[0].set(xlabel="samples per pixel", ylabel="RMSE vs reference", title="error vs samples")
-    axes[1].set(xlabel="seconds", ylabel="RMSE vs reference", title="error vs time")
+    axes[1].set(xlabel=unit, ylabel="RMSE vs reference", title="error vs time")
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
+        _plain_log_ticks(ax)
     if title:
         fig.suptitle(title)
     fig.tight_layout()
@@ -259,6 +280,19 @@ def write_plot(path: str | Path, rows: Sequence[Row], fits: dict[str, Fit], titl
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
     atomic_write(path, lambda f: f.write(buf.getvalue()))
+
+
+def _plain_log_ticks(ax) -> None:
+    """Plain numbers on both log axes, at 1, 2 and 5 x 10^k over a short range and at powers of ten over
+    a long one: matplotlib's default labelled every minor tick of a short range in scientific notation,
+    and at small image sizes the labels of the time axis ran into each other."""
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        subs = (1.0, 2.0, 5.0) if math.log10(hi / lo) <= 2.5 else (1.0,)
+        axis.set_major_locator(LogLocator(base=10, subs=subs))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -15,7 +15,10 @@ import time
 
 import numpy as np
 
-INSTALL_HINT = 'denoising needs Intel Open Image Denoise: pip install "warp-spt[denoise]" (the pyoidn package)'
+# the extra is named in pyproject.toml ([project.optional-dependencies] denoise); from a clone the
+# package is not on PyPI under that name yet, so both forms are given
+INSTALL_HINT = ('--denoise needs Intel Open Image Denoise (the pyoidn package): pip install ".[denoise]" in a clone '
+                'of warp-spt, or pip install "warp-spt[denoise]"')
 
 
 def available() -> bool:

@@ -7,7 +7,6 @@ PASS_SAMPLES in sample order), so the image depends only on the seed, never on t
 
 from __future__ import annotations
 
-import os
 import time
 import warnings as _warnings
 
@@ -23,7 +22,7 @@ from warp_spt.rendering.schedule import pass_ranges
 from warp_spt.rendering.settings import RenderSettings, settings_from
 from warp_spt.rendering.setup import Bound, bind
 from warp_spt.runtime.progress import ProgressFn, progress_reporter
-from warp_spt.runtime.threads import run_jobs
+from warp_spt.runtime.threads import cores, run_jobs
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
 
@@ -60,7 +59,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
     first, stop = rows or (0, b.height)
     film, counters, keep = _window_arrays(first * width, stop * width, b.dev.device)
     tiles = [(p, min(stop * width, p + rs.tile_pixels)) for p in range(first * width, stop * width, rs.tile_pixels)]
-    nthreads = max(1, min(rs.threads or os.cpu_count() or 1, len(tiles)))
+    nthreads = max(1, min(rs.threads or cores(), len(tiles)))
     passes = pass_ranges(rs.spp, width, b.height)
 
     def work(tile: tuple[int, int], stop, done) -> None:

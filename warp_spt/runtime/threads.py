@@ -10,7 +10,10 @@ is ever interrupted asynchronously:
 * the calling thread waits with timeouts, reports progress, and on a signal, a worker's exception
   or an exception of the progress callback sets ``stop``, waits for every worker to return, then
   re-raises: a worker's exception as it is, a signal the way its previous handler would
-  (KeyboardInterrupt by default), so Jupyter's "interrupt" works too.
+  (KeyboardInterrupt by default), so Jupyter's "interrupt" works too;
+* a worker says on the same queue that it has ended, so the calling thread returns as soon as the
+  last one has (it used to wait out its poll, up to POLL_SECONDS per call: a tenth of a second
+  added to every short progressive pass, which quantised the convergence report's times).
 
 ``threads == 1`` runs the jobs on the calling thread, in order, with the same stop checks.
 Which thread runs which job never changes a result as long as each job writes its own outputs.
@@ -18,6 +21,7 @@ Which thread runs which job never changes a result as long as each job writes it
 
 from __future__ import annotations
 
+import os
 import queue
 import threading
 from typing import Callable, Sequence, TypeVar
@@ -30,6 +34,13 @@ WorkFn = Callable[[Job, threading.Event, DoneFn], None]
 ReportFn = Callable[[int], None]
 
 POLL_SECONDS = 0.1     # how often the waiting thread looks at the workers and the stop event
+ENDED = None           # what a worker puts on the progress queue when it returns
+
+
+def cores() -> int:
+    """The cores of this machine (os.cpu_count): the default number of render threads, which is why one
+    process already uses every core (the CLI warns when --workers asks for as many processes)."""
+    return os.cpu_count() or 1
 
 
 def run_jobs(jobs: Sequence[Job], work: WorkFn, threads: int, report: ReportFn) -> None:
@@ -39,7 +50,7 @@ def run_jobs(jobs: Sequence[Job], work: WorkFn, threads: int, report: ReportFn) 
     since the last call. Returns when every job is done; raises as described above otherwise.
     """
     stop = threading.Event()
-    done_q: queue.SimpleQueue[int] = queue.SimpleQueue()
+    done_q: queue.SimpleQueue[int | None] = queue.SimpleQueue()   # units done, or ENDED
     with stop_on_signals(stop) as caught:
         if threads <= 1:
             _run_inline(jobs, work, stop, done_q, report)
@@ -73,15 +84,17 @@ def _run_threads(jobs, work, threads, stop, done_q, report) -> None:
         except BaseException as err:   # handed to the calling thread, which re-raises it
             errors.append(err)
             stop.set()
+        finally:
+            done_q.put(ENDED)
 
     pool = [threading.Thread(target=worker, name=f"warp_spt-worker-{k}", daemon=True)
             for k in range(min(threads, len(jobs)))]
     for t in pool:
         t.start()
     try:
-        while any(t.is_alive() for t in pool):
-            _drain(done_q, report, POLL_SECONDS)
-        _drain(done_q, report)
+        ended = 0
+        while ended < len(pool):
+            ended += _drain(done_q, report, POLL_SECONDS)
     finally:
         stop.set()                      # reached early only by an exception of ``report``
         for t in pool:
@@ -91,14 +104,20 @@ def _run_threads(jobs, work, threads, stop, done_q, report) -> None:
         raise errors[0]
 
 
-def _drain(done_q: queue.SimpleQueue, report: ReportFn, wait: float = 0.0) -> None:
-    """Report every unit queued so far, first waiting up to ``wait`` seconds for one."""
-    units = 0
+def _drain(done_q: queue.SimpleQueue, report: ReportFn, wait: float = 0.0) -> int:
+    """Report every unit queued so far, first waiting up to ``wait`` seconds for an item; returns how
+    many workers said they ended (ENDED items)."""
+    units = ended = 0
     try:
-        units += done_q.get(timeout=wait) if wait > 0 else done_q.get_nowait()
+        item = done_q.get(timeout=wait) if wait > 0 else done_q.get_nowait()
         while True:
-            units += done_q.get_nowait()
+            if item is ENDED:
+                ended += 1
+            else:
+                units += item
+            item = done_q.get_nowait()
     except queue.Empty:
         pass
     if units:
         report(units)
+    return ended

@@ -37,7 +37,7 @@ MODELS: dict[str, tuple] = {
     "teapot, Y up": ("teapot", "y", 1.0, (0, 0, 0), []),
     "cow, Y up, tiny and off-centre": ("cow", "y", 1e-3, (1000.0, -20.0, 5.0), []),
     "bunny, Y up, huge": ("bunny", "y", 1e3, (0, 0, 0), []),
-    "cow, Y up, half in the default view": ("cow", "y", 30.0, (-20.0, -30.0, 0.0), []),
+    "cow, Y up, half in the default view": ("cow", "y", 10.0, (-5.0, -25.0, 8.0), []),
     "flat cut-out, Y up": ("cutout", "y", 1.0, (0, 0, 0), []),
     "cow, Z up, seed's MTL dialect": ("cow", "z", 1.0, (0, 0, 0), ["seed-mtl"]),
     "bunny, Z up, --up z": ("bunny", "z", 1.0, (0, 0, 0), ["--up", "z"]),

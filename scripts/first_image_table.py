@@ -39,8 +39,8 @@ def main() -> None:
     ap.add_argument("--before", type=Path, required=True, help="source tree of the commit before")
     ap.add_argument("--after", type=Path, default=ROOT, help="source tree after (default: this one)")
     args = ap.parse_args()
-    print("| model | before: upright, in frame, lit | after: upright, in frame, lit | after: up assumed |")
-    print("|---|---|---|---|")
+    print("| model | before: upright | in frame | lit | after: upright | in frame | lit | up assumed |")
+    print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in MODELS:
             folder = Path(tmp) / str(abs(hash(name)))

@@ -65,7 +65,7 @@ from warp_spt.integrators import (  # noqa: E402
     get_kernel,
     get_step,
 )
-from warp_spt.integrators.common import make_kernel, make_start_path  # noqa: E402
+from warp_spt.integrators.common import FAST_KERNEL_OPTIONS, make_kernel, make_start_path  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.samplers import Sampler, SamplerState, get_sampler  # noqa: E402
 from warp_spt.scene.camera import Camera  # noqa: E402
@@ -491,7 +491,7 @@ def variant_kernel(features: Features, film32: bool = False) -> wp.Kernel:
     step, start_path = get_step(INTEGRATOR, SAMPLER, features)
     acc_t = wp.vec3 if film32 else wp.vec3d
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
               rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64),
               work: wp.array(dtype=wp.vec3i), per_thread: int):
@@ -634,6 +634,14 @@ def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, sp
                           ("samples summed in float32 (not the product's bits)", f32, 1)):
         identical[label] = np.array_equal(launch(k, per_thread=per).numpy(), reference)
     times = median_times(runs, repeat)
+    # tiles, launches, worker threads, film read-back: render_scene on one thread, process CPU time
+    # (its launches run on a worker thread), against the one launch above
+    settings = R.RenderSettings(width=size, height=size, spp=spp, max_depth=depth, sky=sky, seed=1, threads=1,
+                                integrator=INTEGRATOR, sampler=SAMPLER)
+    render_label = f"render_scene, 1 thread, tiles of {settings.tile_pixels} pixels (process CPU)"
+    times[render_label] = median_times(
+        {render_label: lambda: R.render_scene(dev, cam, settings)}, repeat, time.process_time)[render_label]
+    identical[render_label] = np.array_equal(R.render_scene(dev, cam, settings).film.sum.reshape(-1, 3), reference)
 
     t_path = times["path kernel (product)"]
     t_bare = times["bare closest-hit"] + times["bare any-hit"]
@@ -654,7 +662,7 @@ def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, sp
     print(f"| product kernel | {t_path:.3f} | | reference |")
     for label in list(ab_kernels) + ["the same kernel body, 1 pixel per thread",
                                      "16 pixels per thread (struct arguments copied 1/16 as often)",
-                                     "samples summed in float32 (not the product's bits)"]:
+                                     "samples summed in float32 (not the product's bits)", render_label]:
         print(f"| {label} | {times[label]:.3f} | {1 - times[label] / t_path:+.1%} | "
               f"{'bit-identical' if identical[label] else 'differs'} |", flush=True)
 

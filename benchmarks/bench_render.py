@@ -160,7 +160,8 @@ def start_times(repeat: int) -> None:
             subprocess.run([sys.executable, "-c", "pass"], check=True)
             bare.append(time.perf_counter() - t)
             with tempfile.TemporaryDirectory() as cache:
-                env = dict(os.environ, WARP_CACHE_PATH=cache, PYTHONPATH=str(REPO))
+                # PYTHONPATH as given (another checkout's warp_spt: before/after figures), else this one
+                env = dict(os.environ, WARP_CACHE_PATH=cache, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)))
                 for label in rows:
                     t = time.perf_counter()
                     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)

@@ -121,21 +121,21 @@ def compile_times() -> None:
 
 _START_CHILD = """
 import time
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 import warp as wp
 wp.config.quiet = True
 from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
 from warp_spt.rendering.setup import bind
-t1 = time.perf_counter()
+t1, c1 = time.perf_counter(), time.process_time()
 scene = load_scene([{obj!r}], [{mtl!r}])
-t2 = time.perf_counter()
+t2, c2 = time.perf_counter(), time.process_time()
 rs = RenderSettings(width=64, height=64, spp=1, max_depth=6, sky=Sky.black(), threads=1)
 cam = Camera(position=(16.0, -38.0, 16.0), direction=(0.0, 1.0, 0.0), fov=40.0, aperture=0.0, focus=30.0)
 bind(scene, cam, rs)
-t3 = time.perf_counter()
+t3, c3 = time.perf_counter(), time.process_time()
 render_scene(scene, cam, rs)
-t4 = time.perf_counter()
-print(t1 - t0, t2 - t1, t3 - t2, t4 - t3)
+t4, c4 = time.perf_counter(), time.process_time()
+print(t1 - t0, t2 - t1, t3 - t2, t4 - t3, c1 - c0, c2 - c1, c3 - c2, c4 - c3)
 """
 
 
@@ -168,20 +168,23 @@ def start_times(repeat: int) -> None:
                     wall = time.perf_counter() - t
                     if out.returncode != 0:
                         raise RuntimeError(out.stderr[-2000:])
-                    parts = [float(x) for x in out.stdout.split()[-4:]]
-                    rows[label].append([wall - sum(parts)] + parts + [wall])
+                    nums = [float(x) for x in out.stdout.split()[-8:]]
+                    parts, cpu = nums[:4], nums[4:]
+                    rows[label].append([wall - sum(parts)] + parts + [wall] + cpu)
     print(f"\n## Start-up (bench_vs_mitsuba's Cornell box, nee + sobol, 64x64, 1 spp), fresh processes, "
           f"median of {repeat}, load average {os.getloadavg()[0]:.1f}")
     interpreter = statistics.median(bare)
-    print(f"(an empty interpreter, python -c pass, starts and exits in {interpreter:.2f} s; 'until the first "
-          "launch' is that plus imports, load_scene and bind)")
+    print(f"(wall / CPU seconds of each step; an empty interpreter, python -c pass, starts and exits in "
+          f"{interpreter:.2f} s wall; 'until the first launch' is that plus imports, load_scene and bind)")
     print("| start | interpreter + exit | imports | load_scene | bind (compile or load) | first render | "
           "until the first launch | whole process |")
     print("|---|---|---|---|---|---|---|---|")
     for label, runs in rows.items():
         med = [statistics.median(col) for col in zip(*runs)]
-        before_launch = interpreter + med[1] + med[2] + med[3]
-        print(f"| {label} | " + " | ".join(f"{x:.2f} s" for x in med[:5]) + f" | {before_launch:.2f} s | "
+        wall, cpu = med[1:5], med[6:10]
+        cells = [f"{med[0]:.2f} s"] + [f"{w:.2f} / {c:.2f} s" for w, c in zip(wall, cpu)]
+        before_launch = (interpreter + sum(wall[:3]), interpreter + sum(cpu[:3]))
+        print(f"| {label} | " + " | ".join(cells) + f" | {before_launch[0]:.2f} / {before_launch[1]:.2f} s | "
               f"{med[5]:.2f} s |")
 
 

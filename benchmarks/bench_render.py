@@ -135,6 +135,8 @@ bind(scene, cam, rs)
 t3, c3 = time.perf_counter(), time.process_time()
 render_scene(scene, cam, rs)
 t4, c4 = time.perf_counter(), time.process_time()
+import sys, warp_spt
+print(warp_spt.__file__, file=sys.stderr)
 print(t1 - t0, t2 - t1, t3 - t2, t4 - t3, c1 - c0, c2 - c1, c3 - c2, c4 - c3)
 """
 
@@ -164,7 +166,9 @@ def start_times(repeat: int) -> None:
                 env = dict(os.environ, WARP_CACHE_PATH=cache, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)))
                 for label in rows:
                     t = time.perf_counter()
-                    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+                    # cwd: python -c puts it first on sys.path, where a checkout would shadow PYTHONPATH
+                    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                         cwd=folder)
                     wall = time.perf_counter() - t
                     if out.returncode != 0:
                         raise RuntimeError(out.stderr[-2000:])
@@ -174,6 +178,7 @@ def start_times(repeat: int) -> None:
     print(f"\n## Start-up (bench_vs_mitsuba's Cornell box, nee + sobol, 64x64, 1 spp), fresh processes, "
           f"median of {repeat}, load average {os.getloadavg()[0]:.1f}")
     interpreter = statistics.median(bare)
+    print(f"warp_spt from {out.stderr.strip().splitlines()[-1]}")
     print(f"(wall / CPU seconds of each step; an empty interpreter, python -c pass, starts and exits in "
           f"{interpreter:.2f} s wall; 'until the first launch' is that plus imports, load_scene and bind)")
     print("| start | interpreter + exit | imports | load_scene | bind (compile or load) | first render | "

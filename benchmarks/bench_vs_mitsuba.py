@@ -385,6 +385,8 @@ import os, resource, sys, time
 from pathlib import Path
 sys.path.insert(0, {bench!r})
 import bench_vs_mitsuba as b
+if {pythonpath!r}:
+    sys.path.insert(0, {pythonpath!r})    # before the checkout bench_vs_mitsuba put first
 desc, size, spp, threads, folder = b.SCENES[{scene!r}], {size}, {spp}, {threads}, Path({folder!r})
 if {ours}:
     import warp as wp
@@ -399,6 +401,7 @@ else:
     b.mi = mi
     image = b.mitsuba_render(b.mitsuba_scene(desc, folder, size, "independent", spp), spp, 1, threads)
 r = resource.getrusage(resource.RUSAGE_SELF)
+print(sys.modules["warp_spt"].__file__ if {ours} else "", file=sys.stderr)
 print(r.ru_utime + r.ru_stime, float(image.mean()))
 """
 
@@ -421,12 +424,15 @@ def whole_process(scene: str, size: int, spp: int, threads: int, repeat: int, va
     for k in range(repeat + 1):
         for who in walls:
             code = _WHOLE_CHILD.format(bench=bench, scene=scene, size=size, spp=spp, threads=threads,
-                                       folder=str(folder), ours=who == "warp_spt", variant=variant)
+                                       folder=str(folder), ours=who == "warp_spt", variant=variant,
+                                       pythonpath=pythonpath or "")
             t = time.perf_counter()
-            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=folder)
             wall = time.perf_counter() - t
             if out.returncode != 0:
                 raise RuntimeError(f"{who} failed: {out.stderr[-2000:]}")
+            if k == 0 and who == "warp_spt":
+                print(f"warp_spt from {out.stderr.strip().splitlines()[-1]}")
             if k:                              # the first round warms the caches
                 walls[who].append(wall)
                 cpus[who].append(float(out.stdout.split()[-2]))

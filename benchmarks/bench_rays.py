@@ -28,6 +28,8 @@ launched from a pool of 2 Python threads (Warp releases the GIL in a launch), as
     python benchmarks/bench_rays.py --quick      # 128x128, a smoke run
     python benchmarks/bench_rays.py --small-scene --size 256   # where the item loop beats the TLAS
     python benchmarks/bench_rays.py --integrator nee --sampler sobol   # path rows with the default estimator
+    python benchmarks/bench_rays.py --path       # issue 24: the path kernel's closest-hit and shadow rays
+                                                 # against bare kernels on the same rays, and ablations
 """
 
 from __future__ import annotations
@@ -344,8 +346,9 @@ class Taps:
     def __init__(self, sizes: tuple[int, int, int, int] | None = None):
         self.counters = wp.zeros(4, dtype=wp.int32)
         n = sizes or (0, 0, 0, 0)
-        self.hits = wp.zeros(max(1, n[0]), dtype=Hit)
-        self.rays = wp.zeros(max(1, n[0]), dtype=wp.vec3), wp.zeros(max(1, n[0]), dtype=wp.vec3)
+        # (origins, directions, t_max, results) of the closest-hit and the shadow rays
+        self.closest = (wp.zeros(max(1, n[0]), dtype=wp.vec3), wp.zeros(max(1, n[0]), dtype=wp.vec3),
+                        wp.zeros(max(1, n[0]), dtype=float), wp.zeros(max(1, n[0]), dtype=Hit))
         self.shadow = (wp.zeros(max(1, n[1]), dtype=wp.vec3), wp.zeros(max(1, n[1]), dtype=wp.vec3),
                        wp.zeros(max(1, n[1]), dtype=float), wp.zeros(max(1, n[1]), dtype=wp.int32))
         self.values = wp.zeros(max(1, n[2]), dtype=wp.vec2), wp.zeros(max(1, n[2]), dtype=SamplerState)
@@ -355,57 +358,38 @@ class Taps:
         self.counters.zero_()
 
 
-def tapped_closest_hit(taps: Taps, mode: str):
-    """A ``make_closest_hit`` replacement: count / record / replay (mode) the closest hits."""
+def tapped_rays(make_real, taps: Taps, slot: int, mode: str):
+    """A replacement for ``make_real`` (``geometry.make_closest_hit``, slot 0, or ``make_occluded``,
+    slot 1): its rays counted / recorded / replayed (mode); what each call returned is recorded in
+    ``taps.closest[3]`` (Hit) or ``taps.shadow[3]`` (1 occluded, 0 not)."""
+    arrays = taps.closest if slot == 0 else taps.shadow
     C, _ = _device_view(taps.counters)
-    H, NH = _device_view(taps.hits)
-    O, _ = _device_view(taps.rays[0])
-    D, _ = _device_view(taps.rays[1])
+    (O, N), (D, _), (T, _), (R, _) = (_device_view(a) for a in arrays)
+    hit = slot == 0
+    rtype = Hit if hit else wp.int32
     record, replay = mode == "record", mode == "replay"
 
     def make(features, **kw):
-        real = make_closest_hit(features, **kw)
+        real = make_real(features, **kw)
 
         @wp.func
-        def closest_hit(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> Hit:
-            k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), 0, 1)
-            if wp.static(replay):
-                return wp.array(ptr=H, shape=(NH,), dtype=Hit)[k]
-            h = real(s, o, d, t_max)
+        def traced(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float):
+            k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), slot, 1)
+            if wp.static(replay and hit):
+                return wp.array(ptr=R, shape=(N,), dtype=rtype)[k]
+            if wp.static(replay and not hit):
+                return wp.array(ptr=R, shape=(N,), dtype=rtype)[k] != 0
+            r = real(s, o, d, t_max)
             if wp.static(record):
-                wp.array(ptr=H, shape=(NH,), dtype=Hit)[k] = h
-                wp.array(ptr=O, shape=(NH,), dtype=wp.vec3)[k] = o
-                wp.array(ptr=D, shape=(NH,), dtype=wp.vec3)[k] = d
-            return h
-        return closest_hit
-    return make
-
-
-def tapped_occluded(taps: Taps, mode: str):
-    """A ``make_occluded`` replacement: count / record / replay (mode) the shadow rays."""
-    C, _ = _device_view(taps.counters)
-    O, NS = _device_view(taps.shadow[0])
-    D, _ = _device_view(taps.shadow[1])
-    T, _ = _device_view(taps.shadow[2])
-    R, _ = _device_view(taps.shadow[3])
-    record, replay = mode == "record", mode == "replay"
-
-    def make(features, **kw):
-        real = make_occluded(features, **kw)
-
-        @wp.func
-        def occluded(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
-            k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), 1, 1)
-            if wp.static(replay):
-                return wp.array(ptr=R, shape=(NS,), dtype=wp.int32)[k] != 0
-            b = real(s, o, d, t_max)
-            if wp.static(record):
-                wp.array(ptr=O, shape=(NS,), dtype=wp.vec3)[k] = o
-                wp.array(ptr=D, shape=(NS,), dtype=wp.vec3)[k] = d
-                wp.array(ptr=T, shape=(NS,), dtype=float)[k] = t_max
-                wp.array(ptr=R, shape=(NS,), dtype=wp.int32)[k] = wp.where(b, 1, 0)
-            return b
-        return occluded
+                wp.array(ptr=O, shape=(N,), dtype=wp.vec3)[k] = o
+                wp.array(ptr=D, shape=(N,), dtype=wp.vec3)[k] = d
+                wp.array(ptr=T, shape=(N,), dtype=float)[k] = t_max
+                if wp.static(hit):
+                    wp.array(ptr=R, shape=(N,), dtype=rtype)[k] = r
+                else:
+                    wp.array(ptr=R, shape=(N,), dtype=rtype)[k] = wp.where(r, 1, 0)
+            return r
+        return traced
     return make
 
 
@@ -472,9 +456,9 @@ def path_build(features: Features, taps: Taps | None = None, **modes) -> wp.Kern
     saved = nee.make_closest_hit, nee.make_occluded
     try:
         if "hits" in modes:
-            nee.make_closest_hit = tapped_closest_hit(taps, modes["hits"])
+            nee.make_closest_hit = tapped_rays(make_closest_hit, taps, 0, modes["hits"])
         if "shadow" in modes:
-            nee.make_occluded = tapped_occluded(taps, modes["shadow"])
+            nee.make_occluded = tapped_rays(make_occluded, taps, 1, modes["shadow"])
         step = nee.make_path_step(features, sampler, light_sampling=INTEGRATOR == "nee")
     finally:
         nee.make_closest_hit, nee.make_occluded = saved
@@ -595,7 +579,7 @@ def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, sp
           "requests per camera sample")
 
     mesh = dev._meshes[0] if len(dev._meshes) == 1 else merged_mesh(dev)
-    o, d = taps.rays
+    o, d = taps.closest[:2]
     so, sd, st, sres = taps.shadow
     t_out, f_out, any_out = wp.zeros(n_hit, dtype=float), wp.zeros(n_hit, dtype=int), wp.zeros(n_shadow, dtype=wp.int32)
     ours_hit, ours_any = _ours_kernels(feats)

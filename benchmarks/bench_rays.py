@@ -69,6 +69,7 @@ from warp_spt.integrators import (  # noqa: E402
 )
 from warp_spt.integrators.common import FAST_KERNEL_OPTIONS, make_kernel, make_start_path  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
+from warp_spt.rendering.settings import TILE_PIXELS  # noqa: E402
 from warp_spt.samplers import Sampler, SamplerState, get_sampler  # noqa: E402
 from warp_spt.scene.camera import Camera  # noqa: E402
 from warp_spt.scene.sky import Sky  # noqa: E402
@@ -269,10 +270,10 @@ def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
     cam_args = camera_params(cam, size, size)
     return {"camera samples only": launcher(camera_ray_kernel(dev), n, lambda lo: [cam_args, size, lo, o, d], threads),
             "path d=1": launcher(kernel, n, inputs(1), threads),
-            f"render d=1, tiles of {R.TILE_PIXELS}": render(R.TILE_PIXELS),
+            f"render d=1, tiles of {TILE_PIXELS}": render(TILE_PIXELS),
             "render d=1, one tile": render(n),
-            f"render d=1, {SPP} spp *": render(R.TILE_PIXELS, SPP),
-            f"render d={DEPTH}, {SPP} spp *": render(R.TILE_PIXELS, SPP, DEPTH, f"render d={DEPTH}, {SPP} spp *")}, rays
+            f"render d=1, {SPP} spp *": render(TILE_PIXELS, SPP),
+            f"render d={DEPTH}, {SPP} spp *": render(TILE_PIXELS, SPP, DEPTH, f"render d={DEPTH}, {SPP} spp *")}, rays
 
 
 def print_table(title: str, n: int, times: dict[tuple[str, int], float], agree: dict[str, str],

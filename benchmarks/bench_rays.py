@@ -28,6 +28,8 @@ launched from a pool of 2 Python threads (Warp releases the GIL in a launch), as
     python benchmarks/bench_rays.py --quick      # 128x128, a smoke run
     python benchmarks/bench_rays.py --small-scene --size 256   # where the item loop beats the TLAS
     python benchmarks/bench_rays.py --integrator nee --sampler sobol   # path rows with the default estimator
+    python benchmarks/bench_rays.py --path       # issue 24: the path kernel's closest-hit and shadow rays
+                                                 # against bare kernels on the same rays, and ablations
 """
 
 from __future__ import annotations
@@ -45,25 +47,30 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
 
 import warp as wp  # noqa: E402
 
 wp.config.quiet = True
 
 import warp_spt.rendering.tiles as R
-from warp_spt.core.device_scene import DeviceScene, Features, Geometry  # noqa: E402
-from warp_spt.core.geometry import KIND_MISS, NO_HIT, make_closest_hit  # noqa: E402
-from warp_spt.core.lights import light_table, sky_emits  # noqa: E402
+from warp_spt.core.device_scene import DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402
+from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded  # noqa: E402
+from warp_spt.core.lights import Lights, light_table, sky_emits  # noqa: E402
 from warp_spt.core.surface import make_surface  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.integrators import (  # noqa: E402
     CameraParams,
+    PathState,
     RenderParams,
     camera_params,
     get_kernel,
     get_step,
 )
+from warp_spt.integrators.common import FAST_KERNEL_OPTIONS, make_kernel, make_start_path  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
+from warp_spt.rendering.settings import TILE_PIXELS  # noqa: E402
+from warp_spt.samplers import Sampler, SamplerState, get_sampler  # noqa: E402
 from warp_spt.scene.camera import Camera  # noqa: E402
 from warp_spt.scene.sky import Sky  # noqa: E402
 
@@ -263,10 +270,10 @@ def path_runs(dev: DeviceScene, cam: Camera, size: int, threads: int) -> dict:
     cam_args = camera_params(cam, size, size)
     return {"camera samples only": launcher(camera_ray_kernel(dev), n, lambda lo: [cam_args, size, lo, o, d], threads),
             "path d=1": launcher(kernel, n, inputs(1), threads),
-            f"render d=1, tiles of {R.TILE_PIXELS}": render(R.TILE_PIXELS),
+            f"render d=1, tiles of {TILE_PIXELS}": render(TILE_PIXELS),
             "render d=1, one tile": render(n),
-            f"render d=1, {SPP} spp *": render(R.TILE_PIXELS, SPP),
-            f"render d={DEPTH}, {SPP} spp *": render(R.TILE_PIXELS, SPP, DEPTH, f"render d={DEPTH}, {SPP} spp *")}, rays
+            f"render d=1, {SPP} spp *": render(TILE_PIXELS, SPP),
+            f"render d={DEPTH}, {SPP} spp *": render(TILE_PIXELS, SPP, DEPTH, f"render d={DEPTH}, {SPP} spp *")}, rays
 
 
 def print_table(title: str, n: int, times: dict[tuple[str, int], float], agree: dict[str, str],
@@ -315,6 +322,337 @@ def measure(title: str, dev: DeviceScene, bare_mesh: wp.Mesh, o: wp.array, d: wp
 
 
 # --------------------------------------------------------------------------------------------
+# The whole path kernel against bare closest-hit and any-hit kernels on the same rays (issue 24)
+#
+# Instrumented builds of the path kernel live here, never in the product: the integrator's step is
+# rebuilt (nee.make_path_step) with its closest-hit, shadow-ray and sampler functions wrapped, and
+# the wrappers write to device arrays whose addresses are compiled in as constants (a Warp function
+# cannot take an array from a closure). One single-threaded launch calls them in a fixed order, so
+# a *record* build stores what each call returned, in call order, and a *replay* build of the same
+# kernel returns the stored results instead of computing them: the image is bit-identical and the
+# time saved is what that piece costs inside the path kernel. A *count* build only counts.
+
+PATH_SIZE, PATH_SPP = 128, 8     # --path-size, --path-spp: one launch of size^2 pixels x spp samples
+
+
+def _device_view(arr: wp.array):
+    """(address constant, length) of ``arr``: how an instrumented Warp function reaches it."""
+    return wp.constant(wp.uint64(arr.ptr)), int(arr.shape[0])
+
+
+class Taps:
+    """The buffers of one instrumented build: counters (slot 0 closest-hit rays, 1 shadow rays, 2 sampler
+    requests, 3 camera samples) and, once sized by a count run, the recorded calls."""
+
+    def __init__(self, sizes: tuple[int, int, int, int] | None = None):
+        self.counters = wp.zeros(4, dtype=wp.int32)
+        n = sizes or (0, 0, 0, 0)
+        # (origins, directions, t_max, results) of the closest-hit and the shadow rays
+        self.closest = (wp.zeros(max(1, n[0]), dtype=wp.vec3), wp.zeros(max(1, n[0]), dtype=wp.vec3),
+                        wp.zeros(max(1, n[0]), dtype=float), wp.zeros(max(1, n[0]), dtype=Hit))
+        self.shadow = (wp.zeros(max(1, n[1]), dtype=wp.vec3), wp.zeros(max(1, n[1]), dtype=wp.vec3),
+                       wp.zeros(max(1, n[1]), dtype=float), wp.zeros(max(1, n[1]), dtype=wp.int32))
+        self.values = wp.zeros(max(1, n[2]), dtype=wp.vec2), wp.zeros(max(1, n[2]), dtype=SamplerState)
+        self.starts = wp.zeros(max(1, n[3]), dtype=PathState)
+
+    def reset(self) -> None:
+        self.counters.zero_()
+
+
+def tapped_rays(make_real, taps: Taps, slot: int, mode: str):
+    """A replacement for ``make_real`` (``geometry.make_closest_hit``, slot 0, or ``make_occluded``,
+    slot 1): its rays counted / recorded / replayed (mode); what each call returned is recorded in
+    ``taps.closest[3]`` (Hit) or ``taps.shadow[3]`` (1 occluded, 0 not)."""
+    arrays = taps.closest if slot == 0 else taps.shadow
+    C, _ = _device_view(taps.counters)
+    (O, N), (D, _), (T, _), (R, _) = (_device_view(a) for a in arrays)
+    hit = slot == 0
+    rtype = Hit if hit else wp.int32
+    record, replay = mode == "record", mode == "replay"
+
+    def make(features, **kw):
+        real = make_real(features, **kw)
+
+        @wp.func
+        def traced(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float):
+            k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), slot, 1)
+            if wp.static(replay and hit):
+                return wp.array(ptr=R, shape=(N,), dtype=rtype)[k]
+            if wp.static(replay and not hit):
+                return wp.array(ptr=R, shape=(N,), dtype=rtype)[k] != 0
+            r = real(s, o, d, t_max)
+            if wp.static(record):
+                wp.array(ptr=O, shape=(N,), dtype=wp.vec3)[k] = o
+                wp.array(ptr=D, shape=(N,), dtype=wp.vec3)[k] = d
+                wp.array(ptr=T, shape=(N,), dtype=float)[k] = t_max
+                if wp.static(hit):
+                    wp.array(ptr=R, shape=(N,), dtype=rtype)[k] = r
+                else:
+                    wp.array(ptr=R, shape=(N,), dtype=rtype)[k] = wp.where(r, 1, 0)
+            return r
+        return traced
+    return make
+
+
+def tapped_sampler(sampler: Sampler, taps: Taps, mode: str) -> Sampler:
+    """``sampler`` with its requests counted / recorded / replayed (mode)."""
+    C, _ = _device_view(taps.counters)
+    V, NV = _device_view(taps.values[0])
+    S, _ = _device_view(taps.values[1])
+    record, replay = mode == "record", mode == "replay"
+
+    @wp.func
+    def next_2d(state: SamplerState, dim: int):
+        k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), 2, 1)
+        if wp.static(replay):
+            return wp.array(ptr=V, shape=(NV,), dtype=wp.vec2)[k], wp.array(ptr=S, shape=(NV,), dtype=SamplerState)[k]
+        v, st = sampler.next_2d(state, dim)
+        if wp.static(record):
+            wp.array(ptr=V, shape=(NV,), dtype=wp.vec2)[k] = v
+            wp.array(ptr=S, shape=(NV,), dtype=SamplerState)[k] = st
+        return v, st
+
+    @wp.func
+    def next_1d(state: SamplerState, dim: int):
+        k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), 2, 1)
+        if wp.static(replay):
+            return wp.array(ptr=V, shape=(NV,), dtype=wp.vec2)[k][0], wp.array(ptr=S, shape=(NV,), dtype=SamplerState)[k]
+        v, st = sampler.next_1d(state, dim)
+        if wp.static(record):
+            wp.array(ptr=V, shape=(NV,), dtype=wp.vec2)[k] = wp.vec2(v, 0.0)
+            wp.array(ptr=S, shape=(NV,), dtype=SamplerState)[k] = st
+        return v, st
+
+    return Sampler(sampler.name, sampler.start, next_1d, next_2d, sampler.random_access)
+
+
+def tapped_start(sampler: Sampler, taps: Taps, mode: str):
+    """``make_start_path(sampler)`` with the camera samples counted / recorded / replayed (mode)."""
+    C, _ = _device_view(taps.counters)
+    P, NP = _device_view(taps.starts)
+    real = make_start_path(sampler)
+    record, replay = mode == "record", mode == "replay"
+
+    @wp.func
+    def start_path(cam: CameraParams, pix: int, width: int, seed: wp.uint32, index: int) -> PathState:
+        k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), 3, 1)
+        if wp.static(replay):
+            return wp.array(ptr=P, shape=(NP,), dtype=PathState)[k]
+        p = real(cam, pix, width, seed, index)
+        if wp.static(record):
+            wp.array(ptr=P, shape=(NP,), dtype=PathState)[k] = p
+        return p
+    return start_path
+
+
+def path_build(features: Features, taps: Taps | None = None, **modes) -> wp.Kernel:
+    """The fast kernel of INTEGRATOR + SAMPLER rebuilt, with the pieces named in ``modes`` (hits,
+    shadow, sampler, camera: "count", "record" or "replay") instrumented; no modes: the product's."""
+    from warp_spt.integrators import nee
+    sampler = get_sampler(SAMPLER)
+    if not modes:
+        return get_kernel(features, integrator=INTEGRATOR, sampler=SAMPLER)
+    if "sampler" in modes:
+        sampler = tapped_sampler(sampler, taps, modes["sampler"])
+    saved = nee.make_closest_hit, nee.make_occluded
+    try:
+        if "hits" in modes:
+            nee.make_closest_hit = tapped_rays(make_closest_hit, taps, 0, modes["hits"])
+        if "shadow" in modes:
+            nee.make_occluded = tapped_rays(make_occluded, taps, 1, modes["shadow"])
+        step = nee.make_path_step(features, sampler, light_sampling=INTEGRATOR == "nee")
+    finally:
+        nee.make_closest_hit, nee.make_occluded = saved
+    start = tapped_start(sampler, taps, modes["camera"]) if "camera" in modes else make_start_path(sampler)
+    k = make_kernel(step, start)
+    wp.load_module(k.module)
+    return k
+
+
+def variant_kernel(features: Features, film32: bool = False) -> wp.Kernel:
+    """The product's kernel body with a last argument ``per_thread``: pixels per thread (the struct
+    arguments are copied once per thread, so once per ``per_thread`` pixels); ``film32``: the samples
+    summed in float32 (not the product's bits)."""
+    step, start_path = get_step(INTEGRATOR, SAMPLER, features)
+    acc_t = wp.vec3 if film32 else wp.vec3d
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
+    def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
+              rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64),
+              work: wp.array(dtype=wp.vec3i), per_thread: int):
+        for q in range(per_thread):        # a dynamic loop: unrolled, 16 copies of the path overflow the caches
+            pix = rp.pixel_start + wp.tid() * per_thread + q
+            acc = acc_t()
+            rays = int(0)
+            for j in range(rp.sample_count):
+                path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
+                while path.alive != 0:
+                    path = step(geo, mats, tex, lights, rp, path)
+                rays += path.rays
+                if wp.isfinite(path.radiance):
+                    acc += acc_t(path.radiance)
+            film[pix] = film[pix] + wp.vec3d(acc)
+            counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
+
+    wp.load_module(trace.module)
+    return trace
+
+
+@wp.kernel(enable_backward=False)
+def _bare_anyhit(mesh: wp.uint64, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
+                 out: wp.array(dtype=wp.int32)):
+    i = wp.tid()
+    out[i] = wp.where(wp.mesh_query_ray_anyhit(mesh, o[i], d[i], t_max[i]), 1, 0)
+
+
+def _ours_kernels(features: Features):
+    """Our closest_hit and occluded (geometry.py, as the renderer builds them) over stored rays."""
+    closest_hit, occluded = make_closest_hit(features), make_occluded(features)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def ours_hit(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+                 t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
+        i = start + wp.tid()
+        h = closest_hit(s, o[i], d[i], NO_HIT)
+        t_out[i] = h.t
+        face_out[i] = wp.where(h.kind == KIND_MISS, -1, h.face)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def ours_any(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
+                 out: wp.array(dtype=wp.int32)):
+        i = wp.tid()
+        out[i] = wp.where(occluded(s, o[i], d[i], t_max[i]), 1, 0)
+
+    return ours_hit, ours_any
+
+
+def median_times(runs: dict[str, callable], repeat: int, clock=time.thread_time) -> dict[str, float]:
+    """Median time of each run, the runs taken in turn ``repeat`` times after a warm-up (a shared
+    machine: taking turns spreads its slow spells over every row)."""
+    for fn in runs.values():
+        fn()
+    times: dict[str, list[float]] = {k: [] for k in runs}
+    for _ in range(repeat):
+        for label, fn in runs.items():
+            t = clock()
+            fn()
+            times[label].append(clock() - t)
+    return {k: float(np.median(v)) for k, v in times.items()}
+
+
+def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, spp: int, depth: int,
+               repeat: int) -> None:
+    """Rays/s of the whole path kernel (closest-hit and shadow rays together) against the bare
+    wp.mesh_query_ray and wp.mesh_query_ray_anyhit kernels on the very rays it traced, and the
+    ablations (what each piece costs inside the path kernel). One thread, CPU time of the launch."""
+    n = size * size
+    feats = replace(dev.features, sky=sky_emits(sky))
+    fixed = [dev.geometry, dev.materials, dev.textures(), light_table(dev, sky), camera_params(cam, size, size)]
+    rp = RenderParams()
+    rp.width, rp.pixel_start, rp.sample_start, rp.sample_count = size, 0, 0, spp
+    rp.max_depth, rp.roulette_depth, rp.seed = depth, 0, wp.uint32(1)
+
+    def launch(kernel, taps=None, per_thread=0):
+        """One single-threaded launch over every pixel (``per_thread`` > 0: a variant_kernel with that
+        many pixels per thread); returns the film (float64 sums)."""
+        film = wp.zeros(n, dtype=wp.vec3d)
+        if taps is not None:
+            taps.reset()
+        more = [per_thread] if per_thread else []
+        wp.launch(kernel, dim=n // max(1, per_thread), inputs=[*fixed, rp, film, wp.zeros((n, 2), dtype=wp.int64),
+                                                                 None, *more])
+        return film
+
+    # count, then record every call of the product's kernel, in call order
+    counting = Taps()
+    launch(path_build(feats, counting, hits="count", shadow="count", sampler="count", camera="count"), counting)
+    sizes = tuple(int(x) for x in counting.counters.numpy())
+    taps = Taps(sizes)
+    reference = launch(path_build(feats), None).numpy()
+    recorded = launch(path_build(feats, taps, hits="record", shadow="record", sampler="record", camera="record"),
+                      taps).numpy()
+    assert np.array_equal(recorded, reference), "the recording build changed the image"
+    n_hit, n_shadow, n_req, n_cam = sizes
+    print(f"\n## {name}: path kernel against bare kernels on the same rays, {size}x{size}, {spp} spp, depth {depth}, "
+          f"{INTEGRATOR} + {SAMPLER}, one thread, median CPU s of {repeat}")
+    print(f"counted (a counting build): {n_hit:,} closest-hit rays, {n_shadow:,} shadow rays, {n_req:,} sampler "
+          f"requests, {n_cam:,} camera samples; {(n_hit + n_shadow) / n_cam:.2f} rays and {n_req / n_cam:.1f} "
+          "requests per camera sample")
+
+    mesh = dev._meshes[0] if len(dev._meshes) == 1 else merged_mesh(dev)
+    o, d = taps.closest[:2]
+    so, sd, st, sres = taps.shadow
+    t_out, f_out, any_out = wp.zeros(n_hit, dtype=float), wp.zeros(n_hit, dtype=int), wp.zeros(n_shadow, dtype=wp.int32)
+    ours_hit, ours_any = _ours_kernels(feats)
+    for k in (ours_hit, ours_any):
+        wp.load_module(k.module)
+    product = path_build(feats)
+    runs = {
+        "path kernel (product)": lambda: launch(product),
+        "bare closest-hit": lambda: wp.launch(_bare, dim=n_hit, inputs=[mesh.id, o, d, 0, t_out, f_out]),
+        "bare any-hit": lambda: wp.launch(_bare_anyhit, dim=n_shadow, inputs=[mesh.id, so, sd, st, any_out]),
+        "our closest_hit": lambda: wp.launch(ours_hit, dim=n_hit, inputs=[dev.geometry, o, d, 0, t_out, f_out]),
+        "our occluded": lambda: wp.launch(ours_any, dim=n_shadow, inputs=[dev.geometry, so, sd, st, any_out]),
+    }
+    same_shadow = None
+    if len(dev._meshes) == 1 and not len(dev.scene.spheres):
+        wp.launch(_bare_anyhit, dim=n_shadow, inputs=[mesh.id, so, sd, st, any_out])
+        same_shadow = np.array_equal(any_out.numpy(), sres.numpy())
+    # the ablations: one piece replaced by its recorded results (same image) or one overhead changed
+    ablations = {
+        "sampler requests replayed (no Sobol' hashing)": dict(sampler="replay"),
+        "camera samples replayed (no start_path)": dict(camera="replay"),
+        "closest hits replayed (no traversal)": dict(hits="replay"),
+        "shadow rays replayed (no any-hit traversal)": dict(shadow="replay"),
+        "closest hits and shadow rays replayed": dict(hits="replay", shadow="replay"),
+    }
+    ab_kernels = {label: path_build(feats, taps, **modes) for label, modes in ablations.items()}
+    for label, k in ab_kernels.items():
+        runs[label] = lambda k=k: launch(k, taps)
+    k64, f32 = variant_kernel(feats), variant_kernel(feats, film32=True)
+    runs["the same kernel body, 1 pixel per thread"] = lambda: launch(k64, per_thread=1)
+    runs["16 pixels per thread (struct arguments copied 1/16 as often)"] = lambda: launch(k64, per_thread=16)
+    runs["samples summed in float32 (not the product's bits)"] = lambda: launch(f32, per_thread=1)
+    identical = {label: np.array_equal(launch(k, taps).numpy(), reference) for label, k in ab_kernels.items()}
+    for label, k, per in (("the same kernel body, 1 pixel per thread", k64, 1),
+                          ("16 pixels per thread (struct arguments copied 1/16 as often)", k64, 16),
+                          ("samples summed in float32 (not the product's bits)", f32, 1)):
+        identical[label] = np.array_equal(launch(k, per_thread=per).numpy(), reference)
+    times = median_times(runs, repeat)
+    # tiles, launches, worker threads, film read-back: render_scene on one thread, process CPU time
+    # (its launches run on a worker thread), against the one launch above
+    settings = R.RenderSettings(width=size, height=size, spp=spp, max_depth=depth, sky=sky, seed=1, threads=1,
+                                integrator=INTEGRATOR, sampler=SAMPLER)
+    render_label = f"render_scene, 1 thread, tiles of {settings.tile_pixels} pixels (process CPU)"
+    times[render_label] = median_times(
+        {render_label: lambda: R.render_scene(dev, cam, settings)}, repeat, time.process_time)[render_label]
+    identical[render_label] = np.array_equal(R.render_scene(dev, cam, settings).film.sum.reshape(-1, 3), reference)
+
+    t_path = times["path kernel (product)"]
+    t_bare = times["bare closest-hit"] + times["bare any-hit"]
+    print("\n| kernel | rays | CPU s | Mrays/s | ratio to bare |")
+    print("|---|---|---|---|---|")
+    print(f"| path kernel (closest-hit + shadow rays) | {n_hit + n_shadow:,} | {t_path:.3f} | "
+          f"{(n_hit + n_shadow) / t_path / 1e6:.2f} | **{t_bare / t_path:.2f}** |")
+    print(f"| bare closest-hit + bare any-hit | {n_hit + n_shadow:,} | {t_bare:.3f} | "
+          f"{(n_hit + n_shadow) / t_bare / 1e6:.2f} | 1.00 |")
+    for label, rays in (("bare closest-hit", n_hit), ("bare any-hit", n_shadow), ("our closest_hit", n_hit),
+                        ("our occluded", n_shadow)):
+        print(f"| {label} | {rays:,} | {times[label]:.3f} | {rays / times[label] / 1e6:.2f} | |")
+    if same_shadow is not None:
+        print(f"\nbare any-hit agrees with the path kernel's shadow rays: {same_shadow}")
+    print("\nAblations (each row one change to the product's kernel; 'saves': share of the product kernel's time)")
+    print("| build | CPU s | saves | image |")
+    print("|---|---|---|---|")
+    print(f"| product kernel | {t_path:.3f} | | reference |")
+    for label in list(ab_kernels) + ["the same kernel body, 1 pixel per thread",
+                                     "16 pixels per thread (struct arguments copied 1/16 as often)",
+                                     "samples summed in float32 (not the product's bits)", render_label]:
+        print(f"| {label} | {times[label]:.3f} | {1 - times[label] / t_path:+.1%} | "
+              f"{'bit-identical' if identical[label] else 'differs'} |", flush=True)
+
+
+# --------------------------------------------------------------------------------------------
 # Scenes
 
 
@@ -352,6 +690,15 @@ def scenes(folder: Path) -> list[tuple[str, DeviceScene, Camera]]:
     except ImportError:                      # an installed package without the tests
         pass
     return out
+
+
+def mitsuba_cornell(folder: Path) -> tuple[str, DeviceScene, Camera, Sky]:
+    """The Cornell box of bench_vs_mitsuba.py (the issue's 512^2, 16 spp comparison): one mesh, black sky."""
+    import bench_vs_mitsuba as mb
+    desc = mb.SCENES["cornell"]
+    sub = folder / "mitsuba_cornell"
+    sub.mkdir(exist_ok=True)
+    return ("cornell (bench_vs_mitsuba)", mb.warp_scene(desc, sub), mb.warp_camera(desc), Sky.constant(*desc["sky"]))
 
 
 def merged_mesh(dev: DeviceScene) -> wp.Mesh:
@@ -412,8 +759,28 @@ def main() -> None:
                     help="only the table of item loop against TLAS by number of items (geometry.SMALL_SCENE)")
     ap.add_argument("--integrator", default=INTEGRATOR, help=f"the path rows' integrator (default {INTEGRATOR})")
     ap.add_argument("--sampler", default=SAMPLER, help=f"the path rows' sampler (default {SAMPLER})")
+    ap.add_argument("--path", action="store_true",
+                    help="only the path kernel against bare kernels on the same rays, and the ablations "
+                         "(default scene: bench_vs_mitsuba's Cornell box; nee + sobol unless given)")
+    ap.add_argument("--path-size", type=int, default=PATH_SIZE, help=f"--path: image size (default {PATH_SIZE})")
+    ap.add_argument("--path-spp", type=int, default=PATH_SPP, help=f"--path: samples per pixel (default {PATH_SPP})")
+    ap.add_argument("--depth", type=int, default=DEPTH, help=f"--path: max depth (default {DEPTH})")
     args = ap.parse_args()
     INTEGRATOR, SAMPLER = args.integrator, args.sampler
+    if args.path:
+        if "--integrator" not in sys.argv:
+            INTEGRATOR = "nee"
+        if "--sampler" not in sys.argv:
+            SAMPLER = "sobol"
+        wp.init()
+        print(f"# bench_rays --path: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+        with tempfile.TemporaryDirectory() as tmp:
+            chosen = [mitsuba_cornell(Path(tmp))] + [(*sc, SKY) for sc in scenes(Path(tmp))]
+            for name, dev, cam, sky in chosen:
+                if (args.scene or "bench_vs_mitsuba") in name:
+                    path_table(name, dev, cam, sky, args.path_size, args.path_spp, args.depth,
+                               2 if args.quick else args.repeat)
+        return
     size, repeat = (128, 2) if args.quick else (args.size, args.repeat)
     wp.init()
     print(f"# bench_rays: {size}x{size} rays, best of {repeat}, threads {args.threads}, path rows {INTEGRATOR} + {SAMPLER}, "

@@ -119,11 +119,91 @@ def compile_times() -> None:
             print(f"- {label}: {float(secs):.2f} s" if secs[0].isdigit() else f"- {label}: {secs}")
 
 
+_START_CHILD = """
+import time
+t0, c0 = time.perf_counter(), time.process_time()
+import warp as wp
+wp.config.quiet = True
+from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
+from warp_spt.rendering.setup import bind
+t1, c1 = time.perf_counter(), time.process_time()
+scene = load_scene([{obj!r}], [{mtl!r}])
+t2, c2 = time.perf_counter(), time.process_time()
+rs = RenderSettings(width=64, height=64, spp=1, max_depth=6, sky=Sky.black(), threads=1)
+cam = Camera(position=(16.0, -38.0, 16.0), direction=(0.0, 1.0, 0.0), fov=40.0, aperture=0.0, focus=30.0)
+bind(scene, cam, rs)
+t3, c3 = time.perf_counter(), time.process_time()
+render_scene(scene, cam, rs)
+t4, c4 = time.perf_counter(), time.process_time()
+import sys, warp_spt
+print(warp_spt.__file__, file=sys.stderr)
+print(t1 - t0, t2 - t1, t3 - t2, t4 - t3, c1 - c0, c2 - c1, c3 - c2, c4 - c3)
+"""
+
+
+def start_times(repeat: int) -> None:
+    """Cold and cached start of a render of bench_vs_mitsuba's Cornell box (64x64, 1 spp: the
+    launch itself is short) in fresh processes: an empty kernel cache (a temporary WARP_CACHE_PATH,
+    so the shared cache is left alone), then the cache that run filled. Medians of ``repeat``
+    (a new empty cache each cold run)."""
+    import statistics
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_vs_mitsuba as mb
+    desc = mb.SCENES["cornell"]
+    rows: dict[str, list[list[float]]] = {"cold (empty kernel cache)": [], "cached": []}
+    with tempfile.TemporaryDirectory() as folder:
+        obj, mtl = Path(folder) / "scene.obj", Path(folder) / "scene.mtl"
+        obj.write_text(mb.obj_text(desc["shapes"]))
+        mtl.write_text(mb.mtl_text(desc["materials"]))
+        code = _START_CHILD.format(obj=str(obj), mtl=str(mtl))
+        bare = []
+        for _ in range(repeat):
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "pass"], check=True)
+            bare.append(time.perf_counter() - t)
+            with tempfile.TemporaryDirectory() as cache:
+                # PYTHONPATH as given (another checkout's warp_spt: before/after figures), else this one
+                env = dict(os.environ, WARP_CACHE_PATH=cache, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)))
+                for label in rows:
+                    t = time.perf_counter()
+                    # cwd: python -c puts it first on sys.path, where a checkout would shadow PYTHONPATH
+                    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                         cwd=folder)
+                    wall = time.perf_counter() - t
+                    if out.returncode != 0:
+                        raise RuntimeError(out.stderr[-2000:])
+                    nums = [float(x) for x in out.stdout.split()[-8:]]
+                    parts, cpu = nums[:4], nums[4:]
+                    rows[label].append([wall - sum(parts)] + parts + [wall] + cpu)
+    print(f"\n## Start-up (bench_vs_mitsuba's Cornell box, nee + sobol, 64x64, 1 spp), fresh processes, "
+          f"median of {repeat}, load average {os.getloadavg()[0]:.1f}")
+    interpreter = statistics.median(bare)
+    print(f"warp_spt from {out.stderr.strip().splitlines()[-1]}")
+    print(f"(wall / CPU seconds of each step; an empty interpreter, python -c pass, starts and exits in "
+          f"{interpreter:.2f} s wall; 'until the first launch' is that plus imports, load_scene and bind)")
+    print("| start | interpreter + exit | imports | load_scene | bind (compile or load) | first render | "
+          "until the first launch | whole process |")
+    print("|---|---|---|---|---|---|---|---|")
+    for label, runs in rows.items():
+        med = [statistics.median(col) for col in zip(*runs)]
+        wall, cpu = med[1:5], med[6:10]
+        cells = [f"{med[0]:.2f} s"] + [f"{w:.2f} / {c:.2f} s" for w, c in zip(wall, cpu)]
+        before_launch = (interpreter + sum(wall[:3]), interpreter + sum(cpu[:3]))
+        print(f"| {label} | " + " | ".join(cells) + f" | {before_launch[0]:.2f} / {before_launch[1]:.2f} s | "
+              f"{med[5]:.2f} s |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="128x128, 4 spp")
     ap.add_argument("--speed-only", action="store_true", help="only the speed and scaling table")
+    ap.add_argument("--start-only", action="store_true",
+                    help="only the cold and cached start-up times (fresh processes, temporary kernel caches)")
+    ap.add_argument("--repeat", type=int, default=3, help="--start-only: runs (default 3)")
     args = ap.parse_args()
+    if args.start_only:
+        start_times(args.repeat)
+        return
     size, spp = (128, 4) if args.quick else (512, 16)
     if not args.speed_only:
         compile_times()

@@ -71,10 +71,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-try:
-    import mitsuba as mi
-except ImportError:
-    mi = None
+mi = None     # Mitsuba, imported by main(): a child process that renders with warp_spt must not load it
 
 S = 32.0          # room size
 DEPTH = 6
@@ -379,13 +376,106 @@ def print_table(rows: list) -> None:
     print(f"| geometric mean | {g:.2f} | >= {GEOMEAN_TARGET} | {'yes' if g >= GEOMEAN_TARGET else 'no'} |")
 
 
+# ---------------------------------------------------------------------------------------------
+# Whole-process time (issue 24): a fresh process per render, as a user's command runs
+
+
+_WHOLE_CHILD = """
+import os, resource, sys, time
+from pathlib import Path
+sys.path.insert(0, {bench!r})
+import bench_vs_mitsuba as b
+if {pythonpath!r}:
+    sys.path.insert(0, {pythonpath!r})    # before the checkout bench_vs_mitsuba put first
+desc, size, spp, threads, folder = b.SCENES[{scene!r}], {size}, {spp}, {threads}, Path({folder!r})
+if {ours}:
+    import warp as wp
+    wp.config.quiet = True
+    from warp_spt import RenderSettings, render_scene
+    scene = b.warp_scene(desc, folder)
+    image = render_scene(scene, b.warp_camera(desc), RenderSettings(**b.warp_settings(
+        desc, size, spp, "nee", "sobol", 1, threads))).image
+else:
+    import mitsuba as mi
+    mi.set_variant({variant!r})
+    b.mi = mi
+    image = b.mitsuba_render(b.mitsuba_scene(desc, folder, size, "independent", spp), spp, 1, threads)
+r = resource.getrusage(resource.RUSAGE_SELF)
+print(sys.modules["warp_spt"].__file__ if {ours} else "", file=sys.stderr)
+print(r.ru_utime + r.ru_stime, float(image.mean()))
+"""
+
+
+def whole_process(scene: str, size: int, spp: int, threads: int, repeat: int, variant: str, folder: Path,
+                  pythonpath: str | None = None) -> None:
+    """Whole-process wall and CPU seconds of one render in a fresh Python process (imports, scene
+    load, Warp's cached kernel or Mitsuba's cached JIT kernels, render, image to numpy), warp_spt
+    (``nee`` + ``sobol``) against Mitsuba (``independent``, its default sampler), the two taken in
+    turn ``repeat`` times after one warm-up each (which fills both kernel caches); medians.
+    ``pythonpath``: where warp_spt is imported from (another checkout, for before/after figures)."""
+    import os
+    import statistics
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = pythonpath
+    bench = str(Path(__file__).resolve().parent)
+    walls: dict[str, list[float]] = {"warp_spt": [], "Mitsuba": []}
+    cpus: dict[str, list[float]] = {"warp_spt": [], "Mitsuba": []}
+    for k in range(repeat + 1):
+        for who in walls:
+            code = _WHOLE_CHILD.format(bench=bench, scene=scene, size=size, spp=spp, threads=threads,
+                                       folder=str(folder), ours=who == "warp_spt", variant=variant,
+                                       pythonpath=pythonpath or "")
+            t = time.perf_counter()
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=folder)
+            wall = time.perf_counter() - t
+            if out.returncode != 0:
+                raise RuntimeError(f"{who} failed: {out.stderr[-2000:]}")
+            if k == 0 and who == "warp_spt":
+                print(f"warp_spt from {out.stderr.strip().splitlines()[-1]}")
+            if k:                              # the first round warms the caches
+                walls[who].append(wall)
+                cpus[who].append(float(out.stdout.split()[-2]))
+    w = {k: statistics.median(v) for k, v in walls.items()}
+    c = {k: statistics.median(v) for k, v in cpus.items()}
+    print(f"\n## Whole process: {scene}, {size}x{size}, {spp} spp, depth {DEPTH}, {threads} threads, "
+          f"median of {repeat} (load average {os.getloadavg()[0]:.1f})\n")
+    print("| renderer | wall s | CPU s (all threads) |")
+    print("|---|---|---|")
+    for who in walls:
+        print(f"| {who} | {w[who]:.2f} | {c[who]:.2f} |")
+    print(f"| ratio warp_spt / Mitsuba | **{w['warp_spt'] / w['Mitsuba']:.2f}** | "
+          f"**{c['warp_spt'] / c['Mitsuba']:.2f}** |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="96^2, 4 and 16 spp, small references")
     ap.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES))
+    ap.add_argument("--whole-process", action="store_true",
+                    help="only the whole-process time of one render per fresh process (default: cornell, 512^2, 16 spp)")
+    ap.add_argument("--size", type=int, default=512, help="--whole-process: image size (default 512)")
+    ap.add_argument("--spp", type=int, default=16, help="--whole-process: samples per pixel (default 16)")
+    ap.add_argument("--threads", type=int, default=2, help="--whole-process: threads (default 2)")
+    ap.add_argument("--repeat", type=int, default=3, help="--whole-process: runs of each (default 3)")
+    ap.add_argument("--pythonpath", default=None,
+                    help="--whole-process: PYTHONPATH of the children (another checkout's warp_spt)")
     args = ap.parse_args()
+    global mi
+    try:
+        import mitsuba as mi
+    except ImportError:
+        mi = None
     if mi is None:
         print("Mitsuba is not installed: pip install mitsuba to run this benchmark")
+        return 0
+    if args.whole_process:
+        variant = pick_variant()
+        print(f"Mitsuba {mi.__version__}, variant {variant}")
+        with tempfile.TemporaryDirectory() as tmp:
+            for name in (args.scenes if "--scenes" in sys.argv else ["cornell"]):
+                whole_process(name, args.size, args.spp, args.threads, args.repeat, variant, Path(tmp),
+                              args.pythonpath)
         return 0
     variant = pick_variant()
     mi.set_variant(variant)

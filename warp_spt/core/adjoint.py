@@ -31,4 +31,17 @@ def zero_adjoint(func, returns: Sequence[type]) -> None:
     linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
     scope: dict = dict(names)
     exec(compile(source, filename, "exec"), scope)
-    wp.func_grad(func)(scope[name])
+    # wp.func_grad matches the adjoint against the function's return types, which it learns by
+    # generating the function's code (and its callees'), about 30 ms per sampler request function
+    # at every start, cached kernels or not. The types are given here: state them for the match
+    # (what that code generation would find), then leave the function unbuilt as before.
+    adj = func.adj
+    stated = not hasattr(adj, "return_var")
+    if stated:
+        from warp._src.codegen import Var
+        adj.return_var = tuple(Var(f"ret_{k}", t) for k, t in enumerate(returns))
+    try:
+        wp.func_grad(func)(scope[name])
+    finally:
+        if stated:
+            del adj.return_var

@@ -217,7 +217,10 @@ def shuffled_index(key: wp.uint32, index: int) -> wp.uint32:
     return i ^ (key & _HIGH_17) ^ low
 
 
-@wp.func
+# The two request functions are called, not inlined (inline=False): inlined at each of a kernel's
+# request sites they made the fast kernel's compile 0.3 s longer for no measurable run time
+# (docs/performance.md, Where the time goes).
+@wp.func(inline=False)
 def sobol_1d_keyed(pkey: wp.uint32, index: int, dim: int) -> float:
     """``sobol_1d`` with its (seed, pixel) part given as ``pkey = pixel_key(seed, pixel)``."""
     key = mix32(pkey ^ (wp.uint32(dim) * _DIM_MUL))
@@ -225,7 +228,7 @@ def sobol_1d_keyed(pkey: wp.uint32, index: int, dim: int) -> float:
     return to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT)))
 
 
-@wp.func
+@wp.func(inline=False)
 def sobol_2d_keyed(pkey: wp.uint32, index: int, dim: int) -> wp.vec2:
     """``sobol_2d`` with its (seed, pixel) part given as ``pkey = pixel_key(seed, pixel)``."""
     key = mix32(pkey ^ (wp.uint32(dim) * _DIM_MUL))

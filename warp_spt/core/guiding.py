@@ -62,16 +62,21 @@ class GuideTree:
 @wp.struct
 class GuideRecord:
     """Where a training pass records: the tree whose leaves collect (its ``d_energy`` unused), the
-    fixed-point sums of radiance / pdf per directional node and the records per node; ``on`` 0:
-    record nothing (the render's last pass)."""
+    fixed-point sums of radiance / pdf per directional node and the records per quadtree (counted
+    at its root: a few entries, which stay in the cache); ``on`` 0:
+    record nothing (the render's last pass). One per concurrently running launch."""
 
     tree: GuideTree
     energy: wp.array(dtype=wp.int64)
     hits: wp.array(dtype=wp.int64)
     on: int
+    # per launch thread, the path being traced: its recording vertices' (leaf and root of their
+    # quadtree, radiance gathered so far, 1 / (throughput x pdf)) until the path's radiance is known
+    slot_node: wp.array2d(dtype=wp.vec2i)
+    slot_value: wp.array2d(dtype=wp.vec2)
 
 
-@wp.func
+@wp.func(inline=True)
 def spatial_leaf(t: GuideTree, p: wp.vec3) -> int:
     """The number of the spatial leaf holding ``p`` (points outside the box go to the leaf of the
     nearest box)."""
@@ -90,7 +95,7 @@ def spatial_leaf(t: GuideTree, p: wp.vec3) -> int:
     return t.s_child[node]
 
 
-@wp.func
+@wp.func(inline=True)
 def normal_bin(n: wp.vec3) -> int:
     """The bin of a normal: 2 x its dominant axis, + 1 when that component is negative."""
     ax = int(0)
@@ -101,13 +106,13 @@ def normal_bin(n: wp.vec3) -> int:
     return 2 * ax + wp.where(n[ax] < 0.0, 1, 0)
 
 
-@wp.func
+@wp.func(inline=True)
 def guide_root(t: GuideTree, p: wp.vec3, n: wp.vec3) -> int:
     """The root of the quadtree for point ``p`` with shading normal ``n``."""
     return t.d_root[NORMAL_BINS * spatial_leaf(t, p) + normal_bin(n)]
 
 
-@wp.func
+@wp.func(inline=True)
 def dir_to_square(d: wp.vec3) -> wp.vec2:
     """The cylindrical map of a unit direction: (cos theta + 1) / 2 and phi / 2 pi, in [0, 1)."""
     u = wp.clamp(0.5 * (d[2] + 1.0), 0.0, 0.99999994)
@@ -118,7 +123,7 @@ def dir_to_square(d: wp.vec3) -> wp.vec2:
     return wp.vec2(u, v)
 
 
-@wp.func
+@wp.func(inline=True)
 def square_to_dir(s: wp.vec2) -> wp.vec3:
     """The inverse of :func:`dir_to_square`."""
     z = 2.0 * s[0] - 1.0
@@ -127,13 +132,13 @@ def square_to_dir(s: wp.vec2) -> wp.vec3:
     return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), z)
 
 
-@wp.func
+@wp.func(inline=True)
 def guide_usable(t: GuideTree, root: int) -> bool:
     """The guide may be sampled at this leaf: guiding is on and the leaf has learnt some energy."""
     return t.alpha > 0.0 and t.d_energy[root] > 0.0
 
 
-@wp.func
+@wp.func(inline=True)
 def guide_pdf(t: GuideTree, root: int, d: wp.vec3) -> float:
     """Solid-angle density of :func:`guide_sample` producing ``d`` from the quadtree at ``root``."""
     s = dir_to_square(d)
@@ -156,11 +161,12 @@ def guide_pdf(t: GuideTree, root: int, d: wp.vec3) -> float:
     return pdf
 
 
-@wp.func
-def guide_sample(t: GuideTree, root: int, u: wp.vec2) -> wp.vec3:
-    """A direction from the quadtree at ``root`` (its density: :func:`guide_pdf`), from one uniform
-    2D point rescaled at every level (first the column, ix, then the row, iy)."""
+@wp.func(inline=True)
+def guide_sample(t: GuideTree, root: int, u: wp.vec2):
+    """(direction, its density) from the quadtree at ``root``, from one uniform 2D point rescaled at
+    every level (first the column, ix, then the row, iy); the density is :func:`guide_pdf`'s."""
     node = root
+    pdf = float(INV_FOUR_PI)
     r = u
     origin = wp.vec2(0.0, 0.0)
     size = float(1.0)
@@ -193,11 +199,12 @@ def guide_sample(t: GuideTree, root: int, u: wp.vec2) -> wp.vec3:
         r = wp.vec2(wp.min(rx, 0.99999994), wp.min(ry, 0.99999994))
         size = 0.5 * size
         origin = origin + wp.vec2(float(ix) * size, float(iy) * size)
+        pdf = pdf * (4.0 * t.d_energy[c0 + ix + 2 * iy] / total)
         node = c0 + ix + 2 * iy
-    return square_to_dir(origin + r * size)
+    return square_to_dir(origin + r * size), pdf
 
 
-@wp.func
+@wp.func(inline=True)
 def dir_leaf(t: GuideTree, root: int, d: wp.vec3) -> int:
     """The leaf of the quadtree at ``root`` whose square holds ``d``."""
     s = dir_to_square(d)
@@ -214,7 +221,7 @@ def dir_leaf(t: GuideTree, root: int, d: wp.vec3) -> int:
     return node
 
 
-@wp.func
+@wp.func(inline=True)
 def record_energy(value: float) -> wp.int64:
     """One record's radiance / pdf in fixed point (negative and non-finite values record nothing)."""
     if not wp.isfinite(value) or value <= 0.0:
@@ -236,9 +243,13 @@ def upload_tree(tree, alpha: float, device: str) -> GuideTree:
     return g
 
 
-def new_record(tree: GuideTree, nodes: int, on: bool, device: str) -> GuideRecord:
-    """A :class:`GuideRecord` into ``tree`` with zeroed sums for its ``nodes`` directional nodes."""
+def new_record(tree: GuideTree, nodes: int, on: bool, threads: int, slots: int, device: str) -> GuideRecord:
+    """A :class:`GuideRecord` into ``tree`` with zeroed sums for its ``nodes`` directional nodes, for
+    launches of at most ``threads`` threads recording at most ``slots`` vertices per path."""
     r = GuideRecord()
+    shape = (threads, slots) if on else (1, 1)
+    r.slot_node = wp.zeros(shape, dtype=wp.vec2i, device=device)
+    r.slot_value = wp.zeros(shape, dtype=wp.vec2, device=device)
     r.tree = tree
     r.energy = wp.zeros(max(nodes, 1), dtype=wp.int64, device=device)
     r.hits = wp.zeros(max(nodes, 1), dtype=wp.int64, device=device)

@@ -80,14 +80,12 @@ from warp_spt.samplers import Sampler
 STRIDE = GUIDED_STRIDE
 ALPHA = 0.5               # probability of sampling the guide at a vertex whose leaf has learnt something
 MAX_RECORDS = 16          # diffuse vertices of one path that record (deeper ones do not train)
-_vecr = wp.types.vector(length=MAX_RECORDS, dtype=wp.float32)
-_veci = wp.types.vector(length=MAX_RECORDS, dtype=wp.int32)
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
     """``step(geo, mats, tex, lights, rp, guide, rec, path) -> (path, record node, record pdf)``:
-    one guided bounce; the record node is the recording tree's leaf for the direction taken (-1:
-    nothing to record), the pdf that direction's density."""
+    one guided bounce; the record node is (the recording tree's leaf for the direction taken, the
+    root of its quadtree), (-1, -1) when there is nothing to record; the pdf that direction's density."""
     if differentiable:
         raise ValueError("the guided integrator has no differentiable kernel")
     closest_hit = make_closest_hit(features)
@@ -161,7 +159,8 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                     contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 
-    @wp.func
+    # inlined into the step, as nee's: called out of line, every bounce copied the scene's structs
+    @wp.func(inline=True)
     def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
                g: GuideTree, rec: GuideRecord, path: PathState, h: Hit):
         p = path
@@ -169,7 +168,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
             w = mis_bsdf(p, light.pdf_miss(lights, p.d))
             p.radiance += wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
             p.alive = 0
-            return p, int(-1), float(0.0)
+            return p, wp.vec2i(-1, -1), float(0.0)
         p.depth += 1
         sf = surface_at(geo, h, p.o, p.d)
         if wp.static(features.emitters):
@@ -179,7 +178,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 p.radiance += wp.cw_mul(p.throughput, le) * w
         if p.depth >= rp.max_depth:
             p.alive = 0
-            return p, int(-1), float(0.0)
+            return p, wp.vec2i(-1, -1), float(0.0)
         base = DIM_BOUNCE + wp.static(STRIDE) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)
         dense = bool(False)
@@ -202,15 +201,19 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         if a > 0.0:
             u_g, st = sampler.next_1d(p.sampler, base + OFF_GUIDE)
             p.sampler = st
+            pg = float(-1.0)
             if u_g < a:
-                bs.dir = guide_sample(g, root, u_dir)
+                gd, pg = guide_sample(g, root, u_dir)
+                bs.dir = gd
                 bs.singular = 0
                 bs.through = 0
                 bs.alive = 1
             else:
                 bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel)
             if bs.singular == 0:
-                pm = mixture_pdf(mats, sf, g, root, a, bs.dir)
+                if pg < 0.0:
+                    pg = guide_pdf(g, root, bs.dir)
+                pm = (1.0 - a) * mat.pdf(mats, sf, bs.dir) + a * pg
                 f = mat.eval(mats, tex, sf, bs.dir)
                 if pm > 0.0 and wp.max(wp.max(f[0], f[1]), f[2]) > 0.0:
                     bs.weight = f / pm
@@ -221,10 +224,11 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 bs.weight = bs.weight / (1.0 - a)
         else:
             bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel)
-        node = int(-1)
+        node = wp.vec2i(-1, -1)
         if wp.static(guiding):
             if rec.on != 0 and dense and bs.singular == 0 and bs.alive != 0:
-                node = dir_leaf(rec.tree, guide_root(rec.tree, sf.p, sf.ns), bs.dir)
+                rroot = guide_root(rec.tree, sf.p, sf.ns)
+                node = wp.vec2i(dir_leaf(rec.tree, rroot, bs.dir), rroot)
         return continue_path(p, sf, bs, geo.extent), node, bs.pdf
 
     return vertex
@@ -246,18 +250,15 @@ def make_kernel(step, start_path):
         rays = int(0)
         for j in range(rp.sample_count):
             path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
-            nodes = _veci()
-            gathered = _vecr()
-            scale = _vecr()
             n = int(0)
             while path.alive != 0:
                 path, node, pdf = step(geo, mats, tex, lights, rp, g, rec, path)
-                if node >= 0 and n < MAX_RECORDS:
+                if node[0] >= 0 and n < MAX_RECORDS:
                     t = path.throughput[0] + path.throughput[1] + path.throughput[2]
                     if t > 0.0 and pdf > 0.0:
-                        nodes[n] = node
-                        gathered[n] = path.radiance[0] + path.radiance[1] + path.radiance[2]
-                        scale[n] = 1.0 / (t * pdf)
+                        rec.slot_node[wp.tid(), n] = node
+                        rec.slot_value[wp.tid(), n] = wp.vec2(path.radiance[0] + path.radiance[1] + path.radiance[2],
+                                                              1.0 / (t * pdf))
                         n += 1
             rays += path.rays
             L = path.radiance
@@ -265,8 +266,10 @@ def make_kernel(step, start_path):
                 acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
                 total = L[0] + L[1] + L[2]
                 for i in range(n):
-                    rec.energy[nodes[i]] = rec.energy[nodes[i]] + record_energy((total - gathered[i]) * scale[i])
-                    rec.hits[nodes[i]] = rec.hits[nodes[i]] + wp.int64(1)
+                    where = rec.slot_node[wp.tid(), i]
+                    v = rec.slot_value[wp.tid(), i]
+                    rec.energy[where[0]] = rec.energy[where[0]] + record_energy((total - v[0]) * v[1])
+                    rec.hits[where[1]] = rec.hits[where[1]] + wp.int64(1)
             else:
                 bad += 1
         film[pix] = film[pix] + acc
@@ -303,7 +306,8 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         training = k < len(passes) - 1
         rec_dev = upload_tree(rec_tree, 0.0, device)
         records = queue.SimpleQueue()                      # one record per concurrently running job
-        slots = [new_record(rec_dev, rec_tree.dir_nodes, training, device) for _ in range(max(1, threads))]
+        slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles), MAX_RECORDS,
+                            device) for _ in range(max(1, threads))]
         for r in slots:
             records.put(r)
         chunks = [(start + s, min(per_launch, count - s)) for s in range(0, count, per_launch)]

@@ -89,30 +89,32 @@ def initial(bounds: np.ndarray) -> SDTree:
 def summed_energy(tree: SDTree, energy: np.ndarray) -> np.ndarray:
     """Per-node energy of ``tree`` from the fixed-point sums recorded at its leaves: every inner
     node gets the sum of its children (children always come after their parent)."""
-    e = energy.astype(np.float64) / ENERGY_SCALE
+    e = (energy.astype(np.float64) / ENERGY_SCALE).tolist()
+    child = tree.d_child.tolist()
     for n in range(tree.dir_nodes - 1, -1, -1):
-        c = tree.d_child[n]
+        c = child[n]
         if c >= 0:
             e[n] = e[c] + e[c + 1] + e[c + 2] + e[c + 3]
-    return e
+    return np.array(e)
 
 
-def _quadtree_nodes(tree: SDTree, root: int) -> list[int]:
-    """The nodes of the quadtree at ``root`` (root first)."""
+def _quadtree_nodes(child: list, root: int) -> list[int]:
+    """The nodes of the quadtree at ``root`` (root first); ``child``: ``d_child`` as a list."""
     out, todo = [], [root]
     while todo:
         n = todo.pop()
         out.append(n)
-        c = tree.d_child[n]
+        c = child[n]
         if c >= 0:
             todo += [c, c + 1, c + 2, c + 3]
     return out
 
 
-def _refined_quadtree(tree: SDTree, root: int, e: np.ndarray, rho: float, max_depth: int) -> list[list]:
+def _refined_quadtree(child: list, root: int, e: list, rho: float, max_depth: int) -> list[list]:
     """The quadtree at ``root`` refined by its energies ``e``: rows [first child or -1, energy estimate]
     in breadth-first order. A node with more than ``rho`` of the total is split (a former leaf's
-    children estimated at a quarter each), one with less becomes a leaf. No energy: kept as it is."""
+    children estimated at a quarter each), one with less becomes a leaf. No energy: kept as it is.
+    (``child`` and ``e``: the tree's arrays as lists, which Python indexes fast.)"""
     total = e[root]
     rows: list[list] = []
     queue = [(root, total, 0)]         # (old node or -1, energy estimate, depth)
@@ -121,7 +123,7 @@ def _refined_quadtree(tree: SDTree, root: int, e: np.ndarray, rho: float, max_de
         old, energy, depth = queue[head]
         head += 1
         rows.append([-1, energy])
-        old_child = tree.d_child[old] if old >= 0 else -1
+        old_child = child[old] if old >= 0 else -1
         if total > 0.0:
             split = depth < max_depth and energy > rho * total
         else:
@@ -141,6 +143,7 @@ def refine(rec: SDTree, energy: np.ndarray, hits: np.ndarray, k: int, c: float =
     ``k`` recorded the integer sums ``energy`` and ``hits`` per directional node of ``rec``."""
     e = summed_energy(rec, energy)
     sampling = SDTree(rec.lo, rec.hi, rec.s_axis, rec.s_child, rec.d_root, rec.d_child, e)
+    child, e_list, hit_list = rec.d_child.tolist(), e.tolist(), hits.tolist()
     threshold = c * math.sqrt(2.0 ** k)
 
     s_axis: list[int] = []
@@ -160,8 +163,8 @@ def refine(rec: SDTree, energy: np.ndarray, hits: np.ndarray, k: int, c: float =
         inner = old >= 0 and rec.s_axis[old] >= 0
         if old >= 0 and not inner:
             roots = rec.d_root[NORMAL_BINS * int(rec.s_child[old]):][:NORMAL_BINS]
-            quads = [_refined_quadtree(rec, int(r), e, rho, max_depth) for r in roots]
-            count = float(sum(hits[_quadtree_nodes(rec, int(r))].sum() for r in roots))
+            quads = [_refined_quadtree(child, int(r), e_list, rho, max_depth) for r in roots]
+            count = float(sum(hit_list[n] for r in roots for n in _quadtree_nodes(child, int(r))))
         split = inner or (count > threshold and depth < MAX_SPATIAL_DEPTH)
         if not split:
             s_child[slot] = len(d_root) // NORMAL_BINS

@@ -139,6 +139,27 @@ def guide_usable(t: GuideTree, root: int) -> bool:
 
 
 @wp.func(inline=True)
+def quadrant(s: wp.vec2):
+    """(child ``ix + 2 iy`` of a quadtree node holding point ``s`` of its square, ``s`` in that child's square)."""
+    ix = int(0)
+    iy = int(0)
+    if s[0] >= 0.5:
+        ix = 1
+    if s[1] >= 0.5:
+        iy = 1
+    return ix + 2 * iy, wp.vec2(2.0 * s[0] - float(ix), 2.0 * s[1] - float(iy))
+
+
+@wp.func(inline=True)
+def pick(r: float, p: float):
+    """(0 with probability ``p``, else 1; ``r`` rescaled to a fresh uniform number): one step of
+    hierarchical sample warping."""
+    if r < p:
+        return 0, r / p
+    return 1, (r - p) / wp.max(1.0 - p, 1.0e-12)
+
+
+@wp.func(inline=True)
 def guide_pdf(t: GuideTree, root: int, d: wp.vec3) -> float:
     """Solid-angle density of :func:`guide_sample` producing ``d`` from the quadtree at ``root``."""
     s = dir_to_square(d)
@@ -148,15 +169,9 @@ def guide_pdf(t: GuideTree, root: int, d: wp.vec3) -> float:
         e = t.d_energy[node]
         if e <= 0.0:
             return 0.0
-        ix = int(0)
-        iy = int(0)
-        if s[0] >= 0.5:
-            ix = 1
-        if s[1] >= 0.5:
-            iy = 1
-        c = t.d_child[node] + ix + 2 * iy
+        q, s = quadrant(s)
+        c = t.d_child[node] + q
         pdf = pdf * (4.0 * t.d_energy[c] / e)
-        s = wp.vec2(2.0 * s[0] - float(ix), 2.0 * s[1] - float(iy))
         node = c
     return pdf
 
@@ -178,24 +193,8 @@ def guide_sample(t: GuideTree, root: int, u: wp.vec2):
         e11 = t.d_energy[c0 + 3]
         left = e00 + e01
         total = left + e10 + e11
-        ix = int(0)
-        rx = r[0]
-        p_left = left / total
-        if rx < p_left:
-            rx = rx / p_left
-        else:
-            ix = 1
-            rx = (rx - p_left) / wp.max(1.0 - p_left, 1.0e-12)
-        lower = wp.where(ix == 0, e00, e10)
-        col = wp.where(ix == 0, left, total - left)
-        iy = int(0)
-        ry = r[1]
-        p_low = lower / col
-        if ry < p_low:
-            ry = ry / p_low
-        else:
-            iy = 1
-            ry = (ry - p_low) / wp.max(1.0 - p_low, 1.0e-12)
+        ix, rx = pick(r[0], left / total)
+        iy, ry = pick(r[1], wp.where(ix == 0, e00, e10) / wp.where(ix == 0, left, total - left))
         r = wp.vec2(wp.min(rx, 0.99999994), wp.min(ry, 0.99999994))
         size = 0.5 * size
         origin = origin + wp.vec2(float(ix) * size, float(iy) * size)
@@ -210,14 +209,8 @@ def dir_leaf(t: GuideTree, root: int, d: wp.vec3) -> int:
     s = dir_to_square(d)
     node = root
     while t.d_child[node] >= 0:
-        ix = int(0)
-        iy = int(0)
-        if s[0] >= 0.5:
-            ix = 1
-        if s[1] >= 0.5:
-            iy = 1
-        node = t.d_child[node] + ix + 2 * iy
-        s = wp.vec2(2.0 * s[0] - float(ix), 2.0 * s[1] - float(iy))
+        q, s = quadrant(s)
+        node = t.d_child[node] + q
     return node
 
 

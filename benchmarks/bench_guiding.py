@@ -2,6 +2,7 @@
 
     python benchmarks/bench_guiding.py              # 64^2 at 16 and 64 spp, references of 2048 spp
     python benchmarks/bench_guiding.py --quick      # 32^2 at 8 and 32 spp, references of 512 spp
+    python benchmarks/bench_guiding.py --size 128 --ref-spp 1024   # a larger image (fixed costs amortised)
 
 Scenes: ``cornell`` (direct light dominates), ``indirect`` (a closed room lit from a pillar's top
 facing the ceiling: everything seen is lit after two or more bounces) and ``caustics`` (glass and
@@ -31,9 +32,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_vs_mitsuba import SCENES, warp_camera, warp_scene, warp_settings  # noqa: E402
 
 
-def render(scene, desc, size, spp, integrator, seed, roulette=0):
+def render(scene, desc, size, spp, integrator, seed, roulette=0, threads=1):
     from warp_spt import RenderSettings, render_scene
-    kw = warp_settings(desc, size, spp, integrator, "sobol", seed, 1)
+    kw = warp_settings(desc, size, spp, integrator, "sobol", seed, threads)
     rs = RenderSettings(**kw, roulette_depth=roulette)
     t = time.process_time()
     img = render_scene(scene, warp_camera(desc), rs).image.astype(np.float64)
@@ -45,8 +46,8 @@ def reference(name, scene, desc, size, spp, cache: Path):
     if path.exists():
         d = np.load(path)
         return d["a"], d["b"]
-    a, _ = render(scene, desc, size, spp // 2, "nee", 7001)
-    b, _ = render(scene, desc, size, spp // 2, "nee", 7002)
+    a, _ = render(scene, desc, size, spp // 2, "nee", 7001, threads=2)     # references: wall time only
+    b, _ = render(scene, desc, size, spp // 2, "nee", 7002, threads=2)
     np.savez(path, a=a, b=b)
     return a, b
 
@@ -62,9 +63,15 @@ def main() -> int:
     ap.add_argument("--scenes", default="cornell,indirect,caustics")
     ap.add_argument("--integrators", default="nee,guided")
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--size", type=int, default=0, help="image width and height (default 64, --quick 32)")
+    ap.add_argument("--spp", default="", help="comma-separated spp (default 16,64; --quick 8,32)")
+    ap.add_argument("--ref-spp", type=int, default=0, help="reference spp (default 2048; --quick 512)")
     ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "warp_spt_bench"))
     args = ap.parse_args()
     size, spps, ref_spp = (32, (8, 32), 512) if args.quick else (64, (16, 64), 2048)
+    size = args.size or size
+    spps = tuple(int(x) for x in args.spp.split(",")) if args.spp else spps
+    ref_spp = args.ref_spp or ref_spp
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     configs = [parse_config(c) for c in args.integrators.split(",")]

@@ -37,10 +37,8 @@ OFF_FRESNEL = 3        # reflect or refract
 OFF_LIGHT = 4          # which light (NEE)
 OFF_LIGHT_POS = 5      # 2 dims: point on that light
 OFF_ROULETTE = 7       # survive or not
-OFF_GUIDE = 8          # guided: sample the guide or the material
 SEED_STRIDE = 4        # the seed's four draws per bounce
 FULL_STRIDE = 8
-GUIDED_STRIDE = 9
 
 
 @dataclass(frozen=True)

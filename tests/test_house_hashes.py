@@ -53,6 +53,8 @@ def test_cli_images_unchanged(name, fn, tmp_path):
 
 @pytest.mark.parametrize("name,fn", hashes.api_cases(), ids=[n for n, _ in hashes.api_cases()])
 def test_api_images_unchanged(name, fn):
+    if name not in EXPECTED:     # the cases cover every registered integrator: one added since has no old image
+        pytest.skip(f"{name}: a plugin newer than the hashes (no image to keep)")
     if name == "api_cluster":
         pytest.importorskip("dask.distributed")
     got = fn()

@@ -127,10 +127,11 @@ def render_passes(dev, camera: Camera, rs: RenderSettings, rows: tuple[int, int]
 
 def check_settings(rs: RenderSettings) -> None:
     """The renderer's own argument checks, run on the client before anything is submitted."""
-    from warp_spt.integrators import get_integrator
+    from warp_spt.integrators import check_sliceable, get_integrator
     from warp_spt.rendering.settings import check_args
 
     check_args(rs)
+    check_sliceable(rs.integrator, "the cluster")
     if not get_integrator(rs.integrator).deterministic:     # the bit-exact merge needs the same numbers
         raise ValueError(f"integrator {rs.integrator!r} is not deterministic: its passes cannot be merged")
 

@@ -14,7 +14,7 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray
 from warp_spt.core.device_scene import Features
 from warp_spt.core.proctex import explain_compile_failure
-from warp_spt.integrators import nee, seed
+from warp_spt.integrators import guided, nee, seed
 from warp_spt.integrators.common import (
     Integrator,
     PathState,
@@ -29,6 +29,7 @@ from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 INTEGRATORS: dict[str, Integrator] = {
     "seed": seed.INTEGRATOR,
     "nee": nee.INTEGRATOR,
+    "guided": guided.INTEGRATOR,
 }
 DEFAULT_INTEGRATOR = "nee"      # see docs/performance.md, Light transport: several times the seed's efficiency
 
@@ -49,6 +50,15 @@ def get_integrator(name: str) -> Integrator:
 def check_integrator(name: str) -> None:
     """Raise ValueError unless ``name`` is a registered integrator."""
     get_integrator(name)
+
+
+def check_sliceable(name: str, renderer: str) -> None:
+    """ValueError if integrator ``name`` schedules its own passes (``Integrator.render_passes``, as
+    ``guided``): it renders whole images through the tile renderer only, not in ``renderer``'s
+    batches, windows or sample slices."""
+    if get_integrator(name).render_passes is not None:
+        raise ValueError(f"integrator {name!r} trains over its own passes of the whole image: {renderer} cannot "
+                         "render it (use render_scene, or the command line without budgets, --workers or --cluster)")
 
 
 def get_step(integrator: str, sampler: str, features: Features, differentiable: bool = False):
@@ -84,7 +94,8 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
     integrator = integrator or DEFAULT_INTEGRATOR
     sampler = sampler or DEFAULT_SAMPLER
     step, start = get_step(integrator, sampler, features)
-    k = kernel_cache.cached("fast", (integrator, sampler, features), lambda: make_kernel(step, start))
+    build = get_integrator(integrator).make_kernel or make_kernel
+    k = kernel_cache.cached("fast", (integrator, sampler, features), lambda: build(step, start))
     try:
         return kernel_cache.load(k, device)
     except Exception as err:       # a user's procedural texture is the likely culprit: name it
@@ -94,5 +105,5 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
 
 
 __all__ = ["INTEGRATORS", "DEFAULT_INTEGRATOR", "Integrator", "CameraParams", "PathState", "RenderParams",
-           "camera_params", "camera_ray", "fast_inputs", "get_integrator", "get_kernel", "get_step",
+           "camera_params", "camera_ray", "check_sliceable", "fast_inputs", "get_integrator", "get_kernel", "get_step",
            "get_vertex", "check_integrator", "register"]

@@ -54,6 +54,11 @@ class Integrator:
     its step differentiates through Warp's tape. ``prepare(bound) -> data``: optional device data
     of its own, built once per render set-up (``Bound.data``); ``passes(bound, result) -> result``:
     optional work after the image's passes (e.g. a second estimator), run by the tile renderer.
+    ``make_kernel(step, start_path) -> kernel``: a fast kernel of its own (None: :func:`make_kernel`),
+    whose inputs start with the fast kernel's; ``render_passes(bound, tiles, film, counters,
+    threads, report, per_launch) -> launches``: the tile renderer hands it the whole render (its
+    own pass schedule and kernel inputs, as ``guided``'s training passes); such an integrator
+    renders through the tile renderer only (no row windows, progressive batches or cluster).
     """
 
     name: str
@@ -64,6 +69,8 @@ class Integrator:
     tape: bool = True
     prepare: Callable | None = None
     passes: Callable | None = None
+    make_kernel: Callable | None = None
+    render_passes: Callable | None = None
     summary: str = ""            # one line for --help and the docs
 
     @property

@@ -42,7 +42,7 @@ from warp_spt.integrators.common import (
     continue_path,
     make_bsdf_dims,
 )
-from warp_spt.samplers import Sampler
+from warp_spt.samplers import Sampler, SamplerState
 
 STRIDE = FULL_STRIDE
 # the ``vis`` argument of ``vertex``: the shadow ray's answer when the caller knows it (path replay's
@@ -85,6 +85,37 @@ def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None
 
 INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE,
                         summary="next-event estimation: a light sample at every vertex, MIS with the BSDF")
+
+
+def make_light_sample(sampler: Sampler, light, inline: bool | None = None):
+    """``light_sample(geo, lights, state, sf, base) -> (light sample, shadow ray origin, state)``: the
+    light sample of a vertex at ``sf`` whose bounce's dimensions start at ``base`` (the light choice
+    and the point on it, from ``light.sample_li``); shared by ``nee`` and ``guided``."""
+
+    @wp.func(inline=inline)
+    def light_sample(geo: Geometry, lights: Lights, state: SamplerState, sf: Surface, base: int):
+        st = state
+        u_pick = float(0.0)
+        u_pos = wp.vec2(0.0, 0.0)
+        if wp.static(sampler.random_access):
+            # one 2D request chooses the light and the point on it (the choice's leftover bits
+            # become the point's first coordinate), saving a request per vertex; the light
+            # dimension is drawn only where a light is too unlikely to leave enough bits
+            u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
+            u_pick = u_pos[0]
+            if lights.num_entries > 1:
+                rest = reuse_pick(lights, u_pick)
+                if rest < 0.0:
+                    rest, st = sampler.next_1d(st, base + OFF_LIGHT)
+                u_pos = wp.vec2(rest, u_pos[1])
+        else:
+            if lights.num_entries > 1:
+                u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
+            u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
+        x = offset_origin(sf.p, sf.ng, 0, geo.extent)
+        return light.sample_li(geo, lights, x, u_pick, u_pos), x, st
+
+    return light_sample
 
 
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
@@ -132,6 +163,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     light = make_lights(features, surface_at, mat.emission)
     if replay:
         detach_lights(light)
+    light_sample = make_light_sample(sampler, light, inline=inline_callees)
 
     @wp.func
     def mis_weight(pa: float, pb: float) -> float:
@@ -162,26 +194,8 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         seen = int(VIS_TRACE)
         st = p.sampler
         if mat.has_density(mats, sf):      # light sampling needs a lobe with a density to weigh against
-            u_pick = float(0.0)
-            u_pos = wp.vec2(0.0, 0.0)
-            if wp.static(sampler.random_access):
-                # one 2D request chooses the light and the point on it (the choice's leftover bits
-                # become the point's first coordinate), saving a request per vertex; the light
-                # dimension is drawn only where a light is too unlikely to leave enough bits
-                u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
-                u_pick = u_pos[0]
-                if lights.num_entries > 1:
-                    rest = reuse_pick(lights, u_pick)
-                    if rest < 0.0:
-                        rest, st = sampler.next_1d(st, base + OFF_LIGHT)
-                    u_pos = wp.vec2(rest, u_pos[1])
-            else:
-                if lights.num_entries > 1:
-                    u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
-                u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
-            x = offset_origin(sf.p, sf.ng, 0, geo.extent)
             # light.sample in two halves, the geometric one having no adjoint in path replay
-            ls = light.sample_li(geo, lights, x, u_pick, u_pos)
+            ls, x, st = light_sample(geo, lights, st, sf, base)
             if ls.pdf > 0.0:
                 f = mat.eval(mats, tex, sf, ls.dir)
                 le = wp.cw_mul(f, light.le(geo, mats, tex, lights, ls, x))

@@ -40,7 +40,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.device_scene import DeviceScene
-from warp_spt.integrators import fast_inputs
+from warp_spt.integrators import check_sliceable, fast_inputs
 from warp_spt.rendering.result import (
     ERROR_FLOOR_FRACTION,
     RenderResult,
@@ -134,6 +134,7 @@ def render_progressive(
         settings["spp"] = UNLIMITED_SPP if budgeted else RenderSettings.spp
     rs = settings_from(settings)
     check(rs, camera)                           # ValueError before anything is uploaded
+    check_sliceable(rs.integrator, "render_progressive")
     check_budget(time_budget, target_error, batches, min_spp, adaptive_metric)
     if sample_budget is not None and (not isinstance(sample_budget, (int, np.integer)) or sample_budget < 1):
         raise ValueError(f"sample_budget must be a positive integer, got {sample_budget!r}")

@@ -18,7 +18,7 @@ from warp_spt.core.proctex import nonfinite_textures
 from warp_spt.integrators import fast_inputs
 from warp_spt.rendering.film import Film
 from warp_spt.rendering.result import RenderResult, RenderStats
-from warp_spt.rendering.schedule import pass_ranges
+from warp_spt.rendering.schedule import pass_ranges, samples_per_pass
 from warp_spt.rendering.settings import RenderSettings, settings_from
 from warp_spt.rendering.setup import Bound, bind
 from warp_spt.runtime.progress import ProgressFn, progress_reporter
@@ -73,15 +73,20 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
 
     report = progress_reporter(progress, (stop - first) * width * rs.spp)
     start = time.perf_counter()
+    own = b.integrator.render_passes        # an integrator with a pass schedule of its own (guided)
+    launches = len(tiles) * len(passes)
     try:
-        run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
+        if own is None:
+            run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
+        else:
+            launches = own(b, tiles, film, counters, nthreads, report, samples_per_pass(width, b.height))
     finally:
         report(None)
     seconds = time.perf_counter() - start
     c = keep[1].numpy().sum(axis=0)
     stats = RenderStats(b.features, rs.integrator, rs.sampler, seconds, int(c[0]), int(c[1]), len(tiles), nthreads,
                         pixel_samples=(stop - first) * width * rs.spp, render_seconds=seconds,
-                        launches=len(tiles) * len(passes))
+                        launches=launches)
     if stats.dropped_samples and b.features.procedural:
         _warn_nonfinite(b, stats)
     sums = keep[0].numpy().reshape(stop - first, width, 3)

@@ -103,7 +103,7 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
         value = tuple(float(v) for v in value)
     else:
         value = type(current)(value)
-    choices = {"integrator": warp_spt.INTEGRATORS, "sampler": warp_spt.SAMPLERS, "sky": SKY_NAMES,
+    choices = {"integrator": _progressive_integrators(), "sampler": warp_spt.SAMPLERS, "sky": SKY_NAMES,
                "tonemap": ("srgb", "seed")}
     if key in choices and value not in choices[key]:
         raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
@@ -365,7 +365,7 @@ class Session:
 
         with self._cond:
             return {"type": "state", "settings": asdict(self._settings), "up": self._up,
-                    "integrators": sorted(warp_spt.INTEGRATORS), "samplers": sorted(warp_spt.SAMPLERS),
+                    "integrators": sorted(_progressive_integrators()), "samplers": sorted(warp_spt.SAMPLERS),
                     "skies": list(SKY_NAMES), "params": self._param_list(), "error": self._error,
                     "loading": self._scene is None and self._error is None, "can_reload": self._can_reload,
                     "objs": list(self.objs), "mtls": list(self.mtls), "formats": save_formats(),
@@ -847,3 +847,11 @@ def _is_scene_error(err: BaseException) -> bool:
     import warp_spt
 
     return isinstance(err, warp_spt.SceneError)
+
+
+def _progressive_integrators() -> list[str]:
+    """The integrators the viewer's progressive passes can render (not ``guided``, which trains
+    over passes of its own)."""
+    import warp_spt
+
+    return [n for n, r in warp_spt.INTEGRATORS.items() if r.render_passes is None]

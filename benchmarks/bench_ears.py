@@ -2,11 +2,11 @@
 
     python benchmarks/bench_ears.py                                  # 64^2 at 16 and 64 spp, references of 2048 spp
     python benchmarks/bench_ears.py --size 128 --ref-spp 1024        # 128^2
-    python benchmarks/bench_ears.py --integrators nee,nee:rr3,ears,ears:abs
+    python benchmarks/bench_ears.py --integrators nee,ears --scenes indirect
 
 Rows: ``nee`` (no roulette, the default), ``nee:rrK`` (its throughput roulette from K hits,
-``RenderSettings.roulette_depth``), ``ears`` (relative error, as the paper) and ``ears:abs``
-(``ears.RELATIVE = False``: the decisions aim at absolute error, which is what this table measures).
+``RenderSettings.roulette_depth``), ``ears`` (its defaults: the decisions aim at absolute error,
+which is what this table measures) and ``ears:rel`` (``ears.RELATIVE``: relative error, as the paper).
 Renders, references (shared with bench_guiding.py's cache) and timing are bench_guiding.py's:
 single-threaded, CPU seconds (``time.process_time``), kernels compiled before, MSE and seconds
 averaged over ``--seeds`` seeds, the reference's own MSE subtracted. ``ears``'s seconds include its
@@ -30,17 +30,17 @@ from bench_vs_mitsuba import SCENES, warp_scene  # noqa: E402
 
 
 def configure(text: str) -> tuple[str, int]:
-    """(integrator, roulette depth) of a row's name; ``ears:abs`` sets ``ears.RELATIVE`` False."""
+    """(integrator, roulette depth) of a row's name; ``ears:rel`` sets ``ears.RELATIVE``."""
     from warp_spt.integrators import ears
     name, _, opt = text.partition(":")
-    ears.RELATIVE = opt != "abs"
+    ears.RELATIVE = opt == "rel"
     return name, int(opt[2:]) if opt.startswith("rr") else 0
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", default="cornell,indirect,caustics")
-    ap.add_argument("--integrators", default="nee,nee:rr3,ears,ears:abs")
+    ap.add_argument("--integrators", default="nee,nee:rr3,ears,ears:rel")
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--spp", default="16,64")

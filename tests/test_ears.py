@@ -79,23 +79,37 @@ def test_ears_is_deterministic_and_keeps_the_budget(cornell, decide_often, monke
     # the decisions are used: the training samples alone are nee's, the rest differ
     nee = _render(cornell, integrator="nee", threads=1, spp=12)
     assert not np.array_equal(one.film.sum, nee.film.sum)
-    # below TRAIN_FRACTION spp nothing is learnt: nee's image
-    assert np.array_equal(_render(cornell, integrator="ears", spp=3).film.sum,
-                          _render(cornell, integrator="nee", spp=3).film.sum)
+    # below 2 x TRAIN_FRACTION spp nothing is learnt: nee's image
+    assert np.array_equal(_render(cornell, integrator="ears", spp=7).film.sum,
+                          _render(cornell, integrator="nee", spp=7).film.sum)
 
 
-def test_schedule_and_table():
-    assert ears.schedule(3) == (0, 3) and ears.schedule(16) == (4, 12) and ears.schedule(64) == (16, 48)
-    n, cells = 4, 5
+def test_schedule_and_table(monkeypatch):
+    assert ears.schedule(7) == (0, 0, 7) and ears.schedule(16) == (2, 2, 12) and ears.schedule(64) == (8, 8, 48)
+    assert all(sum(ears.schedule(n)) == n for n in range(1, 200))
+    monkeypatch.setattr(ears, "GRID", 1)
+    monkeypatch.setattr(ears, "GLOBAL_FLOOR", 0.0)
+    cells = 5                                         # five bounces of one cell
     counts = np.array([0, 1, 100, 100, 100], np.int64)
     m2 = (np.array([0.0, 1.0, 0.0, 1.0, 4.0]) * counts * ears.S2).astype(np.int64)
     cost = np.array([0, 1, 200, 200, 800], np.int64)
-    sums = np.full((4, 3), 2.0 * n)
-    pix_sq = np.full(4, 5.0 * n)                # mean 2, second moment 5: variance 1 (x n / (n - 1))
-    s, pix_inv, info = ears.learn(counts, np.zeros(cells, np.int64), m2, cost, sums, pix_sq, 6.0 * 4 * n, n, (2, 2))
-    assert (s[:2] == -1).all() and s[2] == 0          # too few records: no decision; no light: roulette
-    assert info["C"] == 6.0 and s[3] > 0 and np.isclose(s[4], s[3])     # 4x the moment at 4x the cost
-    assert np.allclose(pix_inv, 0.5)
+    a, b = np.full((4, 3), 2.0 * 2), np.full((4, 3), 3.0 * 2)     # halves of 2 samples: means 2 and 3
+    for rel in (False, True):
+        monkeypatch.setattr(ears, "RELATIVE", rel)
+        s, pix_inv, info = ears.learn(counts, np.zeros(cells, np.int64), m2, cost, a, b, 2, 2, 6.0 * 4 * 4, (2, 2))
+        assert (s[:2] == -1).all() and s[2] == 0          # too few records: no decision; no light: roulette
+        assert info["C"] == 6.0 and s[3] > 0 and np.isclose(s[4], s[3])     # 4x the moment at 4x the cost
+        assert np.isclose(info["V"], 1.0 / (6.25 if rel else 1.0))         # (3 - 2)^2 x 2 x 2 / 4, over P^2
+        assert np.allclose(pix_inv, 0.4 if rel else 1.0)
+    # the floor: a cell's moment at least its bounce's mean over all cells (one bounce of 2^3 cells)
+    monkeypatch.setattr(ears, "GRID", 2)
+    counts, cost = np.full(8, 100, np.int64), np.full(8, 200, np.int64)
+    m2 = (np.array([0.0] + [1.0] * 7) * counts * ears.S2).astype(np.int64)
+    args = (np.zeros(8, np.int64), m2, cost, a, b, 2, 2, 96.0, (2, 2))
+    assert ears.learn(counts, *args)[0][0] == 0
+    monkeypatch.setattr(ears, "GLOBAL_FLOOR", 1.0)
+    s, _, _ = ears.learn(counts, *args)
+    assert np.isclose(s[0], np.sqrt(7 / 8) * s[1])
 
 
 def test_renderers_that_split_the_image_refuse_ears(cornell):

@@ -29,13 +29,13 @@ division: still unbiased). Each copy continues with the sampler restarted under 
 (``split_seed``: the render's seed, hashed with the number of copies made so far in this camera
 sample), so its numbers are independent of its siblings' and the image is a function of the seed.
 
-Training. The first ``spp // 4`` samples per pixel (none below 4 spp) are plain ``nee`` and
-record, per vertex, fixed-point sums of Lx, Lx^2 and the rays after it, per (bounce, cell); each
-worker records into its own arrays, summed on the host (integer sums: exact in any order), and
-the pixels' second moments go to a per-pixel float64 array (a pixel's samples are summed by one
-tile in order). The host then turns them into ``s = sqrt(M2 C / (V Cx))`` per (bounce, cell)
-(-1: too few records, no decision) and ``1 / P`` per pixel (the training image, 3x3 box-filtered,
-floored at ``P_FLOOR`` x its mean), and the remaining samples render with the decisions. Every
+Training. The first ``spp // 4`` samples per pixel (none below 8 spp), in two halves, are plain
+``nee`` and record, per vertex, fixed-point sums of Lx, Lx^2 and the rays after it, per (bounce,
+cell); each worker records into its own arrays, summed on the host (integer sums: exact in any
+order). The host then turns them into ``s = sqrt(M2 C / (V Cx))`` per (bounce, cell) (-1: too few
+records, no decision) and ``1 / P`` per pixel (the training image, 3x3 box-filtered, floored at
+``P_FLOOR`` x its mean); ``V`` comes from the two halves' difference (see :func:`learn`); the
+remaining samples render with the decisions. Every
 sample counts with equal weight, so the film holds exactly the requested spp. As ``guided``, it
 renders whole images through the tile renderer only.
 """
@@ -71,9 +71,11 @@ GRID = 16                 # cells per axis of the learnt grid
 STACK = 8                 # pending split continuations per camera sample
 MAX_RECORDS = 16          # vertices of one training path that record
 MIN_RECORDS = 32          # records a (bounce, cell) needs before it decides
-Q_MIN = wp.constant(0.2)
-Q_MAX = wp.constant(10.0)
-RELATIVE = True           # EARS's relative error (pixel estimates); False: absolute error
+Q_MIN = 0.2               # the factor's clamp (read when a render starts)
+Q_MAX = 10.0
+GLOBAL_FLOOR = 1.0        # floor of a cell's learnt second moment, a fraction of its bounce's mean
+V_SCALE = 1.0             # the pixel variance the factors are computed with, over the measured one
+RELATIVE = False          # True: EARS's relative error (pixel estimates); False: absolute error (measured better)
 P_FLOOR = 0.05            # pixel estimates floored at this fraction of the image's mean
 TRAIN_FRACTION = 4        # the first spp // TRAIN_FRACTION samples train
 LX_MAX = 1.0e3            # one record's cap on Lx (fixed point)
@@ -95,20 +97,21 @@ class EarsTable:
     res: int
     s: wp.array(dtype=wp.float32)
     pix_inv: wp.array(dtype=wp.float32)
+    q_min: float
+    q_max: float
     on: int
 
 
 @wp.struct
 class EarsRecord:
-    """One worker's training sums per (bounce, cell) (fixed point), the pixels' second moments
-    (shared, per pixel), and its scratch: recording vertices and the split stack per thread."""
+    """One worker's training sums per (bounce, cell) (fixed point) and its scratch: recording
+    vertices and the split stack per thread."""
 
     on: int
     count: wp.array(dtype=wp.int64)
     m1: wp.array(dtype=wp.int64)
     m2: wp.array(dtype=wp.int64)
     cost: wp.array(dtype=wp.int64)
-    pix_sq: wp.array(dtype=wp.float64)
     slot_k: wp.array2d(dtype=wp.int32)
     slot_v: wp.array2d(dtype=wp.vec3)
     stack: wp.array2d(dtype=PathState)
@@ -153,7 +156,7 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
         if tab.on != 0:
             s = tab.s[cell_index(tab, p.o, p.depth)]
             if s >= 0.0:
-                q = wp.clamp(mean3(p.throughput) * pix_inv * s, Q_MIN, Q_MAX)
+                q = wp.clamp(mean3(p.throughput) * pix_inv * s, tab.q_min, tab.q_max)
                 u, st = sampler.next_1d(p.sampler, DIM_BOUNCE + wp.static(STRIDE) * (p.depth - 1) + OFF_ROULETTE)
                 p.sampler = st
                 fq = wp.floor(q)
@@ -183,7 +186,6 @@ def make_kernel(step, start_path):
         tid = wp.tid()
         pix = rp.pixel_start + tid
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
-        sq = wp.float64(0.0)
         bad = int(0)
         rays = int(0)
         pinv = float(1.0)
@@ -230,7 +232,6 @@ def make_kernel(step, start_path):
                 acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
                 if rec.on != 0:
                     total = mean3(L)
-                    sq += wp.float64(total) * wp.float64(total)
                     for i in range(nrec):
                         k = rec.slot_k[tid, i]
                         v = rec.slot_v[tid, i]
@@ -244,17 +245,18 @@ def make_kernel(step, start_path):
         film[pix] = film[pix] + acc
         counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
         counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
-        if rec.on != 0:
-            rec.pix_sq[pix] = rec.pix_sq[pix] + sq
 
     return trace
 
 
-def schedule(spp: int) -> tuple[int, int]:
-    """(training samples, deciding samples) per pixel: the first ``spp // TRAIN_FRACTION`` train
-    (none below TRAIN_FRACTION spp: then every sample is plain ``nee``)."""
+def schedule(spp: int) -> tuple[int, int, int]:
+    """(first training half, second training half, deciding samples) per pixel: the first
+    ``spp // TRAIN_FRACTION`` samples train, in two halves (aligned blocks of the sequence when
+    ``spp`` is a power of two); below ``2 * TRAIN_FRACTION`` spp nothing trains: plain ``nee``."""
     train = spp // TRAIN_FRACTION
-    return train, spp - train
+    if train < 2:
+        return 0, 0, spp
+    return train // 2, train - train // 2, spp - train
 
 
 def _table(b, s: np.ndarray, pix_inv: np.ndarray, on: bool) -> EarsTable:
@@ -265,28 +267,34 @@ def _table(b, s: np.ndarray, pix_inv: np.ndarray, on: bool) -> EarsTable:
     t.res = GRID
     t.s = wp.array(s.astype(np.float32), dtype=wp.float32, device=b.dev.device)
     t.pix_inv = wp.array(pix_inv.astype(np.float32), dtype=wp.float32, device=b.dev.device)
+    t.q_min, t.q_max = Q_MIN, Q_MAX
     t.on = int(on)
     return t
 
 
-def _record(entries: int, pix_sq: wp.array, on: bool, threads: int, device) -> EarsRecord:
+def _record(entries: int, on: bool, threads: int, device) -> EarsRecord:
     r = EarsRecord()
     r.on = int(on)
     r.count, r.m1, r.m2, r.cost = (wp.zeros(entries if on else 1, dtype=wp.int64, device=device) for _ in range(4))
-    r.pix_sq = pix_sq
     r.slot_k = wp.zeros((threads if on else 1, MAX_RECORDS), dtype=wp.int32, device=device)
     r.slot_v = wp.zeros((threads if on else 1, MAX_RECORDS), dtype=wp.vec3, device=device)
     r.stack = wp.zeros((threads, STACK), dtype=PathState, device=device)
     return r
 
 
-def learn(counts, m1, m2, cost, sums: np.ndarray, pix_sq: np.ndarray, rays: float, n: int,
+def learn(counts, m1, m2, cost, sum_a: np.ndarray, sum_b: np.ndarray, n_a: int, n_b: int, rays: float,
           shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:
     """The decisions' table from the training sums: ``s`` per (bounce, cell), ``1 / P`` per pixel,
-    and the figures they came from. ``sums``: the film's (pixels, 3) sums of ``n`` samples;
-    ``pix_sq``: per pixel the sum of squared sample means; ``rays``: closest-hit rays traced."""
-    mean = sums.mean(axis=1) / n
-    var = np.maximum(pix_sq / n - mean ** 2, 0.0) * n / max(n - 1, 1)
+    and the figures they came from. ``sum_a``, ``sum_b``: the (pixels, 3) film sums of the two
+    training halves (``n_a``, ``n_b`` samples); ``rays``: closest-hit rays traced in training.
+
+    ``V`` is the variance per sample *of the pixel means*, measured from the two halves' difference,
+    ``V = E[(m_a - m_b)^2] n_a n_b / (n_a + n_b)`` (relative: over P^2), not the samples' spread: with
+    Sobol' points the pixel means converge faster than the samples' variance says (the indirect room,
+    64 spp: 2.5x, the caustics 6x), and the roulette and split copies add independent noise, so
+    the samples' spread made the factors too small (roulette lost 2-5x in MSE)."""
+    m_a, m_b = sum_a.mean(axis=1) / n_a, sum_b.mean(axis=1) / n_b
+    mean = (m_a * n_a + m_b * n_b) / (n_a + n_b)
     if RELATIVE:
         img = mean.reshape(shape)
         pad = np.pad(img, 1, mode="edge")
@@ -294,11 +302,15 @@ def learn(counts, m1, m2, cost, sums: np.ndarray, pix_sq: np.ndarray, rays: floa
         p = np.maximum(blur.ravel(), P_FLOOR * max(float(mean.mean()), 1e-6))
     else:
         p = np.ones_like(mean)
-    v = float(np.mean(var / p ** 2))
-    c = rays / (mean.size * n)
+    v = float(np.mean((m_a - m_b) ** 2 / p ** 2)) * n_a * n_b / (n_a + n_b) * V_SCALE
+    c = rays / (mean.size * (n_a + n_b))
     counts = counts.astype(np.float64)
     ok = counts >= MIN_RECORDS
     m2_mean = np.where(ok, m2 / S2 / np.maximum(counts, 1), 0.0)
+    if GLOBAL_FLOOR > 0:        # a cell's moment at least GLOBAL_FLOOR x its bounce's over the whole scene
+        per = counts.reshape(-1, GRID ** 3)
+        glob = (m2.reshape(per.shape) / S2).sum(axis=1) / np.maximum(per.sum(axis=1), 1)
+        m2_mean = np.maximum(m2_mean, GLOBAL_FLOOR * np.repeat(glob, GRID ** 3))
     cx = np.where(ok, np.maximum(cost / np.maximum(counts, 1), 1.0), 1.0)
     s = np.where(ok, np.sqrt(m2_mean * c / (max(v, 1e-12) * cx)), -1.0)
     return s, 1.0 / p, {"V": v, "C": c, "cells": int(ok.sum())}
@@ -306,22 +318,23 @@ def learn(counts, m1, m2, cost, sums: np.ndarray, pix_sq: np.ndarray, rays: floa
 
 def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.array2d, threads: int,
                   report, per_launch: int) -> int:
-    """``Integrator.render_passes``: the training samples (plain ``nee``, recording), the table
+    """``Integrator.render_passes``: the two training halves (plain ``nee``, recording), the table
     learnt on the host, then the remaining samples with the decisions. Returns the launches made."""
     rs, device = b.settings, b.dev.device
     if tiles[0][0] != 0 or tiles[-1][1] != b.pixels:
         raise ValueError("the ears integrator learns over the whole image: it cannot render a window of rows")
-    train, rest = schedule(rs.spp)
+    n_a, n_b, rest = schedule(rs.spp)
     entries = rs.max_depth * GRID ** 3
     width = max(hi - lo for lo, hi in tiles)
-    pix_sq = wp.zeros(b.pixels, dtype=wp.float64, device=device)
     table = _table(b, np.zeros(1), np.ones(1), False)
-    start, launches = 0, 0
-    for count, training in ((train, True), (rest, False)):
+    slots = [_record(entries, n_a > 0, width, device) for _ in range(max(1, threads))]
+    start, launches, sum_a = 0, 0, None
+    for k, count in enumerate((n_a, n_b, rest)):
         if count == 0:
             continue
+        if k == 2:
+            slots = [_record(entries, False, width, device) for _ in range(max(1, threads))]
         records = queue.SimpleQueue()
-        slots = [_record(entries, pix_sq, training, width, device) for _ in range(max(1, threads))]
         for r in slots:
             records.put(r)
         chunks = [(start + s, min(per_launch, count - s)) for s in range(0, count, per_launch)]
@@ -344,10 +357,12 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         run_jobs(tiles, work, threads, report)
         launches += len(tiles) * len(chunks)
         start += count
-        if training:
+        if k == 0:
+            sum_a = film.numpy().copy()
+        elif k == 1:
             tot = [sum(getattr(r, f).numpy() for r in slots) for f in ("count", "m1", "m2", "cost")]
-            s, pix_inv, _ = learn(*tot, film.numpy(), pix_sq.numpy(), float(counters.numpy()[:, 0].sum()),
-                                     train, (b.height, b.width))
+            s, pix_inv, _ = learn(*tot, sum_a, film.numpy() - sum_a, n_a, n_b, float(counters.numpy()[:, 0].sum()),
+                                  (b.height, b.width))
             table = _table(b, s, pix_inv, True)
     return launches
 

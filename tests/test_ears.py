@@ -89,14 +89,14 @@ def test_schedule_and_table(monkeypatch):
     assert all(sum(ears.schedule(n)) == n for n in range(1, 200))
     monkeypatch.setattr(ears, "GRID", 1)
     monkeypatch.setattr(ears, "GLOBAL_FLOOR", 0.0)
-    cells = 5                                         # five bounces of one cell
+    # five bounces of one cell each (GRID 1)
     counts = np.array([0, 1, 100, 100, 100], np.int64)
     m2 = (np.array([0.0, 1.0, 0.0, 1.0, 4.0]) * counts * ears.S2).astype(np.int64)
     cost = np.array([0, 1, 200, 200, 800], np.int64)
     a, b = np.full((4, 3), 2.0 * 2), np.full((4, 3), 3.0 * 2)     # halves of 2 samples: means 2 and 3
     for rel in (False, True):
         monkeypatch.setattr(ears, "RELATIVE", rel)
-        s, pix_inv, info = ears.learn(counts, np.zeros(cells, np.int64), m2, cost, a, b, 2, 2, 6.0 * 4 * 4, (2, 2))
+        s, pix_inv, info = ears.learn(counts, m2, cost, a, b, 2, 2, 6.0 * 4 * 4, (2, 2))
         assert (s[:2] == -1).all() and s[2] == 0          # too few records: no decision; no light: roulette
         assert info["C"] == 6.0 and s[3] > 0 and np.isclose(s[4], s[3])     # 4x the moment at 4x the cost
         assert np.isclose(info["V"], 1.0 / (6.25 if rel else 1.0))         # (3 - 2)^2 x 2 x 2 / 4, over P^2
@@ -105,7 +105,7 @@ def test_schedule_and_table(monkeypatch):
     monkeypatch.setattr(ears, "GRID", 2)
     counts, cost = np.full(8, 100, np.int64), np.full(8, 200, np.int64)
     m2 = (np.array([0.0] + [1.0] * 7) * counts * ears.S2).astype(np.int64)
-    args = (np.zeros(8, np.int64), m2, cost, a, b, 2, 2, 96.0, (2, 2))
+    args = (m2, cost, a, b, 2, 2, 96.0, (2, 2))
     assert ears.learn(counts, *args)[0][0] == 0
     monkeypatch.setattr(ears, "GLOBAL_FLOOR", 1.0)
     s, _, _ = ears.learn(counts, *args)

@@ -34,7 +34,7 @@ division: still unbiased). Each copy continues with the sampler restarted under 
 sample), so its numbers are independent of its siblings' and the image is a function of the seed.
 
 Training. The first ``spp // 4`` samples per pixel (none below 8 spp), in two halves, are plain
-``nee`` and record, per vertex, fixed-point sums of Lx, Lx^2 and the rays after it, per (bounce,
+``nee`` and record, per vertex, fixed-point sums of Lx^2 and of the rays after it, per (bounce,
 cell); each worker records into its own arrays, summed on the host (integer sums: exact in any
 order). The host then turns them into ``s = sqrt(M2 C / (V Cx))`` per (bounce, cell) (-1: too few
 records, no decision) and ``1 / P`` per pixel (the training image, 3x3 box-filtered, floored at
@@ -47,8 +47,6 @@ iterations that re-learn with the decisions on; the ``q`` clamp is [0.2, 10], no
 """
 
 from __future__ import annotations
-
-import queue
 
 import numpy as np
 import warp as wp
@@ -64,11 +62,10 @@ from warp_spt.integrators.common import (
     Integrator,
     PathState,
     RenderParams,
-    fast_inputs,
 )
 from warp_spt.integrators.guiding_tree import box_of
 from warp_spt.integrators.nee import make_path_step
-from warp_spt.runtime.threads import run_jobs
+from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 from warp_spt.samplers.sobol import mix32
 
@@ -85,9 +82,7 @@ RELATIVE = False          # True: EARS's relative error (pixel estimates); False
 P_FLOOR = 0.05            # pixel estimates floored at this fraction of the image's mean
 TRAIN_FRACTION = 4        # the first spp // TRAIN_FRACTION samples train
 LX_MAX = 1.0e3            # one record's cap on Lx (fixed point)
-S1 = 1048576.0            # 2**20 fixed-point units per unit of Lx
 S2 = 65536.0              # 2**16 per unit of Lx^2
-S1_W = wp.constant(S1)
 S2_W = wp.constant(S2)
 LX_MAX_W = wp.constant(LX_MAX)
 _SPLIT_SALT = wp.constant(wp.uint32(0x5E1175A7))
@@ -115,7 +110,6 @@ class EarsRecord:
 
     on: int
     count: wp.array(dtype=wp.int64)
-    m1: wp.array(dtype=wp.int64)
     m2: wp.array(dtype=wp.int64)
     cost: wp.array(dtype=wp.int64)
     slot_k: wp.array2d(dtype=wp.int32)
@@ -243,7 +237,6 @@ def make_kernel(step, start_path):
                         v = rec.slot_v[tid, i]
                         lx = wp.min((total - v[1]) / v[0], LX_MAX_W)
                         rec.count[k] = rec.count[k] + wp.int64(1)
-                        rec.m1[k] = rec.m1[k] + wp.int64(lx * S1_W)
                         rec.m2[k] = rec.m2[k] + wp.int64(lx * lx * S2_W)
                         rec.cost[k] = rec.cost[k] + wp.int64(path.rays - int(v[2]))
             else:
@@ -281,14 +274,14 @@ def _table(b, s: np.ndarray, pix_inv: np.ndarray, on: bool) -> EarsTable:
 def _record(entries: int, on: bool, threads: int, device) -> EarsRecord:
     r = EarsRecord()
     r.on = int(on)
-    r.count, r.m1, r.m2, r.cost = (wp.zeros(entries if on else 1, dtype=wp.int64, device=device) for _ in range(4))
+    r.count, r.m2, r.cost = (wp.zeros(entries if on else 1, dtype=wp.int64, device=device) for _ in range(3))
     r.slot_k = wp.zeros((threads if on else 1, MAX_RECORDS), dtype=wp.int32, device=device)
     r.slot_v = wp.zeros((threads if on else 1, MAX_RECORDS), dtype=wp.vec3, device=device)
     r.stack = wp.zeros((threads, STACK), dtype=PathState, device=device)
     return r
 
 
-def learn(counts, m1, m2, cost, sum_a: np.ndarray, sum_b: np.ndarray, n_a: int, n_b: int, rays: float,
+def learn(counts, m2, cost, sum_a: np.ndarray, sum_b: np.ndarray, n_a: int, n_b: int, rays: float,
           shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:
     """The decisions' table from the training sums: ``s`` per (bounce, cell), ``1 / P`` per pixel,
     and the figures they came from. ``sum_a``, ``sum_b``: the (pixels, 3) film sums of the two
@@ -335,38 +328,24 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
     table = _table(b, np.zeros(1), np.ones(1), False)
     slots = [_record(entries, n_a > 0, width, device) for _ in range(max(1, threads))]
     start, launches, sum_a = 0, 0, None
+
+    def params(lo: int, first: int, count: int) -> RenderParams:
+        rp = b.params(lo, first, count)
+        rp.roulette_depth = 0                    # nee's throughput roulette off: ears decides
+        return rp
+
     for k, count in enumerate((n_a, n_b, rest)):
         if count == 0:
             continue
         if k == 2:
             slots = [_record(entries, False, width, device) for _ in range(max(1, threads))]
-        records = queue.SimpleQueue()
-        for r in slots:
-            records.put(r)
-        chunks = [(start + s, min(per_launch, count - s)) for s in range(0, count, per_launch)]
-
-        def work(tile, stop, done, chunks=chunks, table=table) -> None:
-            lo, hi = tile
-            rec = records.get()
-            try:
-                for s0, n in chunks:
-                    if stop.is_set():
-                        return
-                    rp = b.params(lo, s0, n)
-                    rp.roulette_depth = 0            # nee's throughput roulette off: ears decides
-                    wp.launch(b.kernel, dim=hi - lo, device=device,
-                              inputs=fast_inputs(b.scene_args(rp), film, counters) + [table, rec])
-                    done(n * (hi - lo))
-            finally:
-                records.put(rec)
-
-        run_jobs(tiles, work, threads, report)
-        launches += len(tiles) * len(chunks)
+        launches += run_pass(b, tiles, film, counters, threads, report, per_launch, start, count, slots,
+                             lambda rec, table=table: [table, rec], params)
         start += count
         if k == 0:
             sum_a = film.numpy().copy()
         elif k == 1:
-            tot = [sum(getattr(r, f).numpy() for r in slots) for f in ("count", "m1", "m2", "cost")]
+            tot = [sum(getattr(r, f).numpy() for r in slots) for f in ("count", "m2", "cost")]
             s, pix_inv, _ = learn(*tot, sum_a, film.numpy() - sum_a, n_a, n_b, float(counters.numpy()[:, 0].sum()),
                                   (b.height, b.width))
             table = _table(b, s, pix_inv, True)

@@ -14,7 +14,7 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray
 from warp_spt.core.device_scene import Features
 from warp_spt.core.proctex import explain_compile_failure
-from warp_spt.integrators import guided, nee, seed
+from warp_spt.integrators import ears, guided, nee, seed
 from warp_spt.integrators.common import (
     Integrator,
     PathState,
@@ -30,6 +30,7 @@ INTEGRATORS: dict[str, Integrator] = {
     "seed": seed.INTEGRATOR,
     "nee": nee.INTEGRATOR,
     "guided": guided.INTEGRATOR,
+    "ears": ears.INTEGRATOR,
 }
 DEFAULT_INTEGRATOR = "nee"      # see docs/performance.md, Light transport: several times the seed's efficiency
 

@@ -1,0 +1,87 @@
+"""Efficiency-aware roulette and splitting (``ears``) against ``nee``: 1 / (MSE x CPU s) on bench_vs_mitsuba.py's scenes.
+
+    python benchmarks/bench_ears.py                                  # 64^2 at 16 and 64 spp, references of 2048 spp
+    python benchmarks/bench_ears.py --size 128 --ref-spp 1024        # 128^2
+    python benchmarks/bench_ears.py --integrators nee,ears --scenes indirect
+
+Rows: ``nee`` (no roulette, the default), ``nee:rrK`` (its throughput roulette from K hits,
+``RenderSettings.roulette_depth``), ``ears`` (its defaults: the decisions aim at absolute error,
+which is what this table measures) and ``ears:rel`` (``ears.RELATIVE``: relative error, as the paper).
+Renders, references (shared with bench_guiding.py's cache) and timing are bench_guiding.py's:
+single-threaded, CPU seconds (``time.process_time``), kernels compiled before, MSE and seconds
+averaged over ``--seeds`` seeds, the reference's own MSE subtracted. ``ears``'s seconds include its
+training samples and the host's table; its spp are the caller's, training included.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_guiding import reference, render  # noqa: E402
+from bench_vs_mitsuba import SCENES, warp_scene  # noqa: E402
+
+
+def configure(text: str) -> tuple[str, int]:
+    """(integrator, roulette depth) of a row's name; ``ears:rel`` sets ``ears.RELATIVE``."""
+    from warp_spt.integrators import ears
+    name, _, opt = text.partition(":")
+    ears.RELATIVE = opt == "rel"
+    return name, int(opt[2:]) if opt.startswith("rr") else 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", default="cornell,indirect,caustics")
+    ap.add_argument("--integrators", default="nee,nee:rr3,ears,ears:rel")
+    ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--spp", default="16,64")
+    ap.add_argument("--ref-spp", type=int, default=2048)
+    ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "warp_spt_bench"))
+    args = ap.parse_args()
+    spps = tuple(int(x) for x in args.spp.split(","))
+    cache = Path(args.cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    rows_names = args.integrators.split(",")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.scenes.split(","):
+            desc = SCENES[name]
+            (Path(tmp) / name).mkdir()
+            scene = warp_scene(desc, Path(tmp) / name)
+            ra, rb = reference(name, scene, desc, args.size, args.ref_spp, cache)
+            ref, ref_mse = 0.5 * (ra + rb), float(np.mean((ra - rb) ** 2)) / 4
+            for key in rows_names:
+                render(scene, desc, 8, 4, *configure(key)[:1], 1, configure(key)[1])      # compile and warm
+            for spp in spps:
+                eff = {}
+                for key in rows_names:
+                    integ, rr = configure(key)
+                    mses, secs = [], []
+                    for s in range(args.seeds):
+                        img, sec = render(scene, desc, args.size, spp, integ, 100 + s, rr)
+                        mses.append(max(float(np.mean((img - ref) ** 2)) - ref_mse, 1e-3 * ref_mse))
+                        secs.append(sec)
+                    mse, sec = float(np.mean(mses)), float(np.mean(secs))
+                    eff[key] = (mse, sec, 1.0 / (mse * sec))
+                base = eff["nee"][2]
+                for key, (mse, sec, e) in eff.items():
+                    rows.append((name, spp, key, mse, sec, e / base))
+                    print(f"{name:9s} {spp:4d} spp  {key:10s} MSE {mse:.4g}  CPU {sec:7.2f} s  "
+                          f"efficiency / nee {e / base:5.2f}", flush=True)
+    print("\n| scene | size | spp | integrator | MSE | CPU s | efficiency / nee |\n|---|---|---|---|---|---|---|")
+    for name, spp, key, mse, sec, ratio in rows:
+        print(f"| {name} | {args.size} | {spp} | {key} | {mse:.3g} | {sec:.2f} | {ratio:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.guiding import GuideTree, guide_pdf, guide_sample, upload_tree
+from warp_spt.core.guiding import GuideTree, dir_to_square_np, guide_pdf, guide_sample, square_to_dir_np, upload_tree
 from warp_spt.integrators import guided, guiding_tree
 from warp_spt.rendering.settings import RenderSettings
 
@@ -79,13 +79,6 @@ def _leaves(tree, root):
     return out
 
 
-def _square_to_dir(s):
-    z = 2 * s[..., 0] - 1
-    r = np.sqrt(np.maximum(0, 1 - z * z))
-    phi = 2 * np.pi * s[..., 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
-
-
 def test_refined_quadtree_is_consistent():
     tree = _trained_tree()
     assert tree.leaves == 1 and tree.d_root.size == 6
@@ -100,13 +93,14 @@ def test_guide_pdf_integrates_to_one_and_matches_its_sampling():
     tree = _trained_tree()
     g = upload_tree(tree, 0.5, "cpu")
     root = int(tree.d_root[2])
-    # quadrature: the map is equal-area, so the integral over the sphere is 4 pi x the mean over the square
+    # quadrature over the square: d omega = d area / jacobian (the map's, square_to_dir_np)
     m = 1024
     grid = (np.stack(np.meshgrid(np.arange(m), np.arange(m), indexing="ij"), axis=-1).reshape(-1, 2) + 0.5) / m
-    dirs = wp.array(_square_to_dir(grid).astype(np.float32), dtype=wp.vec3)
+    grid_dirs, grid_jac = square_to_dir_np(grid)
+    dirs = wp.array(grid_dirs.astype(np.float32), dtype=wp.vec3)
     pdfs = wp.zeros(m * m, dtype=float)
     wp.launch(_pdf_kernel, dim=m * m, inputs=[g, root, dirs, pdfs])
-    assert abs(4 * math.pi * pdfs.numpy().astype(np.float64).mean() - 1.0) < 2e-3
+    assert abs((pdfs.numpy().astype(np.float64) / grid_jac).mean() - 1.0) < 2e-3
 
     # sampling: the pdf each sample reports is the pdf of its direction, and the samples follow it
     n = 400_000
@@ -118,7 +112,7 @@ def test_guide_pdf_integrates_to_one_and_matches_its_sampling():
     # the density found while sampling is the one evaluated for the direction; the round trip
     # square -> direction -> square may cross a leaf's edge by a rounding error (1 in 400k here)
     assert (spdf.numpy() > 0).mean() > 1 - 1e-4
-    s = np.stack([(d[:, 2] + 1) / 2, (np.arctan2(d[:, 1], d[:, 0]) % (2 * np.pi)) / (2 * np.pi)], axis=1)
+    s = dir_to_square_np(d)
     # chi-square over the quadtree's own leaves (expected counts: pdf x area) and over a grid
     leaves = _leaves(tree, root)
     expected = np.array([float(tree.d_energy[nd]) for nd, _ in leaves]) / float(tree.d_energy[root]) * n
@@ -133,8 +127,9 @@ def test_guide_pdf_integrates_to_one_and_matches_its_sampling():
     sub = (np.stack(np.meshgrid(np.arange(fine), np.arange(fine), indexing="ij"), -1).reshape(-1, 2) + 0.5) / (fine * cells)
     pts = (centers[:, None, :] - 0.5 / cells + sub[None, :, :]).reshape(-1, 2)
     pd = wp.zeros(len(pts), dtype=float)
-    wp.launch(_pdf_kernel, dim=len(pts), inputs=[g, root, wp.array(_square_to_dir(pts).astype(np.float32), dtype=wp.vec3), pd])
-    exp_grid = pd.numpy().astype(np.float64).reshape(cells * cells, -1).mean(axis=1) * 4 * math.pi / cells**2 * n
+    pts_dirs, pts_jac = square_to_dir_np(pts)
+    wp.launch(_pdf_kernel, dim=len(pts), inputs=[g, root, wp.array(pts_dirs.astype(np.float32), dtype=wp.vec3), pd])
+    exp_grid = (pd.numpy().astype(np.float64) / pts_jac).reshape(cells * cells, -1).mean(axis=1) / cells**2 * n
     _assert_chi2(hist, exp_grid)
 
 

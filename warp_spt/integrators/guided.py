@@ -42,7 +42,10 @@ the tasks; that shipping is not implemented.
 
 from __future__ import annotations
 
+import os
 import queue
+import sys
+import time
 
 import numpy as np
 import warp as wp
@@ -52,11 +55,11 @@ from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, mak
 from warp_spt.core.guiding import (
     GuideRecord,
     GuideTree,
+    bin_cos,
     dir_leaf,
     guide_pdf,
-    guide_root,
+    guide_quadtree,
     guide_sample,
-    guide_usable,
     new_record,
     record_energy,
     upload_tree,
@@ -67,6 +70,7 @@ from warp_spt.core.surface import Surface, make_surface
 from warp_spt.integrators import guiding_tree
 from warp_spt.integrators.common import (
     DIM_BOUNCE,
+    FAST_KERNEL_OPTIONS,
     FULL_STRIDE,
     CameraParams,
     Integrator,
@@ -81,8 +85,11 @@ from warp_spt.runtime.threads import run_jobs
 from warp_spt.samplers import Sampler
 
 STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the direction's (see vertex)
-ALPHA = 0.25              # probability of sampling the guide at a vertex whose leaf has learnt something
-MAX_RECORDS = 16          # diffuse vertices of one path that record (deeper ones do not train)
+ALPHA = None              # probability of sampling the guide, the same for every quadtree that learnt
+                          # something; None: learnt per quadtree (guiding_tree.quadtree_alpha)
+STOP_AFTER = 3            # training passes before the guide may be found not worth it (1 + 1 + 2 spp)
+STOP_FRACTION = 0.1       # ... when fewer of the records' quadtrees than this would sample it
+MAX_RECORDS = 16        # diffuse vertices of one path that record (deeper ones do not train)
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
@@ -154,30 +161,43 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         p = path
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_miss(lights, p.d))
-            p.radiance += wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
+            hit_le = wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
+            p.radiance += hit_le
             p.alive = 0
-            return p, wp.vec2i(-1, -1), float(0.0)
+            return p, wp.vec2i(-1, -1), float(0.0), hit_le[0] + hit_le[1] + hit_le[2]
         p.depth += 1
         sf = surface_at(geo, h, p.o, p.d)
+        emitted = float(0.0)
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
                 w = mis_bsdf(p, light.pdf_li(geo, lights, h, p.o, p.d))
-                p.radiance += wp.cw_mul(p.throughput, le) * w
+                hit_le = wp.cw_mul(p.throughput, le) * w
+                p.radiance += hit_le
+                emitted = hit_le[0] + hit_le[1] + hit_le[2]
         if p.depth >= rp.max_depth:
             p.alive = 0
-            return p, wp.vec2i(-1, -1), float(0.0)
+            return p, wp.vec2i(-1, -1), float(0.0), emitted
         base = DIM_BOUNCE + wp.static(STRIDE) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)
         dense = bool(False)
         root = int(-1)
+        rqi = int(-1)
         a = float(0.0)
         if wp.static(guiding):
             dense = mat.has_density(mats, sf)
-            if dense and g.alpha > 0.0:
-                root = guide_root(g, sf.p, sf.ns)
-                if guide_usable(g, root):
-                    a = g.alpha
+            if dense:
+                qi = int(-1)
+                if rec.on != 0:
+                    # one spatial walk, in the recording tree, which refines the sampling tree
+                    rqi = guide_quadtree(rec.tree, sf.p, sf.ns)
+                    qi = rec.to_sampling[rqi]
+                elif g.alpha > 0.0:
+                    qi = guide_quadtree(g, sf.p, sf.ns)
+                if qi >= 0:
+                    a = g.q_alpha[qi]
+                    if a > 0.0:
+                        root = g.d_root[qi]
         if wp.static(sample_lights):
             if dense:
                 contrib, st = direct(geo, mats, tex, lights, p, sf, base, g, root, a)
@@ -189,36 +209,45 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         if a > 0.0:
             # the direction's first coordinate also chooses guide or material (rescaled, as reuse_pick):
             # the 2D point set stays stratified within each branch, and no dimension is drawn for it
-            pg = float(-1.0)
             if u_dir[0] < a:
                 gd, pg = guide_sample(g, root, wp.vec2(wp.min(u_dir[0] / a, 0.99999994), u_dir[1]))
                 bs.dir = gd
                 bs.singular = 0
                 bs.through = 0
                 bs.alive = 1
-            else:
-                u_mat = wp.vec2(wp.min((u_dir[0] - a) / (1.0 - a), 0.99999994), u_dir[1])
-                bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_mat, u_fresnel)
-            if bs.singular == 0:
-                if pg < 0.0:
-                    pg = guide_pdf(g, root, bs.dir)
-                pm = (1.0 - a) * mat.pdf(mats, sf, bs.dir) + a * pg
-                f = mat.eval(mats, tex, sf, bs.dir)
+                pm = (1.0 - a) * mat.pdf(mats, sf, gd) + a * pg
+                f = mat.eval(mats, tex, sf, gd)
                 if pm > 0.0 and wp.max(wp.max(f[0], f[1]), f[2]) > 0.0:
                     bs.weight = f / pm
                     bs.pdf = pm
                 else:
                     bs.alive = 0
             else:
-                bs.weight = bs.weight / (1.0 - a)
+                u_mat = wp.vec2(wp.min((u_dir[0] - a) / (1.0 - a), 0.99999994), u_dir[1])
+                bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_mat, u_fresnel)
+                if bs.singular == 0:
+                    if bs.alive != 0:
+                        # weight = f cos / p_material, so f cos = weight x p_material: no eval again
+                        pm = (1.0 - a) * bs.pdf + a * guide_pdf(g, root, bs.dir)
+                        bs.weight = bs.weight * (bs.pdf / pm)
+                        bs.pdf = pm
+                else:
+                    bs.weight = bs.weight / (1.0 - a)
         else:
             bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel)
         node = wp.vec2i(-1, -1)
+        rpdf = bs.pdf
         if wp.static(guiding):
             if rec.on != 0 and dense and bs.singular == 0 and bs.alive != 0:
-                rroot = guide_root(rec.tree, sf.p, sf.ns)
+                rroot = rec.tree.d_root[rqi]
                 node = wp.vec2i(dir_leaf(rec.tree, rroot, bs.dir), rroot)
-        return continue_path(p, sf, bs, geo.extent), node, bs.pdf
+                # learn radiance x cos to the quadtree's axis (its normal bin): the product's shape
+                c = bin_cos(sf.ns, bs.dir)
+                if c > 0.0:
+                    rpdf = rpdf / c
+                else:
+                    node = wp.vec2i(-1, -1)
+        return continue_path(p, sf, bs, geo.extent), node, rpdf, emitted
 
     return vertex
 
@@ -229,7 +258,7 @@ def make_kernel(step, start_path):
     recording vertices, the radiance it gathered after that vertex over the throughput there and
     the direction's density, in fixed point, to ``rec`` (the launch is serial on the CPU)."""
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
               rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64),
               work: wp.array(dtype=wp.vec3i), g: GuideTree, rec: GuideRecord):
@@ -240,8 +269,14 @@ def make_kernel(step, start_path):
         for j in range(rp.sample_count):
             path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
             n = int(0)
+            recorded = int(0)
             while path.alive != 0:
-                path, node, pdf = step(geo, mats, tex, lights, rp, g, rec, path)
+                path, node, pdf, emitted = step(geo, mats, tex, lights, rp, g, rec, path)
+                if recorded != 0:
+                    # the emitter the last recorded direction met directly: light sampling's share
+                    v = rec.slot_value[wp.tid(), n - 1]
+                    rec.slot_value[wp.tid(), n - 1] = wp.vec2(v[0] + emitted, v[1])
+                recorded = 0
                 if node[0] >= 0 and n < MAX_RECORDS:
                     t = path.throughput[0] + path.throughput[1] + path.throughput[2]
                     if t > 0.0 and pdf > 0.0:
@@ -249,6 +284,7 @@ def make_kernel(step, start_path):
                         rec.slot_value[wp.tid(), n] = wp.vec2(path.radiance[0] + path.radiance[1] + path.radiance[2],
                                                               1.0 / (t * pdf))
                         n += 1
+                        recorded = 1
             rays += path.rays
             L = path.radiance
             if wp.isfinite(L):
@@ -289,16 +325,18 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
     rs, device = b.settings, b.dev.device
     if tiles[0][0] != 0 or tiles[-1][1] != b.pixels:
         raise ValueError("the guided integrator trains over the whole image: it cannot render a window of rows")
-    passes = training_passes(rs.spp)
+    plan = training_passes(rs.spp)
     rec_tree = guiding_tree.initial(b.dev.scene.bounds)
     sampling = upload_tree(rec_tree, 0.0, device)          # pass 0: no guide, the material alone
-    start, launches = rs.sample_offset, 0
-    for k, count in enumerate(passes):
-        training = k < len(passes) - 1
+    start, launches, k, stopped = rs.sample_offset, 0, 0, False
+    timing = os.environ.get("WARP_SPT_GUIDE_TRACE")     # benchmarks: per pass CPU time and alpha use
+    while start < rs.sample_offset + rs.spp:
+        training = k < len(plan) - 1 and not stopped
+        count = plan[k] if training else rs.sample_offset + rs.spp - start
         rec_dev = upload_tree(rec_tree, 0.0, device)
         records = queue.SimpleQueue()                      # one record per concurrently running job
         slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles), MAX_RECORDS,
-                            device) for _ in range(max(1, threads))]
+                            device, guiding_tree.sampling_quadtrees(rec_tree)) for _ in range(max(1, threads))]
         for r in slots:
             records.put(r)
         chunks = [(start + s, min(per_launch, count - s)) for s in range(0, count, per_launch)]
@@ -317,14 +355,25 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
             finally:
                 records.put(rec)
 
+        t0 = time.process_time()
         run_jobs(tiles, work, threads, report)
+        if timing:
+            print(f"guided pass {k}: {count} spp, {(time.process_time() - t0) / count * 1e3:.2f} CPU ms/spp, "
+                  f"training {training}", file=sys.stderr)
         launches += len(tiles) * len(chunks)
         start += count
         if training:
-            energy = sum(r.energy.numpy() for r in slots)
-            hits = sum(r.hits.numpy() for r in slots)
-            host_sampling, rec_tree = guiding_tree.refine(rec_tree, np.asarray(energy), np.asarray(hits), k)
-            sampling = upload_tree(host_sampling, ALPHA, device)
+            energy = np.asarray(sum(r.energy.numpy() for r in slots))
+            hits = np.asarray(sum(r.hits.numpy() for r in slots))
+            host_sampling, rec_tree = guiding_tree.refine(rec_tree, energy, hits, k)
+            alpha = guiding_tree.quadtree_alpha(host_sampling, hits) if ALPHA is None else ALPHA
+            used = guiding_tree.guided_fraction(host_sampling, hits, alpha)
+            # the guide is not worth its cost here: the rest of the samples are one pass without it
+            stopped = ALPHA is None and k + 1 >= STOP_AFTER and used < STOP_FRACTION
+            sampling = upload_tree(host_sampling, 0.0 if stopped else alpha, device)
+            if timing:
+                print(f"guided pass {k}: guide used at {used:.3f} of the records' quadtrees, stop {stopped}", file=sys.stderr)
+        k += 1
     return launches
 
 

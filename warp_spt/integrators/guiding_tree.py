@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from warp_spt.core.guiding import ENERGY_SCALE, NORMAL_BINS
+from warp_spt.core.guiding import ENERGY_SCALE, NORMAL_BINS, square_to_dir_np
 
 SPATIAL_C = 4000          # records a spatial leaf may collect in a 1 spp pass before it splits
 RHO = 0.03                # a quadtree node holding more than this fraction of its tree's energy splits (0.01 in
@@ -33,6 +33,9 @@ RHO = 0.03                # a quadtree node holding more than this fraction of i
 MAX_DIR_DEPTH = 12        # quadtree depth limit (float32 sample warping keeps ~24 bits over 12 levels)
 MAX_SPATIAL_DEPTH = 24
 INITIAL_DIR_DEPTH = 2     # a new quadtree: 16 equal squares
+ALPHAS = (0.0, 0.1, 0.25, 0.5)   # the guide's sampling probabilities a quadtree may get (quadtree_alpha)
+GUIDE_COST = 0.5          # the guide's cost per vertex, relative, that its variance reduction must pay for
+MIN_HITS = 32             # records a quadtree needs before it is sampled
 
 
 @dataclass
@@ -46,6 +49,7 @@ class SDTree:
     d_root: np.ndarray
     d_child: np.ndarray
     d_energy: np.ndarray
+    parents: np.ndarray | None = None    # per spatial leaf: the leaf of the tree it was refined from
 
     @property
     def dir_nodes(self) -> int:
@@ -86,7 +90,16 @@ def initial(bounds: np.ndarray) -> SDTree:
     n = len(rows)
     child = [r[0] + b * n if r[0] >= 0 else -1 for b in range(NORMAL_BINS) for r in rows]
     return SDTree(lo, hi, np.array([-1], np.int32), np.array([0], np.int32),
-                  np.arange(NORMAL_BINS, dtype=np.int32) * n, np.array(child, np.int32), np.zeros(n * NORMAL_BINS))
+                  np.arange(NORMAL_BINS, dtype=np.int32) * n, np.array(child, np.int32), np.zeros(n * NORMAL_BINS),
+                  np.zeros(1, np.int32))
+
+
+def sampling_quadtrees(rec: SDTree) -> np.ndarray:
+    """Per quadtree of the recording tree ``rec`` (index into its ``d_root``), the quadtree of the
+    sampling tree it was refined from (same normal bin, the parent spatial leaf): one spatial walk
+    in the recording tree finds both."""
+    parents = np.asarray(rec.parents, np.int64)
+    return (NORMAL_BINS * parents[:, None] + np.arange(NORMAL_BINS)).ravel().astype(np.int32)
 
 
 def _levels(d_child: np.ndarray, roots: np.ndarray) -> list[np.ndarray]:
@@ -185,5 +198,78 @@ def refine(rec: SDTree, energy: np.ndarray, hits: np.ndarray, k: int, c: float =
     roots = rec.d_root.reshape(-1, NORMAL_BINS)[np.array(sources, np.int64)].ravel()
     d_child, d_energy = _refined_quadtrees(rec.d_child, e, roots, rho, max_depth)
     nxt = SDTree(rec.lo, rec.hi, np.array(s_axis, np.int32), np.array(s_child, np.int32),
-                 np.arange(roots.size, dtype=np.int32), d_child, d_energy)
+                 np.arange(roots.size, dtype=np.int32), d_child, d_energy, np.array(sources, np.int32))
     return sampling, nxt
+
+
+def _quadtree_leaves(d_child: np.ndarray, d_root: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Every leaf of every quadtree, level by level: (node, quadtree index into ``d_root``, lower
+    corner (n, 2), side) arrays."""
+    nodes = np.asarray(d_root, np.int64)
+    tree = np.arange(nodes.size)
+    corner = np.zeros((nodes.size, 2))
+    size = np.ones(nodes.size)
+    out = []
+    while nodes.size:
+        c = d_child[nodes]
+        leaf = c < 0
+        out.append((nodes[leaf], tree[leaf], corner[leaf], size[leaf]))
+        inner = ~leaf
+        kids = (c[inner].astype(np.int64)[:, None] + np.arange(4)).ravel()
+        half = np.repeat(size[inner] / 2, 4)
+        offs = np.tile(np.array([[0, 0], [1, 0], [0, 1], [1, 1]], np.float64), (int(inner.sum()), 1))
+        corner = np.repeat(corner[inner], 4, axis=0) + offs * half[:, None]
+        nodes, tree, size = kids, np.repeat(tree[inner], 4), half
+    return tuple(np.concatenate(x) for x in zip(*out))
+
+
+def quadtree_alpha(tree: SDTree, hits: np.ndarray, candidates=ALPHAS, cost: float = GUIDE_COST,
+                   min_hits: int = MIN_HITS, sub: int = 4) -> np.ndarray:
+    """Per quadtree (index into ``tree.d_root``), the probability of sampling the guide in the next
+    pass: the candidate minimising (second moment of the one-sample estimate of the reflected
+    radiance, sum f cos L / p) x (1 + ``cost`` if the guide is used), computed from the radiance
+    the quadtree learnt (piecewise constant over its leaves) with a white diffuse surface facing its
+    normal bin, on ``sub`` x ``sub`` points per leaf; 0 where fewer than ``min_hits`` records
+    taught it. Computed from earlier passes only, so the next pass stays unbiased."""
+    nq = tree.d_root.size
+    alpha = np.zeros(nq, np.float32)
+    root_e = np.asarray(tree.d_energy, np.float64)[tree.d_root]
+    ok = (np.asarray(hits, np.float64)[tree.d_root] >= min_hits) & (root_e > 0.0)
+    if not ok.any():
+        return alpha
+    node, q, corner, size = _quadtree_leaves(tree.d_child, tree.d_root)
+    keep = ok[q]
+    node, q, corner, size = node[keep], q[keep], corner[keep], size[keep]
+    grid = (np.stack(np.meshgrid(np.arange(sub), np.arange(sub), indexing="ij"), -1).reshape(-1, 2) + 0.5) / sub
+    pts = corner[:, None, :] + grid[None, :, :] * size[:, None, None]           # (leaves, sub^2, 2)
+    dirs, jac = square_to_dir_np(pts)
+    area = (size * size / (sub * sub))[:, None]
+    w = area / jac                                                              # solid angle per point
+    b = (q % NORMAL_BINS).astype(np.int64)
+    cos = np.maximum(np.take_along_axis(dirs, (b // 2)[:, None, None], axis=2)[..., 0]
+                     * np.where(b % 2 == 0, 1.0, -1.0)[:, None], 0.0)
+    e = np.asarray(tree.d_energy, np.float64)[node]
+    with np.errstate(divide="ignore", invalid="ignore"):      # L of each leaf (it learnt L x cos)
+        radiance = e / (w * cos).sum(axis=1)
+    radiance = np.where(np.isfinite(radiance), radiance, 0.0)
+    g = (radiance[:, None] * cos / math.pi) ** 2 * w                            # (f cos L)^2 d omega
+    p_bsdf = cos / math.pi
+    p_guide = (e / root_e[q] / (size * size))[:, None] * jac
+    best = np.full(nq, np.inf)
+    for a in candidates:
+        pmix = (1.0 - a) * p_bsdf + a * p_guide
+        with np.errstate(divide="ignore", invalid="ignore"):
+            terms = np.where(g > 0.0, g / pmix, 0.0)
+        m = np.bincount(q, weights=terms.sum(axis=1), minlength=nq) * (1.0 + (cost if a > 0 else 0.0))
+        better = ok & (m < best)
+        best[better] = m[better]
+        alpha[better] = a
+    return alpha
+
+
+def guided_fraction(tree: SDTree, hits: np.ndarray, alpha) -> float:
+    """The fraction of the records (``hits`` at the quadtrees' roots of ``tree``) made in quadtrees
+    whose ``alpha`` is above 0: how much of the scene the guide would sample."""
+    h = np.asarray(hits, np.float64)[tree.d_root]
+    a = np.broadcast_to(np.asarray(alpha, np.float64), h.shape)
+    return float(h[a > 0].sum() / h.sum()) if h.sum() > 0 else 0.0

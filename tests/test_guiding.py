@@ -178,21 +178,53 @@ def test_training_passes_fit_the_budget():
     assert all(s % n == 0 for s, n in zip(starts, guided.training_passes(64)))
 
 
-def test_guided_converges_to_the_same_image_as_nee(cornell):
-    # the Cornell box of the stability suite: diffuse walls, a glossy and a glass ball, a ceiling light
+@pytest.mark.parametrize("alpha", [None, 0.5], ids=["learnt-alpha", "alpha-0.5"])
+def test_guided_converges_to_the_same_image_as_nee(cornell, monkeypatch, alpha):
+    # the Cornell box of the stability suite: diffuse walls, a glossy and a glass ball, a ceiling light;
+    # alpha None: learnt per quadtree (here mostly 0, and training stops); 0.5: the guide everywhere
+    monkeypatch.setattr(guided, "ALPHA", alpha)
     ref = np.stack([_render(cornell, integrator="nee", seed=500 + k).image for k in range(SEEDS)])
     out = np.stack([_render(cornell, integrator="guided", seed=700 + k).image for k in range(SEEDS)])
     assert_same_image(ref, out, "guided vs nee")
 
 
-def test_guided_is_deterministic_and_keeps_the_budget(cornell, monkeypatch):
+@pytest.mark.parametrize("alpha", [None, 0.25], ids=["learnt-alpha", "alpha-0.25"])
+def test_guided_is_deterministic_and_keeps_the_budget(cornell, monkeypatch, alpha):
+    monkeypatch.setattr(guided, "ALPHA", alpha)
     one = _render(cornell, integrator="guided", threads=1, spp=12)
     two = _render(cornell, integrator="guided", threads=2, spp=12, tile_pixels=40)
     assert np.array_equal(one.film.sum, two.film.sum)
     assert one.film.spp == 12 and one.stats.pixel_samples == SIZE * SIZE * 12
-    # the guide is used: without it (alpha 0) the same samples give another image
-    monkeypatch.setattr(guided, "ALPHA", 0.0)
-    assert not np.array_equal(one.film.sum, _render(cornell, integrator="guided", threads=1, spp=12).film.sum)
+    if alpha:
+        # the guide is used: without it (alpha 0) the same samples give another image
+        monkeypatch.setattr(guided, "ALPHA", 0.0)
+        assert not np.array_equal(one.film.sum, _render(cornell, integrator="guided", threads=1, spp=12).film.sum)
+
+
+def test_learnt_alpha_follows_the_guides_benefit():
+    # a quadtree whose learnt radiance is a bright spot gets the guide; one with a uniform sky does not
+    tree = _trained_tree()
+    hits = np.full(tree.dir_nodes, 1000, np.int64)
+    alpha = guiding_tree.quadtree_alpha(tree, hits)
+    assert alpha[4] > 0 and alpha[0] == 0     # the spot is above the +z bin's horizon (4), below +x's (0)
+    flat = guiding_tree.SDTree(tree.lo, tree.hi, tree.s_axis, tree.s_child, tree.d_root, tree.d_child,
+                               _cosine_energies(tree))
+    assert (guiding_tree.quadtree_alpha(flat, hits) == 0).all()
+    assert guiding_tree.quadtree_alpha(tree, np.zeros(tree.dir_nodes, np.int64)).max() == 0    # too few records
+
+
+def _cosine_energies(tree) -> np.ndarray:
+    """Energies of a constant radiance times the cosine to each quadtree's axis (what cosine sampling matches)."""
+    node, q, corner, size = guiding_tree._quadtree_leaves(tree.d_child, tree.d_root)
+    sub = 8
+    grid = (np.stack(np.meshgrid(np.arange(sub), np.arange(sub), indexing="ij"), -1).reshape(-1, 2) + 0.5) / sub
+    dirs, jac = square_to_dir_np(corner[:, None, :] + grid[None] * size[:, None, None])
+    b = q % 6
+    cos = np.maximum(dirs[np.arange(len(b))[:, None], np.arange(sub * sub)[None], b[:, None] // 2]
+                     * np.where(b % 2 == 0, 1.0, -1.0)[:, None], 0.0)
+    e = np.zeros(tree.dir_nodes)
+    e[node] = (cos / jac).sum(axis=1) * (size * size / sub**2)
+    return guiding_tree.summed(tree, e)
 
 
 def test_renderers_that_split_the_image_refuse_guided(cornell):

@@ -88,7 +88,7 @@ STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the dire
 ALPHA = None              # probability of sampling the guide, the same for every quadtree that learnt
                           # something; None: learnt per quadtree (guiding_tree.quadtree_alpha)
 STOP_AFTER = 3            # training passes before the guide may be found not worth it (1 + 1 + 2 spp)
-STOP_FRACTION = 0.1       # ... when fewer of the records' quadtrees than this would sample it
+STOP_FRACTION = 0.25      # ... when fewer of the records' quadtrees than this would sample it (cornell 0.07-0.18, indirect 0.55-0.9, caustics 0.3-0.7)
 MAX_RECORDS = 16        # diffuse vertices of one path that record (deeper ones do not train)
 
 
@@ -294,7 +294,7 @@ def make_kernel(step, start_path):
                     where = rec.slot_node[wp.tid(), i]
                     v = rec.slot_value[wp.tid(), i]
                     rec.energy[where[0]] = rec.energy[where[0]] + record_energy((total - v[0]) * v[1])
-                    rec.hits[where[1]] = rec.hits[where[1]] + wp.int64(1)
+                    rec.hits[where[0]] = rec.hits[where[0]] + wp.int64(1)
             else:
                 bad += 1
         film[pix] = film[pix] + acc

@@ -35,6 +35,7 @@ MAX_SPATIAL_DEPTH = 24
 INITIAL_DIR_DEPTH = 2     # a new quadtree: 16 equal squares
 ALPHAS = (0.0, 0.1, 0.25, 0.5)   # the guide's sampling probabilities a quadtree may get (quadtree_alpha)
 GUIDE_COST = 0.5          # the guide's cost per vertex, relative, that its variance reduction must pay for
+PRIOR_RECORDS = 8         # quadtree_alpha: how strongly a leaf's learnt energy is shrunk towards the cosine's
 MIN_HITS = 32             # records a quadtree needs before it is sampled
 
 
@@ -116,7 +117,13 @@ def _levels(d_child: np.ndarray, roots: np.ndarray) -> list[np.ndarray]:
 def summed_energy(tree: SDTree, energy: np.ndarray) -> np.ndarray:
     """Per-node energy of ``tree`` from the fixed-point sums recorded at its leaves: every inner
     node gets the sum of its children, level by level from the deepest."""
-    e = energy.astype(np.float64) / ENERGY_SCALE
+    return summed(tree, energy.astype(np.float64) / ENERGY_SCALE)
+
+
+def summed(tree: SDTree, values: np.ndarray) -> np.ndarray:
+    """``values`` per directional node of ``tree`` with every inner node's replaced by the sum of its
+    children's, level by level from the deepest (idempotent): energies, or records per leaf."""
+    e = np.array(values, np.float64)
     for level in reversed(_levels(tree.d_child, tree.d_root)):
         c = tree.d_child[level]
         inner = c >= 0
@@ -164,7 +171,7 @@ def refine(rec: SDTree, energy: np.ndarray, hits: np.ndarray, k: int, c: float =
     e = summed_energy(rec, energy)
     sampling = SDTree(rec.lo, rec.hi, rec.s_axis, rec.s_child, rec.d_root, rec.d_child, e)
     threshold = c * math.sqrt(2.0 ** k)
-    leaf_hits = np.asarray(hits, np.float64)[rec.d_root].reshape(-1, NORMAL_BINS).sum(axis=1).tolist()
+    leaf_hits = summed(rec, hits)[rec.d_root].reshape(-1, NORMAL_BINS).sum(axis=1).tolist()
     old_axis, old_child = rec.s_axis.tolist(), rec.s_child.tolist()
     extent = (rec.hi - rec.lo).tolist()
 
@@ -224,7 +231,7 @@ def _quadtree_leaves(d_child: np.ndarray, d_root: np.ndarray) -> tuple[np.ndarra
 
 
 def quadtree_alpha(tree: SDTree, hits: np.ndarray, candidates=ALPHAS, cost: float = GUIDE_COST,
-                   min_hits: int = MIN_HITS, sub: int = 4) -> np.ndarray:
+                   min_hits: int = MIN_HITS, sub: int = 4, prior: float = PRIOR_RECORDS) -> np.ndarray:
     """Per quadtree (index into ``tree.d_root``), the probability of sampling the guide in the next
     pass: the candidate minimising (second moment of the one-sample estimate of the reflected
     radiance, sum f cos L / p) x (1 + ``cost`` if the guide is used), computed from the radiance
@@ -234,7 +241,8 @@ def quadtree_alpha(tree: SDTree, hits: np.ndarray, candidates=ALPHAS, cost: floa
     nq = tree.d_root.size
     alpha = np.zeros(nq, np.float32)
     root_e = np.asarray(tree.d_energy, np.float64)[tree.d_root]
-    ok = (np.asarray(hits, np.float64)[tree.d_root] >= min_hits) & (root_e > 0.0)
+    hits = summed(tree, hits)
+    ok = (hits[tree.d_root] >= min_hits) & (root_e > 0.0)
     if not ok.any():
         return alpha
     node, q, corner, size = _quadtree_leaves(tree.d_child, tree.d_root)
@@ -248,13 +256,18 @@ def quadtree_alpha(tree: SDTree, hits: np.ndarray, candidates=ALPHAS, cost: floa
     b = (q % NORMAL_BINS).astype(np.int64)
     cos = np.maximum(np.take_along_axis(dirs, (b // 2)[:, None, None], axis=2)[..., 0]
                      * np.where(b % 2 == 0, 1.0, -1.0)[:, None], 0.0)
-    e = np.asarray(tree.d_energy, np.float64)[node]
+    # a leaf's energy from few records is noisy, and noise looks like light worth guiding to: each
+    # leaf's is shrunk towards the cosine's share of its quadtree's, as if ``prior`` records had seen that
+    wc = (w * cos).sum(axis=1)
+    share = wc / np.bincount(q, weights=wc, minlength=nq)[q]
+    n = hits[node]
+    e = (n * np.asarray(tree.d_energy, np.float64)[node] + prior * share * root_e[q]) / np.maximum(n + prior, 1e-12)
     with np.errstate(divide="ignore", invalid="ignore"):      # L of each leaf (it learnt L x cos)
-        radiance = e / (w * cos).sum(axis=1)
+        radiance = e / wc
     radiance = np.where(np.isfinite(radiance), radiance, 0.0)
     g = (radiance[:, None] * cos / math.pi) ** 2 * w                            # (f cos L)^2 d omega
     p_bsdf = cos / math.pi
-    p_guide = (e / root_e[q] / (size * size))[:, None] * jac
+    p_guide = (np.asarray(tree.d_energy, np.float64)[node] / root_e[q] / (size * size))[:, None] * jac
     best = np.full(nq, np.inf)
     for a in candidates:
         pmix = (1.0 - a) * p_bsdf + a * p_guide
@@ -270,6 +283,6 @@ def quadtree_alpha(tree: SDTree, hits: np.ndarray, candidates=ALPHAS, cost: floa
 def guided_fraction(tree: SDTree, hits: np.ndarray, alpha) -> float:
     """The fraction of the records (``hits`` at the quadtrees' roots of ``tree``) made in quadtrees
     whose ``alpha`` is above 0: how much of the scene the guide would sample."""
-    h = np.asarray(hits, np.float64)[tree.d_root]
+    h = summed(tree, hits)[tree.d_root]
     a = np.broadcast_to(np.asarray(alpha, np.float64), h.shape)
     return float(h[a > 0].sum() / h.sum()) if h.sum() > 0 else 0.0

@@ -124,14 +124,6 @@ def make_vertex_guided(features: Features, sampler: Sampler):
     light_sample = make_light_sample(sampler, light)
 
     @wp.func
-    def mixture_pdf(mats: Materials, sf: Surface, g: GuideTree, root: int, a: float, wi: wp.vec3) -> float:
-        """Density of the mixture (material with 1 - a, guide with a) producing ``wi``."""
-        p = (1.0 - a) * mat.pdf(mats, sf, wi)
-        if a > 0.0:
-            p += a * guide_pdf(g, root, wi)
-        return p
-
-    @wp.func
     def mis_bsdf(p: PathState, pdf_light: float) -> float:
         """MIS weight of an emitter reached by the path's sampled direction."""
         if wp.static(not sample_lights):
@@ -150,7 +142,9 @@ def make_vertex_guided(features: Features, sampler: Sampler):
             le = wp.cw_mul(mat.eval(mats, tex, sf, ls.dir), light.le(geo, mats, tex, lights, ls, x))
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
                 if not occluded(geo, x, ls.dir, ls.t_max):
-                    w = power_heuristic(ls.pdf, mixture_pdf(mats, sf, g, root, a, ls.dir))
+                    # MIS against the material's share of the mixture, (1 - a) p_material: the
+                    # emitter the sampled direction meets is weighed with the same density (see vertex)
+                    w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, sf, ls.dir))
                     contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 
@@ -206,6 +200,11 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 lit.sampler = st
                 p = lit
         bs = BsdfSample()
+        pm = float(0.0)        # the density the direction was sampled with: the mixture's
+        # bs.pdf, the density multiple importance sampling weighs against light sampling, is the
+        # material's share alone, (1 - a) p_material: MIS weights need only sum to 1 over the
+        # techniques, so any density used on both sides is unbiased, and this one spares a guide
+        # look-up per light sample (the guide learns no emitter light sampling reaches: little lost)
         if a > 0.0:
             # the direction's first coordinate also chooses guide or material (rescaled, as reuse_pick):
             # the 2D point set stays stratified within each branch, and no dimension is drawn for it
@@ -215,11 +214,11 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 bs.singular = 0
                 bs.through = 0
                 bs.alive = 1
-                pm = (1.0 - a) * mat.pdf(mats, sf, gd) + a * pg
+                bs.pdf = (1.0 - a) * mat.pdf(mats, sf, gd)
+                pm = bs.pdf + a * pg
                 f = mat.eval(mats, tex, sf, gd)
                 if pm > 0.0 and wp.max(wp.max(f[0], f[1]), f[2]) > 0.0:
                     bs.weight = f / pm
-                    bs.pdf = pm
                 else:
                     bs.alive = 0
             else:
@@ -228,15 +227,16 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 if bs.singular == 0:
                     if bs.alive != 0:
                         # weight = f cos / p_material, so f cos = weight x p_material: no eval again
-                        pm = (1.0 - a) * bs.pdf + a * guide_pdf(g, root, bs.dir)
-                        bs.weight = bs.weight * (bs.pdf / pm)
-                        bs.pdf = pm
+                        bs.pdf = (1.0 - a) * bs.pdf
+                        pm = bs.pdf + a * guide_pdf(g, root, bs.dir)
+                        bs.weight = bs.weight * (bs.pdf / ((1.0 - a) * pm))
                 else:
                     bs.weight = bs.weight / (1.0 - a)
         else:
             bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel)
+            pm = bs.pdf
         node = wp.vec2i(-1, -1)
-        rpdf = bs.pdf
+        rpdf = pm
         if wp.static(guiding):
             if rec.on != 0 and dense and bs.singular == 0 and bs.alive != 0:
                 rroot = rec.tree.d_root[rqi]

@@ -70,10 +70,10 @@ class GuideTree:
 
 @wp.struct
 class GuideRecord:
-    """Where a training pass records: the tree whose leaves collect (its ``d_energy`` unused), the
-    fixed-point sums of radiance / pdf per directional node and the records per quadtree (counted
-    at its root: a few entries, which stay in the cache); ``on`` 0:
-    record nothing (the render's last pass). One per concurrently running launch."""
+    """Where a training pass records: the tree whose leaves collect (its ``d_cond`` and ``q_alpha``
+    unused), the fixed-point sums of radiance x cos / pdf and the record counts per directional
+    leaf (the host sums them up the quadtrees); ``on`` 0: record nothing (the render's last pass).
+    One per concurrently running launch."""
 
     tree: GuideTree
     energy: wp.array(dtype=wp.int64)
@@ -332,17 +332,27 @@ def conditionals(d_child: np.ndarray, d_energy: np.ndarray) -> np.ndarray:
     return cond.astype(np.float32)
 
 
-def upload_tree(tree, alpha, device: str) -> GuideTree:
+def upload_tree(tree, alpha, device: str, structure: GuideTree | None = None, sampling: bool = True) -> GuideTree:
     """A :class:`GuideTree` of the host tree ``tree`` (``guiding_tree.SDTree``) on ``device``;
     ``alpha``: one probability of sampling the guide for every quadtree that learnt some energy, or an
-    array of one per quadtree (0 where it learnt none is forced)."""
+    array of one per quadtree (0 where it learnt none is forced). ``structure``: a device tree of the
+    same structure (the recording tree ``tree`` was trained in) whose arrays are shared, not copied;
+    ``sampling`` False: a tree that only records (no probabilities uploaded)."""
     g = GuideTree()
     g.lo = wp.vec3(*[float(x) for x in tree.lo])
     g.hi = wp.vec3(*[float(x) for x in tree.hi])
-    g.s_axis = wp.array(tree.s_axis.astype(np.int32), dtype=wp.int32, device=device)
-    g.s_child = wp.array(tree.s_child.astype(np.int32), dtype=wp.int32, device=device)
-    g.d_root = wp.array(tree.d_root.astype(np.int32), dtype=wp.int32, device=device)
-    g.d_child = wp.array(tree.d_child.astype(np.int32), dtype=wp.int32, device=device)
+    if structure is not None:
+        g.s_axis, g.s_child, g.d_root, g.d_child = structure.s_axis, structure.s_child, structure.d_root, structure.d_child
+    else:
+        g.s_axis = wp.array(tree.s_axis.astype(np.int32), dtype=wp.int32, device=device)
+        g.s_child = wp.array(tree.s_child.astype(np.int32), dtype=wp.int32, device=device)
+        g.d_root = wp.array(tree.d_root.astype(np.int32), dtype=wp.int32, device=device)
+        g.d_child = wp.array(tree.d_child.astype(np.int32), dtype=wp.int32, device=device)
+    if not sampling:
+        g.d_cond = wp.zeros(1, dtype=wp.vec4, device=device)
+        g.q_alpha = wp.zeros(1, dtype=wp.float32, device=device)
+        g.alpha = 0.0
+        return g
     g.d_cond = wp.array(conditionals(tree.d_child, tree.d_energy), dtype=wp.vec4, device=device)
     learnt = np.asarray(tree.d_energy, np.float64)[tree.d_root] > 0.0
     a = np.where(learnt, np.broadcast_to(np.asarray(alpha, np.float64), learnt.shape), 0.0).astype(np.float32)

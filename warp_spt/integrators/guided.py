@@ -7,31 +7,41 @@ and Novák 2017, "Practical path guiding"; device half ``warp_spt.core.guiding``
 
     p(wi) = (1 - a) p_bsdf(wi) + a p_guide(wi)          (one-sample MIS, the balance heuristic)
 
-at every vertex with a density lobe (diffuse): with probability ``a`` (``ALPHA`` where the vertex's
-leaf has learnt something, else 0) from the guide, otherwise from the material. The choice reuses
-the direction's first sample coordinate (below ``a``: the guide, rescaled; else the material), so
-the 2D points of each branch stay stratified (with Sobol', drawing the choice from a dimension of
-its own cost 25% in MSE on the indirect room) and the bounce keeps ``nee``'s dimensions. The
-throughput is f cos / p (so the estimator stays unbiased whatever the guide), and p is also the
-density the power heuristic weighs against light sampling, which is ``nee``'s
-(``nee.make_light_sample``). Singular lobes (mirror, glass) are sampled by the material only, their
-weight divided by the probability 1 - a of taking the material's branch.
+at every vertex with a density lobe (diffuse): with probability ``a`` from the guide, otherwise
+from the material. ``a`` is learnt per quadtree between passes (``guiding_tree.quadtree_alpha``:
+0, 0.1, 0.25 or 0.5, whichever minimises the learnt radiance's second moment times the guide's
+cost; 0 where the quadtree learnt nothing), from earlier passes only, so each pass is unbiased;
+where it is 0 the vertex costs a spatial look-up and nothing more. The choice reuses the
+direction's first sample coordinate (below ``a``: the guide, rescaled; else the material), so the
+2D points of each branch stay stratified (with Sobol', drawing the choice from a dimension of its
+own cost 25% in MSE on the indirect room) and the bounce keeps ``nee``'s dimensions. The
+throughput is f cos / p (so the estimator stays unbiased whatever the guide). The power heuristic
+against light sampling (``nee``'s, ``nee.make_light_sample``) weighs the material's share of the
+mixture, (1 - a) p_bsdf, on both sides: MIS weights need only sum to 1, and this spares a guide
+look-up per light sample (the guide does not learn the emitters a path meets right after a
+recorded vertex, which light sampling covers, so it has little density there). Singular lobes
+(mirror, glass) are sampled by the material only, their weight divided by the probability 1 - a
+of taking the material's branch.
 
 Training. The spp the caller asked for are split into passes of 1, 1, 2, 4, ... samples per pixel
 (each an aligned block of sample indices: a Sobol' net of its own) while they fit in half the
 budget; the rest is the last pass. Every pass but the last records, for each diffuse vertex of each
-path, the radiance the path then gathered through that direction divided by the throughput and
-the direction's density (an estimate of the incident radiance over its density, what the
-quadtree's energies estimate) into the recording tree; between passes the host refines the tree
-(``guiding_tree.refine``, numpy) and uploads the new sampling and recording trees. The image is the
-sum of *every* pass's samples with equal weight (training passes included: each is an unbiased
-estimate, the first one pure BSDF sampling), so the film holds exactly the requested spp, the
-union of the passes is the sample sequence 0 .. spp - 1 (weighting the passes by their estimated
-inverse variance was measured and lost: it breaks the Sobol' set apart, 1.8x the MSE on the
-Cornell box at 16 spp), and the image is built pass after pass in a fixed order.
+path, the radiance the path then gathered through that direction (less an emitter met right at the
+next vertex), times the cosine to the axis of its quadtree's normal bin (so the guide learns the
+product's shape), divided by the throughput and the direction's density, into the recording tree;
+between passes the host refines the tree (``guiding_tree.refine``, numpy), learns the alphas and
+uploads the new sampling and recording trees. From the third training pass on, when fewer than
+``STOP_FRACTION`` of the records fell in quadtrees that would sample the guide, training stops and
+the rest of the samples are one pass without the guide (at ``nee``'s cost: the Cornell box). The
+image is the sum of *every* pass's samples with equal weight (training passes included: each is an
+unbiased estimate, the first one pure BSDF sampling), so the film holds exactly the requested spp,
+the union of the passes is the sample sequence 0 .. spp - 1 (weighting the passes by their
+estimated inverse variance was measured and lost: it breaks the Sobol' set apart, 1.8x the MSE on
+the Cornell box at 16 spp), and the image is built pass after pass in a fixed order.
 
 Determinism: the records are integer sums (fixed point), exact in any order, and each worker
-thread records into its own arrays, added on the host; the pass schedule depends only on the spp;
+thread records into its own arrays, added on the host; the pass schedule depends only on the spp
+and on the trees;
 so the trees and the image are a pure function of (scene, settings, seed), bit-identical over
 thread counts and tile sizes. It renders only through the tile renderer (``render_scene``): the
 tree is trained over the whole image, so row windows, progressive batches and the cluster's
@@ -87,9 +97,10 @@ from warp_spt.samplers import Sampler
 STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the direction's (see vertex)
 ALPHA = None              # probability of sampling the guide, the same for every quadtree that learnt
                           # something; None: learnt per quadtree (guiding_tree.quadtree_alpha)
-STOP_AFTER = 3            # training passes before the guide may be found not worth it (1 + 1 + 2 spp)
-STOP_FRACTION = 0.25      # ... when fewer of the records' quadtrees than this would sample it (cornell 0.07-0.18, indirect 0.55-0.9, caustics 0.3-0.7)
-MAX_RECORDS = 16        # diffuse vertices of one path that record (deeper ones do not train)
+STOP_AFTER = 2            # training passes before the guide may be found not worth it (1 + 1 spp)
+STOP_FRACTION = 0.25      # ... when fewer of the records than this fell where it is sampled (measured:
+                          # cornell 0.07-0.18, indirect 0.55-0.9, caustics 0.3-0.7)
+MAX_RECORDS = 16          # diffuse vertices of one path that record (deeper ones do not train)
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
@@ -188,7 +199,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                     qi = rec.to_sampling[rqi]
                 elif g.alpha > 0.0:
                     qi = guide_quadtree(g, sf.p, sf.ns)
-                if qi >= 0:
+                if qi >= 0 and g.alpha > 0.0:
                     a = g.q_alpha[qi]
                     if a > 0.0:
                         root = g.d_root[qi]
@@ -327,13 +338,13 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         raise ValueError("the guided integrator trains over the whole image: it cannot render a window of rows")
     plan = training_passes(rs.spp)
     rec_tree = guiding_tree.initial(b.dev.scene.bounds)
-    sampling = upload_tree(rec_tree, 0.0, device)          # pass 0: no guide, the material alone
+    sampling = upload_tree(rec_tree, 0.0, device, sampling=False)      # pass 0: no guide, the material alone
     start, launches, k, stopped = rs.sample_offset, 0, 0, False
     timing = os.environ.get("WARP_SPT_GUIDE_TRACE")     # benchmarks: per pass CPU time and alpha use
     while start < rs.sample_offset + rs.spp:
         training = k < len(plan) - 1 and not stopped
         count = plan[k] if training else rs.sample_offset + rs.spp - start
-        rec_dev = upload_tree(rec_tree, 0.0, device)
+        rec_dev = upload_tree(rec_tree, 0.0, device, sampling=False)
         records = queue.SimpleQueue()                      # one record per concurrently running job
         slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles), MAX_RECORDS,
                             device, guiding_tree.sampling_quadtrees(rec_tree)) for _ in range(max(1, threads))]
@@ -370,7 +381,9 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
             used = guiding_tree.guided_fraction(host_sampling, hits, alpha)
             # the guide is not worth its cost here: the rest of the samples are one pass without it
             stopped = ALPHA is None and k + 1 >= STOP_AFTER and used < STOP_FRACTION
-            sampling = upload_tree(host_sampling, 0.0 if stopped else alpha, device)
+            # the sampling tree has the structure of the one this pass recorded in: its arrays are shared
+            sampling = upload_tree(host_sampling, 0.0 if stopped else alpha, device, structure=rec_dev,
+                                   sampling=not stopped)
             if timing:
                 print(f"guided pass {k}: guide used at {used:.3f} of the records' quadtrees, stop {stopped}", file=sys.stderr)
         k += 1

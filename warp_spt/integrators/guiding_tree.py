@@ -10,7 +10,15 @@ integer sums the pass recorded into
   deep as ``max_depth``), and every spatial leaf that collected more than ``c * sqrt(2**k)``
   records (over its NORMAL_BINS quadtrees) split in two at the middle of its longest side (both
   halves start from its refined quadtrees), so that leaves keep about the same number of records
-  as the passes double.
+  as the passes double; ``parents`` maps each new spatial leaf to the one it refines, so that the
+  device finds both trees' quadtrees in one spatial walk (:func:`sampling_quadtrees`).
+
+:func:`quadtree_alpha` then chooses, per quadtree of the sampling tree, the probability of sampling
+the guide in pass k + 1: it evaluates, on points of every leaf, the second moment of the one-sample
+estimate of a white diffuse surface's reflected radiance (facing the quadtree's normal bin) with
+the learnt radiance, for each candidate mixture, and takes the least after charging the guide
+``GUIDE_COST``. Noise in a leaf that few records reached looks like light worth guiding to, so the
+leaf's energy is first shrunk towards the cosine's share of its quadtree (``PRIOR_RECORDS``).
 
 Everything here is a pure function of its integer inputs, visited in a fixed order: the same
 records give the same trees bit for bit. The spatial tree is walked in Python (a handful of nodes);
@@ -34,7 +42,7 @@ MAX_DIR_DEPTH = 12        # quadtree depth limit (float32 sample warping keeps ~
 MAX_SPATIAL_DEPTH = 24
 INITIAL_DIR_DEPTH = 2     # a new quadtree: 16 equal squares
 ALPHAS = (0.0, 0.1, 0.25, 0.5)   # the guide's sampling probabilities a quadtree may get (quadtree_alpha)
-GUIDE_COST = 0.5          # the guide's cost per vertex, relative, that its variance reduction must pay for
+GUIDE_COST = 0.3          # the guide's cost per vertex, relative, that its variance reduction must pay for
 PRIOR_RECORDS = 8         # quadtree_alpha: how strongly a leaf's learnt energy is shrunk towards the cosine's
 MIN_HITS = 32             # records a quadtree needs before it is sampled
 

@@ -1,13 +1,16 @@
 """Path guiding (issue 24, part 3): the guide's distribution, and the guided integrator's image.
 
-* The directional quadtree's pdf integrates to 1 over the sphere (quadrature in the equal-area
-  square), its sampling follows its pdf (chi-square over the quadtree's own cells and over a grid
-  that cuts across them), and the tree's host refinement keeps energies and structure consistent.
+* The directional quadtree's pdf integrates to 1 over the sphere (quadrature in the square, with
+  the map's Jacobian), its sampling follows its pdf (chi-square over the quadtree's own cells and
+  over a grid that cuts across them) and reports the density it evaluates, and the tree's host
+  refinement keeps energies and structure consistent; the learnt alpha is above 0 where the
+  learnt light is concentrated above the quadtree's horizon, 0 for cosine-shaped light.
 * ``guided`` converges to the same image as ``nee`` (per-block Student t over seeds, the house
-  style of tests/test_light_transport.py) on the Cornell box with its glass and glossy balls.
-* Determinism: the same image bit for bit on 1 and 2 threads and on other tile sizes; the spp
-  budget (training passes included) is respected; renderers that cannot train over the whole
-  image refuse it.
+  style of tests/test_light_transport.py) on the Cornell box with its glass and glossy balls, with
+  the learnt alpha and with the guide everywhere (alpha 0.5).
+* Determinism: the same image bit for bit on 1 and 2 threads and on other tile sizes (learnt alpha
+  and a fixed one); the spp budget (training passes included) is respected; renderers that cannot
+  train over the whole image refuse it.
 """
 
 from __future__ import annotations

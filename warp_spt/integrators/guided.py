@@ -99,7 +99,7 @@ ALPHA = None              # probability of sampling the guide, the same for ever
                           # something; None: learnt per quadtree (guiding_tree.quadtree_alpha)
 STOP_AFTER = 2            # training passes before the guide may be found not worth it (1 + 1 spp)
 STOP_FRACTION = 0.25      # ... when fewer of the records than this fell where it is sampled (measured:
-                          # cornell 0.07-0.18, indirect 0.55-0.9, caustics 0.3-0.7)
+                          # cornell 0.07-0.18, indirect 0.55-0.95, caustics 0.16-0.7)
 MAX_RECORDS = 16          # diffuse vertices of one path that record (deeper ones do not train)
 
 

@@ -1,13 +1,16 @@
 """Path guiding (issue 24, part 3): the guide's distribution, and the guided integrator's image.
 
-* The directional quadtree's pdf integrates to 1 over the sphere (quadrature in the equal-area
-  square), its sampling follows its pdf (chi-square over the quadtree's own cells and over a grid
-  that cuts across them), and the tree's host refinement keeps energies and structure consistent.
+* The directional quadtree's pdf integrates to 1 over the sphere (quadrature in the square, with
+  the map's Jacobian), its sampling follows its pdf (chi-square over the quadtree's own cells and
+  over a grid that cuts across them) and reports the density it evaluates, and the tree's host
+  refinement keeps energies and structure consistent; the learnt alpha is above 0 where the
+  learnt light is concentrated above the quadtree's horizon, 0 for cosine-shaped light.
 * ``guided`` converges to the same image as ``nee`` (per-block Student t over seeds, the house
-  style of tests/test_light_transport.py) on the Cornell box with its glass and glossy balls.
-* Determinism: the same image bit for bit on 1 and 2 threads and on other tile sizes; the spp
-  budget (training passes included) is respected; renderers that cannot train over the whole
-  image refuse it.
+  style of tests/test_light_transport.py) on the Cornell box with its glass and glossy balls, with
+  the learnt alpha and with the guide everywhere (alpha 0.5).
+* Determinism: the same image bit for bit on 1 and 2 threads and on other tile sizes (learnt alpha
+  and a fixed one); the spp budget (training passes included) is respected; renderers that cannot
+  train over the whole image refuse it.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.guiding import GuideTree, guide_pdf, guide_sample, upload_tree
+from warp_spt.core.guiding import GuideTree, dir_to_square_np, guide_pdf, guide_sample, square_to_dir_np, upload_tree
 from warp_spt.integrators import guided, guiding_tree
 from warp_spt.rendering.settings import RenderSettings
 
@@ -79,13 +82,6 @@ def _leaves(tree, root):
     return out
 
 
-def _square_to_dir(s):
-    z = 2 * s[..., 0] - 1
-    r = np.sqrt(np.maximum(0, 1 - z * z))
-    phi = 2 * np.pi * s[..., 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
-
-
 def test_refined_quadtree_is_consistent():
     tree = _trained_tree()
     assert tree.leaves == 1 and tree.d_root.size == 6
@@ -100,13 +96,14 @@ def test_guide_pdf_integrates_to_one_and_matches_its_sampling():
     tree = _trained_tree()
     g = upload_tree(tree, 0.5, "cpu")
     root = int(tree.d_root[2])
-    # quadrature: the map is equal-area, so the integral over the sphere is 4 pi x the mean over the square
+    # quadrature over the square: d omega = d area / jacobian (the map's, square_to_dir_np)
     m = 1024
     grid = (np.stack(np.meshgrid(np.arange(m), np.arange(m), indexing="ij"), axis=-1).reshape(-1, 2) + 0.5) / m
-    dirs = wp.array(_square_to_dir(grid).astype(np.float32), dtype=wp.vec3)
+    grid_dirs, grid_jac = square_to_dir_np(grid)
+    dirs = wp.array(grid_dirs.astype(np.float32), dtype=wp.vec3)
     pdfs = wp.zeros(m * m, dtype=float)
     wp.launch(_pdf_kernel, dim=m * m, inputs=[g, root, dirs, pdfs])
-    assert abs(4 * math.pi * pdfs.numpy().astype(np.float64).mean() - 1.0) < 2e-3
+    assert abs((pdfs.numpy().astype(np.float64) / grid_jac).mean() - 1.0) < 2e-3
 
     # sampling: the pdf each sample reports is the pdf of its direction, and the samples follow it
     n = 400_000
@@ -118,7 +115,7 @@ def test_guide_pdf_integrates_to_one_and_matches_its_sampling():
     # the density found while sampling is the one evaluated for the direction; the round trip
     # square -> direction -> square may cross a leaf's edge by a rounding error (1 in 400k here)
     assert (spdf.numpy() > 0).mean() > 1 - 1e-4
-    s = np.stack([(d[:, 2] + 1) / 2, (np.arctan2(d[:, 1], d[:, 0]) % (2 * np.pi)) / (2 * np.pi)], axis=1)
+    s = dir_to_square_np(d)
     # chi-square over the quadtree's own leaves (expected counts: pdf x area) and over a grid
     leaves = _leaves(tree, root)
     expected = np.array([float(tree.d_energy[nd]) for nd, _ in leaves]) / float(tree.d_energy[root]) * n
@@ -133,8 +130,9 @@ def test_guide_pdf_integrates_to_one_and_matches_its_sampling():
     sub = (np.stack(np.meshgrid(np.arange(fine), np.arange(fine), indexing="ij"), -1).reshape(-1, 2) + 0.5) / (fine * cells)
     pts = (centers[:, None, :] - 0.5 / cells + sub[None, :, :]).reshape(-1, 2)
     pd = wp.zeros(len(pts), dtype=float)
-    wp.launch(_pdf_kernel, dim=len(pts), inputs=[g, root, wp.array(_square_to_dir(pts).astype(np.float32), dtype=wp.vec3), pd])
-    exp_grid = pd.numpy().astype(np.float64).reshape(cells * cells, -1).mean(axis=1) * 4 * math.pi / cells**2 * n
+    pts_dirs, pts_jac = square_to_dir_np(pts)
+    wp.launch(_pdf_kernel, dim=len(pts), inputs=[g, root, wp.array(pts_dirs.astype(np.float32), dtype=wp.vec3), pd])
+    exp_grid = (pd.numpy().astype(np.float64) / pts_jac).reshape(cells * cells, -1).mean(axis=1) / cells**2 * n
     _assert_chi2(hist, exp_grid)
 
 
@@ -183,21 +181,53 @@ def test_training_passes_fit_the_budget():
     assert all(s % n == 0 for s, n in zip(starts, guided.training_passes(64)))
 
 
-def test_guided_converges_to_the_same_image_as_nee(cornell):
-    # the Cornell box of the stability suite: diffuse walls, a glossy and a glass ball, a ceiling light
+@pytest.mark.parametrize("alpha", [None, 0.5], ids=["learnt-alpha", "alpha-0.5"])
+def test_guided_converges_to_the_same_image_as_nee(cornell, monkeypatch, alpha):
+    # the Cornell box of the stability suite: diffuse walls, a glossy and a glass ball, a ceiling light;
+    # alpha None: learnt per quadtree (here mostly 0, and training stops); 0.5: the guide everywhere
+    monkeypatch.setattr(guided, "ALPHA", alpha)
     ref = np.stack([_render(cornell, integrator="nee", seed=500 + k).image for k in range(SEEDS)])
     out = np.stack([_render(cornell, integrator="guided", seed=700 + k).image for k in range(SEEDS)])
     assert_same_image(ref, out, "guided vs nee")
 
 
-def test_guided_is_deterministic_and_keeps_the_budget(cornell, monkeypatch):
+@pytest.mark.parametrize("alpha", [None, 0.25], ids=["learnt-alpha", "alpha-0.25"])
+def test_guided_is_deterministic_and_keeps_the_budget(cornell, monkeypatch, alpha):
+    monkeypatch.setattr(guided, "ALPHA", alpha)
     one = _render(cornell, integrator="guided", threads=1, spp=12)
     two = _render(cornell, integrator="guided", threads=2, spp=12, tile_pixels=40)
     assert np.array_equal(one.film.sum, two.film.sum)
     assert one.film.spp == 12 and one.stats.pixel_samples == SIZE * SIZE * 12
-    # the guide is used: without it (alpha 0) the same samples give another image
-    monkeypatch.setattr(guided, "ALPHA", 0.0)
-    assert not np.array_equal(one.film.sum, _render(cornell, integrator="guided", threads=1, spp=12).film.sum)
+    if alpha:
+        # the guide is used: without it (alpha 0) the same samples give another image
+        monkeypatch.setattr(guided, "ALPHA", 0.0)
+        assert not np.array_equal(one.film.sum, _render(cornell, integrator="guided", threads=1, spp=12).film.sum)
+
+
+def test_learnt_alpha_follows_the_guides_benefit():
+    # a quadtree whose learnt radiance is a bright spot gets the guide; one with a uniform sky does not
+    tree = _trained_tree()
+    hits = np.full(tree.dir_nodes, 1000, np.int64)
+    alpha = guiding_tree.quadtree_alpha(tree, hits)
+    assert alpha[4] > 0 and alpha[0] == 0     # the spot is above the +z bin's horizon (4), below +x's (0)
+    flat = guiding_tree.SDTree(tree.lo, tree.hi, tree.s_axis, tree.s_child, tree.d_root, tree.d_child,
+                               _cosine_energies(tree))
+    assert (guiding_tree.quadtree_alpha(flat, hits) == 0).all()
+    assert guiding_tree.quadtree_alpha(tree, np.zeros(tree.dir_nodes, np.int64)).max() == 0    # too few records
+
+
+def _cosine_energies(tree) -> np.ndarray:
+    """Energies of a constant radiance times the cosine to each quadtree's axis (what cosine sampling matches)."""
+    node, q, corner, size = guiding_tree._quadtree_leaves(tree.d_child, tree.d_root)
+    sub = 8
+    grid = (np.stack(np.meshgrid(np.arange(sub), np.arange(sub), indexing="ij"), -1).reshape(-1, 2) + 0.5) / sub
+    dirs, jac = square_to_dir_np(corner[:, None, :] + grid[None] * size[:, None, None])
+    b = q % 6
+    cos = np.maximum(dirs[np.arange(len(b))[:, None], np.arange(sub * sub)[None], b[:, None] // 2]
+                     * np.where(b % 2 == 0, 1.0, -1.0)[:, None], 0.0)
+    e = np.zeros(tree.dir_nodes)
+    e[node] = (cos / jac).sum(axis=1) * (size * size / sub**2)
+    return guiding_tree.summed(tree, e)
 
 
 def test_renderers_that_split_the_image_refuse_guided(cornell):

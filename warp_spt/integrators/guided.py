@@ -7,31 +7,41 @@ and Novák 2017, "Practical path guiding"; device half ``warp_spt.core.guiding``
 
     p(wi) = (1 - a) p_bsdf(wi) + a p_guide(wi)          (one-sample MIS, the balance heuristic)
 
-at every vertex with a density lobe (diffuse): with probability ``a`` (``ALPHA`` where the vertex's
-leaf has learnt something, else 0) from the guide, otherwise from the material. The choice reuses
-the direction's first sample coordinate (below ``a``: the guide, rescaled; else the material), so
-the 2D points of each branch stay stratified (with Sobol', drawing the choice from a dimension of
-its own cost 25% in MSE on the indirect room) and the bounce keeps ``nee``'s dimensions. The
-throughput is f cos / p (so the estimator stays unbiased whatever the guide), and p is also the
-density the power heuristic weighs against light sampling, which is ``nee``'s
-(``nee.make_light_sample``). Singular lobes (mirror, glass) are sampled by the material only, their
-weight divided by the probability 1 - a of taking the material's branch.
+at every vertex with a density lobe (diffuse): with probability ``a`` from the guide, otherwise
+from the material. ``a`` is learnt per quadtree between passes (``guiding_tree.quadtree_alpha``:
+0, 0.1, 0.25 or 0.5, whichever minimises the learnt radiance's second moment times the guide's
+cost; 0 where the quadtree learnt nothing), from earlier passes only, so each pass is unbiased;
+where it is 0 the vertex costs a spatial look-up and nothing more. The choice reuses the
+direction's first sample coordinate (below ``a``: the guide, rescaled; else the material), so the
+2D points of each branch stay stratified (with Sobol', drawing the choice from a dimension of its
+own cost 25% in MSE on the indirect room) and the bounce keeps ``nee``'s dimensions. The
+throughput is f cos / p (so the estimator stays unbiased whatever the guide). The power heuristic
+against light sampling (``nee``'s, ``nee.make_light_sample``) weighs the material's share of the
+mixture, (1 - a) p_bsdf, on both sides: MIS weights need only sum to 1, and this spares a guide
+look-up per light sample (the guide does not learn the emitters a path meets right after a
+recorded vertex, which light sampling covers, so it has little density there). Singular lobes
+(mirror, glass) are sampled by the material only, their weight divided by the probability 1 - a
+of taking the material's branch.
 
 Training. The spp the caller asked for are split into passes of 1, 1, 2, 4, ... samples per pixel
 (each an aligned block of sample indices: a Sobol' net of its own) while they fit in half the
 budget; the rest is the last pass. Every pass but the last records, for each diffuse vertex of each
-path, the radiance the path then gathered through that direction divided by the throughput and
-the direction's density (an estimate of the incident radiance over its density, what the
-quadtree's energies estimate) into the recording tree; between passes the host refines the tree
-(``guiding_tree.refine``, numpy) and uploads the new sampling and recording trees. The image is the
-sum of *every* pass's samples with equal weight (training passes included: each is an unbiased
-estimate, the first one pure BSDF sampling), so the film holds exactly the requested spp, the
-union of the passes is the sample sequence 0 .. spp - 1 (weighting the passes by their estimated
-inverse variance was measured and lost: it breaks the Sobol' set apart, 1.8x the MSE on the
-Cornell box at 16 spp), and the image is built pass after pass in a fixed order.
+path, the radiance the path then gathered through that direction (less an emitter met right at the
+next vertex), times the cosine to the axis of its quadtree's normal bin (so the guide learns the
+product's shape), divided by the throughput and the direction's density, into the recording tree;
+between passes the host refines the tree (``guiding_tree.refine``, numpy), learns the alphas and
+uploads the new sampling and recording trees. From the third training pass on, when fewer than
+``STOP_FRACTION`` of the records fell in quadtrees that would sample the guide, training stops and
+the rest of the samples are one pass without the guide (at ``nee``'s cost: the Cornell box). The
+image is the sum of *every* pass's samples with equal weight (training passes included: each is an
+unbiased estimate, the first one pure BSDF sampling), so the film holds exactly the requested spp,
+the union of the passes is the sample sequence 0 .. spp - 1 (weighting the passes by their
+estimated inverse variance was measured and lost: it breaks the Sobol' set apart, 1.8x the MSE on
+the Cornell box at 16 spp), and the image is built pass after pass in a fixed order.
 
 Determinism: the records are integer sums (fixed point), exact in any order, and each worker
-thread records into its own arrays, added on the host; the pass schedule depends only on the spp;
+thread records into its own arrays, added on the host; the pass schedule depends only on the spp
+and on the trees;
 so the trees and the image are a pure function of (scene, settings, seed), bit-identical over
 thread counts and tile sizes. It renders only through the tile renderer (``render_scene``): the
 tree is trained over the whole image, so row windows, progressive batches and the cluster's
@@ -42,7 +52,10 @@ the tasks; that shipping is not implemented.
 
 from __future__ import annotations
 
+import os
 import queue
+import sys
+import time
 
 import numpy as np
 import warp as wp
@@ -52,11 +65,11 @@ from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, mak
 from warp_spt.core.guiding import (
     GuideRecord,
     GuideTree,
+    bin_cos,
     dir_leaf,
     guide_pdf,
-    guide_root,
+    guide_quadtree,
     guide_sample,
-    guide_usable,
     new_record,
     record_energy,
     upload_tree,
@@ -67,6 +80,7 @@ from warp_spt.core.surface import Surface, make_surface
 from warp_spt.integrators import guiding_tree
 from warp_spt.integrators.common import (
     DIM_BOUNCE,
+    FAST_KERNEL_OPTIONS,
     FULL_STRIDE,
     CameraParams,
     Integrator,
@@ -81,7 +95,11 @@ from warp_spt.runtime.threads import run_jobs
 from warp_spt.samplers import Sampler
 
 STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the direction's (see vertex)
-ALPHA = 0.25              # probability of sampling the guide at a vertex whose leaf has learnt something
+ALPHA = None              # probability of sampling the guide, the same for every quadtree that learnt
+                          # something; None: learnt per quadtree (guiding_tree.quadtree_alpha)
+STOP_AFTER = 2            # training passes before the guide may be found not worth it (1 + 1 spp)
+STOP_FRACTION = 0.25      # ... when fewer of the records than this fell where it is sampled (measured:
+                          # cornell 0.07-0.18, indirect 0.55-0.95, caustics 0.16-0.7)
 MAX_RECORDS = 16          # diffuse vertices of one path that record (deeper ones do not train)
 
 
@@ -117,14 +135,6 @@ def make_vertex_guided(features: Features, sampler: Sampler):
     light_sample = make_light_sample(sampler, light)
 
     @wp.func
-    def mixture_pdf(mats: Materials, sf: Surface, g: GuideTree, root: int, a: float, wi: wp.vec3) -> float:
-        """Density of the mixture (material with 1 - a, guide with a) producing ``wi``."""
-        p = (1.0 - a) * mat.pdf(mats, sf, wi)
-        if a > 0.0:
-            p += a * guide_pdf(g, root, wi)
-        return p
-
-    @wp.func
     def mis_bsdf(p: PathState, pdf_light: float) -> float:
         """MIS weight of an emitter reached by the path's sampled direction."""
         if wp.static(not sample_lights):
@@ -143,7 +153,9 @@ def make_vertex_guided(features: Features, sampler: Sampler):
             le = wp.cw_mul(mat.eval(mats, tex, sf, ls.dir), light.le(geo, mats, tex, lights, ls, x))
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
                 if not occluded(geo, x, ls.dir, ls.t_max):
-                    w = power_heuristic(ls.pdf, mixture_pdf(mats, sf, g, root, a, ls.dir))
+                    # MIS against the material's share of the mixture, (1 - a) p_material: the
+                    # emitter the sampled direction meets is weighed with the same density (see vertex)
+                    w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, sf, ls.dir))
                     contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 
@@ -154,30 +166,43 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         p = path
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_miss(lights, p.d))
-            p.radiance += wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
+            hit_le = wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
+            p.radiance += hit_le
             p.alive = 0
-            return p, wp.vec2i(-1, -1), float(0.0)
+            return p, wp.vec2i(-1, -1), float(0.0), hit_le[0] + hit_le[1] + hit_le[2]
         p.depth += 1
         sf = surface_at(geo, h, p.o, p.d)
+        emitted = float(0.0)
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
                 w = mis_bsdf(p, light.pdf_li(geo, lights, h, p.o, p.d))
-                p.radiance += wp.cw_mul(p.throughput, le) * w
+                hit_le = wp.cw_mul(p.throughput, le) * w
+                p.radiance += hit_le
+                emitted = hit_le[0] + hit_le[1] + hit_le[2]
         if p.depth >= rp.max_depth:
             p.alive = 0
-            return p, wp.vec2i(-1, -1), float(0.0)
+            return p, wp.vec2i(-1, -1), float(0.0), emitted
         base = DIM_BOUNCE + wp.static(STRIDE) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)
         dense = bool(False)
         root = int(-1)
+        rqi = int(-1)
         a = float(0.0)
         if wp.static(guiding):
             dense = mat.has_density(mats, sf)
-            if dense and g.alpha > 0.0:
-                root = guide_root(g, sf.p, sf.ns)
-                if guide_usable(g, root):
-                    a = g.alpha
+            if dense:
+                qi = int(-1)
+                if rec.on != 0:
+                    # one spatial walk, in the recording tree, which refines the sampling tree
+                    rqi = guide_quadtree(rec.tree, sf.p, sf.ns)
+                    qi = rec.to_sampling[rqi]
+                elif g.alpha > 0.0:
+                    qi = guide_quadtree(g, sf.p, sf.ns)
+                if qi >= 0 and g.alpha > 0.0:
+                    a = g.q_alpha[qi]
+                    if a > 0.0:
+                        root = g.d_root[qi]
         if wp.static(sample_lights):
             if dense:
                 contrib, st = direct(geo, mats, tex, lights, p, sf, base, g, root, a)
@@ -186,39 +211,54 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 lit.sampler = st
                 p = lit
         bs = BsdfSample()
+        pm = float(0.0)        # the density the direction was sampled with: the mixture's
+        # bs.pdf, the density multiple importance sampling weighs against light sampling, is the
+        # material's share alone, (1 - a) p_material: MIS weights need only sum to 1 over the
+        # techniques, so any density used on both sides is unbiased, and this one spares a guide
+        # look-up per light sample (the guide learns no emitter light sampling reaches: little lost)
         if a > 0.0:
             # the direction's first coordinate also chooses guide or material (rescaled, as reuse_pick):
             # the 2D point set stays stratified within each branch, and no dimension is drawn for it
-            pg = float(-1.0)
             if u_dir[0] < a:
                 gd, pg = guide_sample(g, root, wp.vec2(wp.min(u_dir[0] / a, 0.99999994), u_dir[1]))
                 bs.dir = gd
                 bs.singular = 0
                 bs.through = 0
                 bs.alive = 1
-            else:
-                u_mat = wp.vec2(wp.min((u_dir[0] - a) / (1.0 - a), 0.99999994), u_dir[1])
-                bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_mat, u_fresnel)
-            if bs.singular == 0:
-                if pg < 0.0:
-                    pg = guide_pdf(g, root, bs.dir)
-                pm = (1.0 - a) * mat.pdf(mats, sf, bs.dir) + a * pg
-                f = mat.eval(mats, tex, sf, bs.dir)
+                bs.pdf = (1.0 - a) * mat.pdf(mats, sf, gd)
+                pm = bs.pdf + a * pg
+                f = mat.eval(mats, tex, sf, gd)
                 if pm > 0.0 and wp.max(wp.max(f[0], f[1]), f[2]) > 0.0:
                     bs.weight = f / pm
-                    bs.pdf = pm
                 else:
                     bs.alive = 0
             else:
-                bs.weight = bs.weight / (1.0 - a)
+                u_mat = wp.vec2(wp.min((u_dir[0] - a) / (1.0 - a), 0.99999994), u_dir[1])
+                bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_mat, u_fresnel)
+                if bs.singular == 0:
+                    if bs.alive != 0:
+                        # weight = f cos / p_material, so f cos = weight x p_material: no eval again
+                        bs.pdf = (1.0 - a) * bs.pdf
+                        pm = bs.pdf + a * guide_pdf(g, root, bs.dir)
+                        bs.weight = bs.weight * (bs.pdf / ((1.0 - a) * pm))
+                else:
+                    bs.weight = bs.weight / (1.0 - a)
         else:
             bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel)
+            pm = bs.pdf
         node = wp.vec2i(-1, -1)
+        rpdf = pm
         if wp.static(guiding):
             if rec.on != 0 and dense and bs.singular == 0 and bs.alive != 0:
-                rroot = guide_root(rec.tree, sf.p, sf.ns)
+                rroot = rec.tree.d_root[rqi]
                 node = wp.vec2i(dir_leaf(rec.tree, rroot, bs.dir), rroot)
-        return continue_path(p, sf, bs, geo.extent), node, bs.pdf
+                # learn radiance x cos to the quadtree's axis (its normal bin): the product's shape
+                c = bin_cos(sf.ns, bs.dir)
+                if c > 0.0:
+                    rpdf = rpdf / c
+                else:
+                    node = wp.vec2i(-1, -1)
+        return continue_path(p, sf, bs, geo.extent), node, rpdf, emitted
 
     return vertex
 
@@ -229,7 +269,7 @@ def make_kernel(step, start_path):
     recording vertices, the radiance it gathered after that vertex over the throughput there and
     the direction's density, in fixed point, to ``rec`` (the launch is serial on the CPU)."""
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
               rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64),
               work: wp.array(dtype=wp.vec3i), g: GuideTree, rec: GuideRecord):
@@ -240,8 +280,14 @@ def make_kernel(step, start_path):
         for j in range(rp.sample_count):
             path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
             n = int(0)
+            recorded = int(0)
             while path.alive != 0:
-                path, node, pdf = step(geo, mats, tex, lights, rp, g, rec, path)
+                path, node, pdf, emitted = step(geo, mats, tex, lights, rp, g, rec, path)
+                if recorded != 0:
+                    # the emitter the last recorded direction met directly: light sampling's share
+                    v = rec.slot_value[wp.tid(), n - 1]
+                    rec.slot_value[wp.tid(), n - 1] = wp.vec2(v[0] + emitted, v[1])
+                recorded = 0
                 if node[0] >= 0 and n < MAX_RECORDS:
                     t = path.throughput[0] + path.throughput[1] + path.throughput[2]
                     if t > 0.0 and pdf > 0.0:
@@ -249,6 +295,7 @@ def make_kernel(step, start_path):
                         rec.slot_value[wp.tid(), n] = wp.vec2(path.radiance[0] + path.radiance[1] + path.radiance[2],
                                                               1.0 / (t * pdf))
                         n += 1
+                        recorded = 1
             rays += path.rays
             L = path.radiance
             if wp.isfinite(L):
@@ -258,7 +305,7 @@ def make_kernel(step, start_path):
                     where = rec.slot_node[wp.tid(), i]
                     v = rec.slot_value[wp.tid(), i]
                     rec.energy[where[0]] = rec.energy[where[0]] + record_energy((total - v[0]) * v[1])
-                    rec.hits[where[1]] = rec.hits[where[1]] + wp.int64(1)
+                    rec.hits[where[0]] = rec.hits[where[0]] + wp.int64(1)
             else:
                 bad += 1
         film[pix] = film[pix] + acc
@@ -289,16 +336,18 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
     rs, device = b.settings, b.dev.device
     if tiles[0][0] != 0 or tiles[-1][1] != b.pixels:
         raise ValueError("the guided integrator trains over the whole image: it cannot render a window of rows")
-    passes = training_passes(rs.spp)
+    plan = training_passes(rs.spp)
     rec_tree = guiding_tree.initial(b.dev.scene.bounds)
-    sampling = upload_tree(rec_tree, 0.0, device)          # pass 0: no guide, the material alone
-    start, launches = rs.sample_offset, 0
-    for k, count in enumerate(passes):
-        training = k < len(passes) - 1
-        rec_dev = upload_tree(rec_tree, 0.0, device)
+    sampling = upload_tree(rec_tree, 0.0, device, sampling=False)      # pass 0: no guide, the material alone
+    start, launches, k, stopped = rs.sample_offset, 0, 0, False
+    timing = os.environ.get("WARP_SPT_GUIDE_TRACE")     # benchmarks: per pass CPU time and alpha use
+    while start < rs.sample_offset + rs.spp:
+        training = k < len(plan) - 1 and not stopped
+        count = plan[k] if training else rs.sample_offset + rs.spp - start
+        rec_dev = upload_tree(rec_tree, 0.0, device, sampling=False)
         records = queue.SimpleQueue()                      # one record per concurrently running job
         slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles), MAX_RECORDS,
-                            device) for _ in range(max(1, threads))]
+                            device, guiding_tree.sampling_quadtrees(rec_tree)) for _ in range(max(1, threads))]
         for r in slots:
             records.put(r)
         chunks = [(start + s, min(per_launch, count - s)) for s in range(0, count, per_launch)]
@@ -317,14 +366,27 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
             finally:
                 records.put(rec)
 
+        t0 = time.process_time()
         run_jobs(tiles, work, threads, report)
+        if timing:
+            print(f"guided pass {k}: {count} spp, {(time.process_time() - t0) / count * 1e3:.2f} CPU ms/spp, "
+                  f"training {training}", file=sys.stderr)
         launches += len(tiles) * len(chunks)
         start += count
         if training:
-            energy = sum(r.energy.numpy() for r in slots)
-            hits = sum(r.hits.numpy() for r in slots)
-            host_sampling, rec_tree = guiding_tree.refine(rec_tree, np.asarray(energy), np.asarray(hits), k)
-            sampling = upload_tree(host_sampling, ALPHA, device)
+            energy = np.asarray(sum(r.energy.numpy() for r in slots))
+            hits = np.asarray(sum(r.hits.numpy() for r in slots))
+            host_sampling, rec_tree = guiding_tree.refine(rec_tree, energy, hits, k)
+            alpha = guiding_tree.quadtree_alpha(host_sampling, hits) if ALPHA is None else ALPHA
+            used = guiding_tree.guided_fraction(host_sampling, hits, alpha)
+            # the guide is not worth its cost here: the rest of the samples are one pass without it
+            stopped = ALPHA is None and k + 1 >= STOP_AFTER and used < STOP_FRACTION
+            # the sampling tree has the structure of the one this pass recorded in: its arrays are shared
+            sampling = upload_tree(host_sampling, 0.0 if stopped else alpha, device, structure=rec_dev,
+                                   sampling=not stopped)
+            if timing:
+                print(f"guided pass {k}: guide used at {used:.3f} of the records' quadtrees, stop {stopped}", file=sys.stderr)
+        k += 1
     return launches
 
 

@@ -20,13 +20,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_guiding import reference, render  # noqa: E402
-from bench_vs_mitsuba import SCENES, warp_scene  # noqa: E402
+from bench_guiding import efficiency_rows  # noqa: E402
 
 
 def configure(text: str) -> tuple[str, int]:
@@ -50,33 +47,8 @@ def main() -> int:
     spps = tuple(int(x) for x in args.spp.split(","))
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
-    rows_names = args.integrators.split(",")
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.scenes.split(","):
-            desc = SCENES[name]
-            (Path(tmp) / name).mkdir()
-            scene = warp_scene(desc, Path(tmp) / name)
-            ra, rb = reference(name, scene, desc, args.size, args.ref_spp, cache)
-            ref, ref_mse = 0.5 * (ra + rb), float(np.mean((ra - rb) ** 2)) / 4
-            for key in rows_names:
-                render(scene, desc, 8, 4, *configure(key)[:1], 1, configure(key)[1])      # compile and warm
-            for spp in spps:
-                eff = {}
-                for key in rows_names:
-                    integ, rr = configure(key)
-                    mses, secs = [], []
-                    for s in range(args.seeds):
-                        img, sec = render(scene, desc, args.size, spp, integ, 100 + s, rr)
-                        mses.append(max(float(np.mean((img - ref) ** 2)) - ref_mse, 1e-3 * ref_mse))
-                        secs.append(sec)
-                    mse, sec = float(np.mean(mses)), float(np.mean(secs))
-                    eff[key] = (mse, sec, 1.0 / (mse * sec))
-                base = eff["nee"][2]
-                for key, (mse, sec, e) in eff.items():
-                    rows.append((name, spp, key, mse, sec, e / base))
-                    print(f"{name:9s} {spp:4d} spp  {key:10s} MSE {mse:.4g}  CPU {sec:7.2f} s  "
-                          f"efficiency / nee {e / base:5.2f}", flush=True)
+    configs = {key: (lambda key=key: configure(key)) for key in args.integrators.split(",")}
+    rows = efficiency_rows(args.scenes.split(","), configs, args.size, spps, args.ref_spp, cache, args.seeds)
     print("\n| scene | size | spp | integrator | MSE | CPU s | efficiency / nee |\n|---|---|---|---|---|---|---|")
     for name, spp, key, mse, sec, ratio in rows:
         print(f"| {name} | {args.size} | {spp} | {key} | {mse:.3g} | {sec:.2f} | {ratio:.2f} |")

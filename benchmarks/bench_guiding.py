@@ -57,6 +57,52 @@ def parse_config(text: str) -> tuple[str, int]:
     return name, int(opt[2:]) if opt.startswith("rr") else 0
 
 
+def efficiency(render_seed, seeds: int, ref: np.ndarray, ref_mse: float) -> tuple[float, float, float]:
+    """(MSE, CPU s, 1 / (MSE x CPU s)) averaged over ``seeds`` renders ``render_seed(100 + s) -> (image,
+    CPU s)``, the reference's own MSE subtracted (floored at a thousandth of it)."""
+    mses, secs = [], []
+    for s in range(seeds):
+        img, sec = render_seed(100 + s)
+        mses.append(max(float(np.mean((img - ref) ** 2)) - ref_mse, 1e-3 * ref_mse))
+        secs.append(sec)
+    mse, sec = float(np.mean(mses)), float(np.mean(secs))
+    return mse, sec, 1.0 / (mse * sec)
+
+
+def report(name: str, spp: int, eff: dict) -> list[tuple]:
+    """Print each configuration's efficiency over ``nee``'s; the rows of the final table."""
+    base, rows = eff["nee"][2], []
+    for key, (mse, sec, e) in eff.items():
+        rows.append((name, spp, key, mse, sec, e / base))
+        print(f"{name:9s} {spp:4d} spp  {key:12s} MSE {mse:.4g}  CPU {sec:7.2f} s  efficiency / nee {e / base:5.2f}",
+              flush=True)
+    return rows
+
+
+def efficiency_rows(scenes: list[str], configs: dict, size: int, spps, ref_spp: int, cache: Path,
+                    seeds: int) -> list[tuple]:
+    """(scene, spp, key, MSE, CPU s, efficiency / nee) for each scene, spp and configuration;
+    ``configs[key]()`` prepares a configuration and returns its (integrator, roulette depth)."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in scenes:
+            desc = SCENES[name]
+            (Path(tmp) / name).mkdir()
+            scene = warp_scene(desc, Path(tmp) / name)
+            ra, rb = reference(name, scene, desc, size, ref_spp, cache)
+            ref, ref_mse = 0.5 * (ra + rb), float(np.mean((ra - rb) ** 2)) / 4
+            for setup in configs.values():
+                render(scene, desc, 8, 4, *setup()[:1], 1, setup()[1])            # compile and warm
+            for spp in spps:
+                eff = {}
+                for key, setup in configs.items():
+                    integ, rr = setup()
+                    eff[key] = efficiency(lambda seed: render(scene, desc, size, spp, integ, seed, rr),
+                                          seeds, ref, ref_mse)
+                rows += report(name, spp, eff)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -75,32 +121,8 @@ def main() -> int:
     cache = Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     configs = [parse_config(c) for c in args.integrators.split(",")]
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.scenes.split(","):
-            desc = SCENES[name]
-            (Path(tmp) / name).mkdir()
-            scene = warp_scene(desc, Path(tmp) / name)
-            ra, rb = reference(name, scene, desc, size, ref_spp, cache)
-            ref, ref_mse = 0.5 * (ra + rb), float(np.mean((ra - rb) ** 2)) / 4
-            for integ, rr in configs:
-                render(scene, desc, 8, 2, integ, 1, rr)            # compile and warm
-            for spp in spps:
-                eff = {}
-                for integ, rr in configs:
-                    mses, secs = [], []
-                    for s in range(args.seeds):
-                        img, sec = render(scene, desc, size, spp, integ, 100 + s, rr)
-                        mses.append(max(float(np.mean((img - ref) ** 2)) - ref_mse, 1e-3 * ref_mse))
-                        secs.append(sec)
-                    mse, sec = float(np.mean(mses)), float(np.mean(secs))
-                    key = integ + (f":rr{rr}" if rr else "")
-                    eff[key] = (mse, sec, 1.0 / (mse * sec))
-                base = eff["nee"][2]
-                for key, (mse, sec, e) in eff.items():
-                    rows.append((name, spp, key, mse, sec, e / base))
-                    print(f"{name:9s} {spp:4d} spp  {key:12s} MSE {mse:.4g}  CPU {sec:7.2f} s  "
-                          f"efficiency / nee {e / base:5.2f}", flush=True)
+    configs = {integ + (f":rr{rr}" if rr else ""): (lambda c=(integ, rr): c) for integ, rr in configs}
+    rows = efficiency_rows(args.scenes.split(","), configs, size, spps, ref_spp, cache, args.seeds)
     print("\n| scene | spp | integrator | MSE | CPU s | efficiency / nee |\n|---|---|---|---|---|---|")
     for name, spp, key, mse, sec, ratio in rows:
         print(f"| {name} | {spp} | {key} | {mse:.4g} | {sec:.2f} | {ratio:.2f} |")

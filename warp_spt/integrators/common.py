@@ -199,6 +199,17 @@ FAST_KERNEL_OPTIONS = {
 }
 
 
+@wp.func
+def add_to_pixel(film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64), pix: int, acc: wp.vec3d,
+                 rays: int, bad: int):
+    """What a fast kernel's thread adds for its pixel once its samples are done: their float64 sum to
+    the film, the rays traced and the non-finite samples dropped to the counters (every integrator's
+    kernel ends so)."""
+    film[pix] = film[pix] + acc
+    counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
+    counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
+
+
 def make_kernel(step, start_path):
     """The fast forward kernel: each thread renders some samples of one pixel, summed in float64 and
     added to the film, so a large sample count never drifts.
@@ -234,8 +245,6 @@ def make_kernel(step, start_path):
                 acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
             else:
                 bad += 1           # counted and reported in RenderResult.stats; tests require zero
-        film[pix] = film[pix] + acc
-        counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
-        counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
+        add_to_pixel(film, counters, pix, acc, rays, bad)
 
     return trace

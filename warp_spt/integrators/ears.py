@@ -62,6 +62,7 @@ from warp_spt.integrators.common import (
     Integrator,
     PathState,
     RenderParams,
+    add_to_pixel,
 )
 from warp_spt.integrators.guiding_tree import box_of
 from warp_spt.integrators.nee import make_path_step
@@ -241,9 +242,7 @@ def make_kernel(step, start_path):
                         rec.cost[k] = rec.cost[k] + wp.int64(path.rays - int(v[2]))
             else:
                 bad += 1
-        film[pix] = film[pix] + acc
-        counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
-        counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
+        add_to_pixel(film, counters, pix, acc, rays, bad)
 
     return trace
 

@@ -53,7 +53,6 @@ the tasks; that shipping is not implemented.
 from __future__ import annotations
 
 import os
-import queue
 import sys
 import time
 
@@ -86,12 +85,12 @@ from warp_spt.integrators.common import (
     Integrator,
     PathState,
     RenderParams,
+    add_to_pixel,
     continue_path,
-    fast_inputs,
     make_bsdf_dims,
 )
 from warp_spt.integrators.nee import make_light_sample, power_heuristic
-from warp_spt.runtime.threads import run_jobs
+from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 
 STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the direction's (see vertex)
@@ -308,9 +307,7 @@ def make_kernel(step, start_path):
                     rec.hits[where[0]] = rec.hits[where[0]] + wp.int64(1)
             else:
                 bad += 1
-        film[pix] = film[pix] + acc
-        counters[pix, 0] = counters[pix, 0] + wp.int64(rays)
-        counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
+        add_to_pixel(film, counters, pix, acc, rays, bad)
 
     return trace
 
@@ -345,33 +342,14 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         training = k < len(plan) - 1 and not stopped
         count = plan[k] if training else rs.sample_offset + rs.spp - start
         rec_dev = upload_tree(rec_tree, 0.0, device, sampling=False)
-        records = queue.SimpleQueue()                      # one record per concurrently running job
         slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles), MAX_RECORDS,
                             device, guiding_tree.sampling_quadtrees(rec_tree)) for _ in range(max(1, threads))]
-        for r in slots:
-            records.put(r)
-        chunks = [(start + s, min(per_launch, count - s)) for s in range(0, count, per_launch)]
-
-        def work(tile, stop, done, chunks=chunks, sampling=sampling) -> None:
-            lo, hi = tile
-            rec = records.get()
-            try:
-                for s0, n in chunks:
-                    if stop.is_set():
-                        return
-                    wp.launch(b.kernel, dim=hi - lo, device=device,
-                              inputs=fast_inputs(b.scene_args(b.params(lo, s0 - rs.sample_offset, n)), film,
-                                                 counters) + [sampling, rec])
-                    done(n * (hi - lo))
-            finally:
-                records.put(rec)
-
         t0 = time.process_time()
-        run_jobs(tiles, work, threads, report)
+        launches += run_pass(b, tiles, film, counters, threads, report, per_launch, start - rs.sample_offset, count,
+                             slots, lambda rec, sampling=sampling: [sampling, rec])
         if timing:
             print(f"guided pass {k}: {count} spp, {(time.process_time() - t0) / count * 1e3:.2f} CPU ms/spp, "
                   f"training {training}", file=sys.stderr)
-        launches += len(tiles) * len(chunks)
         start += count
         if training:
             energy = np.asarray(sum(r.energy.numpy() for r in slots))

@@ -4,8 +4,7 @@
 ``per_launch`` samples, from the worker threads; each running job takes one of ``slots`` (a
 worker's own record arrays, which the host sums after the pass: fixed-point sums are exact in any
 order, so the result does not depend on which job had which slot) and passes what
-``inputs(slot)`` gives after the fast kernel's inputs. ``ears`` uses it; ``guided``'s pass loop is
-the same and could use it too.
+``inputs(slot)`` gives after the fast kernel's inputs. ``guided`` and ``ears`` use it.
 """
 
 from __future__ import annotations

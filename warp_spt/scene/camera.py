@@ -240,14 +240,6 @@ def orbit_vector(up: str | Sequence[float], azimuth: float, elevation: float) ->
     return math.cos(el) * (math.cos(az) * front + math.sin(az) * side) + math.sin(el) * u   # unit already
 
 
-def azimuth_of(up: str | Sequence[float], towards: Sequence[float]) -> float:
-    """The azimuth in degrees (see :func:`orbit_vector`) of the direction ``towards``."""
-    u = up_vector(up)
-    front = front_vector(u)
-    v = np.asarray(towards, dtype=np.float64)
-    return math.degrees(math.atan2(float(np.dot(v, np.cross(u, front))), float(np.dot(v, front))))
-
-
 def flat_normal(scene: Scene, towards: np.ndarray) -> np.ndarray | None:
     """The unit normal of a flat model (a 2-D cut-out exported as a mesh: its thinnest extent below
     FLAT_RATIO of its widest, no spheres), on the side its faces face (or, for a sheet seen from both

@@ -138,6 +138,19 @@ def _bare(mesh: wp.uint64, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3
     face_out[i] = wp.where(q.result, q.face, -1)
 
 
+def hit_kernel(hit_fn) -> wp.Kernel:
+    """A kernel running ``hit_fn`` (a closest-hit function of geometry.py's kind) over stored rays from
+    ``start``, writing each hit's t and face (-1 for a miss)."""
+    @wp.kernel(enable_backward=False, module="unique")
+    def hit(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
+            t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
+        i = start + wp.tid()
+        h = hit_fn(s, o[i], d[i], NO_HIT)
+        t_out[i] = h.t
+        face_out[i] = wp.where(h.kind == KIND_MISS, -1, h.face)
+    return hit
+
+
 def make_ladder(features: Features) -> dict[str, wp.Kernel]:
     """The kernels between the bare query and the renderer, for one feature set."""
     closest_hit = make_closest_hit(features)
@@ -151,16 +164,6 @@ def make_ladder(features: Features) -> dict[str, wp.Kernel]:
         q = wp.mesh_query_ray(s.mesh_ids[0], o[i], d[i], NO_HIT)
         t_out[i] = wp.where(q.result, q.t, NO_HIT)
         face_out[i] = wp.where(q.result, q.face, -1)
-
-    def hit_kernel(hit_fn):
-        @wp.kernel(enable_backward=False, module="unique")
-        def hit(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
-                t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
-            i = start + wp.tid()
-            h = hit_fn(s, o[i], d[i], NO_HIT)
-            t_out[i] = h.t
-            face_out[i] = wp.where(h.kind == KIND_MISS, -1, h.face)
-        return hit
 
     def shade_kernel(vec, add: bool):
         """closest_hit, surface_at, then the shading normal stored (add False) or added to a film."""
@@ -195,18 +198,19 @@ def _has_tlas_switch() -> bool:
 # Timing
 
 
-def interleaved(runs: dict[str, callable], repeat: int, clock=time.perf_counter) -> dict[str, float]:
-    """Best time of each run, the runs taken in turn ``repeat`` times: the machine is shared, and
-    taking turns spreads its slow spells over every row instead of one."""
+def interleaved(runs: dict[str, callable], repeat: int, clock=time.perf_counter, summary=min) -> dict[str, float]:
+    """``summary`` (best by default, or np.median) of each run's times, the runs taken in turn
+    ``repeat`` times after a warm-up: the machine is shared, and taking turns spreads its slow spells
+    over every row instead of one."""
     for fn in runs.values():
         fn()                                   # warm-up (and load)
-    best = dict.fromkeys(runs, float("inf"))
+    times: dict[str, list[float]] = {k: [] for k in runs}
     for _ in range(repeat):
         for label, fn in runs.items():
             t = clock()
             fn()
-            best[label] = min(best[label], clock() - t)
-    return best
+            times[label].append(clock() - t)
+    return {k: float(summary(v)) for k, v in times.items()}
 
 
 _pools: dict[int, ThreadPoolExecutor] = {}
@@ -507,15 +511,7 @@ def _bare_anyhit(mesh: wp.uint64, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=
 
 def _ours_kernels(features: Features):
     """Our closest_hit and occluded (geometry.py, as the renderer builds them) over stored rays."""
-    closest_hit, occluded = make_closest_hit(features), make_occluded(features)
-
-    @wp.kernel(enable_backward=False, module="unique")
-    def ours_hit(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), start: int,
-                 t_out: wp.array(dtype=float), face_out: wp.array(dtype=int)):
-        i = start + wp.tid()
-        h = closest_hit(s, o[i], d[i], NO_HIT)
-        t_out[i] = h.t
-        face_out[i] = wp.where(h.kind == KIND_MISS, -1, h.face)
+    occluded = make_occluded(features)
 
     @wp.kernel(enable_backward=False, module="unique")
     def ours_any(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
@@ -523,21 +519,7 @@ def _ours_kernels(features: Features):
         i = wp.tid()
         out[i] = wp.where(occluded(s, o[i], d[i], t_max[i]), 1, 0)
 
-    return ours_hit, ours_any
-
-
-def median_times(runs: dict[str, callable], repeat: int, clock=time.thread_time) -> dict[str, float]:
-    """Median time of each run, the runs taken in turn ``repeat`` times after a warm-up (a shared
-    machine: taking turns spreads its slow spells over every row)."""
-    for fn in runs.values():
-        fn()
-    times: dict[str, list[float]] = {k: [] for k in runs}
-    for _ in range(repeat):
-        for label, fn in runs.items():
-            t = clock()
-            fn()
-            times[label].append(clock() - t)
-    return {k: float(np.median(v)) for k, v in times.items()}
+    return hit_kernel(make_closest_hit(features)), ours_any
 
 
 def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, spp: int, depth: int,
@@ -618,14 +600,14 @@ def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, sp
                           ("16 pixels per thread (struct arguments copied 1/16 as often)", k64, 16),
                           ("samples summed in float32 (not the product's bits)", f32, 1)):
         identical[label] = np.array_equal(launch(k, per_thread=per).numpy(), reference)
-    times = median_times(runs, repeat)
+    times = interleaved(runs, repeat, time.thread_time, np.median)
     # tiles, launches, worker threads, film read-back: render_scene on one thread, process CPU time
     # (its launches run on a worker thread), against the one launch above
     settings = R.RenderSettings(width=size, height=size, spp=spp, max_depth=depth, sky=sky, seed=1, threads=1,
                                 integrator=INTEGRATOR, sampler=SAMPLER)
     render_label = f"render_scene, 1 thread, tiles of {settings.tile_pixels} pixels (process CPU)"
-    times[render_label] = median_times(
-        {render_label: lambda: R.render_scene(dev, cam, settings)}, repeat, time.process_time)[render_label]
+    times[render_label] = interleaved(
+        {render_label: lambda: R.render_scene(dev, cam, settings)}, repeat, time.process_time, np.median)[render_label]
     identical[render_label] = np.array_equal(R.render_scene(dev, cam, settings).film.sum.reshape(-1, 3), reference)
 
     t_path = times["path kernel (product)"]

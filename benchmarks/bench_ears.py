@@ -23,7 +23,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_guiding import efficiency_rows  # noqa: E402
+from bench_guiding import efficiency_rows, print_table  # noqa: E402
 
 
 def configure(text: str) -> tuple[str, int]:
@@ -45,13 +45,9 @@ def main() -> int:
     ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "warp_spt_bench"))
     args = ap.parse_args()
     spps = tuple(int(x) for x in args.spp.split(","))
-    cache = Path(args.cache)
-    cache.mkdir(parents=True, exist_ok=True)
     configs = {key: (lambda key=key: configure(key)) for key in args.integrators.split(",")}
-    rows = efficiency_rows(args.scenes.split(","), configs, args.size, spps, args.ref_spp, cache, args.seeds)
-    print("\n| scene | size | spp | integrator | MSE | CPU s | efficiency / nee |\n|---|---|---|---|---|---|---|")
-    for name, spp, key, mse, sec, ratio in rows:
-        print(f"| {name} | {args.size} | {spp} | {key} | {mse:.3g} | {sec:.2f} | {ratio:.2f} |")
+    print_table(efficiency_rows(args.scenes.split(","), configs, args.size, spps, args.ref_spp, Path(args.cache),
+                                args.seeds), args.size)
     return 0
 
 

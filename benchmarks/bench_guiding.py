@@ -84,6 +84,7 @@ def efficiency_rows(scenes: list[str], configs: dict, size: int, spps, ref_spp: 
     """(scene, spp, key, MSE, CPU s, efficiency / nee) for each scene, spp and configuration;
     ``configs[key]()`` prepares a configuration and returns its (integrator, roulette depth)."""
     rows = []
+    cache.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         for name in scenes:
             desc = SCENES[name]
@@ -103,6 +104,13 @@ def efficiency_rows(scenes: list[str], configs: dict, size: int, spps, ref_spp: 
     return rows
 
 
+def print_table(rows: list[tuple], size: int) -> None:
+    """:func:`efficiency_rows`' rows as a Markdown table."""
+    print("\n| scene | size | spp | integrator | MSE | CPU s | efficiency / nee |\n|---|---|---|---|---|---|---|")
+    for name, spp, key, mse, sec, ratio in rows:
+        print(f"| {name} | {size} | {spp} | {key} | {mse:.4g} | {sec:.2f} | {ratio:.2f} |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -118,14 +126,10 @@ def main() -> int:
     size = args.size or size
     spps = tuple(int(x) for x in args.spp.split(",")) if args.spp else spps
     ref_spp = args.ref_spp or ref_spp
-    cache = Path(args.cache)
-    cache.mkdir(parents=True, exist_ok=True)
     configs = [parse_config(c) for c in args.integrators.split(",")]
     configs = {integ + (f":rr{rr}" if rr else ""): (lambda c=(integ, rr): c) for integ, rr in configs}
-    rows = efficiency_rows(args.scenes.split(","), configs, size, spps, ref_spp, cache, args.seeds)
-    print("\n| scene | spp | integrator | MSE | CPU s | efficiency / nee |\n|---|---|---|---|---|---|")
-    for name, spp, key, mse, sec, ratio in rows:
-        print(f"| {name} | {spp} | {key} | {mse:.4g} | {sec:.2f} | {ratio:.2f} |")
+    print_table(efficiency_rows(args.scenes.split(","), configs, size, spps, ref_spp, Path(args.cache), args.seeds),
+                size)
     return 0
 
 

@@ -54,7 +54,7 @@ import warp as wp  # noqa: E402
 wp.config.quiet = True
 
 import warp_spt.rendering.tiles as R
-from warp_spt.core.device_scene import DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402
+from warp_spt.core.device_scene import MESH_LEAF_SIZE, DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402
 from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded  # noqa: E402
 from warp_spt.core.lights import Lights, light_table, sky_emits  # noqa: E402
 from warp_spt.core.surface import make_surface  # noqa: E402
@@ -691,7 +691,8 @@ def merged_mesh(dev: DeviceScene) -> wp.Mesh:
         idx.append(m.indices.reshape(-1).astype(np.int32) + base)
         base += len(m.positions)
     return wp.Mesh(points=wp.array(np.concatenate(pts), dtype=wp.vec3),
-                   indices=wp.array(np.concatenate(idx), dtype=wp.int32), bvh_constructor="sah")
+                   indices=wp.array(np.concatenate(idx), dtype=wp.int32), bvh_constructor="sah",
+                   bvh_leaf_size=MESH_LEAF_SIZE)
 
 
 def small_scene_table(folder: Path, size: int, repeat: int) -> None:

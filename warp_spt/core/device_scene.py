@@ -92,6 +92,12 @@ class Features:
         return Features()
 
 
+# Triangles per leaf of each mesh's BVH (Warp's default is 4). Two traces the same hits (same triangle
+# test, same order of visits for ties) 11-24% faster on the demo and bench_vs_mitsuba's rooms; 1 and 4
+# are slower, 3 is no better (docs/performance.md, Where the time goes).
+MESH_LEAF_SIZE = 2
+
+
 @dataclass
 class UploadedMesh:
     """One mesh on the device and its float64 bounds (for the top-level BVH)."""
@@ -105,7 +111,8 @@ class UploadedMesh:
         points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
         idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
         p = m.positions[m.indices.reshape(-1)].astype(np.float64)
-        return cls(wp.Mesh(points=points, indices=idx, bvh_constructor="sah"), p.min(0), p.max(0))
+        mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah", bvh_leaf_size=MESH_LEAF_SIZE)
+        return cls(mesh, p.min(0), p.max(0))
 
 
 class DeviceScene:

@@ -166,7 +166,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
 
     @wp.func
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
-               base: int, g: GuideTree, root: int, a: float):
+               base: int, a: float):
         """Light sampling at this vertex, weighed against the mixture: (radiance, sampler state)."""
         contrib = wp.vec3(0.0, 0.0, 0.0)
         ls, x, st = light_sample(geo, lights, p.sampler, sf, base)
@@ -226,7 +226,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                         root = g.d_root[qi]
         if wp.static(sample_lights):
             if dense:
-                contrib, st = direct(geo, mats, tex, lights, p, sf, base, g, root, a)
+                contrib, st = direct(geo, mats, tex, lights, p, sf, base, a)
                 lit = p
                 lit.radiance += contrib
                 lit.sampler = st

@@ -6,7 +6,8 @@
 
 Rows: ``nee`` (no roulette, the default), ``nee:rrK`` (its throughput roulette from K hits,
 ``RenderSettings.roulette_depth``), ``ears`` (its defaults: the decisions aim at absolute error,
-which is what this table measures) and ``ears:rel`` (``ears.RELATIVE``: relative error, as the paper).
+which is what this table measures) and ``ears:rel`` (the option ``relative``: relative error, as the
+paper); other rows as bench_guiding.py's (``ears:grid=8``: an option of the integrator by name).
 Renders, references (shared with bench_guiding.py's cache) and timing are bench_guiding.py's:
 single-threaded, CPU seconds (``time.process_time``), kernels compiled before, MSE and seconds
 averaged over ``--seeds`` seeds, the reference's own MSE subtracted. ``ears``'s seconds include its
@@ -23,15 +24,13 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_guiding import efficiency_rows, print_table  # noqa: E402
+from bench_guiding import efficiency_rows, parse_config, print_table  # noqa: E402
 
 
-def configure(text: str) -> tuple[str, int]:
-    """(integrator, roulette depth) of a row's name; ``ears:rel`` sets ``ears.RELATIVE``."""
-    from warp_spt.integrators import ears
-    name, _, opt = text.partition(":")
-    ears.RELATIVE = opt == "rel"
-    return name, int(opt[2:]) if opt.startswith("rr") else 0
+def configure(text: str) -> tuple[str, int, dict]:
+    """(integrator, roulette depth, integrator options) of a row's name (bench_guiding.parse_config);
+    ``rel`` is short for the option ``relative=true``."""
+    return parse_config(":".join("relative=true" if m == "rel" else m for m in text.split(":")))
 
 
 def main() -> int:
@@ -45,7 +44,7 @@ def main() -> int:
     ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "warp_spt_bench"))
     args = ap.parse_args()
     spps = tuple(int(x) for x in args.spp.split(","))
-    configs = {key: (lambda key=key: configure(key)) for key in args.integrators.split(",")}
+    configs = {key: (lambda c=configure(key): c) for key in args.integrators.split(",")}
     print_table(efficiency_rows(args.scenes.split(","), configs, args.size, spps, args.ref_spp, Path(args.cache),
                                 args.seeds), args.size)
     return 0

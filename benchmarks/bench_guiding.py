@@ -12,8 +12,9 @@ reference is ``nee`` + Sobol' at high spp, the mean of two halves with different
 estimate's. Every render is single-threaded and timed in CPU seconds (``time.process_time``:
 the machine is shared, so wall time measures the load), kernels compiled before; each cell is
 averaged over ``--seeds`` seeds (MSE and seconds). ``guided`` includes its training passes and
-tree builds: its spp are the caller's, training included. Options ``--integrators`` add rows
-(e.g. ``guided`` with a roulette depth: ``guided:rr4``).
+tree builds: its spp are the caller's, training included. Options ``--integrators`` add rows:
+a name, then ``:``-separated modifiers, ``rrK`` (a roulette depth) or ``NAME=VALUE`` (an option of
+the integrator, ``RenderSettings.integrator_options``), e.g. ``guided:rr4`` or ``guided:alpha=0.25``.
 """
 
 from __future__ import annotations
@@ -32,10 +33,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_vs_mitsuba import SCENES, warp_camera, warp_scene, warp_settings  # noqa: E402
 
 
-def render(scene, desc, size, spp, integrator, seed, roulette=0, threads=1):
+def render(scene, desc, size, spp, integrator, seed, roulette=0, threads=1, options=None):
     from warp_spt import RenderSettings, render_scene
     kw = warp_settings(desc, size, spp, integrator, "sobol", seed, threads)
-    rs = RenderSettings(**kw, roulette_depth=roulette)
+    rs = RenderSettings(**kw, roulette_depth=roulette, integrator_options=options or {})
     t = time.process_time()
     img = render_scene(scene, warp_camera(desc), rs).image.astype(np.float64)
     return img, time.process_time() - t
@@ -52,9 +53,16 @@ def reference(name, scene, desc, size, spp, cache: Path):
     return a, b
 
 
-def parse_config(text: str) -> tuple[str, int]:
-    name, _, opt = text.partition(":")
-    return name, int(opt[2:]) if opt.startswith("rr") else 0
+def parse_config(text: str) -> tuple[str, int, dict]:
+    """(integrator, roulette depth, integrator options) of a row's name: ``name[:rrK][:OPTION=VALUE]...``
+    (each option parsed by the integrator's parameter, ``Integrator.parse_options``)."""
+    from warp_spt.integrators import get_integrator
+    name, *mods = text.split(":")
+    rr = [int(m[2:]) for m in mods if m.startswith("rr") and "=" not in m]
+    pairs = [tuple(m.split("=", 1)) for m in mods if "=" in m]
+    if len(rr) + len(pairs) != len(mods):
+        raise SystemExit(f"bad row {text!r}: modifiers are rrK or NAME=VALUE")
+    return name, rr[-1] if rr else 0, get_integrator(name).parse_options(pairs)
 
 
 def efficiency(render_seed, seeds: int, ref: np.ndarray, ref_mse: float) -> tuple[float, float, float]:
@@ -82,7 +90,7 @@ def report(name: str, spp: int, eff: dict) -> list[tuple]:
 def efficiency_rows(scenes: list[str], configs: dict, size: int, spps, ref_spp: int, cache: Path,
                     seeds: int) -> list[tuple]:
     """(scene, spp, key, MSE, CPU s, efficiency / nee) for each scene, spp and configuration;
-    ``configs[key]()`` prepares a configuration and returns its (integrator, roulette depth)."""
+    ``configs[key]()`` returns a configuration's (integrator, roulette depth, integrator options)."""
     rows = []
     cache.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
@@ -93,12 +101,13 @@ def efficiency_rows(scenes: list[str], configs: dict, size: int, spps, ref_spp: 
             ra, rb = reference(name, scene, desc, size, ref_spp, cache)
             ref, ref_mse = 0.5 * (ra + rb), float(np.mean((ra - rb) ** 2)) / 4
             for setup in configs.values():
-                render(scene, desc, 8, 4, *setup()[:1], 1, setup()[1])            # compile and warm
+                integ, rr, opts = setup()
+                render(scene, desc, 8, 4, integ, 1, rr, options=opts)            # compile and warm
             for spp in spps:
                 eff = {}
                 for key, setup in configs.items():
-                    integ, rr = setup()
-                    eff[key] = efficiency(lambda seed: render(scene, desc, size, spp, integ, seed, rr),
+                    integ, rr, opts = setup()
+                    eff[key] = efficiency(lambda seed: render(scene, desc, size, spp, integ, seed, rr, options=opts),
                                           seeds, ref, ref_mse)
                 rows += report(name, spp, eff)
     return rows
@@ -126,8 +135,7 @@ def main() -> int:
     size = args.size or size
     spps = tuple(int(x) for x in args.spp.split(",")) if args.spp else spps
     ref_spp = args.ref_spp or ref_spp
-    configs = [parse_config(c) for c in args.integrators.split(",")]
-    configs = {integ + (f":rr{rr}" if rr else ""): (lambda c=(integ, rr): c) for integ, rr in configs}
+    configs = {key: (lambda c=parse_config(key): c) for key in args.integrators.split(",")}
     print_table(efficiency_rows(args.scenes.split(","), configs, size, spps, ref_spp, Path(args.cache), args.seeds),
                 size)
     return 0

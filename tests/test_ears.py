@@ -27,10 +27,10 @@ def cornell(scene_dir):
     return load(*cornell_files(scene_dir))
 
 
-@pytest.fixture
-def decide_often(monkeypatch):
-    """Let cells with few records decide (a 16x16 image trains on few paths)."""
-    monkeypatch.setattr(ears, "MIN_RECORDS", 2)
+def _options(factor: float = 1.0) -> dict:
+    """Options that let cells with few records decide (a 16x16 image trains on few paths) and
+    multiply every learnt factor by ``factor`` (the factors go as 1 / sqrt(V): ``v_scale``)."""
+    return {"min_records": 2, "v_scale": 1.0 / factor ** 2}
 
 
 def _render(dev, **kw) -> "R.RenderResult":
@@ -40,26 +40,14 @@ def _render(dev, **kw) -> "R.RenderResult":
     return res
 
 
-def _scaled(monkeypatch, factor: float) -> None:
-    """Multiply every learnt factor by ``factor`` (host side: the same kernel)."""
-    learn = ears.learn
-
-    def scaled(*a, **k):
-        s, pix_inv, info = learn(*a, **k)
-        return np.where(s >= 0, s * factor, s), pix_inv, info
-
-    monkeypatch.setattr(ears, "learn", scaled)
-
-
 @pytest.fixture(scope="module")
 def nee_images(cornell):
     return np.stack([_render(cornell, integrator="nee", seed=500 + k).image for k in range(SEEDS)])
 
 
 @pytest.mark.parametrize("factor", [1.0, 50.0, 0.02], ids=["learnt", "split", "roulette"])
-def test_ears_converges_to_the_same_image_as_nee(cornell, nee_images, decide_often, monkeypatch, factor):
-    _scaled(monkeypatch, factor)
-    out = [_render(cornell, integrator="ears", seed=700 + k) for k in range(SEEDS)]
+def test_ears_converges_to_the_same_image_as_nee(cornell, nee_images, factor):
+    out = [_render(cornell, integrator="ears", seed=700 + k, integrator_options=_options(factor)) for k in range(SEEDS)]
     assert_same_image(nee_images, np.stack([r.image for r in out]), f"ears x{factor} vs nee")
     rays = np.mean([r.stats.rays for r in out])
     base = _render(cornell, integrator="nee", seed=700).stats.rays
@@ -69,46 +57,43 @@ def test_ears_converges_to_the_same_image_as_nee(cornell, nee_images, decide_oft
         assert rays < 0.9 * base          # it did roulette
 
 
-def test_ears_is_deterministic_and_keeps_the_budget(cornell, decide_often, monkeypatch):
-    _scaled(monkeypatch, 3.0)             # splits and roulette both
-    one = _render(cornell, integrator="ears", threads=1, spp=12)
-    two = _render(cornell, integrator="ears", threads=2, spp=12, tile_pixels=40)
+def test_ears_is_deterministic_and_keeps_the_budget(cornell):
+    opts = _options(3.0)                  # splits and roulette both
+    one = _render(cornell, integrator="ears", threads=1, spp=12, integrator_options=opts)
+    two = _render(cornell, integrator="ears", threads=2, spp=12, tile_pixels=40, integrator_options=opts)
     assert np.array_equal(one.film.sum, two.film.sum)
     assert one.stats.rays == two.stats.rays
     assert one.film.spp == 12 and one.stats.pixel_samples == SIZE * SIZE * 12
     # the decisions are used: the training samples alone are nee's, the rest differ
     nee = _render(cornell, integrator="nee", threads=1, spp=12)
     assert not np.array_equal(one.film.sum, nee.film.sum)
-    # below 2 x TRAIN_FRACTION spp nothing is learnt: nee's image
+    # below 2 x train_fraction spp nothing is learnt: nee's image
     assert np.array_equal(_render(cornell, integrator="ears", spp=7).film.sum,
                           _render(cornell, integrator="nee", spp=7).film.sum)
 
 
-def test_schedule_and_table(monkeypatch):
+def test_schedule_and_table():
     assert ears.schedule(7) == (0, 0, 7) and ears.schedule(16) == (2, 2, 12) and ears.schedule(64) == (8, 8, 48)
     assert all(sum(ears.schedule(n)) == n for n in range(1, 200))
-    monkeypatch.setattr(ears, "GRID", 1)
-    monkeypatch.setattr(ears, "GLOBAL_FLOOR", 0.0)
-    # five bounces of one cell each (GRID 1)
+    assert ears.schedule(64, {"train_fraction": 8}) == (4, 4, 56)
+    # five bounces of one cell each (grid 1)
     counts = np.array([0, 1, 100, 100, 100], np.int64)
     m2 = (np.array([0.0, 1.0, 0.0, 1.0, 4.0]) * counts * ears.S2).astype(np.int64)
     cost = np.array([0, 1, 200, 200, 800], np.int64)
     a, b = np.full((4, 3), 2.0 * 2), np.full((4, 3), 3.0 * 2)     # halves of 2 samples: means 2 and 3
     for rel in (False, True):
-        monkeypatch.setattr(ears, "RELATIVE", rel)
-        s, pix_inv, info = ears.learn(counts, m2, cost, a, b, 2, 2, 6.0 * 4 * 4, (2, 2))
+        opts = {"grid": 1, "global_floor": 0.0, "relative": rel}
+        s, pix_inv, info = ears.learn(counts, m2, cost, a, b, 2, 2, 6.0 * 4 * 4, (2, 2), opts)
         assert (s[:2] == -1).all() and s[2] == 0          # too few records: no decision; no light: roulette
         assert info["C"] == 6.0 and s[3] > 0 and np.isclose(s[4], s[3])     # 4x the moment at 4x the cost
         assert np.isclose(info["V"], 1.0 / (6.25 if rel else 1.0))         # (3 - 2)^2 x 2 x 2 / 4, over P^2
         assert np.allclose(pix_inv, 0.4 if rel else 1.0)
     # the floor: a cell's moment at least its bounce's mean over all cells (one bounce of 2^3 cells)
-    monkeypatch.setattr(ears, "GRID", 2)
     counts, cost = np.full(8, 100, np.int64), np.full(8, 200, np.int64)
     m2 = (np.array([0.0] + [1.0] * 7) * counts * ears.S2).astype(np.int64)
     args = (m2, cost, a, b, 2, 2, 96.0, (2, 2))
-    assert ears.learn(counts, *args)[0][0] == 0
-    monkeypatch.setattr(ears, "GLOBAL_FLOOR", 1.0)
-    s, _, _ = ears.learn(counts, *args)
+    assert ears.learn(counts, *args, {"grid": 2, "global_floor": 0.0})[0][0] == 0
+    s, _, _ = ears.learn(counts, *args, {"grid": 2})                  # the default floor, 1
     assert np.isclose(s[0], np.sqrt(7 / 8) * s[1])
 
 

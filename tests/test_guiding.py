@@ -182,26 +182,26 @@ def test_training_passes_fit_the_budget():
 
 
 @pytest.mark.parametrize("alpha", [None, 0.5], ids=["learnt-alpha", "alpha-0.5"])
-def test_guided_converges_to_the_same_image_as_nee(cornell, monkeypatch, alpha):
+def test_guided_converges_to_the_same_image_as_nee(cornell, alpha):
     # the Cornell box of the stability suite: diffuse walls, a glossy and a glass ball, a ceiling light;
     # alpha None: learnt per quadtree (here mostly 0, and training stops); 0.5: the guide everywhere
-    monkeypatch.setattr(guided, "ALPHA", alpha)
     ref = np.stack([_render(cornell, integrator="nee", seed=500 + k).image for k in range(SEEDS)])
-    out = np.stack([_render(cornell, integrator="guided", seed=700 + k).image for k in range(SEEDS)])
+    out = np.stack([_render(cornell, integrator="guided", seed=700 + k, integrator_options={"alpha": alpha}).image
+                    for k in range(SEEDS)])
     assert_same_image(ref, out, "guided vs nee")
 
 
 @pytest.mark.parametrize("alpha", [None, 0.25], ids=["learnt-alpha", "alpha-0.25"])
-def test_guided_is_deterministic_and_keeps_the_budget(cornell, monkeypatch, alpha):
-    monkeypatch.setattr(guided, "ALPHA", alpha)
-    one = _render(cornell, integrator="guided", threads=1, spp=12)
-    two = _render(cornell, integrator="guided", threads=2, spp=12, tile_pixels=40)
+def test_guided_is_deterministic_and_keeps_the_budget(cornell, alpha):
+    opts = {"alpha": alpha}
+    one = _render(cornell, integrator="guided", threads=1, spp=12, integrator_options=opts)
+    two = _render(cornell, integrator="guided", threads=2, spp=12, tile_pixels=40, integrator_options=opts)
     assert np.array_equal(one.film.sum, two.film.sum)
     assert one.film.spp == 12 and one.stats.pixel_samples == SIZE * SIZE * 12
     if alpha:
         # the guide is used: without it (alpha 0) the same samples give another image
-        monkeypatch.setattr(guided, "ALPHA", 0.0)
-        assert not np.array_equal(one.film.sum, _render(cornell, integrator="guided", threads=1, spp=12).film.sum)
+        off = _render(cornell, integrator="guided", threads=1, spp=12, integrator_options={"alpha": 0.0})
+        assert not np.array_equal(one.film.sum, off.film.sum)
 
 
 def test_learnt_alpha_follows_the_guides_benefit():

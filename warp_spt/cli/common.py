@@ -174,13 +174,31 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
 
 
 def check_registry_names(opts) -> None:
-    """--integrator and --sampler name entries of the registries (a usage error otherwise)."""
+    """--integrator and --sampler name entries of the registries, and every --integrator-option is
+    one of that integrator's parameters with a value it allows (a usage error otherwise)."""
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.samplers import SAMPLERS
 
     for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
         if name is not None and name not in registry:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
+    integrator_options_of(opts)
+
+
+def integrator_options_of(opts) -> dict:
+    """The ``--integrator-option`` values parsed by the chosen integrator's parameters (its
+    ``Integrator.params``); a :class:`UsageError` names a bad one and what it allows. Imports Warp."""
+    if not opts.integrator_options:
+        return {}
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
+
+    rec = INTEGRATORS.get(opts.integrator or DEFAULT_INTEGRATOR)
+    if rec is None:        # an unknown --integrator: check_registry_names reports it
+        return {}
+    try:
+        return rec.parse_options(opts.integrator_options)
+    except ValueError as err:
+        raise UsageError(f"argument --integrator-option: {err}") from None
 
 
 def registry_help() -> dict[str, str]:
@@ -196,8 +214,11 @@ def registry_help() -> dict[str, str]:
         items = [f"{n} ({s}{', default' if n == default else ''})" for n, s in sorted(entries.items())]
         return f"{what}: " + "; ".join(items)
 
+    params = "; ".join(f"{n}: " + ", ".join(f"{p.name} ({p.allowed()}, default {p.default!r})" for p in r.params)
+                       for n, r in sorted(INTEGRATORS.items()) if r.params)
     return {"--integrator": listing("light transport", {n: r.summary for n, r in INTEGRATORS.items()},
                                     DEFAULT_INTEGRATOR),
+            "--integrator-option": f"a parameter of the integrator, by name (repeatable). {params}",
             "--sampler": listing("random numbers", {n: get_sampler(n).summary for n in SAMPLERS}, DEFAULT_SAMPLER)}
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options
-from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least
+from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
 from warp_spt.scene.sky import Sky
@@ -105,6 +105,7 @@ class Options:
     demo: str | None = None
     integrator: str | None = None     # None: the renderer's default
     sampler: str | None = None
+    integrator_options: tuple[tuple[str, str], ...] = ()   # --integrator-option NAME=VALUE, as typed
     up: str | None = None            # --up; None: the rule of warp_spt.scene.conventions.up_axis
     cam_given: bool = False          # -cam or --look-at placed the camera: never frame automatically
     cam_explicit: bool = False       # -cam itself (the seed's Z-up convention)
@@ -150,6 +151,23 @@ def cluster_address(text: str) -> str:
                "expected tcp://HOST:PORT, e.g. tcp://scheduler:8786")
         raise argparse.ArgumentTypeError(f"{why}, got {text!r}")
     return text if text.startswith("tcp://") else f"tcp://{text}"
+
+
+def integrator_option(text: str) -> tuple[str, str]:
+    """An argparse ``type``: ``NAME=VALUE`` as (name, value text); the value is parsed and checked by
+    the integrator's parameter once Warp has started (:func:`warp_spt.cli.common.integrator_options_of`)."""
+    name, eq, value = text.partition("=")
+    if not eq or not name.strip() or not value.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    return name.strip(), value.strip()
+
+
+def _unique_options(pairs: list[tuple[str, str]]) -> tuple[tuple[str, str], ...]:
+    names = [n for n, _ in pairs]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise UsageError(f"--integrator-option {twice[0]} given more than once")
+    return tuple(pairs)
 
 
 def _sky_index(text: str) -> int:
@@ -204,6 +222,9 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     # first be initialised as --verbose says (and parsing stays Warp-free).
     new.add_argument("--integrator", metavar="NAME", help=plugins.get("--integrator", "light transport, by name"))
     new.add_argument("--sampler", metavar="NAME", help=plugins.get("--sampler", "random numbers, by name"))
+    new.add_argument("--integrator-option", action="append", default=[], type=integrator_option,
+                     metavar="NAME=VALUE", dest="integrator_option",
+                     help=plugins.get("--integrator-option", "a parameter of the integrator, by name (repeatable)"))
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     add_flags(p, int_at_least)
@@ -258,6 +279,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
+        integrator_options=_unique_options(ns.integrator_option),
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
         studio=ns.studio, sky_given=ns.sky is not None or ns.sky_color is not None or preset is not None,
@@ -441,6 +463,8 @@ def settings_of(opts, **overrides):
     from warp_spt.rendering.settings import RenderSettings
 
     chosen = {k: v for k, v in (("integrator", opts.integrator), ("sampler", opts.sampler)) if v}
+    if opts.integrator_options:
+        chosen["integrator_options"] = integrator_options_of(opts)
     fields = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
                   seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
     return RenderSettings(**{**fields, **overrides})

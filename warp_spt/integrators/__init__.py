@@ -1,8 +1,11 @@
 """Integrators, chosen by name: a registry of :class:`Integrator` records and their built functions.
 
 ``INTEGRATORS`` maps a name to its record (``common.Integrator``: step and vertex builders, sample
-stride, capabilities); a new integrator is one module defining ``INTEGRATOR`` plus one line here
-(or ``register(record)`` from outside the package). Built functions and kernels live in the one
+stride, capabilities, parameters); a new integrator is one module defining ``INTEGRATOR`` plus one
+line here (or ``register(record)`` from outside the package). Its parameters (``Integrator.params``,
+:class:`Param` records: name, default, doc, type, range) are set by name in
+``RenderSettings.integrator_options`` and checked before any upload; no integrator keeps state in
+its module. Built functions and kernels live in the one
 kernel cache (:mod:`warp_spt.runtime.kernel_cache`), per (integrator, sampler, features); Warp's
 disk cache keeps the compiled code across processes.
 """
@@ -17,6 +20,7 @@ from warp_spt.core.proctex import explain_compile_failure
 from warp_spt.integrators import ears, guided, nee, seed
 from warp_spt.integrators.common import (
     Integrator,
+    Param,
     PathState,
     RenderParams,
     fast_inputs,
@@ -51,6 +55,15 @@ def get_integrator(name: str) -> Integrator:
 def check_integrator(name: str) -> None:
     """Raise ValueError unless ``name`` is a registered integrator."""
     get_integrator(name)
+
+
+def describe_options(name: str) -> str:
+    """The parameters of integrator ``name``, one line each (name, allowed values, default, doc),
+    or a line saying it has none: for help texts and the docs."""
+    rec = get_integrator(name)
+    if not rec.params:
+        return f"{name}: no options"
+    return "\n".join([f"{name}:"] + [f"  {p.describe()}" for p in rec.params])
 
 
 def check_sliceable(name: str, renderer: str) -> None:
@@ -105,6 +118,6 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
         raise explain_compile_failure(features.procedural, err, device) from None
 
 
-__all__ = ["INTEGRATORS", "DEFAULT_INTEGRATOR", "Integrator", "CameraParams", "PathState", "RenderParams",
-           "camera_params", "camera_ray", "check_sliceable", "fast_inputs", "get_integrator", "get_kernel", "get_step",
+__all__ = ["INTEGRATORS", "DEFAULT_INTEGRATOR", "Integrator", "CameraParams", "Param", "PathState", "RenderParams",
+           "camera_params", "camera_ray", "check_sliceable", "describe_options", "fast_inputs", "get_integrator", "get_kernel", "get_step",
            "get_vertex", "check_integrator", "register"]

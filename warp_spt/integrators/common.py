@@ -15,9 +15,11 @@ of the pre-restructure renderer); adding a dimension at the end of a block shift
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable, Mapping
 
+import numpy as np
 import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray  # noqa: F401 (re-exported)
@@ -25,6 +27,7 @@ from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.core.materials import BsdfSample
 from warp_spt.core.surface import Surface, offset_origin
+from warp_spt.io.numbers import plain_float, plain_int
 from warp_spt.samplers import Sampler, SamplerState
 
 DIM_PIXEL = 0          # 2 dims: offset inside the pixel
@@ -39,6 +42,92 @@ OFF_LIGHT_POS = 5      # 2 dims: point on that light
 OFF_ROULETTE = 7       # survive or not
 SEED_STRIDE = 4        # the seed's four draws per bounce
 FULL_STRIDE = 8
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter of an integrator, set by name (as a Mitsuba 3 plugin's): its default (the one
+    place it is written), a line of doc, its type (``kind``: bool, int or float; ``optional``: None
+    is allowed too) and, for numbers, the interval it must lie in (``low``/``high``, inclusive
+    unless ``low_open``/``high_open``; None: unbounded). Host-side: a value reaches a kernel, if at
+    all, only after :meth:`check` took it."""
+
+    name: str
+    default: Any
+    doc: str
+    kind: type = float
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    optional: bool = False
+
+    def allowed(self) -> str:
+        """What a value may be, in words: "float in (0, 1]", "bool", "int >= 1 or None"."""
+        if self.kind is bool:
+            text = "bool"
+        elif self.low is not None and self.high is not None:
+            text = (f"{self.kind.__name__} in {'(' if self.low_open else '['}{self.low:g}, "
+                    f"{self.high:g}{')' if self.high_open else ']'}")
+        elif self.low is not None:
+            text = f"{self.kind.__name__} {'>' if self.low_open else '>='} {self.low:g}"
+        elif self.high is not None:
+            text = f"{self.kind.__name__} {'<' if self.high_open else '<='} {self.high:g}"
+        else:
+            text = f"finite {self.kind.__name__}"
+        return text + (" or None" if self.optional else "")
+
+    def describe(self) -> str:
+        """One line for help texts and errors: name, allowed values, default, doc."""
+        return f"{self.name} ({self.allowed()}, default {self.default!r}): {self.doc}"
+
+    def check(self, value: Any, integrator: str = "") -> Any:
+        """``value`` as this parameter's type (an int given for a float becomes a float; numpy
+        scalars become Python's), or ValueError naming the parameter and what it allows: wrong
+        types (a bool is no number, a float no int, 1 no bool), non-finite numbers, values out of range."""
+        if value is None and self.optional:
+            return None
+        bad = ValueError(f"{self._where(integrator)} must be {self.allowed()}, got {value!r}")
+        is_bool = isinstance(value, (bool, np.bool_))
+        if self.kind is bool:
+            if not is_bool:
+                raise bad
+            return bool(value)
+        if is_bool or not isinstance(value, (int, np.integer) if self.kind is int else (int, float, np.integer,
+                                                                                         np.floating)):
+            raise bad
+        try:
+            v = self.kind(value)
+        except OverflowError:          # an int too large for a float
+            raise bad from None
+        if not math.isfinite(v):
+            raise bad
+        if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
+            raise bad
+        if self.high is not None and (v > self.high or (self.high_open and v == self.high)):
+            raise bad
+        return v
+
+    def _where(self, integrator: str) -> str:
+        return f"option {self.name!r}" + (f" of integrator {integrator!r}" if integrator else "")
+
+    def parse(self, text: str, integrator: str = "") -> Any:
+        """``text`` (a command line's NAME=VALUE value) as this parameter's value, checked:
+        "none" for None, true/false (or 1/0, yes/no, on/off) for a bool, plain decimals for numbers."""
+        word = text.strip().lower()
+        if self.optional and word == "none":
+            return None
+        if self.kind is bool:
+            if word not in _BOOL_WORDS:
+                raise ValueError(f"{self._where(integrator)} must be {self.allowed()} (true or false), got {text!r}")
+            return _BOOL_WORDS[word]
+        try:
+            return self.check(plain_int(text.strip()) if self.kind is int else plain_float(text.strip()), integrator)
+        except ValueError:         # the message quotes what was typed, not the number it became
+            raise ValueError(f"{self._where(integrator)} must be {self.allowed()}, got {text!r}") from None
+
+
+_BOOL_WORDS = {"true": True, "1": True, "yes": True, "on": True, "false": False, "0": False, "no": False, "off": False}
 
 
 @dataclass(frozen=True)
@@ -59,6 +148,8 @@ class Integrator:
     threads, report, per_launch) -> launches``: the tile renderer hands it the whole render (its
     own pass schedule and kernel inputs, as ``guided``'s training passes); such an integrator
     renders through the tile renderer only (no row windows, progressive batches or cluster).
+    ``params``: its parameters (:class:`Param`), set by name in ``RenderSettings.integrator_options``
+    and read through :meth:`options` (e.g. ``Bound.options``).
     """
 
     name: str
@@ -72,6 +163,38 @@ class Integrator:
     make_kernel: Callable | None = None
     render_passes: Callable | None = None
     summary: str = ""            # one line for --help and the docs
+    params: tuple[Param, ...] = ()
+
+    def param(self, name: str) -> Param:
+        """The parameter ``name`` (ValueError naming the integrator's parameters otherwise)."""
+        for p in self.params:
+            if p.name == name:
+                return p
+        if not self.params:
+            raise ValueError(f"integrator {self.name!r} takes no options, got {name!r}")
+        raise ValueError(f"unknown option {name!r} of integrator {self.name!r}; its options: "
+                         f"{', '.join(p.name for p in self.params)}")
+
+    def defaults(self) -> dict[str, Any]:
+        """Every parameter's default, by name."""
+        return {p.name: p.default for p in self.params}
+
+    def options(self, given: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Every parameter's value, by name: ``given``'s, checked (:meth:`Param.check`, ValueError
+        naming an unknown or ill-typed option and what is allowed), the defaults for the rest."""
+        if given is None:
+            given = {}
+        if not isinstance(given, Mapping):
+            raise ValueError(f"integrator_options must be a dict of option names to values, got {given!r}")
+        out = self.defaults()
+        for name, value in given.items():
+            out[name] = self.param(name if isinstance(name, str) else repr(name)).check(value, self.name)
+        return out
+
+    def parse_options(self, pairs) -> dict[str, Any]:
+        """``{name: value}`` from (name, text) pairs (the command line's NAME=VALUE), each parsed by
+        its parameter (:meth:`Param.parse`; ValueError otherwise)."""
+        return {name: self.param(name).parse(text, self.name) for name, text in pairs}
 
     @property
     def replayable(self) -> bool:

@@ -5,14 +5,14 @@ Every bounce is ``nee``'s (light sample, MIS, the BSDF's continuation; its throu
 off). After a bounce whose path goes on, the continuation is rouletted or split by a factor ``q``
 learnt per region of the scene instead of read off the throughput alone:
 
-    q = (T / P) * sqrt(M2 * C / (V * Cx)),   clamped to [Q_MIN, Q_MAX]
+    q = (T / P) * sqrt(M2 * C / (V * Cx)),   clamped to [q_min, q_max]
 
 * ``T``: the path's throughput after the bounce (channel mean, earlier roulette and splits
-  included); ``P``: the pixel's estimate with ``RELATIVE`` (the paper's relative error), else 1
+  included); ``P``: the pixel's estimate with ``relative`` (the paper's relative error), else 1
   (absolute error, the default: what the benchmarks measure, and measured better there);
 * ``M2``: the second moment of ``Lx``, the radiance (channel mean) the continuation gathers per
-  unit throughput, learnt per cell of a ``GRID``^3 grid over the scene's box and per bounce, and
-  floored at ``GLOBAL_FLOOR`` x the bounce's mean over the whole scene (a cell whose few training
+  unit throughput, learnt per cell of a ``grid``^3 grid over the scene's box and per bounce, and
+  floored at ``global_floor`` x the bounce's mean over the whole scene (a cell whose few training
   paths missed a rare bright path, a caustic, would otherwise roulette it hard: without the floor
   the caustics scene's MSE was 4x ``nee``'s);
 * ``Cx``: the rays the continuation traces (the same cell and bounce); ``C``: the rays of one
@@ -28,25 +28,31 @@ its own roulette, which ``ears`` turns off): ``n = floor(q) + (u < frac(q))`` co
 (stochastic rounding). ``q < 1`` is roulette: the path survives with probability ``q`` and its
 throughput is divided by ``q``. ``n > 1`` is splitting: the throughput is divided by ``n`` (the
 mean of n independent continuations, unbiased whatever n) and ``n - 1`` copies go on a per-thread
-stack of ``STACK`` pending continuations (n is capped by the stack's free room, before the
+stack of ``stack`` pending continuations (n is capped by the stack's free room, before the
 division: still unbiased). Each copy continues with the sampler restarted under a seed of its own
 (``split_seed``: the render's seed, hashed with the number of copies made so far in this camera
 sample), so its numbers are independent of its siblings' and the image is a function of the seed.
 
-Training. The first ``spp // 4`` samples per pixel (none below 8 spp), in two halves, are plain
+Training. The first ``spp // train_fraction`` samples per pixel (``spp // 4``; none below 8 spp), in two halves, are plain
 ``nee`` and record, per vertex, fixed-point sums of Lx^2 and of the rays after it, per (bounce,
 cell); each worker records into its own arrays, summed on the host (integer sums: exact in any
 order). The host then turns them into ``s = sqrt(M2 C / (V Cx))`` per (bounce, cell) (-1: too few
 records, no decision) and ``1 / P`` per pixel (the training image, 3x3 box-filtered, floored at
-``P_FLOOR`` x its mean); ``V`` comes from the two halves' difference (see :func:`learn`); the
+``p_floor`` x its mean); ``V`` comes from the two halves' difference (see :func:`learn`); the
 remaining samples render with the decisions. Every sample counts with equal weight, so the film
 holds exactly the requested spp. As ``guided``, it renders whole images through the tile renderer
 only. Differences from the paper: a fixed grid, not an adaptive octree; one training stage, not
 iterations that re-learn with the decisions on; the ``q`` clamp is [0.2, 10], not [0.05, 20]
 (0.05 was as good on the indirect room, worse on the caustics).
+
+Parameters (``PARAMS``, set by name in ``RenderSettings.integrator_options``; the names above in
+lower case): ``relative``, ``q_min``, ``q_max``, ``train_fraction``, ``grid``, ``min_records``,
+``global_floor``, ``v_scale``, ``p_floor``, ``max_records``, ``stack``.
 """
 
 from __future__ import annotations
+
+from typing import Any, Mapping
 
 import numpy as np
 import warp as wp
@@ -60,6 +66,7 @@ from warp_spt.integrators.common import (
     OFF_ROULETTE,
     CameraParams,
     Integrator,
+    Param,
     PathState,
     RenderParams,
     add_to_pixel,
@@ -71,17 +78,24 @@ from warp_spt.samplers import Sampler
 from warp_spt.samplers.sobol import mix32
 
 STRIDE = FULL_STRIDE
-GRID = 16                 # cells per axis of the learnt grid
-STACK = 8                 # pending split continuations per camera sample
-MAX_RECORDS = 16          # vertices of one training path that record
-MIN_RECORDS = 32          # records a (bounce, cell) needs before it decides
-Q_MIN = 0.2               # the factor's clamp (read when a render starts)
-Q_MAX = 10.0
-GLOBAL_FLOOR = 1.0        # floor of a cell's learnt second moment, a fraction of its bounce's mean
-V_SCALE = 1.0             # the pixel variance the factors are computed with, over the measured one
-RELATIVE = False          # True: EARS's relative error (pixel estimates); False: absolute error (measured better)
-P_FLOOR = 0.05            # pixel estimates floored at this fraction of the image's mean
-TRAIN_FRACTION = 4        # the first spp // TRAIN_FRACTION samples train
+
+PARAMS = (
+    Param("relative", False, "EARS's relative error (factors scaled by the pixel's estimate, as the paper); "
+          "False: absolute error (measured better on the benchmarks)", bool),
+    Param("q_min", 0.2, "the factor's lower clamp (strongest roulette)", float, 0.0, 1.0, low_open=True),
+    Param("q_max", 10.0, "the factor's upper clamp (most splits; the stack caps them too)", float, 1.0),
+    Param("train_fraction", 4, "the first spp // train_fraction samples train (plain nee)", int, 1),
+    Param("grid", 16, "cells per axis of the learnt grid over the scene's box", int, 1, 64),
+    Param("min_records", 32, "records a (bounce, cell) needs before it decides", int, 1),
+    Param("global_floor", 1.0, "floor of a cell's learnt second moment, a fraction of its bounce's mean over "
+          "the scene", float, 0.0),
+    Param("v_scale", 1.0, "the pixel variance the factors are computed with, over the measured one", float, 0.0,
+          low_open=True),
+    Param("p_floor", 0.05, "relative error: pixel estimates floored at this fraction of the image's mean", float,
+          0.0, low_open=True),
+    Param("max_records", 16, "vertices of one training path that record", int, 1, 256),
+    Param("stack", 8, "pending split continuations per camera sample", int, 1, 64),
+)
 LX_MAX = 1.0e3            # one record's cap on Lx (fixed point)
 S2 = 65536.0              # 2**16 per unit of Lx^2
 S2_W = wp.constant(S2)
@@ -203,14 +217,14 @@ def make_kernel(step, start_path):
             while more != 0:
                 while path.alive != 0:
                     path, n = step(geo, mats, tex, lights, rp, tab, pinv, path)
-                    if rec.on != 0 and path.alive != 0 and nrec < MAX_RECORDS:
+                    if rec.on != 0 and path.alive != 0 and nrec < rec.slot_k.shape[1]:
                         t = mean3(path.throughput)
                         if t > 0.0:
                             rec.slot_k[tid, nrec] = cell_index(tab, path.o, path.depth)
                             rec.slot_v[tid, nrec] = wp.vec3(t, mean3(path.radiance), float(path.rays))
                             nrec += 1
                     if n > 1:
-                        n = wp.min(n, 1 + STACK - top)
+                        n = wp.min(n, 1 + rec.stack.shape[1] - top)
                         if n > 1:
                             path.throughput = path.throughput / float(n)
                             for c in range(n - 1):
@@ -247,11 +261,16 @@ def make_kernel(step, start_path):
     return trace
 
 
-def schedule(spp: int) -> tuple[int, int, int]:
+def _options(options: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Every option's value: ``options`` (partial, or None) checked, the defaults (``PARAMS``) for the rest."""
+    return INTEGRATOR.options(options)
+
+
+def schedule(spp: int, options: Mapping[str, Any] | None = None) -> tuple[int, int, int]:
     """(first training half, second training half, deciding samples) per pixel: the first
-    ``spp // TRAIN_FRACTION`` samples train, in two halves (aligned blocks of the sequence when
-    ``spp`` is a power of two); below ``2 * TRAIN_FRACTION`` spp nothing trains: plain ``nee``."""
-    train = spp // TRAIN_FRACTION
+    ``spp // train_fraction`` samples train, in two halves (aligned blocks of the sequence when
+    ``spp`` is a power of two); below ``2 * train_fraction`` spp nothing trains: plain ``nee``."""
+    train = spp // _options(options)["train_fraction"]
     if train < 2:
         return 0, 0, spp
     return train // 2, train - train // 2, spp - train
@@ -259,56 +278,62 @@ def schedule(spp: int) -> tuple[int, int, int]:
 
 def _table(b, s: np.ndarray, pix_inv: np.ndarray, on: bool) -> EarsTable:
     lo, hi = box_of(b.dev.scene.bounds)
+    grid = b.options["grid"]
     t = EarsTable()
     t.lo = wp.vec3(*lo.astype(np.float32))
-    t.scale = wp.vec3(*(GRID / (hi - lo)).astype(np.float32))
-    t.res = GRID
+    t.scale = wp.vec3(*(grid / (hi - lo)).astype(np.float32))
+    t.res = grid
     t.s = wp.array(s.astype(np.float32), dtype=wp.float32, device=b.dev.device)
     t.pix_inv = wp.array(pix_inv.astype(np.float32), dtype=wp.float32, device=b.dev.device)
-    t.q_min, t.q_max = Q_MIN, Q_MAX
+    t.q_min, t.q_max = b.options["q_min"], b.options["q_max"]
     t.on = int(on)
     return t
 
 
-def _record(entries: int, on: bool, threads: int, device) -> EarsRecord:
+def _record(entries: int, on: bool, threads: int, device, opt: dict) -> EarsRecord:
+    """A worker's record; its slot and stack widths are the ``max_records`` and ``stack`` options
+    (the kernel reads them off the arrays' shapes)."""
     r = EarsRecord()
     r.on = int(on)
     r.count, r.m2, r.cost = (wp.zeros(entries if on else 1, dtype=wp.int64, device=device) for _ in range(3))
-    r.slot_k = wp.zeros((threads if on else 1, MAX_RECORDS), dtype=wp.int32, device=device)
-    r.slot_v = wp.zeros((threads if on else 1, MAX_RECORDS), dtype=wp.vec3, device=device)
-    r.stack = wp.zeros((threads, STACK), dtype=PathState, device=device)
+    r.slot_k = wp.zeros((threads if on else 1, opt["max_records"]), dtype=wp.int32, device=device)
+    r.slot_v = wp.zeros((threads if on else 1, opt["max_records"]), dtype=wp.vec3, device=device)
+    r.stack = wp.zeros((threads, opt["stack"]), dtype=PathState, device=device)
     return r
 
 
 def learn(counts, m2, cost, sum_a: np.ndarray, sum_b: np.ndarray, n_a: int, n_b: int, rays: float,
-          shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict]:
+          shape: tuple[int, int], options: Mapping[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """The decisions' table from the training sums: ``s`` per (bounce, cell), ``1 / P`` per pixel,
     and the figures they came from. ``sum_a``, ``sum_b``: the (pixels, 3) film sums of the two
-    training halves (``n_a``, ``n_b`` samples); ``rays``: closest-hit rays traced in training.
+    training halves (``n_a``, ``n_b`` samples); ``rays``: closest-hit rays traced in training;
+    ``options``: the integrator's (``PARAMS``; the defaults for those not given).
 
     ``V`` is the variance per sample *of the pixel means*, measured from the two halves' difference,
     ``V = E[(m_a - m_b)^2] n_a n_b / (n_a + n_b)`` (relative: over P^2), not the samples' spread: with
     Sobol' points the pixel means converge faster than the samples' variance says (the indirect room,
     64 spp: 2.5x, the caustics 6x), and the roulette and split copies add independent noise, so
     the samples' spread made the factors too small (roulette lost 2-5x in MSE)."""
+    opt = _options(options)
+    grid, floor = opt["grid"], opt["global_floor"]
     m_a, m_b = sum_a.mean(axis=1) / n_a, sum_b.mean(axis=1) / n_b
     mean = (m_a * n_a + m_b * n_b) / (n_a + n_b)
-    if RELATIVE:
+    if opt["relative"]:
         img = mean.reshape(shape)
         pad = np.pad(img, 1, mode="edge")
         blur = sum(pad[dy:dy + shape[0], dx:dx + shape[1]] for dy in range(3) for dx in range(3)) / 9
-        p = np.maximum(blur.ravel(), P_FLOOR * max(float(mean.mean()), 1e-6))
+        p = np.maximum(blur.ravel(), opt["p_floor"] * max(float(mean.mean()), 1e-6))
     else:
         p = np.ones_like(mean)
-    v = float(np.mean((m_a - m_b) ** 2 / p ** 2)) * n_a * n_b / (n_a + n_b) * V_SCALE
+    v = float(np.mean((m_a - m_b) ** 2 / p ** 2)) * n_a * n_b / (n_a + n_b) * opt["v_scale"]
     c = rays / (mean.size * (n_a + n_b))
     counts = counts.astype(np.float64)
-    ok = counts >= MIN_RECORDS
+    ok = counts >= opt["min_records"]
     m2_mean = np.where(ok, m2 / S2 / np.maximum(counts, 1), 0.0)
-    if GLOBAL_FLOOR > 0:        # a cell's moment at least GLOBAL_FLOOR x its bounce's over the whole scene
-        per = counts.reshape(-1, GRID ** 3)
+    if floor > 0:        # a cell's moment at least global_floor x its bounce's over the whole scene
+        per = counts.reshape(-1, grid ** 3)
         glob = (m2.reshape(per.shape) / S2).sum(axis=1) / np.maximum(per.sum(axis=1), 1)
-        m2_mean = np.maximum(m2_mean, GLOBAL_FLOOR * np.repeat(glob, GRID ** 3))
+        m2_mean = np.maximum(m2_mean, floor * np.repeat(glob, grid ** 3))
     cx = np.where(ok, np.maximum(cost / np.maximum(counts, 1), 1.0), 1.0)
     s = np.where(ok, np.sqrt(m2_mean * c / (max(v, 1e-12) * cx)), -1.0)
     return s, 1.0 / p, {"V": v, "C": c, "cells": int(ok.sum())}
@@ -317,15 +342,16 @@ def learn(counts, m2, cost, sum_a: np.ndarray, sum_b: np.ndarray, n_a: int, n_b:
 def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.array2d, threads: int,
                   report, per_launch: int) -> int:
     """``Integrator.render_passes``: the two training halves (plain ``nee``, recording), the table
-    learnt on the host, then the remaining samples with the decisions. Returns the launches made."""
-    rs, device = b.settings, b.dev.device
+    learnt on the host, then the remaining samples with the decisions. Returns the launches made.
+    The options (``PARAMS``) come from ``b.options``."""
+    rs, device, opt = b.settings, b.dev.device, b.options
     if tiles[0][0] != 0 or tiles[-1][1] != b.pixels:
         raise ValueError("the ears integrator learns over the whole image: it cannot render a window of rows")
-    n_a, n_b, rest = schedule(rs.spp)
-    entries = rs.max_depth * GRID ** 3
+    n_a, n_b, rest = schedule(rs.spp, opt)
+    entries = rs.max_depth * opt["grid"] ** 3
     width = max(hi - lo for lo, hi in tiles)
     table = _table(b, np.zeros(1), np.ones(1), False)
-    slots = [_record(entries, n_a > 0, width, device) for _ in range(max(1, threads))]
+    slots = [_record(entries, n_a > 0, width, device, opt) for _ in range(max(1, threads))]
     start, launches, sum_a = 0, 0, None
 
     def params(lo: int, first: int, count: int) -> RenderParams:
@@ -337,7 +363,7 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         if count == 0:
             continue
         if k == 2:
-            slots = [_record(entries, False, width, device) for _ in range(max(1, threads))]
+            slots = [_record(entries, False, width, device, opt) for _ in range(max(1, threads))]
         launches += run_pass(b, tiles, film, counters, threads, report, per_launch, start, count, slots,
                              lambda rec, table=table: [table, rec], params)
         start += count
@@ -346,11 +372,11 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         elif k == 1:
             tot = [sum(getattr(r, f).numpy() for r in slots) for f in ("count", "m2", "cost")]
             s, pix_inv, _ = learn(*tot, sum_a, film.numpy() - sum_a, n_a, n_b, float(counters.numpy()[:, 0].sum()),
-                                  (b.height, b.width))
+                                  (b.height, b.width), opt)
             table = _table(b, s, pix_inv, True)
     return launches
 
 
 INTEGRATOR = Integrator("ears", make, None, STRIDE, tape=False, make_kernel=make_kernel,
-                        render_passes=render_passes,
+                        render_passes=render_passes, params=PARAMS,
                         summary="nee with efficiency-aware roulette and splitting learnt per region (EARS)")

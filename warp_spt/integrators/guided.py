@@ -30,14 +30,19 @@ path, the radiance the path then gathered through that direction (less an emitte
 next vertex), times the cosine to the axis of its quadtree's normal bin (so the guide learns the
 product's shape), divided by the throughput and the direction's density, into the recording tree;
 between passes the host refines the tree (``guiding_tree.refine``, numpy), learns the alphas and
-uploads the new sampling and recording trees. From the third training pass on, when fewer than
-``STOP_FRACTION`` of the records fell in quadtrees that would sample the guide, training stops and
+uploads the new sampling and recording trees. From training pass ``stop_after`` on (the third by default), when fewer than
+``stop_fraction`` of the records fell in quadtrees that would sample the guide, training stops and
 the rest of the samples are one pass without the guide (at ``nee``'s cost: the Cornell box). The
 image is the sum of *every* pass's samples with equal weight (training passes included: each is an
 unbiased estimate, the first one pure BSDF sampling), so the film holds exactly the requested spp,
 the union of the passes is the sample sequence 0 .. spp - 1 (weighting the passes by their
 estimated inverse variance was measured and lost: it breaks the Sobol' set apart, 1.8x the MSE on
 the Cornell box at 16 spp), and the image is built pass after pass in a fixed order.
+
+Parameters (``PARAMS``, set by name in ``RenderSettings.integrator_options``): ``alpha`` fixes the
+guide's probability in every quadtree that learnt something (and training never stops); 0 is
+``nee``'s estimator, so its image is ``nee``'s bit for bit (tests/test_guiding.py) at the cost of
+the recording; the others tune training and the tree (``guiding_tree``'s constants are their defaults).
 
 Determinism: the records are integer sums (fixed point), exact in any order, and each worker
 thread records into its own arrays, added on the host; the pass schedule depends only on the spp
@@ -83,6 +88,7 @@ from warp_spt.integrators.common import (
     FULL_STRIDE,
     CameraParams,
     Integrator,
+    Param,
     PathState,
     RenderParams,
     add_to_pixel,
@@ -94,12 +100,28 @@ from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 
 STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the direction's (see vertex)
-ALPHA = None              # probability of sampling the guide, the same for every quadtree that learnt
-                          # something; None: learnt per quadtree (guiding_tree.quadtree_alpha)
-STOP_AFTER = 2            # training passes before the guide may be found not worth it (1 + 1 spp)
-STOP_FRACTION = 0.25      # ... when fewer of the records than this fell where it is sampled (measured:
-                          # cornell 0.07-0.18, indirect 0.55-0.95, caustics 0.16-0.7)
-MAX_RECORDS = 16          # diffuse vertices of one path that record (deeper ones do not train)
+
+PARAMS = (
+    Param("alpha", None, "probability of sampling the guide, the same in every quadtree that learnt something "
+          "(training then never stops); None: learnt per quadtree (guiding_tree.quadtree_alpha)",
+          float, 0.0, 1.0, high_open=True, optional=True),
+    Param("stop_after", 2, "training passes before the guide may be found not worth it (1 + 1 spp)", int, 1),
+    # measured fractions: cornell 0.07-0.18, indirect 0.55-0.95, caustics 0.16-0.7
+    Param("stop_fraction", 0.25, "training stops when fewer of the records than this fell where the guide "
+          "is sampled", float, 0.0, 1.0),
+    Param("max_records", 16, "diffuse vertices of one path that record (deeper ones do not train)", int, 1, 256),
+    Param("guide_cost", guiding_tree.GUIDE_COST, "the guide's relative cost per vertex that its variance "
+          "reduction must pay for (learnt alpha)", float, 0.0),
+    Param("min_hits", guiding_tree.MIN_HITS, "records a quadtree needs before it is sampled (learnt alpha)", int, 0),
+    Param("prior_records", guiding_tree.PRIOR_RECORDS, "how strongly a leaf's learnt energy is shrunk towards "
+          "the cosine's, in records (learnt alpha)", float, 0.0),
+    Param("rho", guiding_tree.RHO, "a quadtree node holding more than this fraction of its tree's energy "
+          "splits", float, 0.0, 1.0, low_open=True),
+    Param("max_dir_depth", guiding_tree.MAX_DIR_DEPTH, "quadtree depth limit (float32 sample warping keeps "
+          "about 24 bits over 12 levels)", int, 1, guiding_tree.MAX_DIR_DEPTH),
+    Param("spatial_c", guiding_tree.SPATIAL_C, "records a spatial leaf may collect in a 1 spp pass before it "
+          "splits (times sqrt(2^k) in pass k)", float, 0.0, low_open=True),
+)
 
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
@@ -144,7 +166,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
 
     @wp.func
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
-               base: int, g: GuideTree, root: int, a: float):
+               base: int, a: float):
         """Light sampling at this vertex, weighed against the mixture: (radiance, sampler state)."""
         contrib = wp.vec3(0.0, 0.0, 0.0)
         ls, x, st = light_sample(geo, lights, p.sampler, sf, base)
@@ -204,7 +226,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                         root = g.d_root[qi]
         if wp.static(sample_lights):
             if dense:
-                contrib, st = direct(geo, mats, tex, lights, p, sf, base, g, root, a)
+                contrib, st = direct(geo, mats, tex, lights, p, sf, base, a)
                 lit = p
                 lit.radiance += contrib
                 lit.sampler = st
@@ -265,8 +287,9 @@ def make_vertex_guided(features: Features, sampler: Sampler):
 def make_kernel(step, start_path):
     """The guided fast kernel: ``common.make_kernel``'s (same inputs first, same film and counters)
     plus the sampling tree ``g`` and the record ``rec``; each finished path adds, for each of its
-    recording vertices, the radiance it gathered after that vertex over the throughput there and
-    the direction's density, in fixed point, to ``rec`` (the launch is serial on the CPU)."""
+    recording vertices (at most as many as ``rec``'s slots per thread: the ``max_records`` option),
+    the radiance it gathered after that vertex over the throughput there and the direction's
+    density, in fixed point, to ``rec`` (the launch is serial on the CPU)."""
 
     @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
@@ -287,7 +310,7 @@ def make_kernel(step, start_path):
                     v = rec.slot_value[wp.tid(), n - 1]
                     rec.slot_value[wp.tid(), n - 1] = wp.vec2(v[0] + emitted, v[1])
                 recorded = 0
-                if node[0] >= 0 and n < MAX_RECORDS:
+                if node[0] >= 0 and n < rec.slot_node.shape[1]:
                     t = path.throughput[0] + path.throughput[1] + path.throughput[2]
                     if t > 0.0 and pdf > 0.0:
                         rec.slot_node[wp.tid(), n] = node
@@ -329,8 +352,9 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
     """Render ``b.settings.spp`` samples of every pixel of ``tiles`` into ``film`` and ``counters``
     (``Integrator.render_passes``, the tile renderer's hook): training passes with tree refinements
     between them, then the last pass; at most ``per_launch`` samples per launch. Returns the
-    launches made."""
-    rs, device = b.settings, b.dev.device
+    launches made. The options (``PARAMS``) come from ``b.options``."""
+    rs, device, opt = b.settings, b.dev.device, b.options
+    fixed = opt["alpha"]
     if tiles[0][0] != 0 or tiles[-1][1] != b.pixels:
         raise ValueError("the guided integrator trains over the whole image: it cannot render a window of rows")
     plan = training_passes(rs.spp)
@@ -342,8 +366,9 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         training = k < len(plan) - 1 and not stopped
         count = plan[k] if training else rs.sample_offset + rs.spp - start
         rec_dev = upload_tree(rec_tree, 0.0, device, sampling=False)
-        slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles), MAX_RECORDS,
-                            device, guiding_tree.sampling_quadtrees(rec_tree)) for _ in range(max(1, threads))]
+        slots = [new_record(rec_dev, rec_tree.dir_nodes, training, max(hi - lo for lo, hi in tiles),
+                            opt["max_records"], device, guiding_tree.sampling_quadtrees(rec_tree))
+                 for _ in range(max(1, threads))]
         t0 = time.process_time()
         launches += run_pass(b, tiles, film, counters, threads, report, per_launch, start - rs.sample_offset, count,
                              slots, lambda rec, sampling=sampling: [sampling, rec])
@@ -354,11 +379,16 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
         if training:
             energy = np.asarray(sum(r.energy.numpy() for r in slots))
             hits = np.asarray(sum(r.hits.numpy() for r in slots))
-            host_sampling, rec_tree = guiding_tree.refine(rec_tree, energy, hits, k)
-            alpha = guiding_tree.quadtree_alpha(host_sampling, hits) if ALPHA is None else ALPHA
+            host_sampling, rec_tree = guiding_tree.refine(rec_tree, energy, hits, k, c=opt["spatial_c"],
+                                                          rho=opt["rho"], max_depth=opt["max_dir_depth"])
+            if fixed is None:
+                alpha = guiding_tree.quadtree_alpha(host_sampling, hits, cost=opt["guide_cost"],
+                                                    min_hits=opt["min_hits"], prior=opt["prior_records"])
+            else:
+                alpha = fixed
             used = guiding_tree.guided_fraction(host_sampling, hits, alpha)
             # the guide is not worth its cost here: the rest of the samples are one pass without it
-            stopped = ALPHA is None and k + 1 >= STOP_AFTER and used < STOP_FRACTION
+            stopped = fixed is None and k + 1 >= opt["stop_after"] and used < opt["stop_fraction"]
             # the sampling tree has the structure of the one this pass recorded in: its arrays are shared
             sampling = upload_tree(host_sampling, 0.0 if stopped else alpha, device, structure=rec_dev,
                                    sampling=not stopped)
@@ -369,5 +399,5 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
 
 
 INTEGRATOR = Integrator("guided", make, None, STRIDE, tape=False, make_kernel=make_kernel,
-                        render_passes=render_passes,
+                        render_passes=render_passes, params=PARAMS,
                         summary="path guiding: NEE + MIS with BSDF directions mixed with a learnt SD-tree")

@@ -6,12 +6,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
+from typing import Any, Mapping
 
 import numpy as np
 
 from warp_spt.core.device_scene import Features
-from warp_spt.integrators import DEFAULT_INTEGRATOR, check_integrator
+from warp_spt.integrators import DEFAULT_INTEGRATOR, get_integrator
 from warp_spt.samplers import DEFAULT_SAMPLER, check_sampler
 from warp_spt.scene.sky import Sky
 
@@ -31,6 +32,12 @@ class RenderSettings:
     ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
     ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
     (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
+    ``integrator_options`` sets the integrator's parameters by name (``Integrator.params``, e.g.
+    ``{"alpha": 0.25}`` for ``guided``; see ``warp_spt.integrators.describe_options``); the rest keep
+    their defaults. It is read, never changed.
+
+    ``roulette_depth`` stays a setting of its own, not an integrator option: it is a per-launch
+    kernel input (``RenderParams``) that the fast, path-replay and tape kernels of ``nee`` share.
     """
 
     width: int = 500
@@ -48,6 +55,7 @@ class RenderSettings:
     tile_pixels: int = TILE_PIXELS
     features: Features | None = None
     device: str = "cpu"
+    integrator_options: Mapping[str, Any] = field(default_factory=dict)
 
 
 _SETTING_NAMES = {f.name for f in fields(RenderSettings)}
@@ -63,7 +71,7 @@ def settings_from(kw: dict) -> RenderSettings:
 
 def check_args(rs: RenderSettings) -> None:
     """Raise ValueError naming the first setting of ``rs`` a kernel must not see (sizes, sample indices,
-    seed, roulette depth, texture filter, integrator and sampler names)."""
+    seed, roulette depth, texture filter, integrator and sampler names, the integrator's options)."""
     for name in ("width", "height", "spp", "max_depth", "tile_pixels"):
         v = getattr(rs, name)
         if not isinstance(v, (int, np.integer)) or v < 1:
@@ -78,7 +86,7 @@ def check_args(rs: RenderSettings) -> None:
         raise ValueError(f"roulette_depth must be a non-negative integer, got {rs.roulette_depth!r}")
     if rs.texture_filter not in ("nearest", "bilinear"):
         raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
-    check_integrator(rs.integrator)
+    get_integrator(rs.integrator).options(rs.integrator_options)    # unknown, ill-typed, out of range
     check_sampler(rs.sampler)
 
 

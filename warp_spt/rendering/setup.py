@@ -14,7 +14,7 @@ above this layer and register their kinds when imported).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import warp as wp
@@ -69,8 +69,9 @@ register_kind(KernelKind(
 class Bound:
     """Everything a launch needs: the device scene, the camera (recentred with the scene), the
     settings, the sky, the features, the integrator's record, the kernel, the packed camera, the
-    light table (None for kinds without lights), the textures, and the integrator's own data
-    (``Integrator.prepare``; None without it)."""
+    light table (None for kinds without lights), the textures, the integrator's own data
+    (``Integrator.prepare``; None without it) and its parameters' values (``Integrator.options``
+    of the settings' ``integrator_options``: every parameter, checked, defaults filled in)."""
 
     dev: DeviceScene
     camera: Camera
@@ -84,6 +85,7 @@ class Bound:
     lights: Lights | None = None
     tex: Textures | None = None
     data: Any = None
+    options: dict = field(default_factory=dict)
 
     @property
     def width(self) -> int:
@@ -172,6 +174,7 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     dev, camera = upload(scene, camera, rs.device)
     sky = rs.sky or Sky.black()
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)
+    b.options = b.integrator.options(rs.integrator_options)
     b.kernel = kind.build(b)
     b.cam = camera_params(camera, rs.width, rs.height)
     b.lights = light_table(dev, sky, camera.up) if kind.lights else None

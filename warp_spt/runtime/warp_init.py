@@ -8,6 +8,10 @@ Warp logs a banner and one line per loaded module at INFO level. For a CPU rende
 writes back to stderr every captured line except that one known warning, so a real native error
 still surfaces. It also lowers Warp's log level to warnings, unless the caller changed it already
 or asked for ``verbose`` (the CLI's ``--verbose``; ``WARP_SPT_VERBOSE=1`` for the API).
+
+It also keeps Clang's precompiled header across processes (:func:`share_clang_pch`): Warp builds it
+in a new temporary directory in every process, 2.2-2.4 CPU s before the process's first CPU compile
+(docs/performance.md, Start-up), so every new scene paid for it again.
 """
 
 from __future__ import annotations
@@ -44,7 +48,38 @@ def init_warp(verbose: bool | None = None, *, quiet: bool = False) -> None:
         wp.init()
     else:
         _init_capturing_stderr(wp)
+    share_clang_pch(wp)
     _state["done"] = True
+
+
+PCH_FOLDER = "wp_spt_clang_pch"     # "wp_" first: wp.clear_kernel_cache() removes it with the kernels
+
+
+def share_clang_pch(wp) -> str | None:
+    """Point Warp's CPU compiles at one precompiled-header folder inside its (versioned) kernel cache,
+    shared by threads and processes, instead of a new temporary folder per thread; returns the
+    folder (None when left alone: no warp-clang, precompiled headers off, not POSIX, or
+    ``WARP_SPT_SHARED_PCH=0``).
+
+    Sharing is safe because warp-clang names each header by its build options and writes it to a
+    unique temporary file renamed into place (checked with strace: ``O_EXCL`` ``.pch.tmp``, then
+    ``rename``), so a reader sees a whole header or none; a header whose inputs changed fails
+    Clang's validation and warp-clang rebuilds it. Renaming over a file that another process has
+    open is POSIX behaviour, hence POSIX only.
+    """
+    from warp._src import context
+
+    runtime = context.runtime
+    if (os.name != "posix" or os.environ.get("WARP_SPT_SHARED_PCH", "1") == "0" or runtime is None
+            or runtime.llvm is None or not wp.config.use_precompiled_headers or not wp.config.kernel_cache_dir):
+        return None
+    folder = os.path.join(wp.config.kernel_cache_dir, PCH_FOLDER)
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError:             # a read-only cache: keep Warp's temporary folders
+        return None
+    runtime.get_clang_pch_dir = lambda: folder     # the one call site is Module's CPU build
+    return folder
 
 
 def _init_capturing_stderr(wp) -> None:

@@ -102,3 +102,47 @@ def _init_capturing_stderr(wp) -> None:
             kept = b"".join(line for line in text.splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
             if kept:
                 print(kept.decode("utf-8", "replace"), end="", file=sys.stderr)
+
+
+def start_pch_build(module_options: dict, device: str = "cpu"):
+    """Start building Clang's precompiled header for modules compiled with ``module_options`` on a
+    background thread, when the shared folder (:func:`share_clang_pch`) holds none yet: the first
+    compile in an empty kernel cache then overlaps the header's 2.2 CPU s with the Python work
+    before it (building the kernel's functions, hashing and generating its code). Returns the
+    thread, or None (nothing to do). warp-clang names headers by their build options, so the
+    throw-away kernel built here has the caller's options. Compiles on other threads wait for it
+    (in Warp's request for the header's folder, after their code generation). Another header in
+    the folder (other options) counts as present: that compile builds its own, as without this."""
+    import threading
+
+    import warp as wp
+    from warp._src import context
+
+    init_warp()
+    folder = share_clang_pch(wp)
+    if device != "cpu" or folder is None or any(name.endswith(".pch") for name in os.listdir(folder)):
+        return None
+
+    def build() -> None:
+        @wp.kernel(enable_backward=False, module="unique", module_options=module_options)
+        def warm_pch(a: wp.array(dtype=wp.float32)):     # the smallest kernel: its header is the point
+            a[wp.tid()] = 0.0
+
+        try:
+            wp.load_module(warm_pch.module, device="cpu")
+        except Exception:       # the real compile reports any problem; this one only saves time
+            pass
+
+    thread = threading.Thread(target=build, name="warp_spt-pch", daemon=True)
+    thread.start()
+
+    def folder_once_built() -> str:
+        # Warp asks for the folder after generating a module's code, just before Clang runs: other
+        # threads wait here for the header rather than build a second one, and so the kernel's
+        # hashing and code generation (0.3 s) overlap the header too
+        if threading.current_thread() is not thread:
+            thread.join()
+        return folder
+
+    context.runtime.get_clang_pch_dir = folder_once_built
+    return thread

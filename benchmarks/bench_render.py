@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -144,27 +145,44 @@ print(t1 - t0, t2 - t1, t3 - t2, t4 - t3, c1 - c0, c2 - c1, c3 - c2, c4 - c3)
 def start_times(repeat: int) -> None:
     """Cold and cached start of a render of bench_vs_mitsuba's Cornell box (64x64, 1 spp: the
     launch itself is short) in fresh processes: an empty kernel cache (a temporary WARP_CACHE_PATH,
-    so the shared cache is left alone), then the cache that run filled. Medians of ``repeat``
-    (a new empty cache each cold run)."""
+    so the shared cache is left alone), then the cache that run filled, then a new scene's start:
+    that cache without its compiled modules (the state after rendering other scenes: Warp's other
+    folders kept, such as the shared precompiled header). Medians of ``repeat`` (a new empty cache
+    each cold run).
+
+    Python's bytecode is cached for the children (in a temporary PYTHONPYCACHEPREFIX, filled by an
+    import before any timing) even where PYTHONDONTWRITEBYTECODE is set, as on our VM: an installed
+    package has its bytecode, and compiling warp_spt's sources took 0.1-0.15 s of every start
+    measured without it."""
     import statistics
     sys.path.insert(0, str(REPO / "benchmarks"))
     import bench_vs_mitsuba as mb
     desc = mb.SCENES["cornell"]
-    rows: dict[str, list[list[float]]] = {"cold (empty kernel cache)": [], "cached": []}
+    rows: dict[str, list[list[float]]] = {"cold (empty kernel cache)": [], "cached": [],
+                                          "new scene (cache of other scenes)": []}
     with tempfile.TemporaryDirectory() as folder:
         obj, mtl = Path(folder) / "scene.obj", Path(folder) / "scene.mtl"
         obj.write_text(mb.obj_text(desc["shapes"]))
         mtl.write_text(mb.mtl_text(desc["materials"]))
         code = _START_CHILD.format(obj=str(obj), mtl=str(mtl))
+        # PYTHONPATH as given (another checkout's warp_spt: before/after figures), else this one
+        base_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        base_env.update(PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)),
+                        PYTHONPYCACHEPREFIX=str(Path(folder) / "pycache"))
+        subprocess.run([sys.executable, "-c", "import warp_spt.rendering.setup, warp_spt.rendering.tiles"],
+                       env=base_env, check=True, cwd=folder)
         bare = []
         for _ in range(repeat):
             t = time.perf_counter()
             subprocess.run([sys.executable, "-c", "pass"], check=True)
             bare.append(time.perf_counter() - t)
             with tempfile.TemporaryDirectory() as cache:
-                # PYTHONPATH as given (another checkout's warp_spt: before/after figures), else this one
-                env = dict(os.environ, WARP_CACHE_PATH=cache, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)))
+                env = dict(base_env, WARP_CACHE_PATH=cache)
                 for label in rows:
+                    if label.startswith("new scene"):     # drop the compiled modules, keep the rest
+                        for sub in Path(cache).glob("*/wp_*"):
+                            if sub.name != "wp_spt_clang_pch":
+                                shutil.rmtree(sub)
                     t = time.perf_counter()
                     # cwd: python -c puts it first on sys.path, where a checkout would shadow PYTHONPATH
                     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,

@@ -163,3 +163,14 @@ def test_an_unregistered_kernel_kind_is_named(box):
 
     with pytest.raises(ValueError, match="unknown kernel kind 'nope'"):
         bind(box, CAM, mode="nope")
+
+
+def test_a_render_imports_only_the_integrator_it_uses():
+    # start-up time (docs/performance.md, Start-up): the registry imports a module on first look-up
+    code = ("import sys, warp_spt.rendering.setup, warp_spt.io.loader\n"
+            "from warp_spt.integrators import INTEGRATORS, get_integrator\n"
+            "lazy = ['warp_spt.integrators.ears', 'warp_spt.integrators.guided', 'PIL']\n"
+            "assert sorted(INTEGRATORS) == ['ears', 'guided', 'nee', 'seed'] and 'ears' in INTEGRATORS\n"
+            "assert not [m for m in lazy if m in sys.modules], [m for m in lazy if m in sys.modules]\n"
+            "assert get_integrator('ears').name == 'ears' and 'warp_spt.integrators.ears' in sys.modules\n")
+    subprocess.run([sys.executable, "-c", code], check=True)

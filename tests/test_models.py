@@ -284,6 +284,9 @@ def test_a_cold_kernel_cache_is_announced_once(scene_dir, tmp_path):
     said = [subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stderr for _ in range(2)]
     assert said[0].count("compiling kernels for this scene") == 1, said[0]
     assert "compiling kernels" not in said[1], said[1]
+    # Clang's precompiled header is kept in the kernel cache for the next process's compiles
+    # (runtime/warp_init.share_clang_pch), in a "wp_" folder, which wp.clear_kernel_cache() removes
+    assert list((tmp_path / "cache").glob("*/wp_spt_clang_pch/*.pch")), list((tmp_path / "cache").rglob("*"))
 
 
 # --------------------------------------------------------------------------------------------

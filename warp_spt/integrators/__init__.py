@@ -2,23 +2,29 @@
 
 ``INTEGRATORS`` maps a name to its record (``common.Integrator``: step and vertex builders, sample
 stride, capabilities, parameters); a new integrator is one module defining ``INTEGRATOR`` plus one
-line here (or ``register(record)`` from outside the package). Its parameters (``Integrator.params``,
-:class:`Param` records: name, default, doc, type, range) are set by name in
-``RenderSettings.integrator_options`` and checked before any upload; no integrator keeps state in
-its module. Built functions and kernels live in the one
+line here (or ``register(record)`` from outside the package). The line names the module, which is
+imported when its record is first asked for: a render imports the integrator it uses, not the others
+(their Warp functions are defined at import; ``ears`` with the guiding trees alone cost about 15 ms
+of every start, docs/performance.md, Start-up). Its parameters (``Integrator.params``, :class:`Param`
+records: name, default, doc, type, range) are set by name in ``RenderSettings.integrator_options``
+and checked before any upload; no integrator keeps state in its module. Built functions and kernels
+live in the one
 kernel cache (:mod:`warp_spt.runtime.kernel_cache`), per (integrator, sampler, features); Warp's
 disk cache keeps the compiled code across processes.
 """
 
 from __future__ import annotations
 
+import importlib
+from collections.abc import MutableMapping
+
 import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray
 from warp_spt.core.device_scene import Features
 from warp_spt.core.proctex import explain_compile_failure
-from warp_spt.integrators import ears, guided, nee, seed
 from warp_spt.integrators.common import (
+    FAST_KERNEL_OPTIONS,
     Integrator,
     Param,
     PathState,
@@ -28,14 +34,49 @@ from warp_spt.integrators.common import (
     make_start_path,
 )
 from warp_spt.runtime import kernel_cache
+from warp_spt.runtime.warp_init import start_pch_build
 from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 
-INTEGRATORS: dict[str, Integrator] = {
-    "seed": seed.INTEGRATOR,
-    "nee": nee.INTEGRATOR,
-    "guided": guided.INTEGRATOR,
-    "ears": ears.INTEGRATOR,
-}
+
+class Registry(MutableMapping):
+    """Name -> :class:`Integrator`; an entry is a record, or the name of the module (in this
+    package) whose ``INTEGRATOR`` it is, imported on first look-up. Listing the names imports
+    nothing; values and items import every module."""
+
+    def __init__(self, entries: dict[str, "Integrator | str"]):
+        self._entries = dict(entries)
+
+    def __getitem__(self, name: str) -> Integrator:
+        entry = self._entries[name]
+        if isinstance(entry, str):
+            entry = self._entries[name] = importlib.import_module(f"{__name__}.{entry}").INTEGRATOR
+        return entry
+
+    def __setitem__(self, name: str, record: Integrator) -> None:
+        self._entries[name] = record
+
+    def __delitem__(self, name: str) -> None:
+        del self._entries[name]
+
+    def __iter__(self):
+        return iter(self._entries)
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def __contains__(self, name) -> bool:      # without importing the module
+        return name in self._entries
+
+    def __repr__(self) -> str:
+        return f"Registry({sorted(self._entries)})"
+
+
+INTEGRATORS = Registry({
+    "seed": "seed",
+    "nee": "nee",
+    "guided": "guided",
+    "ears": "ears",
+})
 DEFAULT_INTEGRATOR = "nee"      # see docs/performance.md, Light transport: several times the seed's efficiency
 
 
@@ -107,6 +148,7 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
     (defaults: DEFAULT_INTEGRATOR, DEFAULT_SAMPLER)."""
     integrator = integrator or DEFAULT_INTEGRATOR
     sampler = sampler or DEFAULT_SAMPLER
+    start_pch_build(FAST_KERNEL_OPTIONS, device)     # an empty kernel cache: the header, meanwhile
     step, start = get_step(integrator, sampler, features)
     build = get_integrator(integrator).make_kernel or make_kernel
     k = kernel_cache.cached("fast", (integrator, sampler, features), lambda: build(step, start))

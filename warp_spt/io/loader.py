@@ -36,10 +36,9 @@ from __future__ import annotations
 import os
 import warnings as _warnings
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import TYPE_CHECKING, Callable, Iterable
 
 import numpy as np
-from PIL import Image
 
 from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
 from warp_spt.io.obj import load_obj
@@ -57,6 +56,9 @@ from warp_spt.scene.model import (
     TextureRef,
 )
 from warp_spt.scene.validate import validate_scene
+
+if TYPE_CHECKING:
+    from PIL import Image
 
 __all__ = ["load_scene", "validate_scene"]
 
@@ -280,6 +282,9 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     Pillow's own warnings become one-line notes naming the MTL line; its decompression-bomb check is
     replaced by the budget.
     """
+    # here: scenes without image textures need no Pillow (9 ms of every start)
+    from PIL import Image
+
     try:
         with _warnings.catch_warnings(record=True) as caught:
             _warnings.simplefilter("always")
@@ -300,7 +305,7 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     return rgb
 
 
-def _to_rgb(img: Image.Image) -> np.ndarray:
+def _to_rgb(img: "Image.Image") -> np.ndarray:
     """Float32 RGB in [0, 1]: 16-bit and 32-bit integer grey scaled by 65535, float grey clipped."""
     if img.mode.startswith("I;16") or img.mode == "I":
         grey = np.clip(np.asarray(img, dtype=np.float64) / 65535.0, 0.0, 1.0).astype(np.float32)

@@ -8,6 +8,10 @@ Warp logs a banner and one line per loaded module at INFO level. For a CPU rende
 writes back to stderr every captured line except that one known warning, so a real native error
 still surfaces. It also lowers Warp's log level to warnings, unless the caller changed it already
 or asked for ``verbose`` (the CLI's ``--verbose``; ``WARP_SPT_VERBOSE=1`` for the API).
+
+It also keeps Clang's precompiled header across processes (:func:`share_clang_pch`): Warp builds it
+in a new temporary directory in every process, 2.2-2.4 CPU s before the process's first CPU compile
+(docs/performance.md, Start-up), so every new scene paid for it again.
 """
 
 from __future__ import annotations
@@ -44,7 +48,38 @@ def init_warp(verbose: bool | None = None, *, quiet: bool = False) -> None:
         wp.init()
     else:
         _init_capturing_stderr(wp)
+    share_clang_pch(wp)
     _state["done"] = True
+
+
+PCH_FOLDER = "wp_spt_clang_pch"     # "wp_" first: wp.clear_kernel_cache() removes it with the kernels
+
+
+def share_clang_pch(wp) -> str | None:
+    """Point Warp's CPU compiles at one precompiled-header folder inside its (versioned) kernel cache,
+    shared by threads and processes, instead of a new temporary folder per thread; returns the
+    folder (None when left alone: no warp-clang, precompiled headers off, not POSIX, or
+    ``WARP_SPT_SHARED_PCH=0``).
+
+    Sharing is safe because warp-clang names each header by its build options and writes it to a
+    unique temporary file renamed into place (checked with strace: ``O_EXCL`` ``.pch.tmp``, then
+    ``rename``), so a reader sees a whole header or none; a header whose inputs changed fails
+    Clang's validation and warp-clang rebuilds it. Renaming over a file that another process has
+    open is POSIX behaviour, hence POSIX only.
+    """
+    from warp._src import context
+
+    runtime = context.runtime
+    if (os.name != "posix" or os.environ.get("WARP_SPT_SHARED_PCH", "1") == "0" or runtime is None
+            or runtime.llvm is None or not wp.config.use_precompiled_headers or not wp.config.kernel_cache_dir):
+        return None
+    folder = os.path.join(wp.config.kernel_cache_dir, PCH_FOLDER)
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError:             # a read-only cache: keep Warp's temporary folders
+        return None
+    runtime.get_clang_pch_dir = lambda: folder     # the one call site is Module's CPU build
+    return folder
 
 
 def _init_capturing_stderr(wp) -> None:
@@ -67,3 +102,47 @@ def _init_capturing_stderr(wp) -> None:
             kept = b"".join(line for line in text.splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
             if kept:
                 print(kept.decode("utf-8", "replace"), end="", file=sys.stderr)
+
+
+def start_pch_build(module_options: dict, device: str = "cpu"):
+    """Start building Clang's precompiled header for modules compiled with ``module_options`` on a
+    background thread, when the shared folder (:func:`share_clang_pch`) holds none yet: the first
+    compile in an empty kernel cache then overlaps the header's 2.2 CPU s with the Python work
+    before it (building the kernel's functions, hashing and generating its code). Returns the
+    thread, or None (nothing to do). warp-clang names headers by their build options, so the
+    throw-away kernel built here has the caller's options. Compiles on other threads wait for it
+    (in Warp's request for the header's folder, after their code generation). Another header in
+    the folder (other options) counts as present: that compile builds its own, as without this."""
+    import threading
+
+    import warp as wp
+    from warp._src import context
+
+    init_warp()
+    folder = share_clang_pch(wp)
+    if device != "cpu" or folder is None or any(name.endswith(".pch") for name in os.listdir(folder)):
+        return None
+
+    def build() -> None:
+        @wp.kernel(enable_backward=False, module="unique", module_options=module_options)
+        def warm_pch(a: wp.array(dtype=wp.float32)):     # the smallest kernel: its header is the point
+            a[wp.tid()] = 0.0
+
+        try:
+            wp.load_module(warm_pch.module, device="cpu")
+        except Exception:       # the real compile reports any problem; this one only saves time
+            pass
+
+    thread = threading.Thread(target=build, name="warp_spt-pch", daemon=True)
+    thread.start()
+
+    def folder_once_built() -> str:
+        # Warp asks for the folder after generating a module's code, just before Clang runs: other
+        # threads wait here for the header rather than build a second one, and so the kernel's
+        # hashing and code generation (0.3 s) overlap the header too
+        if threading.current_thread() is not thread:
+            thread.join()
+        return folder
+
+    context.runtime.get_clang_pch_dir = folder_once_built
+    return thread

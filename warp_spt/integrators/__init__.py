@@ -24,7 +24,6 @@ from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray
 from warp_spt.core.device_scene import Features
 from warp_spt.core.proctex import explain_compile_failure
 from warp_spt.integrators.common import (
-    FAST_KERNEL_OPTIONS,
     Integrator,
     Param,
     PathState,
@@ -34,7 +33,6 @@ from warp_spt.integrators.common import (
     make_start_path,
 )
 from warp_spt.runtime import kernel_cache
-from warp_spt.runtime.warp_init import start_pch_build
 from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 
 
@@ -148,7 +146,6 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
     (defaults: DEFAULT_INTEGRATOR, DEFAULT_SAMPLER)."""
     integrator = integrator or DEFAULT_INTEGRATOR
     sampler = sampler or DEFAULT_SAMPLER
-    start_pch_build(FAST_KERNEL_OPTIONS, device)     # an empty kernel cache: the header, meanwhile
     step, start = get_step(integrator, sampler, features)
     build = get_integrator(integrator).make_kernel or make_kernel
     k = kernel_cache.cached("fast", (integrator, sampler, features), lambda: build(step, start))

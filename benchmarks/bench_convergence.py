@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import warp as wp  # noqa: E402
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt import Sky, load_scene, render  # noqa: E402
 from warp_spt.core.device_scene import DeviceScene  # noqa: E402

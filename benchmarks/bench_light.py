@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import warp as wp  # noqa: E402
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene  # noqa: E402
 from warp_spt.core.device_scene import DeviceScene  # noqa: E402
@@ -80,7 +80,7 @@ OLD = "2f89ff6"       # main when issue 8 was filed
 # Run in a subprocess on an extracted copy of OLD (its package has the same name as ours)
 OLD_RUN = """
 import sys, time, numpy as np, warp as wp
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 from warp_spt import Camera, Sky, load_scene, render
 from warp_spt.device_scene import DeviceScene
 folder, size, spp, out = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]

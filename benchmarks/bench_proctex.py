@@ -23,8 +23,7 @@ sys.path.insert(0, str(REPO))
 
 import warp as wp  # noqa: E402
 
-wp.config.quiet = True
-wp.config.log_level = wp.LOG_WARNING
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt.core.device_scene import DeviceScene  # noqa: E402
 from warp_spt.core.lights import sky_emits  # noqa: E402

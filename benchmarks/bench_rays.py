@@ -51,7 +51,7 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 
 import warp as wp  # noqa: E402
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 import warp_spt.rendering.tiles as R
 from warp_spt.core.device_scene import MESH_LEAF_SIZE, DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402

@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 
 import warp as wp  # noqa: E402
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 import warp_spt.rendering.tiles as R
 from warp_spt.core.device_scene import DeviceScene, Features  # noqa: E402
@@ -107,7 +107,7 @@ def specialisation_table(name: str, sc: DeviceScene, size: int, spp: int) -> Non
 def compile_times() -> None:
     """Cold compile in a fresh process with an empty kernel cache, then a cached load in another."""
     print("\n## Kernel compile (builtin demo's kernel), fresh processes")
-    code = ("import time,warp as wp; wp.config.quiet=True; wp.init(); t=time.perf_counter();"
+    code = ("import time,warp as wp; wp.config.log_level=wp.LOG_WARNING; wp.init(); t=time.perf_counter();"
             "from warp_spt.demo import demo_files; from warp_spt.io.loader import load_scene;"
             "from warp_spt.core.device_scene import DeviceScene; from warp_spt.integrators import get_kernel;"
             "o,m=demo_files(); s=DeviceScene(load_scene(o,m)); t=time.perf_counter();"
@@ -124,7 +124,7 @@ _START_CHILD = """
 import time
 t0, c0 = time.perf_counter(), time.process_time()
 import warp as wp
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
 from warp_spt.rendering.setup import bind
 t1, c1 = time.perf_counter(), time.process_time()

@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import warp as wp  # noqa: E402
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt.core.sampling import stream_state  # noqa: E402
 from warp_spt.samplers.sobol import sobol_2d  # noqa: E402

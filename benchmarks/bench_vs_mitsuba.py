@@ -390,7 +390,7 @@ if {pythonpath!r}:
 desc, size, spp, threads, folder = b.SCENES[{scene!r}], {size}, {spp}, {threads}, Path({folder!r})
 if {ours}:
     import warp as wp
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
     from warp_spt import RenderSettings, render_scene
     scene = b.warp_scene(desc, folder)
     image = render_scene(scene, b.warp_camera(desc), RenderSettings(**b.warp_settings(
@@ -481,7 +481,7 @@ def main() -> int:
     mi.set_variant(variant)
     mi.set_log_level(mi.LogLevel.Error)       # the orthogonal sampler warns that it rounds 16 spp to 25
     import warp as wp
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
     size, spps, ref_spp, check_spp = (96, (4, 16), 512, 64) if args.quick else (256, (16, 64), 1024, 128)
     print(f"Mitsuba {mi.__version__}, variant {variant}; {size}x{size}, depth {DEPTH}; reference: Mitsuba "
           f"ldsampler {ref_spp} spp (two halves with different seeds); agreement: warp_spt nee+sobol {check_spp} spp\n")

@@ -18,7 +18,7 @@ from warp_spt.samplers import sobol as S
 
 from . import sobol_reference as R
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 DEVICE = "cpu"
 Z_1E6 = 4.8916    # two-sided standard normal quantile for probability 1e-6
 Z_1E6_ONE = 4.7534  # one-sided

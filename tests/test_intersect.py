@@ -211,3 +211,34 @@ def test_small_scene_loop_equals_the_tlas_traversal(scene_dir, mixed, which):
     assert np.array_equal(nrm[hits], nrm_ref[hits])
     tri = ids_ref[:, 0] == 0
     assert tri.sum() > 500 and np.array_equal(ids[tri, 2], ids_ref[tri, 2]) and np.array_equal(tuv[tri], tuv_ref[tri])
+
+
+# --- our wide BVHs against Warp's BVH (wp.mesh_query_ray) ---------------------------------------
+
+
+@pytest.mark.parametrize("which", ["one mesh", "mesh and spheres"])
+def test_wide_bvh_answers_as_warps_bvh(scene_dir, mixed, which):
+    # Meshes are traced through our wide BVHs (core.wide_traversal), or through Warp's when larger than
+    # the scene's limit (0 here: all of them). Same triangle test, so every hit, normal and shadow-ray
+    # answer must agree bit for bit; only exact ties in t between two triangles may pick another face.
+    rng = np.random.default_rng(5)
+    if which == "one mesh":
+        objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000))
+        host = load_scene(objs, [], warn=lambda message: None)
+    else:
+        host = mixed.scene
+    wide, warp = DeviceScene(host), DeviceScene(host, wide_bvh_max_triangles=0)
+    assert wide.features.bvh_stack > 0 and not wide.features.warp_meshes
+    assert warp.features.bvh_stack == 0 and warp.features.warp_meshes
+    n = 40000
+    o, d = _random_rays(rng, n)
+    o[: n // 4] *= 3.0
+    t_max = rng.uniform(0.0, 12.0, size=n)
+    got = [_loop_and_tlas(s, o, d, t_max) for s in (wide, warp)]
+    for (tuv, ids, nrm), (tuv_ref, ids_ref, nrm_ref) in zip(got[0], got[1]):     # the item loop, then the TLAS
+        tri = ids_ref[:, 0] == 0
+        assert tri.sum() > 500 and np.array_equal(ids[:, [0, 1, 3]], ids_ref[:, [0, 1, 3]])
+        assert np.array_equal(tuv[:, 0], tuv_ref[:, 0])
+        same = tri & (ids[:, 2] == ids_ref[:, 2])
+        assert (tri & ~same).sum() <= 2          # ties: the same t, another face
+        assert np.array_equal(tuv[same], tuv_ref[same]) and np.array_equal(nrm[same], nrm_ref[same])

@@ -9,7 +9,7 @@ integrators specialise their kernels.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Hashable, MutableMapping
 
 import numpy as np
@@ -19,18 +19,43 @@ from warp_spt.core.bvh import build_tlas
 from warp_spt.core.material_table import Materials, upload_materials  # noqa: F401 (kernels import Materials from here)
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
 from warp_spt.core.textures import pack_atlas
+from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.material_schema import MATERIAL_KINDS
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
+
+# One wide BVH node's child slots, one lane per child (core.geometry tests a node's boxes at once).
+vec_wide_f = wp.types.vector(length=WIDTH, dtype=wp.float32)
+vec_wide_i = wp.types.vector(length=WIDTH, dtype=wp.int32)
+# Traversal stack lengths a kernel may be compiled with (Features.bvh_stack): the least one that holds
+# every mesh's WideBvh.stack_bound. A short stack is faster to set up (it is zeroed per query), and
+# three sizes keep the number of kernel variants small.
+BVH_STACKS = (16, 64, 512)
+# Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
+# Warp builds its BVH in C++ (0.02 s for 51k triangles), ours costs about 7 us per triangle in numpy
+# (0.34 s for 51k, 10 s for 1M; benchmarks/bench_wide_build.py) and saves about a fifth of a render's
+# time, so a model this large would pay more in start-up than a default render gains.
+WIDE_BVH_MAX_TRIANGLES = 100_000
 
 
 @wp.struct
 class Geometry:
     """What intersection and surface lookup read: meshes, spheres, the top-level BVH, per-face data."""
 
-    # Triangles: one wp.Mesh per OBJ file; per-face data is concatenated across meshes.
+    # Triangles: one wp.Mesh per OBJ file (surface points, light sampling); per-face data is
+    # concatenated across meshes.
     mesh_ids: wp.array(dtype=wp.uint64)
+    # Each mesh's wide BVH (core.wide_bvh), concatenated: node i's boxes are rows 6i..6i+5 of
+    # bvh_box (lower x, y, z, upper x, y, z; one lane per child), its children bvh_child[i]; leaves
+    # index the triangles' leaf-ordered corners tri_v0..2 and their face numbers within the mesh.
+    bvh_box: wp.array(dtype=vec_wide_f)
+    bvh_child: wp.array(dtype=vec_wide_i)
+    mesh_root: wp.array(dtype=wp.int32)        # root node of mesh i; -1: the mesh uses Warp's BVH
+    tri_v0: wp.array(dtype=wp.vec3)
+    tri_v1: wp.array(dtype=wp.vec3)
+    tri_v2: wp.array(dtype=wp.vec3)
+    tri_face: wp.array(dtype=wp.int32)
     face_offset: wp.array(dtype=wp.int32)      # first face of mesh i in the per-face arrays
     face_material: wp.array(dtype=wp.int32)
     corner_uv: wp.array(dtype=wp.vec2)         # 3 per face
@@ -85,11 +110,21 @@ class Features:
     procedural: tuple[tuple[str, str], ...] = ()
     # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch
     material_kinds: tuple[str, ...] = MATERIAL_KINDS
+    # entries of the wide BVHs' traversal stack (one of BVH_STACKS, enough for every mesh's tree; 0: no
+    # mesh has a wide BVH), and whether some mesh keeps Warp's BVH (WIDE_BVH_MAX_TRIANGLES)
+    bvh_stack: int = BVH_STACKS[-1]
+    warp_meshes: bool = True
 
     @staticmethod
     def general() -> "Features":
         """The kernel that handles any scene (used to check specialisations against)."""
         return Features()
+
+    def covering(self, scene: "Features") -> "Features":
+        """These features with the mesh traversal that ``scene``'s meshes need added: a kernel
+        compiled for other features (an override) must still trace this scene's rays."""
+        stack = self.bvh_stack if scene.bvh_stack == 0 else max(self.bvh_stack, scene.bvh_stack)
+        return replace(self, bvh_stack=stack, warp_meshes=self.warp_meshes or scene.warp_meshes)
 
 
 # Triangles per leaf of each mesh's BVH (Warp's default is 4). Two traces the same hits (same triangle
@@ -100,19 +135,23 @@ MESH_LEAF_SIZE = 2
 
 @dataclass
 class UploadedMesh:
-    """One mesh on the device and its float64 bounds (for the top-level BVH)."""
+    """One mesh on the device, its wide BVH (host arrays; None: the mesh uses Warp's BVH) and its
+    float64 bounds (for the top-level BVH)."""
 
     mesh: wp.Mesh
+    wide: WideBvh | None
     lower: np.ndarray
     upper: np.ndarray
 
     @classmethod
-    def of(cls, m, device: str) -> "UploadedMesh":
+    def of(cls, m, device: str, wide: bool = True) -> "UploadedMesh":
+        """``m`` uploaded, with its wide BVH built if ``wide``."""
         points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
         idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
         p = m.positions[m.indices.reshape(-1)].astype(np.float64)
         mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah", bvh_leaf_size=MESH_LEAF_SIZE)
-        return cls(mesh, p.min(0), p.max(0))
+        tree = build_wide(np.asarray(m.positions, dtype=np.float32), m.indices) if wide else None
+        return cls(mesh, tree, p.min(0), p.max(0))
 
 
 class DeviceScene:
@@ -121,9 +160,12 @@ class DeviceScene:
     ``meshes`` caches :class:`UploadedMesh` objects by :func:`mesh_key`: a mesh found there is reused
     instead of uploaded and rebuilt (animation frames share their static meshes), new ones are added, and
     ``mesh_keys`` lists this scene's keys so that the cache's owner can drop the ones no scene uses.
+    Meshes of at most ``wide_bvh_max_triangles`` triangles are traced through a wide BVH of ours,
+    larger ones through Warp's (0: every mesh through Warp's; the images are the same).
     """
 
-    def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None):
+    def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None,
+                 wide_bvh_max_triangles: int = WIDE_BVH_MAX_TRIANGLES):
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a warp_spt.Scene (from warp_spt.load_scene), got {type(scene).__name__}")
         scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
@@ -133,6 +175,8 @@ class DeviceScene:
         self.scene = scene
         self.features = _features(scene)
         self._meshes: list[wp.Mesh] = []
+        self._wide: list[WideBvh | None] = []
+        self._wide_limit = wide_bvh_max_triangles
         self._mesh_cache = meshes
         self._mesh_bounds: list[tuple[np.ndarray, np.ndarray]] = []
         self.mesh_keys: list[str] = []
@@ -160,7 +204,8 @@ class DeviceScene:
     def refresh_features(self) -> None:
         """Recompute the feature set from the host scene (after its materials changed) and forget
         the light tables built from the old values."""
-        self.features = _features(self.scene)
+        self.features = replace(_features(self.scene), bvh_stack=self.features.bvh_stack,
+                                warp_meshes=self.features.warp_meshes)
         self.invalidate_lights()
 
     def atlas_arrays(self) -> tuple[wp.array, wp.array]:
@@ -186,12 +231,16 @@ class DeviceScene:
         cache = self._mesh_cache
         for m in scene.meshes:
             key = mesh_key(m, device) if cache is not None else ""
+            wide = len(m.indices) <= self._wide_limit
             uploaded = cache.get(key) if cache is not None else None
             if uploaded is None:
-                uploaded = UploadedMesh.of(m, device)
+                uploaded = UploadedMesh.of(m, device, wide)
                 if cache is not None:
                     cache[key] = uploaded
+            elif wide and uploaded.wide is None:        # cached by a scene that traced it with Warp's BVH
+                uploaded.wide = build_wide(np.asarray(m.positions, dtype=np.float32), m.indices)
             self._meshes.append(uploaded.mesh)
+            self._wide.append(uploaded.wide if wide else None)
             self._mesh_bounds.append((uploaded.lower, uploaded.upper))
             self.mesh_keys.append(key)
             offsets.append(start)
@@ -202,11 +251,47 @@ class DeviceScene:
                 normals.append(_corner_normals(m).reshape(-1, 3))
         s.num_meshes = len(self._meshes)
         s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
+        self._upload_wide(s, scene, device)
         s.face_offset = _arr(offsets, wp.int32, device, np.int32)
         s.face_material = _arr(_cat(mats, (0,), np.int32), wp.int32, device, np.int32)
         s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32)
         s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
         s.has_corner_normals = int(self.features.smooth)
+
+    def _upload_wide(self, s: Geometry, scene: Scene, device: str) -> None:
+        """Concatenate the meshes' wide BVHs (node and triangle numbers offset per mesh), size the
+        traversal stack (Features.bvh_stack) for the deepest, and note meshes left to Warp's BVH."""
+        boxes, children, roots, corners, faces = [], [], [], [], []
+        nodes = tris = 0
+        bound = 0
+        for m, wide in zip(scene.meshes, self._wide):
+            if wide is None:
+                roots.append(-1)
+                continue
+            child = wide.child.astype(np.int64)
+            leaf = child < 0
+            code = -child - 1
+            child = np.where(leaf, -((code >> 3) + tris) * 8 - (code & 7) - 1, child + nodes)
+            boxes.append(wide.box.reshape(-1, WIDTH))
+            children.append(child.astype(np.int32))
+            roots.append(nodes)
+            p = np.asarray(m.positions, dtype=np.float32)[np.asarray(m.indices, dtype=np.int64)[wide.order]]
+            corners.append(p)
+            faces.append(wide.order)
+            nodes += len(wide.child)
+            tris += len(wide.order)
+            bound = max(bound, wide.stack_bound)
+        stack = 0 if bound == 0 else next((n for n in BVH_STACKS if n >= bound), None)
+        if stack is None:       # wide_bvh.DEPTH_BUDGET keeps stack_bound <= 337
+            raise ValueError(f"a mesh's BVH is too deep: its traversal needs {bound} stack entries, more than "
+                             f"{BVH_STACKS[-1]}")
+        self.features = replace(self.features, bvh_stack=stack, warp_meshes=any(w is None for w in self._wide))
+        v = _cat(corners, (0, 3, 3), np.float32)
+        _set_arrays(s, device, bvh_box=(_cat(boxes, (0, WIDTH), np.float32), vec_wide_f),
+                    bvh_child=(_cat(children, (0, WIDTH), np.int32), vec_wide_i),
+                    mesh_root=(np.asarray(roots, dtype=np.int32), wp.int32),
+                    tri_v0=(v[:, 0], wp.vec3), tri_v1=(v[:, 1], wp.vec3), tri_v2=(v[:, 2], wp.vec3),
+                    tri_face=(_cat(faces, (0,), np.int32), wp.int32))
 
     def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
         lowers = [lo for lo, _ in self._mesh_bounds]
@@ -285,7 +370,7 @@ def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.nda
 def _set_arrays(s, device: str, **fields: tuple) -> None:
     """Upload each ``name=(data, warp dtype)`` into the struct field of that name."""
     for name, (data, dtype) in fields.items():
-        np_dtype = np.int32 if dtype in (wp.int32, wp.vec4i) else np.float32
+        np_dtype = np.int32 if getattr(dtype, "_wp_scalar_type_", dtype) is wp.int32 else np.float32
         setattr(s, name, _arr(data, dtype, device, np_dtype))
 
 

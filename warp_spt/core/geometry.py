@@ -1,4 +1,7 @@
-"""Ray-scene intersection on the device: our top-level BVH over per-OBJ ``wp.Mesh`` BVHs and spheres.
+"""Ray-scene intersection on the device: our top-level BVH over per-OBJ meshes and spheres.
+
+Inside a mesh, rays traverse its wide BVH (:mod:`warp_spt.core.wide_traversal`), which answers as
+``wp.mesh_query_ray`` would, faster.
 
 ``make_closest_hit(features)`` returns a Warp function specialised to the scene's features (no mesh
 code in a spheres-only scene and vice versa).
@@ -8,7 +11,9 @@ from __future__ import annotations
 
 import warp as wp
 
+from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.device_scene import Features, Geometry
+from warp_spt.core.wide_traversal import NO_HIT, MeshRay, make_mesh_queries, mesh_ray
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
 # Scenes of at most this many items (meshes + spheres) visit them all instead of traversing the TLAS,
@@ -18,7 +23,6 @@ STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 
 # "closest_hit"); that Cornell box with extra spheres (bench_rays.py --small-scene): 6 items
 # 0.99-1.02x, 8 items 0.93-1.03x, 12 items 0.79-0.88x, 16 items 0.69-0.81x. Hence 6.
 SMALL_SCENE = 6
-NO_HIT = wp.constant(3.0e38)
 KIND_MISS = wp.constant(-1)
 KIND_TRIANGLE = wp.constant(0)
 KIND_SPHERE = wp.constant(1)
@@ -112,24 +116,45 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
     (tests/test_intersect.py compares the two paths).
     """
 
-    @wp.func
-    def mesh_hit(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
-        q = wp.mesh_query_ray(s.mesh_ids[item], o, d, hit.t)
-        if q.result:
-            hit.t = q.t
-            hit.kind = KIND_TRIANGLE
-            hit.index = item
-            hit.face = q.face
-            hit.u = q.u
-            hit.v = q.v
-            hit.normal = q.normal
+    mesh_closest, _ = make_mesh_queries(max(features.bvh_stack, 1))
+    wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
+
+    # inline: called, it would copy the Geometry struct (~2 KB) at every call (measured: +25% time)
+    @wp.func(inline=True)
+    def mesh_hit(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
+        if wp.static(warp_bvh):
+            if not wp.static(wide) or s.mesh_root[item] < 0:
+                q = wp.mesh_query_ray(s.mesh_ids[item], r.o, r.d, hit.t)
+                if q.result:
+                    hit.t = q.t
+                    hit.kind = KIND_TRIANGLE
+                    hit.index = item
+                    hit.face = q.face
+                    hit.u = q.u
+                    hit.v = q.v
+                    hit.normal = q.normal
+                return hit
+        if wp.static(wide):
+            k, t, u, v = mesh_closest(s, item, r, hit.t)
+            if k >= 0:
+                hit.t = t
+                hit.kind = KIND_TRIANGLE
+                hit.index = item
+                hit.face = s.tri_face[k]
+                hit.u = u
+                hit.v = v
+                # as wp.mesh_query_ray's: the winding's cross product, normalised
+                a = s.tri_v0[k]
+                hit.normal = wp.normalize(wp.cross(s.tri_v1[k] - a, s.tri_v2[k] - a))
         return hit
 
-    @wp.func
-    def visit_item(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, hit: Hit) -> Hit:
+    @wp.func(inline=True)
+    def visit_item(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
+        o = r.o
+        d = r.d
         if item < s.num_meshes:
             if wp.static(features.meshes):
-                hit = mesh_hit(s, item, o, d, hit)
+                hit = mesh_hit(s, item, r, hit)
         else:
             if wp.static(features.spheres):
                 j = item - s.num_meshes
@@ -148,6 +173,12 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
         hit = Hit()
         hit.t = t_max
         hit.kind = KIND_MISS
+        r = MeshRay()
+        if wp.static(features.meshes and features.bvh_stack > 0):
+            r = mesh_ray(o, d)
+        else:
+            r.o = o
+            r.d = d
         inv = safe_inverse(d)
         t_root = box_entry(s.node_lower[0], s.node_upper[0], o, inv, hit.t)
         if wp.static(small_scene > 0):
@@ -161,10 +192,10 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
                     # (docs/performance.md, Where the time goes)
                     if wp.static(features.meshes):
                         for item in range(s.num_meshes):
-                            hit = mesh_hit(s, item, o, d, hit)
+                            hit = mesh_hit(s, item, r, hit)
                     if wp.static(features.spheres):
                         for item in range(s.num_meshes, n_items):
-                            hit = visit_item(s, item, o, d, hit)
+                            hit = visit_item(s, item, r, hit)
                 return hit
         nodes = vec_stack_i()
         entries = vec_stack_f()
@@ -182,7 +213,7 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
             if left < 0:
                 first = s.node_first[node]
                 for k in range(first, first + s.node_count[node]):
-                    hit = visit_item(s, s.items[k], o, d, hit)
+                    hit = visit_item(s, s.items[k], r, hit)
             else:
                 right = s.node_right[node]
                 tl = box_entry(s.node_lower[left], s.node_upper[left], o, inv, hit.t)
@@ -209,6 +240,10 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
 
     if not differentiable:
         return closest_hit
+    # The traversal's result is detached (refine_hit gives the hit its derivative): its adjoint must be
+    # nothing at all. Warp's own one would replay the traversal's loops and send what it made of them
+    # back into the ray: with the wide traversal, values that changed with the thread count.
+    zero_adjoint(closest_hit, (Hit,))
     refine_hit = make_refine_hit(features)
 
     @wp.func
@@ -223,23 +258,41 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
 def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
     """An any-hit visibility test for shadow rays: True when something lies on the ray before t_max.
 
-    Stops at the first blocker found (``wp.mesh_query_ray_anyhit`` inside meshes), so it is cheaper
+    Stops at the first blocker found (inside meshes: ``wide_traversal``'s any-hit query), so it is cheaper
     than a closest hit; the traversal order does not matter. Ready for light sampling. Small scenes
     skip the TLAS, as in make_closest_hit.
     """
 
-    @wp.func
-    def blocks(s: Geometry, item: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+    _, wide_any_hit = make_mesh_queries(max(features.bvh_stack, 1))
+    wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
+
+    @wp.func(inline=True)
+    def mesh_any_hit(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
+        if wp.static(warp_bvh):
+            if not wp.static(wide) or s.mesh_root[item] < 0:
+                return wp.mesh_query_ray_anyhit(s.mesh_ids[item], r.o, r.d, t_max)
+        if wp.static(wide):
+            return wide_any_hit(s, item, r, t_max)
+        return False
+
+    @wp.func(inline=True)
+    def blocks(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
         if item < s.num_meshes:
             if wp.static(features.meshes):
-                return wp.mesh_query_ray_anyhit(s.mesh_ids[item], o, d, t_max)
+                return mesh_any_hit(s, item, r, t_max)
         else:
             if wp.static(features.spheres):
-                return sphere_hit(s.spheres[item - s.num_meshes], o, d, t_max) < t_max
+                return sphere_hit(s.spheres[item - s.num_meshes], r.o, r.d, t_max) < t_max
         return False
 
     @wp.func
     def occluded(s: Geometry, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        r = MeshRay()
+        if wp.static(features.meshes and features.bvh_stack > 0):
+            r = mesh_ray(o, d)
+        else:
+            r.o = o
+            r.d = d
         inv = safe_inverse(d)
         in_root = box_entry(s.node_lower[0], s.node_upper[0], o, inv, t_max) < NO_HIT
         if wp.static(small_scene > 0):
@@ -248,11 +301,11 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
                 if in_root:
                     if wp.static(features.meshes):            # meshes, then spheres (as in closest_hit)
                         for item in range(s.num_meshes):
-                            if wp.mesh_query_ray_anyhit(s.mesh_ids[item], o, d, t_max):
+                            if mesh_any_hit(s, item, r, t_max):
                                 return True
                     if wp.static(features.spheres):
                         for item in range(s.num_meshes, n_items):
-                            if blocks(s, item, o, d, t_max):
+                            if blocks(s, item, r, t_max):
                                 return True
                 return False
         nodes = vec_stack_i()
@@ -267,7 +320,7 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
             if left < 0:
                 first = s.node_first[node]
                 for k in range(first, first + s.node_count[node]):
-                    if blocks(s, s.items[k], o, d, t_max):
+                    if blocks(s, s.items[k], r, t_max):
                         return True
             else:
                 right = s.node_right[node]
@@ -279,6 +332,7 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
                     sp += 1
         return False
 
+    zero_adjoint(occluded, (bool,))      # visibility has no derivative here (as closest_hit's above)
     return occluded
 
 

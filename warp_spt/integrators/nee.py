@@ -154,7 +154,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     surface_at = make_surface(features)
     if replay:
         detach_surface(surface_at)
-    inline_callees = inline if replay else None
+    inline_callees = inline
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
     bsdf_dims = make_bsdf_dims(sampler, stride, features)

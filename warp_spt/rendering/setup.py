@@ -48,7 +48,7 @@ class KernelKind:
 def render_features(scene_features: Features, rs: RenderSettings, sky: Sky) -> Features:
     """The features a path-tracing kernel is compiled for: the settings' override, else the scene's
     own with the sky's (whether it emits)."""
-    return rs.features or replace(scene_features, sky=sky_emits(sky))
+    return rs.features.covering(scene_features) if rs.features else replace(scene_features, sky=sky_emits(sky))
 
 
 KERNEL_KINDS: dict[str, KernelKind] = {}

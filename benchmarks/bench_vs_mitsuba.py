@@ -2,6 +2,7 @@
 
     python benchmarks/bench_vs_mitsuba.py             # 256^2, 16 and 64 spp (about 12 minutes on 2 cores)
     python benchmarks/bench_vs_mitsuba.py --quick     # 96^2, 4 and 16 spp, small references (a smoke run)
+    python benchmarks/bench_vs_mitsuba.py --check-reference   # is the reference's error estimate right, is it unbiased?
 
 Mitsuba (``pip install mitsuba``) is a benchmark tool here, not a dependency. Its ``llvm_ad_rgb``
 variant is used when a one-sample probe render works in a subprocess (drjit aborts the process when
@@ -45,7 +46,10 @@ Every scene is first checked for agreement: warp_spt (NEE + Sobol', ``render_pro
 estimates each pixel's standard error from its batches) against the Mitsuba reference, per 16x16
 block and channel, t = difference / (combined standard error); the reference (Mitsuba's
 ``ldsampler``: at 64 spp its best samplers already beat an independent reference of 1024 spp) is
-the mean of two halves rendered with different seeds, and its own error comes from their difference.
+the mean of two halves rendered with different seeds, and its own error comes from their difference. ``--check-reference``
+checks that error estimate against renders with more seeds, and ldsampler against the independent
+sampler: ldsampler came out 0.15-0.65% darker (docs/performance.md, Against Mitsuba 3), a bias too
+small to move the efficiency ratios by 1%.
 
 Efficiency is 1 / (MSE x wall seconds) in linear radiance over all pixels, the reference's own MSE
 (a quarter of its halves' mean squared difference) subtracted from each estimate's. Seconds are
@@ -448,6 +452,31 @@ def whole_process(scene: str, size: int, spp: int, threads: int, repeat: int, va
           f"**{c['warp_spt'] / c['Mitsuba']:.2f}** |")
 
 
+def reference_check(name: str, desc: dict, folder: Path, size: int, spp: int, seeds: int) -> None:
+    """Is the reference's error what its two halves say, and is the ldsampler reference unbiased?
+    Renders ``seeds`` images of ``spp`` with Mitsuba's ldsampler and its independent sampler and
+    prints, per sampler, the variance of a 16x16 block's mean across seeds over the estimate the
+    efficiency table uses (per-pixel (a - b)^2 / 4 of two seeds, pixels taken as independent; about
+    1 if that estimate is right), then the per-block t of ldsampler's mean against independent's
+    (empirical standard errors over the seeds)."""
+    sub = folder / name
+    sub.mkdir()
+    block, means, ses = 16, {}, {}
+    for sampler in ("ldsampler", "independent"):
+        scene = mitsuba_scene(desc, sub, size, sampler, spp)
+        imgs = [mitsuba_render(scene, spp, 21 + k, 2) for k in range(seeds)]
+        _, se_pair = block_stats(0.5 * (imgs[0] + imgs[1]), (imgs[0] - imgs[1]) ** 2 / 4, block)
+        bm = np.stack([block_stats(x, np.zeros_like(x), block)[0] for x in imgs])
+        ratio = bm.var(axis=0, ddof=1) / np.maximum(2 * se_pair**2, 1e-30)
+        means[sampler], ses[sampler] = bm.mean(axis=0), bm.std(axis=0, ddof=1) / math.sqrt(seeds)
+        print(f"| {name} | {sampler} | {np.median(ratio):.2f} | {ratio.mean():.2f} | {np.percentile(ratio, 90):.2f} |",
+              flush=True)
+    t = (means["ldsampler"] - means["independent"]) / np.sqrt(ses["ldsampler"] ** 2 + ses["independent"] ** 2)
+    rel = means["ldsampler"].mean() / means["independent"].mean() - 1
+    print(f"| {name} | ldsampler against independent | max block |t| {np.abs(t).max():.2f}, |t| > 3: "
+          f"{(np.abs(t) > 3).sum()} / {t.size}, mean t {t.mean():+.3f}, whole image {rel:+.3%} | | |", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="96^2, 4 and 16 spp, small references")
@@ -458,6 +487,9 @@ def main() -> int:
     ap.add_argument("--spp", type=int, default=16, help="--whole-process: samples per pixel (default 16)")
     ap.add_argument("--threads", type=int, default=2, help="--whole-process: threads (default 2)")
     ap.add_argument("--repeat", type=int, default=3, help="--whole-process: runs of each (default 3)")
+    ap.add_argument("--check-reference", action="store_true",
+                    help="only check the reference: its error estimate and ldsampler against independent "
+                         "(8 renders of 512 spp per sampler and scene)")
     ap.add_argument("--pythonpath", default=None,
                     help="--whole-process: PYTHONPATH of the children (another checkout's warp_spt)")
     args = ap.parse_args()
@@ -480,6 +512,14 @@ def main() -> int:
     variant = pick_variant()
     mi.set_variant(variant)
     mi.set_log_level(mi.LogLevel.Error)       # the orthogonal sampler warns that it rounds 16 spp to 25
+    if args.check_reference:
+        print(f"Mitsuba {mi.__version__}, variant {variant}; 256x256, 8 renders of 512 spp per sampler\n")
+        print("| scene | sampler | block variance / two-half estimate, median | mean | 90th percentile |")
+        print("|---|---|---|---|---|")
+        with tempfile.TemporaryDirectory() as tmp:
+            for name in args.scenes:
+                reference_check(name, SCENES[name], Path(tmp), 256, 512, 8)
+        return 0
     import warp as wp
     wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
     size, spps, ref_spp, check_spp = (96, (4, 16), 512, 64) if args.quick else (256, (16, 64), 1024, 128)

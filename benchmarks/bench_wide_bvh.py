@@ -6,10 +6,9 @@ numpy (warp_spt.core.bvh.build_tlas over the triangles' boxes), which is then us
 ``vector(length=W)`` per coordinate, so that one node's W slab tests are a few vector operations
 (Clang may turn them into AVX instructions: see --asm).
 
-Every variant uses the same watertight triangle test as Warp's ``intersect_ray_tri_woop``
-(intersect.h), rewritten in the DSL with the per-ray part (axis permutation, shear) hoisted out of
-the leaf loop, and ``fmaf`` where Warp's C++ uses it or where Clang contracts Warp's expressions, so
-that t, u, v can come out bit-identical to ``wp.mesh_query_ray``'s. Triangle vertices are copied
+Every variant uses the renderer's triangle test (``core.wide_traversal.triangle_hit``: Warp's
+watertight ``intersect_ray_tri_woop`` in the DSL, the per-ray part hoisted out of the leaf loop), so
+that t, u, v come out bit-identical to ``wp.mesh_query_ray``'s. Triangle vertices are copied
 into leaf order (three vec3 arrays), so a leaf reads them without the index indirection.
 
 Variants (rows):
@@ -66,6 +65,9 @@ wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.
 from warp_spt.core.bvh import build_tlas
 from warp_spt.core.device_scene import MESH_LEAF_SIZE
 from warp_spt.core.wide_bvh import build_wide
+from warp_spt.core.wide_traversal import MeshRay as Ray
+from warp_spt.core.wide_traversal import mesh_ray as make_ray
+from warp_spt.core.wide_traversal import triangle_hit as tri_test
 
 NO_HIT = 3.0e38
 STACK = 64
@@ -190,114 +192,8 @@ class Tree:
 
 
 # --------------------------------------------------------------------------------------------
-# The triangle test (intersect.h intersect_ray_tri_woop, per-ray part hoisted)
-
-
-@wp.func_native("return fmaf(a, b, c);")
-def fmaf(a: float, b: float, c: float) -> float: ...
-
-
-@wp.func
-def diff_product(a: float, b: float, c: float, d: float) -> float:
-    cd = c * d
-    return fmaf(a, b, -cd) + fmaf(-c, d, cd)
-
-
-@wp.struct
-class Ray:
-    o: wp.vec3
-    d: wp.vec3
-    inv: wp.vec3       # 1 / safe direction (Warp's mesh_query_ray_safe_dir)
-    kx: int
-    ky: int
-    kz: int
-    sx: float
-    sy: float
-    sz: float
-
-
-@wp.func
-def make_ray(o: wp.vec3, d: wp.vec3) -> Ray:
-    r = Ray()
-    r.o = o
-    r.d = d
-    sd = d
-    if sd[0] == 0.0:
-        sd[0] = 1.0e-20
-    if sd[1] == 0.0:
-        sd[1] = 1.0e-20
-    if sd[2] == 0.0:
-        sd[2] = 1.0e-20
-    r.inv = wp.vec3(1.0 / sd[0], 1.0 / sd[1], 1.0 / sd[2])
-    return with_shear(r)
-
-
-@wp.func
-def with_shear(r: Ray) -> Ray:
-    """The per-ray part of Warp's triangle test: axis permutation and shear (intersect.h)."""
-    d = r.d
-    # max_dim: first axis of largest |d| (strictly greater replaces)
-    kz = int(0)
-    best = wp.abs(d[0])
-    if wp.abs(d[1]) > best:
-        kz = 1
-        best = wp.abs(d[1])
-    if wp.abs(d[2]) > best:
-        kz = 2
-    kx = kz + 1
-    if kx == 3:
-        kx = 0
-    ky = kx + 1
-    if ky == 3:
-        ky = 0
-    if d[kz] < 0.0:
-        tmp = kx
-        kx = ky
-        ky = tmp
-    r.kx = kx
-    r.ky = ky
-    r.kz = kz
-    r.sx = d[kx] / d[kz]
-    r.sy = d[ky] / d[kz]
-    r.sz = 1.0 / d[kz]
-    return r
-
-
-@wp.func
-def tri_test(r: Ray, a: wp.vec3, b: wp.vec3, c: wp.vec3):
-    """(hit, t, u, v): Warp's watertight test, same operations in the same order. Warp's clang
-    (cc1) does not contract ``A[kx] - Sx * A[kz]`` or ``U * Az + V * Bz + W * Cz`` into FMAs (checked:
-    contracting either changes t/u/v on 20-65% of hits), and the DSL never contracts, so only
-    diff_product's explicit fmaf calls are fmaf here."""
-    A = a - r.o
-    B = b - r.o
-    C = c - r.o
-    ax = A[r.kx] - r.sx * A[r.kz]
-    ay = A[r.ky] - r.sy * A[r.kz]
-    bx = B[r.kx] - r.sx * B[r.kz]
-    by = B[r.ky] - r.sy * B[r.kz]
-    cx = C[r.kx] - r.sx * C[r.kz]
-    cy = C[r.ky] - r.sy * C[r.kz]
-    U = diff_product(cx, by, cy, bx)
-    V = diff_product(ax, cy, ay, cx)
-    W = diff_product(bx, ay, by, ax)
-    if U == 0.0 or V == 0.0 or W == 0.0:
-        U = float(wp.float64(cx) * wp.float64(by) - wp.float64(cy) * wp.float64(bx))
-        V = float(wp.float64(ax) * wp.float64(cy) - wp.float64(ay) * wp.float64(cx))
-        W = float(wp.float64(bx) * wp.float64(ay) - wp.float64(by) * wp.float64(ax))
-    if (U < 0.0 or V < 0.0 or W < 0.0) and (U > 0.0 or V > 0.0 or W > 0.0):
-        return False, 0.0, 0.0, 0.0
-    det = U + V + W
-    if det == 0.0:
-        return False, 0.0, 0.0, 0.0
-    az = r.sz * A[r.kz]
-    bz = r.sz * B[r.kz]
-    cz = r.sz * C[r.kz]
-    T = U * az + V * bz + W * cz
-    if (det > 0.0 and T < 0.0) or (det < 0.0 and T > 0.0):
-        return False, 0.0, 0.0, 0.0
-    rcp = 1.0 / det
-    return True, T * rcp, U * rcp, V * rcp
+# The ray set-up and triangle test are the renderer's (core.wide_traversal: Warp's watertight test,
+# the per-ray shear hoisted); the "indexed" variant sets the ray up again per triangle, as Warp does.
 
 
 @wp.func
@@ -491,7 +387,7 @@ def wide_kernels(width: int, sort: bool = True, fast_minmax: bool = True, indexe
                   idx: wp.array(dtype=int)):
         if wp.static(indexed):
             f = face[k]
-            return tri_test(with_shear(r), pts[idx[3 * f]], pts[idx[3 * f + 1]], pts[idx[3 * f + 2]])
+            return tri_test(make_ray(r.o, r.d), pts[idx[3 * f]], pts[idx[3 * f + 1]], pts[idx[3 * f + 2]])
         return tri_test(r, v0[k], v1[k], v2[k])
     vf = wp.types.vector(length=width, dtype=wp.float32)
     vi = wp.types.vector(length=width, dtype=wp.int32)

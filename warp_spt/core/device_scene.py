@@ -150,8 +150,7 @@ class UploadedMesh:
         idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
         p = m.positions[m.indices.reshape(-1)].astype(np.float64)
         mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah", bvh_leaf_size=MESH_LEAF_SIZE)
-        tree = build_wide(np.asarray(m.positions, dtype=np.float32), m.indices) if wide else None
-        return cls(mesh, tree, p.min(0), p.max(0))
+        return cls(mesh, _wide_tree(m) if wide else None, p.min(0), p.max(0))
 
 
 class DeviceScene:
@@ -238,7 +237,7 @@ class DeviceScene:
                 if cache is not None:
                     cache[key] = uploaded
             elif wide and uploaded.wide is None:        # cached by a scene that traced it with Warp's BVH
-                uploaded.wide = build_wide(np.asarray(m.positions, dtype=np.float32), m.indices)
+                uploaded.wide = _wide_tree(m)
             self._meshes.append(uploaded.mesh)
             self._wide.append(uploaded.wide if wide else None)
             self._mesh_bounds.append((uploaded.lower, uploaded.upper))
@@ -268,12 +267,8 @@ class DeviceScene:
             if wide is None:
                 roots.append(-1)
                 continue
-            child = wide.child.astype(np.int64)
-            leaf = child < 0
-            code = -child - 1
-            child = np.where(leaf, -((code >> 3) + tris) * 8 - (code & 7) - 1, child + nodes)
             boxes.append(wide.box.reshape(-1, WIDTH))
-            children.append(child.astype(np.int32))
+            children.append(wide.child_shifted(nodes, tris))
             roots.append(nodes)
             p = np.asarray(m.positions, dtype=np.float32)[np.asarray(m.indices, dtype=np.int64)[wide.order]]
             corners.append(p)
@@ -316,6 +311,11 @@ def mesh_key(m, device: str = "cpu") -> str:
         h.update(str(a.shape).encode())
         h.update(a.data)
     return h.hexdigest()
+
+
+def _wide_tree(m) -> WideBvh:
+    """Mesh ``m``'s wide BVH, over the float32 positions its wp.Mesh and the kernels use."""
+    return build_wide(np.asarray(m.positions, dtype=np.float32), m.indices)
 
 
 def _upload_atlas(scene: Scene, device: str) -> tuple[wp.array, wp.array]:

@@ -13,7 +13,7 @@ import warp as wp
 
 from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.device_scene import Features, Geometry
-from warp_spt.core.wide_traversal import NO_HIT, MeshRay, make_mesh_queries, mesh_ray
+from warp_spt.core.wide_traversal import NO_HIT, MeshRay, make_any_hit_query, make_closest_query, mesh_ray
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64
 # Scenes of at most this many items (meshes + spheres) visit them all instead of traversing the TLAS,
@@ -116,7 +116,7 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
     (tests/test_intersect.py compares the two paths).
     """
 
-    mesh_closest, _ = make_mesh_queries(max(features.bvh_stack, 1))
+    mesh_closest = make_closest_query(max(features.bvh_stack, 1))
     wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
 
     # inline: called, it would copy the Geometry struct (~2 KB) at every call (measured: +25% time)
@@ -263,7 +263,7 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
     skip the TLAS, as in make_closest_hit.
     """
 
-    _, wide_any_hit = make_mesh_queries(max(features.bvh_stack, 1))
+    wide_any_hit = make_any_hit_query(max(features.bvh_stack, 1))
     wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
 
     @wp.func(inline=True)

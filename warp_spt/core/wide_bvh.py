@@ -91,6 +91,15 @@ class WideBvh:
     def width(self) -> int:
         return int(self.child.shape[1])
 
+    def child_shifted(self, nodes: int, triangles: int) -> np.ndarray:
+        """``child`` for this tree stored after ``nodes`` nodes and ``triangles`` leaf-order triangles
+        of other trees (one concatenated array for every mesh of a scene): interior children move by
+        ``nodes``, leaves by ``triangles``, in the same leaf encoding (int32)."""
+        child = self.child.astype(np.int64)
+        code = -child - 1
+        shifted = np.where(child < 0, -((code >> 3) + triangles) * 8 - (code & 7) - 1, child + nodes)
+        return shifted.astype(np.int32)
+
 
 # --------------------------------------------------------------------------------------------
 # Input and triangle boxes

@@ -167,10 +167,19 @@ def child_entries(g: Geometry, node: int, r: MeshRay, t_max: float) -> vec_wide_
     return out
 
 
-def make_mesh_queries(stack: int):
-    """``(closest, any_hit)`` over the meshes' wide BVHs with a traversal stack of ``stack`` entries
-    (``Features.bvh_stack``: enough for every mesh of the scene, see ``WideBvh.stack_bound``; a short
-    stack is cheaper, as each query zeroes it)."""
+@wp.func
+def leaf_range(node: int):
+    """(first, end): the leaf-order triangles of a leaf child ``node`` < 0, -(first * 8 + count) - 1
+    (core.wide_bvh's encoding)."""
+    code = -node - 1
+    first = code >> 3
+    return first, first + (code & 7)
+
+
+def make_closest_query(stack: int):
+    """``closest(g, mesh, r, t_max) -> (k, t, u, v)`` over the meshes' wide BVHs with a traversal stack
+    of ``stack`` entries (``Features.bvh_stack``: enough for every mesh of the scene, see
+    ``WideBvh.stack_bound``; a short stack is cheaper, as each query zeroes it)."""
     vec_stack_i = wp.types.vector(length=stack, dtype=wp.int32)
     vec_stack_f = wp.types.vector(length=stack, dtype=wp.float32)
 
@@ -193,9 +202,8 @@ def make_mesh_queries(stack: int):
                 continue
             node = nodes[sp]
             if node < 0:
-                code = -node - 1
-                first = code >> 3
-                for k in range(first, first + (code & 7)):
+                first, end = leaf_range(node)
+                for k in range(first, end):
                     h, t, u, v = triangle_hit(r, g.tri_v0[k], g.tri_v1[k], g.tri_v2[k])
                     if h and t < best_t and t >= 0.0:
                         best_k = k
@@ -224,6 +232,14 @@ def make_mesh_queries(stack: int):
                     entries[b + 1] = kd
         return best_k, best_t, best_u, best_v
 
+    return closest
+
+
+def make_any_hit_query(stack: int):
+    """``any_hit(g, mesh, r, t_max) -> bool`` over the meshes' wide BVHs, stack as
+    :func:`make_closest_query`'s."""
+    vec_stack_i = wp.types.vector(length=stack, dtype=wp.int32)
+
     @wp.func(inline=True)
     def any_hit(g: Geometry, mesh: int, r: MeshRay, t_max: float) -> bool:
         """True when some triangle of ``mesh`` lies on the ray at 0 <= t < t_max (stops at the first)."""
@@ -234,9 +250,8 @@ def make_mesh_queries(stack: int):
             sp -= 1
             node = nodes[sp]
             if node < 0:
-                code = -node - 1
-                first = code >> 3
-                for k in range(first, first + (code & 7)):
+                first, end = leaf_range(node)
+                for k in range(first, end):
                     h, t, u, v = triangle_hit(r, g.tri_v0[k], g.tri_v1[k], g.tri_v2[k])
                     if h and t < t_max and t >= 0.0:
                         return True
@@ -249,4 +264,4 @@ def make_mesh_queries(stack: int):
                         sp += 1
         return False
 
-    return closest, any_hit
+    return any_hit

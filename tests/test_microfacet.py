@@ -526,7 +526,7 @@ def test_transmission_obeys_generalised_reciprocity(eta, r, s):
 # ---------------------------------------------------------------- white furnace and tables
 
 
-def _albedo(kind, wo, params, n=40_000, seed=3):
+def albedo(kind, wo, params, n=40_000, seed=3):
     s = sample(kind, wo, params, n=n, seed=seed)
     ok = s["ok"] == 1
     w = np.where(ok, s["value"] / np.where(ok, s["pdf"], 1.0), 0.0)
@@ -541,7 +541,7 @@ def test_white_furnace_with_compensation(r):
     """f0 = 1, compensated: the directional albedo is 1 within 1% at every angle up to 87 deg."""
     ax, ay = alphas(r, 0.0)
     for c in FURNACE_COS:
-        mean, se = _albedo(CONDUCTOR, direction(c), (1.0, ax, ay, 1.0))
+        mean, se = albedo(CONDUCTOR, direction(c), (1.0, ax, ay, 1.0))
         assert abs(mean - 1.0) < 0.01 + 4 * se, (r, c, mean, se)
 
 
@@ -551,7 +551,7 @@ def test_white_furnace_without_compensation_loses_the_single_scattering_share(r)
     at roughness 1 that is well below 1 (0.31 at normal incidence)."""
     ax, ay = alphas(r, 0.0)
     for c in (1.0, 0.7, 0.4, 0.2):
-        mean, se = _albedo(CONDUCTOR, direction(c), (1.0, ax, ay, 0.0))
+        mean, se = albedo(CONDUCTOR, direction(c), (1.0, ax, ay, 0.0))
         want = ggx_albedo_direct(c, ax)
         assert abs(mean - want) < 4 * se + 2e-3, (r, c, mean, want)
         if r == 1.0:
@@ -595,7 +595,7 @@ def test_specular_albedo_is_the_compensated_lobes_albedo():
         for c in (0.9, 0.4):
             _, _, spec, _ = _tables(np.array([c]), np.array([ax]), f0[None, :])
             for ch in range(3):
-                mean, se = _albedo(CONDUCTOR, direction(c), (f0[ch], ax, ax, 1.0), n=20_000)
+                mean, se = albedo(CONDUCTOR, direction(c), (f0[ch], ax, ax, 1.0), n=20_000)
                 assert abs(spec[0][ch] - mean) < 0.01 * mean + 4 * se, (r, c, ch, spec[0][ch], mean)
         x, w = np.polynomial.legendre.leggauss(32)
         mu = 0.5 * (x + 1)
@@ -718,3 +718,46 @@ def test_index_matched_boundary_and_smooth_thin_sheet():
     assert abs(refl.mean() - series) < 4 * math.sqrt(series * (1 - series) / n)
     np.testing.assert_allclose(s["wi"][~refl], np.broadcast_to(-wo, s["wi"][~refl].shape), atol=1e-6)
     np.testing.assert_allclose(s["value"] / s["pdf"], 1.0, rtol=1e-5)
+
+
+# ---------------------------------------------------------------- derivatives (for the tape)
+
+
+@wp.kernel
+def _grad_kernel(p: wp.array(dtype=float), wo: wp.vec3, wi: wp.vec3, wt: wp.vec3,
+                 out: wp.array(dtype=float)):
+    """p = (roughness, anisotropy, f0, eta): a sum of the lobes' values that depends on each."""
+    al = mf.ggx_alphas(p[0], p[1])
+    c = mf.conductor_eval(wo, wi, wp.vec3(p[2]), al[0], al[1], 1)[0]
+    d = mf.dielectric_eval(wo, wi, p[3], al[0], al[1])[0] + mf.dielectric_eval(wo, wt, p[3], al[0], al[1])[0]
+    t = mf.thin_dielectric_eval(wo, wt, p[3], al[0], al[1])[0]
+    e = mf.specular_albedo(wo[2], al[0] * al[1], wp.vec3(p[2]))[0]
+    out[0] = c + d + t + e
+
+
+def test_derivatives_match_finite_differences():
+    """Warp's adjoint of the lobes (what path replay and the tape use) against central differences
+    in roughness, anisotropy, f0 and eta, at a point off the table's nodes."""
+    wo, wi = direction(0.7, 0.3), direction(0.55, 2.9)
+    wt = -direction(0.8, 0.2)
+    p0 = np.array([0.47, 0.35, 0.62, 1.45])
+
+    def f(p):
+        out = wp.zeros(1, dtype=float, device=DEVICE)
+        wp.launch(_grad_kernel, 1, inputs=[_arr(p, float), wp.vec3(*wo), wp.vec3(*wi), wp.vec3(*wt), out],
+                  device=DEVICE)
+        return float(out.numpy()[0])
+
+    p = wp.array(p0.astype(np.float32), dtype=float, device=DEVICE, requires_grad=True)
+    out = wp.zeros(1, dtype=float, device=DEVICE, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(_grad_kernel, 1, inputs=[p, wp.vec3(*wo), wp.vec3(*wi), wp.vec3(*wt), out], device=DEVICE)
+    tape.backward(grads={out: wp.ones(1, dtype=float, device=DEVICE)})
+    grad = p.grad.numpy()
+    h = 2e-3
+    for k in range(4):
+        e = np.zeros(4)
+        e[k] = h
+        fd = (f(p0 + e) - f(p0 - e)) / (2 * h)
+        assert grad[k] == pytest.approx(fd, rel=5e-3), (k, grad[k], fd)

@@ -523,6 +523,32 @@ def test_transmission_obeys_generalised_reciprocity(eta, r, s):
     assert_close_float32(t_oi / np.abs(wi[:, 2]), t_io / np.abs(wo[:, 2]), rtol=1e-3)
 
 
+def test_wo_below_mirrors_the_frame():
+    """The documented convention for wo.z < 0: the conductor is two-sided, a dielectric (and its
+    sampler) sees eta inverted: f(wo, wi; eta) = f(-wo, -wi; 1/eta)."""
+    rng = np.random.default_rng(13)
+    wo = _random_dirs(rng, 2000)
+    wi = np.concatenate([_random_dirs(rng, 1000), _random_dirs(rng, 1000, lower=True)])
+    n = min(len(wo), len(wi))
+    wo, wi = wo[:n], wi[:n]
+    ax, ay = alphas(0.5, 0.6)
+    for kind, up, down in ((CONDUCTOR, (0.7, ax, ay, 1.0), (0.7, ax, ay, 1.0)),
+                           (DIELECTRIC, (1.5, ax, ay, 0.0), (1 / 1.5, ax, ay, 0.0)),
+                           (THIN, (1.5, ax, ay, 0.0), (1.5, ax, ay, 0.0))):
+        f_up, p_up = pairs(kind, up, wo, wi)
+        f_dn, p_dn = pairs(kind, down, -wo, -wi)
+        assert np.count_nonzero(f_up) > n // 4
+        np.testing.assert_allclose(f_dn, f_up, rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(p_dn, p_up, rtol=1e-5, atol=1e-7)
+        s_up = sample(kind, direction(0.6), up, n=2000, seed=4)
+        s_dn = sample(kind, -direction(0.6), down, n=2000, seed=4)
+        np.testing.assert_array_equal(s_dn["ok"], s_up["ok"])
+        ok = s_up["ok"] == 1
+        np.testing.assert_allclose(s_dn["wi"][ok], -s_up["wi"][ok], atol=1e-6)
+        np.testing.assert_allclose(s_dn["value"], s_up["value"], rtol=1e-5)
+        np.testing.assert_allclose(s_dn["pdf"], s_up["pdf"], rtol=1e-5)
+
+
 # ---------------------------------------------------------------- white furnace and tables
 
 

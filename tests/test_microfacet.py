@@ -362,7 +362,7 @@ def lobe_cases():
     return cases
 
 
-CASES = lobe_cases()
+CASES = tuple(lobe_cases())
 
 
 @pytest.fixture(scope="module")

@@ -41,7 +41,7 @@ _ETA_ONE = wp.constant(1.0e-5)
 _PI = wp.constant(3.141592653589793)
 _TWO_PI = wp.constant(6.283185307179586)
 
-_N = ggx_tables.N
+_N = wp.constant(ggx_tables.N)
 _Table = wp.types.vector(length=_N * _N, dtype=wp.float32)
 _Column = wp.types.vector(length=_N, dtype=wp.float32)
 _TAB_A = wp.constant(_Table(*ggx_tables.A))

@@ -266,3 +266,61 @@ def _chi2_sf(x: float, k: int) -> float:
     from math import erfc, sqrt
     z = ((x / k) ** (1 / 3) - (1 - 2 / (9 * k))) / sqrt(2 / (9 * k))
     return 0.5 * erfc(z / sqrt(2))
+
+
+def _alpha_png(path, alpha: np.ndarray) -> None:
+    from PIL import Image
+
+    rgba = np.zeros(alpha.shape + (4,), np.uint8)
+    rgba[..., :3] = 200
+    rgba[..., 3] = alpha
+    Image.fromarray(rgba, "RGBA").save(path)
+
+
+def test_cutouts_are_holes_for_camera_rays_and_shadow_rays(tmp_path):
+    """A leaf quad whose map_d alpha is 0 on its left half, over a green emitter: camera rays see the
+    green through the hole and the leaf elsewhere. Shadow rays: a floor under a fully transparent roof
+    renders as the floor with no roof, under a fully opaque one as under a plain roof (per-pixel
+    means over seeds within 5 standard errors, the variance pooled over the image)."""
+    half = np.zeros((8, 8), np.uint8)
+    half[:, 4:] = 255
+    _alpha_png(tmp_path / "half.png", half)
+    _alpha_png(tmp_path / "clear.png", np.zeros((4, 4), np.uint8))
+    _alpha_png(tmp_path / "solid.png", np.full((4, 4), 255, np.uint8))
+    leaf = quad_obj([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material="leaf")
+    back = "v -5 -5 -1\nv 5 -5 -1\nv 5 5 -1\nv -5 5 -1\nusemtl glow\nf 5 6 7\nf 5 7 8\n"
+    (tmp_path / "a.obj").write_text(leaf + back)
+    (tmp_path / "a.mtl").write_text("newmtl leaf\nKd 0.8 0.8 0.8\nmap_d half.png\nnewmtl glow\nKd 0 0 0\nKe 0 1 0\n")
+    dev = DeviceScene(load_scene([str(tmp_path / "a.obj")], [str(tmp_path / "a.mtl")]))
+    assert dev.features.needs("cutout")
+    top = Camera(position=(0, 0, 3), direction=(0, 0, -1), fov=30.0, aperture=0.0, focus=3.0)
+    img = R.render(dev, top, width=16, height=16, spp=4, max_depth=1, sky=Sky.constant(0, 0, 0))
+    # the image's x runs along the world's -x or +x: find the hole's side from the leaf's u direction
+    left, right = img[4:12, 2:6].reshape(-1, 3), img[4:12, 10:14].reshape(-1, 3)
+    hole, solid = (left, right) if left[:, 1].mean() > right[:, 1].mean() else (right, left)
+    np.testing.assert_array_equal(hole, np.broadcast_to(np.float32([0, 1, 0]), hole.shape))
+    np.testing.assert_array_equal(solid, np.zeros_like(solid))
+
+    floor = "v -6 -6 -1\nv 6 -6 -1\nv 6 6 -1\nv -6 6 -1\nusemtl floor\nf 5 6 7\nf 5 7 8\n"
+    roof = quad_obj([(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)], material="roof")
+    under = Camera(position=(0.3, -0.2, -0.5), direction=(0.1, 0.05, -1), fov=60.0, aperture=0.0, focus=1.0)
+
+    def floor_image(roof_mtl: str | None, seed: int) -> np.ndarray:
+        obj = (roof if roof_mtl is not None else quad_obj([(50, 50, 50), (51, 50, 50), (51, 51, 50), (50, 51, 50)], material="roof")) + floor
+        (tmp_path / "s.obj").write_text(obj)
+        (tmp_path / "s.mtl").write_text(f"newmtl roof\nKd 0.5 0.5 0.5\n{roof_mtl or ''}\nnewmtl floor\nKd 0.6 0.6 0.6\n")
+        d = DeviceScene(load_scene([str(tmp_path / "s.obj")], [str(tmp_path / "s.mtl")]))
+        return R.render(d, under, width=8, height=8, spp=32, max_depth=2, seed=seed,
+                        sky=Sky.constant(1.0, 1.0, 1.0)).astype(np.float64)
+
+    def agree(a_mtl, b_mtl, seeds: int = 6):
+        a = np.stack([floor_image(a_mtl, s) for s in range(seeds)])
+        b = np.stack([floor_image(b_mtl, 10 + s) for s in range(seeds)])
+        # per pixel, with the variance pooled over the image (a few seeds estimate one pixel's poorly)
+        se = np.sqrt((a.var(0, ddof=1).mean() + b.var(0, ddof=1).mean()) / seeds)
+        assert np.all(np.abs(a.mean(0) - b.mean(0)) < 5 * se), (np.abs(a.mean(0) - b.mean(0)).max(), se)
+        return a.mean(), b.mean()
+
+    clear, none = agree("map_d clear.png", None)
+    opaque, plain = agree("map_d solid.png", "")
+    assert opaque < 0.5 * clear            # the roof's shadow is there: the comparisons can fail

@@ -25,11 +25,13 @@ import warp as wp
 
 from warp_spt.core import ggx_tables
 
-LOBE_REFLECTION = wp.constant(1)
-LOBE_TRANSMISSION = wp.constant(2)
-LOBE_DIFFUSE = wp.constant(4)
-LOBE_GLOSSY = wp.constant(8)
-LOBE_SPECULAR = wp.constant(16)
+from warp_spt.core.lobes import (  # noqa: F401 (the lobe flags' one home; re-exported for the lobes' callers)
+    LOBE_DIFFUSE,
+    LOBE_GLOSSY,
+    LOBE_REFLECTION,
+    LOBE_SPECULAR,
+    LOBE_TRANSMISSION,
+)
 
 # Below this alpha (both axes) a lobe is the perfectly smooth (delta) lobe: roughness < 0.032.
 DELTA_ALPHA = wp.constant(1.0e-3)
@@ -225,7 +227,7 @@ def _cell(x: float):
 def ggx_split_sum(mu: float, alpha: float) -> wp.vec2:
     """(A, B) of the split sum: the Schlick-F albedo of the GGX reflection lobe is f0 A + B.
     Bilinear in (sqrt(mu), sqrt(alpha)) over the 32 x 32 table; isotropic alpha (callers with an
-    anisotropic lobe pass sqrt(alpha_x alpha_y))."""
+    anisotropic lobe pass ``table_alpha(alpha_x, alpha_y)``)."""
     i, fx = _cell(wp.sqrt(wp.clamp(mu, 0.0, 1.0)))
     j, fy = _cell(wp.sqrt(wp.clamp(alpha, 0.0, 1.0)))
     k = i * _N + j
@@ -255,6 +257,15 @@ def _avg(col: _Column, alpha: float) -> float:
 def ggx_albedo_avg(alpha: float) -> float:
     """E_avg(alpha) = 2 * integral of E(mu, alpha) mu dmu (F = 1)."""
     return _avg(_AVG_E, alpha)
+
+
+@wp.func
+def table_alpha(ax: float, ay: float) -> float:
+    """The isotropic alpha an anisotropic lobe is compensated as: the smaller one. Its albedo is at
+    least the anisotropic lobe's, so the compensation never creates energy (sqrt(ax ay) made a
+    strongly anisotropic lobe up to 6.8% too bright near grazing; the smaller alpha leaves part of
+    its single-scattering loss instead: docs/materials.md)."""
+    return wp.min(ax, ay)
 
 
 @wp.func
@@ -304,7 +315,7 @@ def conductor_eval(wo: wp.vec3, wi: wp.vec3, f0: wp.vec3, ax: float, ay: float,
     by = wp.max(ay, _MIN_ALPHA)
     value = fresnel_schlick(f0, wp.dot(o, m)) * (ggx_d(m, bx, by) * ggx_g2(o, i, bx, by) / (4.0 * o[2]))
     if compensate != 0:
-        value = wp.cw_mul(value, compensation(o[2], wp.sqrt(bx * by), f0))
+        value = wp.cw_mul(value, compensation(o[2], table_alpha(bx, by), f0))
     return value
 
 
@@ -352,7 +363,7 @@ def conductor_sample(wo: wp.vec3, f0: wp.vec3, ax: float, ay: float, compensate:
     pdf = ggx_g1(o, bx, by) * d / (4.0 * o[2])
     value = fresnel_schlick(f0, c) * (d * ggx_g2(o, wi, bx, by) / (4.0 * o[2]))
     if compensate != 0:
-        value = wp.cw_mul(value, compensation(o[2], wp.sqrt(bx * by), f0))
+        value = wp.cw_mul(value, compensation(o[2], table_alpha(bx, by), f0))
     return lobe_sample(wi * flip, value, pdf, LOBE_GLOSSY | LOBE_REFLECTION, 1)
 
 

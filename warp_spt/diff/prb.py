@@ -59,7 +59,8 @@ import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.geometry import NO_HIT, Hit, make_closest_hit
+from warp_spt.core.cutout import make_hit
+from warp_spt.core.geometry import Hit
 from warp_spt.core.lights import Lights
 from warp_spt.integrators import PathState, RenderParams, get_vertex
 from warp_spt.integrators.nee import VIS_TRACE
@@ -94,7 +95,7 @@ def _skip_replay(vertex) -> None:
     vertex.custom_replay_func.native_func = "replay_" + vertex.native_func
 
 
-def _make_kernel(vertex, forward, start_path, closest_hit, inline):
+def _make_kernel(vertex, forward, start_path, hit, inline):
     @wp.func(inline=inline)
     def objective(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
                   path: PathState, h: Hit, vis: int, a: wp.vec3, b: wp.vec3) -> wp.float32:
@@ -109,7 +110,7 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
         """The rest of the path, as the fast kernel traces it."""
         q = path
         while q.alive != 0:
-            q = forward(geo, mats, tex, lights, rp, q, closest_hit(geo, q.o, q.d, NO_HIT), VIS_TRACE)
+            q = forward(geo, mats, tex, lights, rp, q, hit(geo, mats, tex, q.o, q.d), VIS_TRACE)
         return q
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -136,7 +137,7 @@ def _make_kernel(vertex, forward, start_path, closest_hit, inline):
                 continue
             q = start                            # pass 2: replay, one vertex's adjoint at a time
             while q.alive != 0:
-                h = closest_hit(geo, q.o, q.d, NO_HIT)
+                h = hit(geo, mats, tex, q.o, q.d)
                 nxt = forward(geo, mats, tex, lights, rp, q, h, VIS_TRACE)
                 b = zero
                 if nxt.alive != 0:
@@ -183,7 +184,7 @@ def _build(features: Features, integrator: str, sampler: str, inline: bool | Non
     vertex.adj.force_adjoint_codegen = True
     forward.adj.force_adjoint_codegen = True
     _skip_replay(vertex)
-    return _make_kernel(vertex, forward, start_path, make_closest_hit(features), inline)
+    return _make_kernel(vertex, forward, start_path, make_hit(features), inline)
 
 
 def replay_inputs(scene_args: list, adj_image: wp.array, want_image: bool, film: wp.array) -> list:

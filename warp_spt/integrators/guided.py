@@ -65,7 +65,8 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
+from warp_spt.core.cutout import make_blocked, make_hit
+from warp_spt.core.geometry import KIND_MISS, Hit
 from warp_spt.core.guiding import (
     GuideRecord,
     GuideTree,
@@ -131,14 +132,14 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     root of its quadtree), (-1, -1) when there is nothing to record; the pdf that direction's density."""
     if differentiable:
         raise ValueError("the guided integrator has no differentiable kernel")
-    closest_hit = make_closest_hit(features)
+    hit = make_hit(features)
     vertex = make_vertex_guided(features, sampler)
 
     @wp.func(inline=True)
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
              g: GuideTree, rec: GuideRecord, path: PathState):
         p = path
-        h = closest_hit(geo, p.o, p.d, NO_HIT)
+        h = hit(geo, mats, tex, p.o, p.d)
         p.rays += 1
         return vertex(geo, mats, tex, lights, rp, g, rec, p, h)
 
@@ -152,7 +153,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
     bsdf_dims = make_bsdf_dims(sampler, STRIDE, features)
     sample_lights = (features.emitters or features.sky) and features.scatters
     guiding = features.scatters
-    occluded = make_occluded(features)
+    blocked = make_blocked(features)
     light = make_lights(features, surface_at, mat.emission)
     light_sample = make_light_sample(sampler, light)
 
@@ -174,7 +175,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         if ls.pdf > 0.0:
             le = wp.cw_mul(mat.eval(mats, tex, sf, ls.dir), light.le(geo, mats, tex, lights, ls, x))
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
-                if not occluded(geo, x, ls.dir, ls.t_max):
+                if not blocked(geo, mats, tex, x, ls.dir, ls.t_max):
                     # MIS against the material's share of the mixture, (1 - a) p_material: the
                     # emitter the sampled direction meets is weighed with the same density (see vertex)
                     w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir))

@@ -20,13 +20,8 @@ import warp as wp
 
 from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.geometry import (
-    KIND_MISS,
-    NO_HIT,
-    Hit,
-    make_closest_hit,
-    make_occluded,
-)
+from warp_spt.core.cutout import make_blocked, make_hit
+from warp_spt.core.geometry import KIND_MISS, Hit
 from warp_spt.core.lights import Lights, detach_lights, make_lights, reuse_pick
 from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
@@ -76,7 +71,8 @@ zero_adjoint(detached, (float,))
 
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
     """The bounce step of NEE + MIS for scenes with these features (``differentiable``: for the tape's
-    differentiable kernel, hits carry derivatives in the ray, ``geometry.make_closest_hit``)."""
+    differentiable kernel, hits carry derivatives in the ray, ``geometry.make_closest_hit``; cut-outs:
+``core.cutout``)."""
     return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 
@@ -125,7 +121,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     meets. ``light_sampling`` False leaves pure BSDF sampling, no roulette, and the seed's four
     dimensions per bounce (``integrators.seed``); ``differentiable`` re-intersects the hit in closed
     form so that it carries derivatives in the ray (the tape kernel only)."""
-    closest_hit = make_closest_hit(features, differentiable=differentiable)
+    hit = make_hit(features, differentiable=differentiable)
     # the fast kernel inlines the step and its vertex: called out of line, each bounce copied the scene
     # structs they take by value (about 2 KB); the tape kernel, unrolled, keeps the compiler's choice
     inline = None if differentiable else True
@@ -135,7 +131,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
              path: PathState) -> PathState:
         p = path
-        h = closest_hit(geo, p.o, p.d, NO_HIT)
+        h = hit(geo, mats, tex, p.o, p.d)
         p.rays += 1
         return vertex(geo, mats, tex, lights, rp, p, h, VIS_TRACE)
 
@@ -161,7 +157,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     stride = STRIDE if light_sampling else SEED_STRIDE
     bsdf_dims = make_bsdf_dims(sampler, stride, features)
     sample_lights = light_sampling and (features.emitters or features.sky) and features.scatters
-    occluded = make_occluded(features)
+    blocked = make_blocked(features)
     light = make_lights(features, surface_at, mat.emission)
     if replay:
         detach_lights(light)
@@ -205,7 +201,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                     seen = vis
                     if seen == VIS_TRACE:
                         seen = VIS_VISIBLE
-                        if occluded(geo, x, ls.dir, ls.t_max):
+                        if blocked(geo, mats, tex, x, ls.dir, ls.t_max):
                             seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
                         w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))

@@ -23,7 +23,8 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams, camera_ray
 from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.geometry import KIND_MISS, NO_HIT, make_closest_hit
+from warp_spt.core.cutout import make_hit
+from warp_spt.core.geometry import KIND_MISS
 from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import make_surface, offset_origin
@@ -46,7 +47,7 @@ AOV_SAMPLER = "independent"
 
 
 def _make_kernel(features: Features, sampler: Sampler):
-    closest_hit = make_closest_hit(features)
+    hit = make_hit(features)
     surface_at = make_surface(features)
     mats = make_materials(features)
 
@@ -65,7 +66,7 @@ def _make_kernel(features: Features, sampler: Sampler):
             a = tint
             n = wp.vec3(0.0, 0.0, 0.0)
             for bounce in range(MAX_SPECULAR):
-                h = closest_hit(g, o, d, NO_HIT)
+                h = hit(g, m, t, o, d)
                 if h.kind == KIND_MISS:
                     a = tint
                     break

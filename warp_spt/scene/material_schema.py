@@ -113,9 +113,9 @@ COLUMNS: tuple[Column, ...] = (
            "normal_map, tangent space)", slot=7, kinds=("pbr",)),
     Column("bump", SCALAR, 1.0, -1000.0, 1000.0, "bump-map multiplier (MTL -bm; the height map is bump_map, "
            "in uv units)", slot=8, channel=0, kinds=("pbr",)),
-    Column("opacity", SCALAR, 1.0, 0.0, 1.0, "coverage: below alpha_cutoff the surface is a hole (cut-out; "
-           "glTF alpha, MTL d / map_d)", slot=9, channel=0, kinds=("pbr",)),
-    Column("alpha_cutoff", SCALAR, 0.5, 0.0, 1.0, "opacity below which the surface is a hole", kinds=("pbr",)),
+    Column("opacity", SCALAR, 1.0, 0.0, 1.0, "coverage: below alpha_cutoff the surface is a hole (a cut-out, "
+           "for every kind: glTF alpha, MTL map_d)", slot=9, channel=0),
+    Column("alpha_cutoff", SCALAR, 0.5, 0.0, 1.0, "opacity below which the surface is a hole"),
     Column("multiscatter", FLAG, True, None, None, "compensate the GGX reflection lobes' single-scattering "
            "energy loss (Turquin 2019); off: the bare single-scattering lobes, as most real-time viewers draw "
            "them", kinds=("pbr",)),

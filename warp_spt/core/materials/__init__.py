@@ -24,7 +24,8 @@ import warp as wp
 from warp_spt.core.materials.common import BsdfSample, lobe_weight, make_color, to_local, to_world
 from warp_spt.core.structs import Features, Materials, Textures
 from warp_spt.core.surface import Surface
-from warp_spt.scene.material_schema import MATERIAL_KINDS
+from warp_spt.scene.material_schema import COLUMN, MATERIAL_KINDS
+from warp_spt.scene.model import TEX_NONE
 
 __all__ = ["KINDS", "BsdfSample", "declare", "lobe_weight", "make_materials", "to_local", "to_world"]
 
@@ -34,9 +35,13 @@ KINDS = {name: importlib.import_module(f"{__name__}.{name}") for name in MATERIA
 
 def declare(table, rows: np.ndarray) -> tuple[tuple[str, ...], int, tuple[str, ...]]:
     """(kinds, lobes, flags) of the material ``rows`` a scene uses: the kinds in MATERIAL_KINDS
-    order, the union of their declared lobes, and the sorted union of their declared code paths."""
+    order, the union of their declared lobes, and the sorted union of their declared code paths,
+    with ``"cutout"`` where some row has holes (the shared opacity columns, ``core.cutout``)."""
     rows = np.asarray(rows, dtype=np.int64)
     kinds, lobes, flags = [], 0, set()
+    slot = COLUMN["opacity"].slot
+    if ((table.opacity[rows] < table.alpha_cutoff[rows]).any() or (table.tex[rows, slot] != TEX_NONE).any()):
+        flags.add("cutout")
     for index, name in enumerate(MATERIAL_KINDS):
         mine = rows[table.kind[rows] == index]
         if len(mine):

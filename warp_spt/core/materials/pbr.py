@@ -169,7 +169,7 @@ def make(features: Features, base) -> SimpleNamespace:
             if wp.static(has_thin):
                 q.thin = m.thin[k]
         mu = wp.clamp(wp.dot(sf.wo, sf.ns), 1.0e-4, 1.0)
-        alpha = wp.sqrt(q.ax * q.ay)
+        alpha = mf.table_alpha(q.ax, q.ay)
         e_metal = mf.specular_albedo(mu, alpha, q.base)
         e_layer = mf.specular_albedo(mu, alpha, q.f0) * q.spec
         q.e_avg = mf.specular_albedo_avg(alpha, q.f0) * q.spec
@@ -189,7 +189,7 @@ def make(features: Features, base) -> SimpleNamespace:
     @wp.func
     def diffuse_scale(q: PbrPoint, mu_o: float, mu_i: float) -> wp.vec3:
         """(1 - E(mu_o)) (1 - E(mu_i)) / (1 - E_avg): the base's share under the layer, per channel."""
-        alpha = wp.sqrt(q.ax * q.ay)
+        alpha = mf.table_alpha(q.ax, q.ay)
         eo = mf.specular_albedo(mu_o, alpha, q.f0) * q.spec
         ei = mf.specular_albedo(mu_i, alpha, q.f0) * q.spec
         one = wp.vec3(1.0, 1.0, 1.0)

@@ -81,7 +81,7 @@ def test_classic_mac_line_ends_are_line_ends(tmp_path):
     obj = write(tmp_path, "cr.obj", b"mtllib a.mtl\r" + b"v 0 0 0\r" * 40 + b"v 1 0 0\rv 0 1 0\rusemtl m\rf 40 41 42\r")
     scene = load_scene([str(obj)], warn=lambda m: None)
     assert scene.num_triangles == 1 and scene.materials.names == ["Inner_CheckerTexture", "m"]
-    assert scene.materials.diffuse[1].tolist() == [0.5, 0.25, 1.0]
+    assert scene.materials.base_color[1].tolist() == [0.5, 0.25, 1.0]
     err = scene_error([write(tmp_path, "bad.obj", b"v 0 0 0\rv 1 0 0\r\nv x 0 0\r")])
     assert err.line == 3
 
@@ -336,9 +336,13 @@ def test_a_16_bit_grey_texture_keeps_its_values(tmp_path):
 
     values = np.array([[0, 16384], [32768, 65535]], np.uint16)
     Image.fromarray(values).save(tmp_path / "g.png")
-    write(tmp_path, "a.mtl", "newmtl a\nmap_Kd g.png\n")
+    write(tmp_path, "a.mtl", "newmtl a\nmap_Kd g.png\nmap_Pr g.png\n")
     scene = load_scene([str(write(tmp_path, "a.obj", "mtllib a.mtl\nusemtl a\n" + TRI))], warn=lambda m: None)
-    np.testing.assert_allclose(scene.textures[0][..., 1], values / 65535.0, rtol=1e-6)
+    row = scene.materials.names.index("a")
+    c = values / 65535.0
+    srgb = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)    # a colour map: IEC 61966-2-1
+    np.testing.assert_allclose(scene.textures[scene.materials.tex[row, 4]][..., 1], srgb, rtol=1e-5)
+    np.testing.assert_allclose(scene.textures[scene.materials.tex[row, 6]][..., 1], c, rtol=1e-6)  # data: as stored
 
 
 def test_out_of_memory_while_loading_names_the_scene(tmp_path, monkeypatch, capsys):

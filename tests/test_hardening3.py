@@ -291,7 +291,8 @@ def lit_params(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("params")
     (d / "a.obj").write_text("mtllib a.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl lamp\nb 0 0 2 0.5\n")
-    (d / "a.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\nmap_Ks proc:noise\nnewmtl lamp\nKe 4 4 4\n")
+    # the seed's dialect (Kl): its reflect slot takes the procedural texture
+    (d / "a.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\nmap_Ks proc:noise\nnewmtl lamp\nKl 4 4 4\n")
     return warp_spt.parameters(warp_spt.load_scene([str(d / "a.obj")]), sky=warp_spt.Sky.gradient())
 
 

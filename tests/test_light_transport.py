@@ -253,15 +253,15 @@ def _pdf_kernels():
              dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec4), evals: wp.array(dtype=wp.vec3)):
         """out = (pdf reported by sample, pdf evaluated for its direction, singular, alive)."""
         i = wp.tid()
-        s = mat.sample(mats, tex, sf, d, u[i][0], wp.vec2(u[i][1], u[i][2]), u[i][3])
+        s = mat.sample(mats, tex, sf, u[i][0], wp.vec2(u[i][1], u[i][2]), u[i][3])
         dirs[i] = s.dir
-        out[i] = wp.vec4(s.pdf, mat.pdf(mats, sf, s.dir), float(s.singular), float(s.alive))
+        out[i] = wp.vec4(s.pdf, mat.pdf(mats, tex, sf, s.dir), float(s.singular), float(s.alive))
         evals[i] = mat.eval(mats, tex, sf, s.dir) - s.weight * s.pdf    # 0 for diffuse samples
 
     @wp.kernel(module="unique")
-    def bsdf_pdf(mats: Materials, sf: Surface, dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+    def bsdf_pdf(mats: Materials, tex: Textures, sf: Surface, dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
         i = wp.tid()
-        out[i] = mat.pdf(mats, sf, dirs[i])
+        out[i] = mat.pdf(mats, tex, sf, dirs[i])
 
     _KERNELS.update(evaluate=evaluate, sample=sample, bsdf=bsdf, bsdf_pdf=bsdf_pdf)
     return _KERNELS
@@ -374,9 +374,10 @@ def test_lobe_pdf_integrates_to_its_probability_and_matches_sampling(scene_dir, 
     ns = np.array([math.sin(tilt), 0.0, math.cos(tilt)])
     sf.ns = wp.vec3(*ns.astype(np.float32))
     d_in = wp.vec3(*(np.array([0.3, 0.2, -1.0]) / np.linalg.norm([0.3, 0.2, -1.0])).astype(np.float32))
+    sf.wo = wp.vec3(-d_in[0], -d_in[1], -d_in[2])          # the material contract's outgoing direction
     dirs = sphere_directions(400_000)
     out = wp.zeros(len(dirs), dtype=float)
-    wp.launch(k["bsdf_pdf"], dim=len(dirs), inputs=[dev.materials, sf, wp.array(dirs.astype(np.float32),
+    wp.launch(k["bsdf_pdf"], dim=len(dirs), inputs=[dev.materials, dev.textures(), sf, wp.array(dirs.astype(np.float32),
                                                                                  dtype=wp.vec3), out])
     assert abs(out.numpy().astype(np.float64).sum() * 4 * np.pi / len(dirs) - roughness) < 2e-3
     n = 200_000

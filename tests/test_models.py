@@ -183,21 +183,24 @@ def test_the_demos_raise_no_warning(seed_demo):
 
 
 def test_mtl_reports_unsupported_tags_once_per_file(scene_dir):
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (128, 128, 255)).save(scene_dir / "n.png")
     mtl = scene_dir / "exported.mtl"
-    mtl.write_text("newmtl a\nKa 1 1 1\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 98\nmap_Bump -bm 0.3 n.png\n"
+    mtl.write_text("newmtl a\nKa 1 1 1\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 98\nmap_Bump -bm 0.3 n.png\nPs 0.2\n"
                    "newmtl b\nKa 0 0 0\nKd 1 1 1\nPr 0.3\nPm 1\nmap_Kd -s 2 2 1 t.png\n")
     obj = scene_dir / "uses_a.obj"
     obj.write_text("usemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     notes: list[str] = []
     scene = load_scene([str(obj)], [str(mtl)], warn=notes.append)
     assert len(notes) == 1, notes
-    assert notes[0].endswith("read but not supported (ignored): Ka, map_Bump, texture option -s"), notes[0]
+    assert notes[0].endswith("read but not supported (ignored): Ka, Ps, texture option -s"), notes[0]
     row = scene.materials.names.index("a")
-    assert math.isclose(scene.materials.roughness[row], 0.8 / 1.3, rel_tol=1e-6)          # Ks: specular share
-    assert math.isclose(scene.materials.fuzz[row], math.sqrt(5 / 100), rel_tol=1e-6)      # Ns 98
+    assert math.isclose(scene.materials.roughness[row], (2 / 100) ** 0.25, rel_tol=1e-6)   # Ns 98: alpha
+    assert math.isclose(scene.materials.bump[row], 0.3, rel_tol=1e-6)                       # map_Bump -bm
     from warp_spt.io.mtl import load_mtl
     b = load_mtl(str(mtl))["b"]
-    assert b.roughness == 0.0 and b.fuzz == 0.3                                           # Pm 1, Pr 0.3
+    assert b.roughness == 0.3 and b.metallic == 1.0                                       # Pm 1, Pr 0.3
 
 
 def test_default_material_rule(scene_dir):

@@ -151,7 +151,7 @@ def test_noise_marble_wood_are_finite_and_bounded():
 
 def test_mtl_syntax_errors_name_file_and_line():
     ok = parse_mtl_bytes(b"newmtl m\nmap_Kd proc:t_const color=0.25,0.5,1\n", "a.mtl")["m"]
-    assert ok.diffuse_map.name == "t_const" and ok.diffuse_map.params[:3] == (0.25, 0.5, 1.0)
+    assert ok.base_color_map.name == "t_const" and ok.base_color_map.params[:3] == (0.25, 0.5, 1.0)
     assert ok.reflect_map == ok.diffuse_map
     for text, want in ((b"map_Kd proc:nope", "unknown procedural texture 'nope'"),
                        (b"map_Kd proc:t_const colour=1", "keys: color"),

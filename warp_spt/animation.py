@@ -225,8 +225,7 @@ class ObjSequence:
 
     def scene(self, frame: int) -> Scene:
         """The validated scene of ``frame`` (the same object while no file name changes)."""
-        from warp_spt.io.loader import load_scene
-        from warp_spt.io.obj import load_obj
+        from warp_spt.io.loader import load_scene, read_model
 
         paths = tuple(self.paths(frame))
         if self._last_scene is not None and self._last_scene[0] == paths:
@@ -235,7 +234,7 @@ class ObjSequence:
         self._parsed = {p: d for p, d in self._parsed.items() if p in wanted}   # drop other frames' files
         for p in paths:
             if p not in self._parsed:
-                self._parsed[p] = load_obj(p)
+                self._parsed[p] = read_model(p)
                 self.loads += 1
         scene = load_scene([self._parsed[p] for p in paths], self.mtls, warn=lambda message: None,
                            default_material=self.default_material)

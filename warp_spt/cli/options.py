@@ -189,7 +189,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
                             "and the OBJ/MTL dialect of the seed, SimplePathTracer, and standard OBJ/MTL.")
     seed = p.add_argument_group("the seed's flags")
-    seed.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable)")
+    seed.add_argument("-obj", action="append", default=[], metavar="PATH",
+                      help="model file: OBJ, PLY, glTF or GLB (repeatable)")
     seed.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable, any order)")
     seed.add_argument("-cam", nargs=9, type=finite_float,
                       metavar=("PX", "PY", "PZ", "DX", "DY", "DZ", "FOV", "FOCUS", "APERTURE"),

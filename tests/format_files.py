@@ -97,7 +97,8 @@ class GltfBuilder:
         return len(self.doc["bufferViews"]) - 1
 
     def accessor(self, array: np.ndarray, type_: str, component: int, **extra) -> int:
-        view = self.view(np.ascontiguousarray(array).tobytes())
+        kinds = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+        view = self.view(np.ascontiguousarray(array, dtype=kinds[component]).tobytes())
         acc = {"bufferView": view, "componentType": component, "count": int(len(array)), "type": type_, **extra}
         if type_ == "VEC3" and component == 5126:
             acc["min"] = np.min(array, 0).tolist()

@@ -95,6 +95,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     mtls = [str(p) for p in mtls]
     data = [p if isinstance(p, ObjData) else read_model(p) for p in objs]   # parsed ones: OBJ sequences
     _require_geometry(data)
+    for d in data:
+        for message in d.warnings:
+            note(message)
     library, libraries_read = _read_materials(data, mtls, note)
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())

@@ -99,6 +99,8 @@ class ObjData:
     dropped_degenerate: int = 0  # zero-area triangles dropped while parsing
     # materials the file defines itself (PLY vertex colours, glTF), by name; an MTL of the same name wins
     materials: dict[str, Material] = field(default_factory=dict)
+    extras: object = None        # what else the format holds (glTF: io.gltf.GltfExtras, cameras and lights)
+    warnings: list[str] = field(default_factory=list)   # the reader's notes; the loader passes them on
 
 
 @dataclass

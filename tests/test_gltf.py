@@ -1,0 +1,248 @@
+"""glTF 2.0 reader (io/gltf.py): containers, accessors, the node tree, materials, cameras, errors."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from tests.format_files import (
+    CUBE_POSITIONS,
+    CUBE_TRIANGLES,
+    TEXTURE_2X2,
+    GltfBuilder,
+    gltf_box,
+    gltf_camera_and_light,
+    gltf_sparse,
+    gltf_textured_box,
+    gltf_two_instances,
+    two_instances_expected,
+)
+from warp_spt.io.gltf import MAX_NODE_DEPTH, parse_gltf_bytes
+from warp_spt.scene.errors import SceneError
+
+
+def _load(g: GltfBuilder, container: str = "gltf"):
+    data = g.glb() if container == "glb" else g.gltf()[0]
+    return parse_gltf_bytes(data, f"scene.{container}")
+
+
+@pytest.mark.parametrize("container", ["gltf", "glb"])
+def test_the_box_is_translated_by_its_node(container):
+    d = _load(gltf_box(), container)
+    assert np.array_equal(d.positions, CUBE_POSITIONS + [1, 2, 3])
+    assert np.array_equal(d.faces, CUBE_TRIANGLES)
+
+
+def test_an_external_bin_file_is_read_relative_to_the_gltf(tmp_path):
+    from warp_spt.io.gltf import load_gltf
+
+    js, bn = gltf_box().gltf("data/box bits.bin")
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "box bits.bin").write_bytes(bn)
+    (tmp_path / "box.gltf").write_bytes(js.replace(b"box bits", b"box%20bits"))      # a percent-encoded URI
+    assert np.array_equal(load_gltf(tmp_path / "box.gltf").positions, CUBE_POSITIONS + [1, 2, 3])
+    (tmp_path / "data" / "box bits.bin").unlink()
+    with pytest.raises(SceneError, match=r"box.gltf: /buffers/0/uri: 'data/box%20bits.bin' cannot be read"):
+        load_gltf(tmp_path / "box.gltf")
+
+
+def test_two_instances_with_parent_child_and_matrix_transforms():
+    d = _load(gltf_two_instances())
+    assert np.allclose(d.positions, two_instances_expected(), atol=1e-12)
+    assert np.array_equal(d.faces, np.concatenate([CUBE_TRIANGLES, CUBE_TRIANGLES + 8]))
+
+
+def test_a_mirroring_node_reverses_the_winding_and_normals_use_the_inverse_transpose():
+    g = GltfBuilder()
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)
+    normals = np.array([[1, 1, 1]] * 3, np.float32) / np.sqrt(3)
+    g.mesh(tri, NORMAL=(normals, "VEC3", 5126))
+    g.node(mesh=0, scale=[-1, 2, 1])
+    d = _load(g)
+    assert np.array_equal(d.positions, [[0, 0, 0], [-1, 0, 0], [0, 2, 0]])
+    assert np.array_equal(d.faces, [[2, 1, 0]])
+    p = d.positions[d.faces[0]]
+    geometric = np.cross(p[1] - p[0], p[2] - p[0])
+    assert geometric[2] > 0                       # the triangle still faces +z, as before the mirror
+    # inverse transpose of diag(-1, 2, 1) is diag(-1, 1/2, 1): (1, 1, 1) -> (-1, 0.5, 1), normalised
+    assert np.allclose(d.normals[0], np.array([-1, 0.5, 1]) / 1.5, atol=1e-6)
+
+
+def test_interleaved_stride_normalized_quantized_positions():
+    """KHR_mesh_quantization: int16 normalized positions interleaved with uint8 normalized uv."""
+    g = GltfBuilder()
+    q = np.array([[0, 0, 0], [32767, 0, 0], [0, -32767, 16384]], np.int16)
+    uv = np.array([[0, 0], [255, 0], [0, 255]], np.uint8)
+    rows = np.zeros(3, np.dtype([("p", "<i2", (3,)), ("pad", "u1", 2), ("uv", "u1", (2,)), ("pad2", "u1", 2)]))
+    rows["p"], rows["uv"] = q, uv
+    view = g.view(rows.tobytes(), stride=12)
+    g.doc["accessors"] += [{"bufferView": view, "componentType": 5122, "normalized": True, "count": 3, "type": "VEC3"},
+                           {"bufferView": view, "byteOffset": 8, "componentType": 5121, "normalized": True,
+                            "count": 3, "type": "VEC2"}]
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}}]})
+    g.doc["extensionsRequired"] = g.doc["extensionsUsed"] = ["KHR_mesh_quantization"]
+    g.node(mesh=0)
+    d = _load(g)
+    assert np.allclose(d.positions, [[0, 0, 0], [1, 0, 0], [0, -1, 16384 / 32767]], atol=0)
+    assert np.allclose(d.texcoords, [[0, 1], [1, 1], [0, 0]])          # v flipped: glTF's v runs down
+
+
+@pytest.mark.parametrize("mode, expected", [
+    (5, [[0, 1, 2], [2, 1, 3], [2, 3, 4]]),            # strip: odd triangles (i+1, i, i+2)
+    (6, [[1, 2, 0], [2, 3, 0], [3, 4, 0]]),            # fan: (i+1, i+2, 0)
+])
+def test_strips_and_fans_are_converted(mode, expected):
+    g = GltfBuilder()
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.5], [0, 2, 0.25]], np.float64)
+    g.mesh(pos, np.arange(5), mode=mode)
+    g.node(mesh=0)
+    assert np.array_equal(_load(g).faces, expected)
+
+
+@pytest.mark.parametrize("mode, name", [(0, "points"), (1, "lines"), (3, "line strips")])
+def test_points_and_lines_are_refused_clearly(mode, name):
+    g = gltf_box()
+    g.doc["meshes"][0]["primitives"][0]["mode"] = mode
+    with pytest.raises(SceneError, match=rf"^scene.gltf: /meshes/0/primitives/0/mode: {name} cannot be rendered"):
+        _load(g)
+
+
+def test_sparse_accessors_with_and_without_a_base_view():
+    d = _load(gltf_sparse())
+    assert np.array_equal(d.positions[:3], [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    assert np.array_equal(d.faces, [[0, 1, 2]]) and d.dropped_degenerate == 1
+    # the second primitive's positions: zeros with vertex 2 set to (0, 0, 2)
+    assert np.array_equal(d.positions[3:], [[0, 0, 0], [0, 0, 0], [0, 0, 2]])
+
+
+def test_the_textured_box_has_its_data_uri_image_and_transformed_uv():
+    from warp_spt.io.loader import load_scene
+
+    d = _load(gltf_textured_box())
+    m = d.materials["checker"]
+    assert isinstance(m.diffuse_map.image, bytes)
+    # uv = (x + 0.5, y + 0.5) offset by (0.25, 0), then v -> 1 - v
+    want = np.stack([CUBE_POSITIONS[:, 0] + 0.75, 1 - (CUBE_POSITIONS[:, 1] + 0.5)], axis=1)
+    assert np.allclose(d.texcoords, want)
+    scene = load_scene([d])
+    assert np.array_equal(scene.textures[0], TEXTURE_2X2.astype(np.float32) / 255)
+
+
+def test_cameras_and_lights_are_placed_by_their_nodes():
+    d = _load(gltf_camera_and_light())
+    front, side = d.extras.cameras
+    assert (front.name, front.position, front.direction, front.up) == ("front", (0, 0, 5), (0, 0, -1), (0, 1, 0))
+    assert side.name == "side" and side.aspect == 1.5 and side.position == (5, 0, 0)
+    # 90 degrees about +y turns -z into -x
+    assert np.allclose(side.direction, (-1, 0, 0), atol=1e-12) and np.allclose(side.up, (0, 1, 0))
+    # horizontal fov for a square image equals yfov; for 2:1 it is 2 atan(2 tan(yfov / 2))
+    assert math.isclose(front.fov_degrees(100, 100), math.degrees(0.8))
+    assert math.isclose(front.fov_degrees(200, 100), math.degrees(2 * math.atan(2 * math.tan(0.4))))
+    (light,) = d.extras.lights
+    assert (light.kind, light.color, light.intensity, light.position) == ("point", (1, 0.5, 0.25), 20, (0, 3, 0))
+    assert d.warnings == ["scene.gltf: 1 KHR_lights_punctual light(s) are read but not rendered yet"]
+
+
+def _mutated(make, change):
+    g = make()
+    change(g.doc)
+    return g
+
+
+BAD = [
+    (lambda d: d["accessors"][0].update(count=10 ** 9), "/accessors/0/count: count 1000000000 exceeds the buffer view"),
+    (lambda d: d["accessors"][0].update(componentType=5124), "/accessors/0/componentType: unknown componentType"),
+    (lambda d: d["accessors"][0].update(type="VEC2"), "/accessors/0/type: expected type VEC3, got 'VEC2'"),
+    (lambda d: d["accessors"][0].update(count="8"), "/accessors/0/count: expected an integer, got \"8\""),
+    (lambda d: d["accessors"][0].update(byteOffset=4), "/accessors/0/count: count 8 exceeds the buffer view"),
+    (lambda d: d["bufferViews"][0].update(byteLength=10 ** 6), "/bufferViews/0: bytes 0..1000000 exceed the buffer"),
+    (lambda d: d["bufferViews"][0].update(byteStride=6), "/bufferViews/0/byteStride: byteStride 6 must be"),
+    (lambda d: d["bufferViews"][1].update(buffer=3), "/bufferViews/1/buffer: buffers index 3 is out of range"),
+    (lambda d: d["accessors"][1].update(componentType=5126), "/accessors/1: indices must be unsigned integers"),
+    (lambda d: d["meshes"][0]["primitives"][0]["attributes"].pop("POSITION"),
+     "/meshes/0/primitives/0/attributes: missing required property 'POSITION'"),
+    (lambda d: d["nodes"][0].update(children=[0]), "/nodes/0/children/0: node 0 is reached twice"),
+    (lambda d: d["nodes"][0].update(rotation=[0, 0, 0, 0]), "/nodes/0/rotation: a rotation quaternion must not be"),
+    (lambda d: d["nodes"][0].update(translation=[1, 2]), "/nodes/0/translation: expected 3 finite numbers"),
+    (lambda d: d["nodes"][0].update(mesh=True), "/nodes/0/mesh: expected an integer, got true"),
+    (lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]),
+     "/extensionsRequired: the file requires KHR_draco_mesh_compression"),
+    (lambda d: d["asset"].update(version="1.0"), "/asset/version: glTF 1.0: only glTF 2.0 is read"),
+    (lambda d: d.update(scene=4), "/scene: scene index 4 is out of range"),
+    (lambda d: d["scenes"][0].update(nodes=[7]), "/scenes/0/nodes/0: expected a node index in 0..0, got 7"),
+]
+
+
+@pytest.mark.parametrize("change, message", BAD, ids=[m.split(":")[0] + f"-{k}" for k, (_, m) in enumerate(BAD)])
+def test_bad_documents_name_the_json_path(change, message):
+    g = _mutated(gltf_box, change)
+    with pytest.raises(SceneError) as err:
+        _load(g)
+    assert str(err.value).startswith(f"scene.gltf: {message}"), str(err.value)
+
+
+def test_index_out_of_range_and_depth_and_two_parents():
+    g = gltf_box()
+    g.doc["accessors"][1]["count"] = 3
+    idx_view = g.doc["accessors"][1]["bufferView"]
+    data = bytearray(g.bin)
+    off = g.doc["bufferViews"][idx_view]["byteOffset"]
+    data[off:off + 2] = np.uint16(9).tobytes()
+    g.bin = bytes(data)
+    with pytest.raises(SceneError, match=r"^scene.gltf: /accessors/1: index 9 is out of range: POSITION has 8"):
+        _load(g)
+    deep = GltfBuilder()
+    deep.mesh(CUBE_POSITIONS, CUBE_TRIANGLES)
+    deep.node(children=[1])
+    for k in range(1, MAX_NODE_DEPTH + 3):
+        deep.node(root=False, children=[k + 1])
+    deep.node(root=False, mesh=0)
+    with pytest.raises(SceneError, match=f"nodes nest more than {MAX_NODE_DEPTH} deep"):
+        _load(deep)
+    two = gltf_box()
+    two.node(children=[0])
+    with pytest.raises(SceneError, match="node 0 is reached twice"):
+        _load(two)
+
+
+def test_glb_container_errors():
+    good = gltf_box().glb()
+    for data, message in [
+        (good[:-4], "the GLB header says"),
+        (good[:4] + b"\x01\x00\x00\x00" + good[8:], "GLB version 1: only glTF 2.0 is read"),
+        (good[:12] + b"\xff\xff\xff\x7f" + good[16:], "GLB chunk 0 at byte 12: length 2147483647 runs past"),
+        (good[:16] + b"BIN\x00" + good[20:], "the first GLB chunk must be the JSON chunk"),
+    ]:
+        with pytest.raises(SceneError, match=message):
+            parse_gltf_bytes(data, "scene.glb")
+
+
+def test_json_nesting_and_data_uri_base64_are_checked():
+    with pytest.raises(SceneError, match="nests 100 levels deep"):
+        parse_gltf_bytes(b'{"asset": {"version": "2.0"}, "x": ' + b"[" * 99 + b"]" * 99 + b"}", "deep.gltf")
+    js = json.loads(gltf_box().gltf()[0])
+    js["buffers"][0]["uri"] = js["buffers"][0]["uri"][:-3] + "!!!"
+    with pytest.raises(SceneError, match=r"/buffers/0/uri: bad base64 data"):
+        parse_gltf_bytes(json.dumps(js).encode(), "scene.gltf")
+    js["buffers"][0]["uri"] = "https://example.com/box.bin"
+    with pytest.raises(SceneError, match=r"/buffers/0/uri: only relative file URIs and data URIs are read"):
+        parse_gltf_bytes(json.dumps(js).encode(), "scene.gltf")
+
+
+def test_through_the_loader_and_the_cli(tmp_path, capsys):
+    from warp_spt.cli.main import main
+    from warp_spt.io.loader import load_scene
+
+    (tmp_path / "box.glb").write_bytes(gltf_box().glb())
+    (tmp_path / "box.obj").write_bytes(gltf_box().glb())          # by content
+    scene = load_scene([tmp_path / "box.glb", tmp_path / "box.obj"])
+    assert scene.num_triangles == 24 and not scene.seed_dialect    # Y up by the command line's rule
+    bad = _mutated(gltf_box, lambda d: d["accessors"][0].update(count=10 ** 9))
+    (tmp_path / "bad.gltf").write_bytes(bad.gltf()[0])
+    assert main(["-obj", str(tmp_path / "bad.gltf"), "-res", "8", "8", "-out", str(tmp_path / "o.png")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"warp-spt: error: {tmp_path / 'bad.gltf'}: /accessors/0/count: count 1000000000 exceeds")

@@ -1,0 +1,798 @@
+"""glTF 2.0 reader (``.gltf`` with external or data-URI buffers, and ``.glb``) into an :class:`ObjData`.
+
+The default scene's node tree is walked from its roots; every mesh a node names is placed in world
+space (its node's TRS or matrix times its parents'), its primitives' triangles appended to one
+object (strips and fans converted; points and lines refused). A node whose world transform mirrors
+(negative determinant) has its triangles' winding reversed, as glTF asks. Normals go through the
+inverse transpose. Positions stay in glTF's metres and Y up: the command line's up-axis rule for
+models that are not in the seed's dialect applies (Y up).
+
+Accessors: any component type, ``normalized`` integers, ``byteStride``, sparse accessors (with or
+without a base buffer view); KHR_mesh_quantization's integer positions, normals and texture
+coordinates are read through the same path. Texture coordinates are turned to the renderer's
+convention (v = 0 at the image's bottom row: v' = 1 - v), after KHR_texture_transform of the base
+colour texture.
+
+Materials: until the ``pbr`` material kind exists, a glTF material becomes a diffuse material of
+the seed's model whose colour is the base colour factor, or the base colour texture (which then
+replaces the factor) and whose emission is ``emissiveFactor`` (times KHR_materials_emissive_strength);
+the rest of the glTF material is kept in :class:`GltfMaterial` records on :class:`GltfExtras`.
+Cameras (perspective) and KHR_lights_punctual lights are kept as :class:`GltfCamera` and
+:class:`GltfLight` records; lights are not rendered yet (one warning).
+
+Every index, count, offset, stride and length is checked against its buffer view and buffer before
+anything is read or allocated; node cycles and nodes with two parents are refused, the node depth
+is bounded (MAX_NODE_DEPTH) and so are data URIs (MAX_DATA_URI_BYTES). Errors are
+:class:`SceneError` naming the file (line 0) and the JSON path: ``scene.gltf: /accessors/3: count
+1000000000 exceeds the buffer view``.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import json
+import math
+import os
+import struct
+import urllib.parse
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from warp_spt.io.tokens import MAX_FILE_BYTES, file_problem, read_file
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef
+from warp_spt.scene.validate import MAX_COORDINATE, MAX_RADIANCE
+
+__all__ = ["load_gltf", "parse_gltf_bytes", "GltfCamera", "GltfLight", "GltfMaterial", "GltfExtras"]
+
+MAX_NODE_DEPTH = 256                   # nesting of nodes below a root
+MAX_DATA_URI_BYTES = 256 << 20         # decoded size of one base64 data URI
+MAX_JSON_BYTES = 64 << 20
+MAX_JSON_NESTING = 64                  # JSON arrays/objects inside each other (json.loads recurses)
+GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
+_COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+_MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
+          6: "triangle fans"}
+SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_lights_punctual",
+                        "KHR_materials_emissive_strength"}
+
+
+@dataclass
+class GltfCamera:
+    """A perspective camera placed by its node: ``position``, view ``direction`` (the node's -Z) and
+    ``up`` (its +Y) in world space; ``yfov`` in radians; ``aspect`` None when the file leaves it to
+    the image."""
+
+    name: str
+    index: int                   # in /cameras
+    node: int
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    up: tuple[float, float, float]
+    yfov: float
+    aspect: float | None
+    znear: float
+
+    def fov_degrees(self, width: int, height: int) -> float:
+        """The full horizontal angle for an image of ``width`` x ``height`` (the renderer's ``fov``)."""
+        aspect = width / height
+        return math.degrees(2.0 * math.atan(math.tan(self.yfov / 2.0) * aspect))
+
+
+@dataclass
+class GltfLight:
+    """A KHR_lights_punctual light placed by its node (not rendered yet)."""
+
+    name: str
+    kind: str                    # "point", "spot" or "directional"
+    color: tuple[float, float, float]
+    intensity: float
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]     # the node's -Z
+    range: float | None = None
+    inner_cone: float = 0.0
+    outer_cone: float = math.pi / 4
+
+
+@dataclass
+class GltfMaterial:
+    """A glTF material as written (metallic-roughness model), for the ``pbr`` kind."""
+
+    name: str
+    base_color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+    base_color_texture: int | None = None     # index into /textures
+    metallic: float = 1.0
+    roughness: float = 1.0
+    metallic_roughness_texture: int | None = None
+    normal_texture: int | None = None
+    normal_scale: float = 1.0
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    emissive_texture: int | None = None
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+    double_sided: bool = False
+    extensions: dict = field(default_factory=dict)
+
+
+@dataclass
+class GltfExtras:
+    """What a glTF holds beyond triangles: cameras, lights and materials (``ObjData.extras``)."""
+
+    cameras: list[GltfCamera] = field(default_factory=list)
+    lights: list[GltfLight] = field(default_factory=list)
+    materials: list[GltfMaterial] = field(default_factory=list)
+
+
+def load_gltf(path: str | os.PathLike[str]) -> ObjData:
+    """Read a ``.gltf`` or ``.glb`` file into world-space triangles; see the module docs."""
+    path = str(path)
+    return parse_gltf_bytes(read_file(path, "glTF", binary=True), path)
+
+
+def parse_gltf_bytes(data: bytes, path: str = "<input>") -> ObjData:
+    """Parse glTF JSON or GLB bytes; ``path`` names the file in errors and anchors relative URIs."""
+    return _Reader(data, path).run()
+
+
+def _err(path: str, pointer: str, message: str) -> SceneError:
+    return SceneError(path, 0, f"{pointer}: {message}" if pointer else message)
+
+
+class _Reader:
+    def __init__(self, data: bytes, path: str) -> None:
+        self.path = path
+        self.folder = Path(path).parent
+        self.bin: bytes | None = None
+        if data[:4] == b"glTF":
+            text = self._glb(data)
+        else:
+            text = data
+        self.doc = self._json(text)
+        self.buffers: dict[int, bytes] = {}
+        self.warnings: list[str] = []
+
+    # ------------------------------------------------------------------------------------ containers
+
+    def _glb(self, data: bytes) -> bytes:
+        if len(data) < 20:
+            raise _err(self.path, "", f"a GLB file needs a 12-byte header and a JSON chunk; it has {len(data)} bytes")
+        magic, version, length = struct.unpack_from("<III", data, 0)
+        if version != 2:
+            raise _err(self.path, "", f"GLB version {version}: only glTF 2.0 is read")
+        if length != len(data):
+            raise _err(self.path, "", f"the GLB header says {length} bytes, the file has {len(data)}")
+        pos, chunks = 12, []
+        while pos < length:
+            if pos + 8 > length:
+                raise _err(self.path, "", f"a GLB chunk header at byte {pos} runs past the end of the file")
+            size, kind = struct.unpack_from("<II", data, pos)
+            if size > length - pos - 8:
+                raise _err(self.path, "", f"GLB chunk {len(chunks)} at byte {pos}: length {size} runs past the end "
+                           f"of the file ({length - pos - 8} bytes left)")
+            chunks.append((kind, data[pos + 8:pos + 8 + size]))
+            pos += 8 + size
+        if not chunks or chunks[0][0] != GLB_JSON:
+            raise _err(self.path, "", "the first GLB chunk must be the JSON chunk")
+        if len(chunks) > 1 and chunks[1][0] == GLB_BIN:
+            self.bin = chunks[1][1]
+        return chunks[0][1]
+
+    def _json(self, text: bytes) -> dict:
+        if len(text) > MAX_JSON_BYTES:
+            raise _err(self.path, "", f"the JSON is {len(text)} bytes, more than the {MAX_JSON_BYTES >> 20} MiB limit")
+        depth = _json_depth(text)
+        if depth > MAX_JSON_NESTING:
+            raise _err(self.path, "", f"the JSON nests {depth} levels deep, more than {MAX_JSON_NESTING}")
+        try:
+            doc = json.loads(text.decode("utf-8-sig"))
+        except (UnicodeDecodeError, ValueError, RecursionError) as err:
+            raise _err(self.path, "", f"not valid glTF JSON: {err}") from None
+        if not isinstance(doc, dict):
+            raise _err(self.path, "", f"expected a JSON object at the top, got {type(doc).__name__}")
+        asset = self.obj(doc, "asset", "", required=True)
+        version = self.get(asset, "version", str, "/asset", required=True)
+        if not version.startswith("2."):
+            raise _err(self.path, "/asset/version", f"glTF {version}: only glTF 2.0 is read")
+        missing = set(self.get(doc, "extensionsRequired", list, "", []) or []) - SUPPORTED_EXTENSIONS
+        if missing:
+            raise _err(self.path, "/extensionsRequired", f"the file requires {', '.join(sorted(map(str, missing)))}, "
+                       f"which warp_spt does not read (it reads {', '.join(sorted(SUPPORTED_EXTENSIONS))})")
+        return doc
+
+    # ------------------------------------------------------------------------------------- JSON typing
+
+    def get(self, obj: dict, key: str, kind, pointer: str, default=None, *, required: bool = False):
+        """``obj[key]`` of JSON type ``kind`` (int excludes bool; float takes int), else a SceneError."""
+        if key not in obj:
+            if required:
+                raise _err(self.path, pointer, f"missing required property {key!r}")
+            return default
+        value = obj[key]
+        ok = (isinstance(value, int) and not isinstance(value, bool)) if kind is int else \
+            (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)) \
+            if kind is float else isinstance(value, kind)
+        if not ok:
+            want = {int: "an integer", float: "a finite number", str: "a string", list: "an array",
+                    dict: "an object", bool: "true or false"}[kind]
+            raise _err(self.path, f"{pointer}/{key}", f"expected {want}, got {json.dumps(value)[:60]}")
+        return float(value) if kind is float else value
+
+    def obj(self, parent: dict, key: str, pointer: str, *, required: bool = False) -> dict:
+        return self.get(parent, key, dict, pointer, {}, required=required)
+
+    def index(self, obj: dict, key: str, pointer: str, collection: str, *, required: bool = False) -> int | None:
+        """A reference into ``/collection``, checked to exist."""
+        k = self.get(obj, key, int, pointer, None, required=required)
+        if k is None:
+            return None
+        items = self.get(self.doc, collection, list, "", [])
+        if not 0 <= k < len(items):
+            raise _err(self.path, f"{pointer}/{key}", f"{collection} index {k} is out of range: the file has "
+                       f"{len(items)} {collection}")
+        return k
+
+    def item(self, collection: str, k: int) -> dict:
+        value = self.doc[collection][k]
+        if not isinstance(value, dict):
+            raise _err(self.path, f"/{collection}/{k}", f"expected an object, got {json.dumps(value)[:60]}")
+        return value
+
+    def numbers(self, obj: dict, key: str, pointer: str, n: int, default):
+        value = self.get(obj, key, list, pointer, None)
+        if value is None:
+            return default
+        if len(value) != n or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                      and math.isfinite(v) for v in value):
+            raise _err(self.path, f"{pointer}/{key}", f"expected {n} finite numbers, got {json.dumps(value)[:80]}")
+        return [float(v) for v in value]
+
+    # ------------------------------------------------------------------------------- buffers and data
+
+    def buffer(self, k: int) -> bytes:
+        if k in self.buffers:
+            return self.buffers[k]
+        ptr = f"/buffers/{k}"
+        b = self.item("buffers", k)
+        length = self.get(b, "byteLength", int, ptr, required=True)
+        uri = self.get(b, "uri", str, ptr)
+        if uri is None:
+            if k != 0 or self.bin is None:
+                raise _err(self.path, ptr, "no 'uri' and no GLB binary chunk to stand for it")
+            data = self.bin
+        else:
+            data = self.uri(uri, f"{ptr}/uri")
+        if length < 1 or length > len(data):
+            raise _err(self.path, f"{ptr}/byteLength", f"byteLength {length} does not fit the {len(data)} bytes "
+                       "of its data")
+        self.buffers[k] = data[:length] if length < len(data) else data
+        return self.buffers[k]
+
+    def uri(self, uri: str, pointer: str) -> bytes:
+        """The bytes of a data URI (base64, bounded) or of a file relative to the glTF's folder."""
+        if uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            if not head.endswith(";base64"):
+                raise _err(self.path, pointer, "a data URI must be base64 (';base64,')")
+            if len(payload) * 3 // 4 > MAX_DATA_URI_BYTES:
+                raise _err(self.path, pointer, f"the data URI holds about {len(payload) * 3 // 4} bytes, more "
+                           f"than the {MAX_DATA_URI_BYTES >> 20} MiB limit; use a .bin file or a .glb")
+            try:
+                return base64.b64decode(payload, validate=True)
+            except (binascii.Error, ValueError) as err:
+                raise _err(self.path, pointer, f"bad base64 data: {err}") from None
+        target = self._local_file(uri, pointer)
+        return read_file(str(target), "glTF buffer", binary=True)
+
+    def _local_file(self, uri: str, pointer: str) -> Path:
+        scheme = urllib.parse.urlsplit(uri).scheme
+        if scheme and len(scheme) > 1:       # one letter: a Windows drive
+            raise _err(self.path, pointer, f"only relative file URIs and data URIs are read, got {uri[:80]!r}")
+        target = self.folder / urllib.parse.unquote(uri)
+        problem = file_problem(target)
+        if problem is not None:
+            raise _err(self.path, pointer, f"{uri!r} cannot be read ({target}: {problem})")
+        return target
+
+    def view(self, k: int) -> tuple[bytes, int, int, int | None]:
+        """(buffer, offset, length, stride) of buffer view ``k``, checked against its buffer."""
+        ptr = f"/bufferViews/{k}"
+        v = self.item("bufferViews", k)
+        buf = self.buffer(self.index(v, "buffer", ptr, "buffers", required=True))
+        offset = self.get(v, "byteOffset", int, ptr, 0)
+        length = self.get(v, "byteLength", int, ptr, required=True)
+        stride = self.get(v, "byteStride", int, ptr)
+        if offset < 0 or length < 1 or offset + length > len(buf):
+            raise _err(self.path, ptr, f"bytes {offset}..{offset + length} exceed the buffer's {len(buf)} bytes")
+        if stride is not None and not (4 <= stride <= 252 and stride % 4 == 0):
+            raise _err(self.path, f"{ptr}/byteStride", f"byteStride {stride} must be a multiple of 4 in 4..252")
+        return buf, offset, length, stride
+
+    def accessor(self, k: int, *, widths: tuple[str, ...] = ("SCALAR", "VEC2", "VEC3", "VEC4")) -> np.ndarray:
+        """Accessor ``k`` as an (count, components) float64 array (normalized integers scaled), or
+        (count,) int64 for an integer SCALAR that is not normalized."""
+        ptr = f"/accessors/{k}"
+        a = self.item("accessors", k)
+        comp = self.get(a, "componentType", int, ptr, required=True)
+        if comp not in _COMPONENTS:
+            raise _err(self.path, f"{ptr}/componentType", f"unknown componentType {comp} (expected one of "
+                       f"{sorted(_COMPONENTS)})")
+        kind = _COMPONENTS[comp]
+        type_ = self.get(a, "type", str, ptr, required=True)
+        if type_ not in widths:
+            raise _err(self.path, f"{ptr}/type", f"expected type {' or '.join(widths)}, got {type_!r}")
+        n = _WIDTH[type_]
+        count = self.get(a, "count", int, ptr, required=True)
+        normalized = self.get(a, "normalized", bool, ptr, False)
+        if normalized and kind in ("f4", "u4"):
+            raise _err(self.path, f"{ptr}/normalized", f"componentType {comp} cannot be normalized")
+        if count < 1:
+            raise _err(self.path, f"{ptr}/count", f"count {count} must be at least 1")
+        item = np.dtype(kind).itemsize
+        elem = n * item
+        view_k = self.index(a, "bufferView", ptr, "bufferViews")
+        if view_k is None:
+            if count * elem > MAX_FILE_BYTES:
+                raise _err(self.path, f"{ptr}/count", f"count {count} of zeros is more than a file could hold")
+            values = np.zeros((count, n), kind)
+        else:
+            buf, voff, vlen, stride = self.view(view_k)
+            off = self.get(a, "byteOffset", int, ptr, 0)
+            stride = stride or elem
+            if off < 0 or off % item:
+                raise _err(self.path, f"{ptr}/byteOffset", f"byteOffset {off} must be a multiple of {item} and >= 0")
+            if stride < elem:
+                raise _err(self.path, ptr, f"byteStride {stride} is less than the element's {elem} bytes")
+            if off + stride * (count - 1) + elem > vlen:
+                raise _err(self.path, f"{ptr}/count", f"count {count} exceeds the buffer view: {count} elements of "
+                           f"{elem} bytes, stride {stride}, from byte {off} need {off + stride * (count - 1) + elem} "
+                           f"bytes, the view has {vlen}")
+            values = np.ndarray((count, n), dtype="<" + kind, buffer=buf, offset=voff + off, strides=(stride, item))
+        sparse = self.get(a, "sparse", dict, ptr)
+        if sparse is not None:
+            values = self._sparse(values.copy(), sparse, f"{ptr}/sparse", kind, n)
+        if normalized:
+            scale = float(np.iinfo(kind).max)
+            return np.maximum(values.astype(np.float64) / scale, -1.0)
+        if kind == "f4":
+            out = values.astype(np.float64)
+            if not np.isfinite(out).all():
+                raise _err(self.path, ptr, "holds a value that is not finite (NaN or infinity)")
+            return out
+        if n == 1:
+            return values[:, 0].astype(np.int64)
+        return values.astype(np.float64)
+
+    def _sparse(self, values: np.ndarray, sparse: dict, ptr: str, kind: str, n: int) -> np.ndarray:
+        count = self.get(sparse, "count", int, ptr, required=True)
+        if not 1 <= count <= len(values):
+            raise _err(self.path, f"{ptr}/count", f"sparse count {count} must lie in 1..{len(values)} (the accessor's count)")
+        ind = self.obj(sparse, "indices", ptr, required=True)
+        comp = self.get(ind, "componentType", int, f"{ptr}/indices", required=True)
+        if comp not in (5121, 5123, 5125):
+            raise _err(self.path, f"{ptr}/indices/componentType", f"sparse indices must be 5121, 5123 or 5125, got {comp}")
+        idx = self._slice(ind, f"{ptr}/indices", _COMPONENTS[comp], 1, count)[:, 0].astype(np.int64)
+        if np.any(idx >= len(values)) or np.any(np.diff(idx) <= 0):
+            raise _err(self.path, f"{ptr}/indices", f"sparse indices must increase strictly and stay below "
+                       f"{len(values)}")
+        vals = self._slice(self.obj(sparse, "values", ptr, required=True), f"{ptr}/values", kind, n, count)
+        values[idx] = vals
+        return values
+
+    def _slice(self, ref: dict, ptr: str, kind: str, n: int, count: int) -> np.ndarray:
+        """``count`` tightly packed elements from ``ref``'s bufferView and byteOffset (sparse parts)."""
+        view_k = self.index(ref, "bufferView", ptr, "bufferViews", required=True)
+        buf, voff, vlen, _stride = self.view(view_k)
+        off = self.get(ref, "byteOffset", int, ptr, 0)
+        need = count * n * np.dtype(kind).itemsize
+        if off < 0 or off + need > vlen:
+            raise _err(self.path, ptr, f"{count} elements of {n} x {kind} from byte {off} need {off + need} bytes, "
+                       f"the buffer view has {vlen}")
+        return np.frombuffer(buf, dtype="<" + kind, count=count * n, offset=voff + off).reshape(count, n)
+
+    # ----------------------------------------------------------------------------------------- scene
+
+    def run(self) -> ObjData:
+        nodes = self.get(self.doc, "nodes", list, "", [])
+        roots = self._roots(len(nodes))
+        parts: list[tuple] = []           # (positions, triangles, uv or None, normals or None, material row)
+        extras = GltfExtras()
+        material_rows: dict[int | None, int] = {}
+        names = [CHECKER_NAME]
+        materials: dict[str, Material] = {}
+        seen: set[int] = set()
+        stack = [(k, np.eye(4), 0, f"/scenes/{self._scene_index()}/nodes") for k in reversed(roots)]
+        while stack:
+            k, parent, depth, via = stack.pop()
+            ptr = f"/nodes/{k}"
+            if k in seen:
+                raise _err(self.path, via, f"node {k} is reached twice: the nodes form a cycle or a node has two "
+                           "parents")
+            seen.add(k)
+            if depth > MAX_NODE_DEPTH:
+                raise _err(self.path, ptr, f"nodes nest more than {MAX_NODE_DEPTH} deep")
+            node = self.item("nodes", k)
+            world = parent @ self._local(node, ptr)
+            mesh = self.index(node, "mesh", ptr, "meshes")
+            if mesh is not None:
+                for prim_k, prim in enumerate(self._primitives(mesh)):
+                    pptr = f"/meshes/{mesh}/primitives/{prim_k}"
+                    mat = self.index(prim, "material", pptr, "materials")
+                    if mat not in material_rows:
+                        name, material = self._material(mat, names)
+                        material_rows[mat] = len(names)
+                        names.append(name)
+                        materials[name] = material
+                    parts.append((*self._primitive(prim, pptr, world, mat), material_rows[mat]))
+            cam = self.index(node, "camera", ptr, "cameras")
+            if cam is not None:
+                extras.cameras.append(self._camera(cam, k, world))
+            light = self.get(self.obj(node, "extensions", ptr), "KHR_lights_punctual", dict, f"{ptr}/extensions")
+            if light is not None:
+                extras.lights.append(self._light(light, f"{ptr}/extensions/KHR_lights_punctual", world))
+            children = self.get(node, "children", list, ptr, [])
+            for c, child in reversed(list(enumerate(children))):
+                if not isinstance(child, int) or isinstance(child, bool) or not 0 <= child < len(nodes):
+                    raise _err(self.path, f"{ptr}/children/{c}", f"expected a node index in 0..{len(nodes) - 1}, got "
+                               f"{json.dumps(child)[:40]}")
+                stack.append((child, world, depth + 1, f"{ptr}/children/{c}"))
+        extras.materials = [self._material_record(m) for m in range(len(self.get(self.doc, "materials", list, "", [])))]
+        if extras.lights:
+            self.warnings.append(f"{self.path}: {len(extras.lights)} KHR_lights_punctual light(s) are read but not "
+                                 "rendered yet")
+        return self._object(parts, names, materials, extras)
+
+    def _scene_index(self) -> int:
+        scenes = self.get(self.doc, "scenes", list, "", [])
+        k = self.get(self.doc, "scene", int, "", 0 if scenes else None)
+        if k is not None and not 0 <= k < max(len(scenes), 1):
+            raise _err(self.path, "/scene", f"scene index {k} is out of range: the file has {len(scenes)} scenes")
+        return k or 0
+
+    def _roots(self, n_nodes: int) -> list[int]:
+        scenes = self.get(self.doc, "scenes", list, "", [])
+        if not scenes:          # no scene: every node that is nobody's child
+            children = set()
+            for k in range(n_nodes):
+                children.update(c for c in self.get(self.item("nodes", k), "children", list, f"/nodes/{k}", [])
+                                if isinstance(c, int))
+            return [k for k in range(n_nodes) if k not in children]
+        s = self._scene_index()
+        roots = self.get(self.item("scenes", s), "nodes", list, f"/scenes/{s}", [])
+        for r, k in enumerate(roots):
+            if not isinstance(k, int) or isinstance(k, bool) or not 0 <= k < n_nodes:
+                raise _err(self.path, f"/scenes/{s}/nodes/{r}", f"expected a node index in 0..{n_nodes - 1}, got "
+                           f"{json.dumps(k)[:40]}")
+        return roots
+
+    def _local(self, node: dict, ptr: str) -> np.ndarray:
+        matrix = self.numbers(node, "matrix", ptr, 16, None)
+        if matrix is not None:
+            m = np.array(matrix, np.float64).reshape(4, 4).T          # column-major
+            if not np.allclose(m[3], [0, 0, 0, 1]):
+                raise _err(self.path, f"{ptr}/matrix", "the last row must be 0, 0, 0, 1 (an affine transform)")
+            return m
+        t = self.numbers(node, "translation", ptr, 3, [0.0, 0.0, 0.0])
+        q = self.numbers(node, "rotation", ptr, 4, [0.0, 0.0, 0.0, 1.0])
+        s = self.numbers(node, "scale", ptr, 3, [1.0, 1.0, 1.0])
+        norm = math.sqrt(sum(v * v for v in q))
+        if not norm > 0:
+            raise _err(self.path, f"{ptr}/rotation", "a rotation quaternion must not be zero")
+        m = np.eye(4)
+        m[:3, :3] = quaternion_matrix(np.array(q) / norm) * np.array(s)
+        m[:3, 3] = t
+        return m
+
+    def _primitives(self, mesh: int) -> list[dict]:
+        ptr = f"/meshes/{mesh}"
+        prims = self.get(self.item("meshes", mesh), "primitives", list, ptr, required=True)
+        for k, p in enumerate(prims):
+            if not isinstance(p, dict):
+                raise _err(self.path, f"{ptr}/primitives/{k}", "expected an object")
+        return prims
+
+    def _primitive(self, prim: dict, ptr: str, world: np.ndarray, mat: int | None):
+        mode = self.get(prim, "mode", int, ptr, 4)
+        if mode not in _MODES:
+            raise _err(self.path, f"{ptr}/mode", f"unknown mode {mode}")
+        if mode < 4:
+            raise _err(self.path, f"{ptr}/mode", f"{_MODES[mode]} cannot be rendered: warp_spt draws triangles "
+                       "(strips and fans are converted)")
+        attrs = self.obj(prim, "attributes", ptr, required=True)
+        aptr = f"{ptr}/attributes"
+        pos = self.accessor(self.index(attrs, "POSITION", aptr, "accessors", required=True), widths=("VEC3",))
+        nv = len(pos)
+
+        def attribute(name: str, width: str):
+            k = self.index(attrs, name, aptr, "accessors")
+            if k is None:
+                return None
+            a = self.accessor(k, widths=(width,))
+            if len(a) != nv:
+                raise _err(self.path, f"{aptr}/{name}", f"accessor {k} has {len(a)} elements; POSITION has {nv}")
+            return a
+
+        normals = attribute("NORMAL", "VEC3")
+        uv = attribute(f"TEXCOORD_{self._uv_set(mat)}", "VEC2")
+        k = self.index(prim, "indices", ptr, "accessors")
+        if k is None:
+            idx = np.arange(nv, dtype=np.int64)
+        else:
+            a = self.item("accessors", k)
+            if a.get("componentType") not in (5121, 5123, 5125) or a.get("normalized", False) is not False:
+                raise _err(self.path, f"/accessors/{k}", "indices must be unsigned integers (5121, 5123 or 5125), "
+                           "not normalized")
+            idx = self.accessor(k, widths=("SCALAR",))
+            if len(idx) and (idx.max() >= nv):
+                raise _err(self.path, f"/accessors/{k}", f"index {int(idx.max())} is out of range: POSITION has {nv} "
+                           "elements")
+        tri = _triangles(idx, mode)
+        if len(tri) == 0:
+            return np.zeros((0, 3)), tri, None, None
+        p = pos @ world[:3, :3].T + world[:3, 3]
+        if np.abs(p).max() > MAX_COORDINATE:
+            raise _err(self.path, ptr, f"a vertex lies at {np.abs(p).max():g}, beyond the supported range of "
+                       f"+-{MAX_COORDINATE:g}")
+        linear = world[:3, :3]
+        if np.linalg.det(linear) < 0:
+            tri = tri[:, ::-1].copy()
+        n = None
+        if normals is not None:
+            inv_t = np.linalg.inv(linear).T if abs(np.linalg.det(linear)) > 0 else linear
+            n = normals @ inv_t.T
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+            n = np.where(length > 0, n / np.where(length > 0, length, 1), 0.0)
+        if uv is not None:
+            uv = self._uv_transform(uv, mat)
+            uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)
+        return p, tri, uv, n
+
+    # ---------------------------------------------------------------------------- textures/materials
+
+    def _base_texture(self, mat: int | None) -> dict | None:
+        if mat is None:
+            return None
+        pbr = self.obj(self.item("materials", mat), "pbrMetallicRoughness", f"/materials/{mat}")
+        return self.get(pbr, "baseColorTexture", dict, f"/materials/{mat}/pbrMetallicRoughness")
+
+    def _uv_set(self, mat: int | None) -> int:
+        info = self._base_texture(mat)
+        if info is None:
+            return 0
+        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture"
+        tt = self.get(self.obj(info, "extensions", ptr), "KHR_texture_transform", dict, f"{ptr}/extensions")
+        k = self.get(tt, "texCoord", int, f"{ptr}/extensions/KHR_texture_transform") if tt else None
+        k = self.get(info, "texCoord", int, ptr, 0) if k is None else k
+        if not 0 <= k < 16:
+            raise _err(self.path, f"{ptr}/texCoord", f"texCoord {k} must lie in 0..15")
+        return k
+
+    def _uv_transform(self, uv: np.ndarray, mat: int | None) -> np.ndarray:
+        """KHR_texture_transform of the base colour texture: offset + rotation(-r) * scale * uv, in
+        glTF's uv space (v down), as the extension defines it."""
+        info = self._base_texture(mat)
+        if info is None:
+            return uv
+        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform"
+        tt = self.get(self.obj(info, "extensions", ptr.rsplit("/", 2)[0]), "KHR_texture_transform", dict,
+                      ptr.rsplit("/", 1)[0])
+        if not tt:
+            return uv
+        offset = self.numbers(tt, "offset", ptr, 2, [0.0, 0.0])
+        rotation = self.get(tt, "rotation", float, ptr, 0.0)
+        scale = self.numbers(tt, "scale", ptr, 2, [1.0, 1.0])
+        c, s = math.cos(rotation), math.sin(rotation)
+        su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
+        return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
+
+    def _image(self, tex: int, ptr: str) -> TextureRef:
+        t = self.item("textures", tex)
+        tptr = f"/textures/{tex}"
+        source = self.index(t, "source", tptr, "images")
+        if source is None:
+            raise _err(self.path, tptr, "a texture without a 'source' image (or only an extension's) is not read")
+        img = self.item("images", source)
+        iptr = f"/images/{source}"
+        uri = self.get(img, "uri", str, iptr)
+        name = f"images/{source}"
+        if uri is not None and not uri.startswith("data:"):
+            self._local_file(uri, f"{iptr}/uri")             # exists and is local; the loader reads it
+            return TextureRef(urllib.parse.unquote(uri), self.path, 0)
+        if uri is not None:
+            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"))
+        view = self.index(img, "bufferView", iptr, "bufferViews")
+        if view is None:
+            raise _err(self.path, iptr, "an image needs a 'uri' or a 'bufferView'")
+        buf, off, length, _ = self.view(view)
+        return TextureRef(name, self.path, 0, image=buf[off:off + length])
+
+    def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
+        """A unique name and a Material of the seed's model (diffuse; see the module docs)."""
+        if mat is None:
+            name = "gltf default material"
+            return name, Material(name, diffuse=(1.0, 1.0, 1.0), roughness=1.0, fuzz=0.0, ior=1.0, source=self.path,
+                                  seed_dialect=False)
+        rec = self._material_record(mat)
+        name = rec.name or f"material {mat}"
+        while name in names or name == CHECKER_NAME:
+            name = f"{name} ({mat})"
+        base = tuple(min(max(c, 0.0), 1.0) for c in rec.base_color[:3])
+        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture"
+        tex = self._image(rec.base_color_texture, ptr) if rec.base_color_texture is not None else None
+        strength = self.get(rec.extensions.get("KHR_materials_emissive_strength", {}), "emissiveStrength", float,
+                            f"/materials/{mat}/extensions/KHR_materials_emissive_strength", 1.0)
+        emission = tuple(min(max(c * strength, 0.0), MAX_RADIANCE) for c in rec.emissive)
+        return name, Material(name, diffuse=base, diffuse_map=tex, emission=emission, roughness=1.0, fuzz=0.0,
+                              ior=1.0, source=self.path, seed_dialect=False)
+
+    def _material_record(self, mat: int) -> GltfMaterial:
+        m = self.item("materials", mat)
+        ptr = f"/materials/{mat}"
+        pbr = self.obj(m, "pbrMetallicRoughness", ptr)
+        pptr = f"{ptr}/pbrMetallicRoughness"
+
+        def texture(obj: dict, key: str, p: str) -> int | None:
+            info = self.get(obj, key, dict, p)
+            return None if info is None else self.index(info, "index", f"{p}/{key}", "textures", required=True)
+
+        normal = self.get(m, "normalTexture", dict, ptr) or {}
+        alpha = self.get(m, "alphaMode", str, ptr, "OPAQUE")
+        if alpha not in ("OPAQUE", "MASK", "BLEND"):
+            raise _err(self.path, f"{ptr}/alphaMode", f"expected OPAQUE, MASK or BLEND, got {alpha!r}")
+        return GltfMaterial(
+            name=self.get(m, "name", str, ptr, ""),
+            base_color=tuple(self.numbers(pbr, "baseColorFactor", pptr, 4, [1.0, 1.0, 1.0, 1.0])),
+            base_color_texture=texture(pbr, "baseColorTexture", pptr),
+            metallic=self.get(pbr, "metallicFactor", float, pptr, 1.0),
+            roughness=self.get(pbr, "roughnessFactor", float, pptr, 1.0),
+            metallic_roughness_texture=texture(pbr, "metallicRoughnessTexture", pptr),
+            normal_texture=texture(m, "normalTexture", ptr),
+            normal_scale=self.get(normal, "scale", float, f"{ptr}/normalTexture", 1.0),
+            emissive=tuple(self.numbers(m, "emissiveFactor", ptr, 3, [0.0, 0.0, 0.0])),
+            emissive_texture=texture(m, "emissiveTexture", ptr),
+            alpha_mode=alpha,
+            alpha_cutoff=self.get(m, "alphaCutoff", float, ptr, 0.5),
+            double_sided=self.get(m, "doubleSided", bool, ptr, False),
+            extensions=self.obj(m, "extensions", ptr),
+        )
+
+    # ------------------------------------------------------------------------------- cameras, lights
+
+    def _camera(self, k: int, node: int, world: np.ndarray) -> GltfCamera:
+        c = self.item("cameras", k)
+        ptr = f"/cameras/{k}"
+        kind = self.get(c, "type", str, ptr, required=True)
+        name = self.get(c, "name", str, ptr, "")
+        if kind != "perspective":
+            self.warnings.append(f"{self.path}: {ptr}: {kind} cameras are not read (only perspective ones)")
+            kind_ok = False
+        else:
+            kind_ok = True
+        p = self.obj(c, "perspective", ptr, required=kind_ok) if kind_ok else {}
+        yfov = self.get(p, "yfov", float, f"{ptr}/perspective", 0.8, required=kind_ok)
+        if not 0 < yfov < math.pi:
+            raise _err(self.path, f"{ptr}/perspective/yfov", f"yfov {yfov:g} must lie in (0, pi) radians")
+        aspect = self.get(p, "aspectRatio", float, f"{ptr}/perspective")
+        if aspect is not None and not aspect > 0:
+            raise _err(self.path, f"{ptr}/perspective/aspectRatio", f"aspectRatio {aspect:g} must be positive")
+        direction, up = _unit(world[:3, :3] @ [0, 0, -1]), _unit(world[:3, :3] @ [0, 1, 0])
+        if direction is None or up is None:
+            raise _err(self.path, f"/nodes/{node}", "the camera's node transform is singular")
+        return GltfCamera(name=name, index=k, node=node, position=tuple(float(c) for c in world[:3, 3]), direction=direction, up=up,
+                          yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0))
+
+    def _light(self, ref: dict, ptr: str, world: np.ndarray) -> GltfLight:
+        k = self.get(ref, "light", int, ptr, required=True)
+        lights = self.get(self.obj(self.obj(self.doc, "extensions", ""), "KHR_lights_punctual", "/extensions"),
+                          "lights", list, "/extensions/KHR_lights_punctual", [])
+        if not 0 <= k < len(lights) or not isinstance(lights[k], dict):
+            raise _err(self.path, f"{ptr}/light", f"light index {k} is out of range: the file has {len(lights)} lights")
+        lptr = f"/extensions/KHR_lights_punctual/lights/{k}"
+        light = lights[k]
+        kind = self.get(light, "type", str, lptr, required=True)
+        if kind not in ("point", "spot", "directional"):
+            raise _err(self.path, f"{lptr}/type", f"expected point, spot or directional, got {kind!r}")
+        spot = self.obj(light, "spot", lptr)
+        return GltfLight(
+            name=self.get(light, "name", str, lptr, ""), kind=kind,
+            color=tuple(self.numbers(light, "color", lptr, 3, [1.0, 1.0, 1.0])),
+            intensity=self.get(light, "intensity", float, lptr, 1.0),
+            position=tuple(float(c) for c in world[:3, 3]), direction=_unit(world[:3, :3] @ [0, 0, -1]) or (0.0, 0.0, -1.0),
+            range=self.get(light, "range", float, lptr),
+            inner_cone=self.get(spot, "innerConeAngle", float, f"{lptr}/spot", 0.0),
+            outer_cone=self.get(spot, "outerConeAngle", float, f"{lptr}/spot", math.pi / 4))
+
+    # ----------------------------------------------------------------------------------- the object
+
+    def _object(self, parts: list[tuple], names: list[str], materials: dict[str, Material], extras: GltfExtras
+                ) -> ObjData:
+        from warp_spt.io.obj import _nonzero_area
+
+        positions, faces, ftex, fnrm, fmat, uvs, nrms = [], [], [], [], [], [], []
+        nv = nt = nn = 0
+        dropped = 0
+        for p, tri, uv, n, row in parts:
+            if len(tri) == 0:
+                continue
+            keep = _nonzero_area(p, tri)
+            dropped += int(len(keep) - np.count_nonzero(keep))
+            tri = tri[keep]
+            positions.append(p)
+            faces.append(tri + nv)
+            ftex.append(tri + nt if uv is not None else np.full_like(tri, -1))
+            fnrm.append(tri + nn if n is not None else np.full_like(tri, -1))
+            fmat.append(np.full(len(tri), row, np.int32))
+            if uv is not None:
+                uvs.append(uv)
+                nt += len(uv)
+            if n is not None:
+                nrms.append(n)
+                nn += len(n)
+            nv += len(p)
+        cat = lambda xs, shape, dtype: np.concatenate(xs).astype(dtype) if xs else np.zeros(shape, dtype)  # noqa: E731
+        data = ObjData(
+            path=self.path, positions=cat(positions, (0, 3), np.float64),
+            texcoords=cat(uvs, (0, 2), np.float32), normals=cat(nrms, (0, 3), np.float32),
+            faces=cat(faces, (0, 3), np.int32), face_texcoords=cat(ftex, (0, 3), np.int32),
+            face_normals=cat(fnrm, (0, 3), np.int32), face_material=cat(fmat, (0,), np.int32),
+            spheres=np.zeros((0, 4)), sphere_material=np.zeros(0, np.int32),
+            material_names=names, material_lines=[0] * len(names), dropped_degenerate=dropped,
+            materials=materials, extras=extras, warnings=list(self.warnings),
+        )
+        return data
+
+
+def _triangles(idx: np.ndarray, mode: int) -> np.ndarray:
+    """(F, 3) int32 triangles of an index list in mode 4 (list), 5 (strip) or 6 (fan)."""
+    n = len(idx)
+    if mode == 4:
+        return idx[:n - n % 3].reshape(-1, 3).astype(np.int32)
+    if n < 3:
+        return np.zeros((0, 3), np.int32)
+    i = np.arange(n - 2)
+    if mode == 5:       # glTF: triangle i is (i, i+1, i+2) for even i and (i+1, i, i+2) for odd i
+        odd = (i % 2) == 1
+        tri = np.stack([np.where(odd, idx[i + 1], idx[i]), np.where(odd, idx[i], idx[i + 1]), idx[i + 2]], axis=1)
+    else:               # fan: (i+1, i+2, 0)
+        tri = np.stack([idx[i + 1], idx[i + 2], np.full(n - 2, idx[0])], axis=1)
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    return tri.astype(np.int32)
+
+
+def quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (x, y, z, w)."""
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _unit(v: np.ndarray) -> tuple[float, float, float] | None:
+    n = float(np.linalg.norm(v))
+    return tuple(float(c) for c in np.asarray(v) / n) if n > 0 and math.isfinite(n) else None
+
+
+def _json_depth(text: bytes) -> int:
+    """The deepest nesting of brackets outside strings (json.loads recurses once per level)."""
+    arr = np.frombuffer(text, np.uint8)
+    quote = arr == ord('"')
+    if quote.any():
+        # a quote escaped by an odd run of backslashes does not end a string
+        back = arr == ord("\\")
+        run = np.zeros(len(arr), np.int64)
+        k = np.flatnonzero(back)
+        if len(k):
+            starts = np.concatenate([[True], np.diff(k) != 1])
+            grp = np.cumsum(starts) - 1
+            first = k[starts][grp]
+            run[k] = k - first + 1
+        prev_run = np.concatenate([[0], run[:-1]])
+        quote &= (prev_run % 2) == 0
+    inside = (np.cumsum(quote) - quote) % 2 == 1
+    opening = ((arr == ord("{")) | (arr == ord("["))) & ~inside
+    closing = ((arr == ord("}")) | (arr == ord("]"))) & ~inside
+    depth = np.cumsum(opening.astype(np.int64) - closing.astype(np.int64))
+    return int(depth.max(initial=0))

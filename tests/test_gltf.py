@@ -246,3 +246,33 @@ def test_through_the_loader_and_the_cli(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"warp-spt: error: {tmp_path / 'bad.gltf'}: /accessors/0/count: count 1000000000 exceeds")
+
+
+def test_choose_camera_by_name_or_index_keeps_the_vertical_fov():
+    from warp_spt.io.gltf import choose_camera
+
+    cams = _load(gltf_camera_and_light()).extras.cameras
+    side = choose_camera(cams, "side", 300, 200)
+    assert side == choose_camera(cams, "1", 300, 200) == choose_camera(cams, 1, 300, 200)
+    assert np.allclose(side.position, (5, 0, 0)) and np.allclose(side.direction, (-1, 0, 0)) and side.aperture == 0
+    # vertical half-angle 0.25 rad: the image plane at focus f is f tan(0.25) high (half), 1.5 times as wide
+    assert math.isclose(math.tan(math.radians(side.fov) / 2), 1.5 * math.tan(0.25))
+    with pytest.raises(ValueError, match="no camera 'back'; the files have 0: 'front', 1: 'side'"):
+        choose_camera(cams, "back", 10, 10)
+    with pytest.raises(ValueError, match="no camera '2'"):
+        choose_camera(cams, 2, 10, 10)
+    with pytest.raises(ValueError, match="the model files define no cameras"):
+        choose_camera([], 0, 10, 10)
+
+
+def test_the_cli_camera_flag(tmp_path, capsys):
+    from warp_spt.cli.main import main
+    from warp_spt.cli.options import UsageError, parse_args
+
+    (tmp_path / "c.gltf").write_bytes(gltf_camera_and_light().gltf()[0])
+    with pytest.raises(UsageError, match="--camera uses a camera of the model files"):
+        parse_args(["-obj", str(tmp_path / "c.gltf"), "--camera", "side", "--frame"])
+    assert main(["-obj", str(tmp_path / "c.gltf"), "--camera", "back", "-res", "8", "8",
+                 "-out", str(tmp_path / "o.png")]) == 1
+    assert capsys.readouterr().err.endswith("error: --camera back: no camera 'back'; the files have 0: 'front', "
+                                            "1: 'side'\n")

@@ -116,6 +116,7 @@ class Options:
     sky_given: bool = False          # -sky, --sky-color or a --demo preset chose the sky
     exposure: float = 0.0            # --exposure, in stops, for tone-mapped outputs
     default_material: str = "auto"
+    file_camera: str | None = None   # --camera: a camera of the model files (glTF), by name or index
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
@@ -284,7 +285,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
         studio=ns.studio, sky_given=ns.sky is not None or ns.sky_color is not None or preset is not None,
-        exposure=ns.exposure, default_material=ns.default_material,
+        exposure=ns.exposure, default_material=ns.default_material, file_camera=ns.file_camera,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
     return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
@@ -357,6 +358,8 @@ def _add_model_flags(g) -> None:
                         "elevation EL, in degrees")
     g.add_argument("--look-at", nargs=3, type=finite_float, metavar=("TX", "TY", "TZ"),
                    help="aim the camera (-cam's or the default position) at this point and focus on it")
+    g.add_argument("--camera", metavar="NAME|INDEX", dest="file_camera",
+                   help="look through a camera of the model files (glTF), by name or by index in file order")
     g.add_argument("--fov", type=finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
     g.add_argument("--aperture", type=finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
     g.add_argument("--frame", action="store_true",
@@ -413,8 +416,12 @@ def _check_model_flags(ns: argparse.Namespace) -> None:
         raise UsageError("give either --view or --orbit, not both")
     if (ns.view is not None or ns.orbit is not None) and ns.cam is not None:
         raise UsageError("--view and --orbit place the camera themselves; they cannot be combined with -cam")
+    if ns.file_camera is not None and (ns.cam is not None or ns.look_at is not None or ns.frame
+                                       or ns.view is not None or ns.orbit is not None):
+        raise UsageError("--camera uses a camera of the model files; it cannot be combined with -cam, --look-at, "
+                         "--frame, --view or --orbit")
     for flag, given in (("--frame", ns.frame), ("--studio", ns.studio), ("--view", ns.view is not None),
-                        ("--orbit", ns.orbit is not None)):
+                        ("--orbit", ns.orbit is not None), ("--camera", ns.file_camera is not None)):
         if given and not ns.obj:
             raise UsageError(f"{flag} is for your own -obj files, not the built-in demo")
 

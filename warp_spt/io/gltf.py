@@ -46,7 +46,7 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef
 from warp_spt.scene.validate import MAX_COORDINATE, MAX_RADIANCE
 
-__all__ = ["load_gltf", "parse_gltf_bytes", "GltfCamera", "GltfLight", "GltfMaterial", "GltfExtras"]
+__all__ = ["load_gltf", "parse_gltf_bytes", "choose_camera", "GltfCamera", "GltfLight", "GltfMaterial", "GltfExtras"]
 
 MAX_NODE_DEPTH = 256                   # nesting of nodes below a root
 MAX_DATA_URI_BYTES = 256 << 20         # decoded size of one base64 data URI
@@ -796,3 +796,30 @@ def _json_depth(text: bytes) -> int:
     closing = ((arr == ord("}")) | (arr == ord("]"))) & ~inside
     depth = np.cumsum(opening.astype(np.int64) - closing.astype(np.int64))
     return int(depth.max(initial=0))
+
+
+def choose_camera(cameras: list[GltfCamera], choice: str | int, width: int, height: int):
+    """The renderer's :class:`~warp_spt.scene.camera.Camera` for the camera named ``choice`` (or at
+    index ``choice`` in file order) among ``cameras`` (``Scene.cameras``), for a ``width`` x
+    ``height`` image: the file's vertical field of view is kept (the horizontal one follows from the
+    image's aspect, as glTF viewers do), a pinhole, with the camera's own up direction (so its roll is
+    kept). Raises ValueError naming the cameras there are."""
+    from warp_spt.scene.camera import Camera
+
+    if not cameras:
+        raise ValueError("the model files define no cameras")
+    names = [c.name for c in cameras]
+    text = str(choice)
+    if text in names:
+        if names.count(text) > 1:
+            raise ValueError(f"{names.count(text)} cameras are named {text!r}; give an index (0..{len(cameras) - 1})")
+        cam = cameras[names.index(text)]
+    elif text.lstrip("-").isdigit() and 0 <= int(text) < len(cameras):
+        cam = cameras[int(text)]
+    else:
+        listed = ", ".join(f"{k}: {n!r}" if n else f"{k}" for k, n in enumerate(names))
+        raise ValueError(f"no camera {text!r}; the files have {listed}")
+    camera = Camera(position=cam.position, direction=cam.direction, fov=cam.fov_degrees(width, height),
+                    aperture=0.0, focus=1.0, up=cam.up)
+    camera.validate()
+    return camera

@@ -114,6 +114,8 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
         seed_dialect=any(len(d.spheres) for d in data) or any(m.seed_dialect for m in library.values()),
         bare=not libraries_read,
+        cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
+        lights=[c for d in data for c in getattr(d.extras, "lights", ())],
     )
     for d in data:
         if d.dropped_degenerate:

@@ -192,6 +192,9 @@ class Scene:
     # default material). Scenes built in code count as the seed's and not bare.
     seed_dialect: bool = True
     bare: bool = False
+    # cameras and lights the model files define (glTF: io.gltf.GltfCamera, GltfLight), in file order
+    cameras: list = field(default_factory=list)
+    lights: list = field(default_factory=list)
 
     @property
     def num_triangles(self) -> int:

@@ -532,7 +532,7 @@ class _Reader:
         tri = _triangles(idx, mode)
         if len(tri) == 0:
             return np.zeros((0, 3)), tri, None, None
-        p = pos @ world[:3, :3].T + world[:3, 3]
+        p = pos @ np.ascontiguousarray(world[:3, :3].T) + world[:3, 3] if not np.array_equal(world, np.eye(4)) else pos
         if np.abs(p).max() > MAX_COORDINATE:
             raise _err(self.path, ptr, f"a vertex lies at {np.abs(p).max():g}, beyond the supported range of "
                        f"+-{MAX_COORDINATE:g}")
@@ -542,7 +542,7 @@ class _Reader:
         n = None
         if normals is not None:
             inv_t = np.linalg.inv(linear).T if abs(np.linalg.det(linear)) > 0 else linear
-            n = normals @ inv_t.T
+            n = normals @ np.ascontiguousarray(inv_t.T)
             length = np.linalg.norm(n, axis=1, keepdims=True)
             n = np.where(length > 0, n / np.where(length > 0, length, 1), 0.0)
         if uv is not None:
@@ -709,7 +709,7 @@ class _Reader:
 
     def _object(self, parts: list[tuple], names: list[str], materials: dict[str, Material], extras: GltfExtras
                 ) -> ObjData:
-        from warp_spt.io.obj import _nonzero_area
+        from warp_spt.io.ply import nonzero_area
 
         positions, faces, ftex, fnrm, fmat, uvs, nrms = [], [], [], [], [], [], []
         nv = nt = nn = 0
@@ -717,7 +717,7 @@ class _Reader:
         for p, tri, uv, n, row in parts:
             if len(tri) == 0:
                 continue
-            keep = _nonzero_area(p, tri)
+            keep = nonzero_area(p, tri)
             dropped += int(len(keep) - np.count_nonzero(keep))
             tri = tri[keep]
             positions.append(p)

@@ -426,8 +426,7 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
         strips, _joins = _strips(values["tristrips"], by_name["tristrips"], nv, path)
         faces.append(strips)
     tri = np.concatenate(faces) if faces else np.zeros((0, 3), np.int32)
-    from warp_spt.io.obj import _nonzero_area
-    keep = _nonzero_area(positions, tri)
+    keep = nonzero_area(positions, tri)
     tri = tri[keep]
     has = lambda a: tri if a is not None else np.full_like(tri, -1)      # noqa: E731
     names = [CHECKER_NAME]
@@ -498,6 +497,8 @@ def _polygons(values: dict, e: _Element, nv: int, path: str) -> np.ndarray:
         row = int(np.searchsorted(np.cumsum(n), k, side="right"))
         raise SceneError(path, _row_line(values, row), f"face {row}: vertex index {flat[k]} is out of range: the "
                          f"file has {nv} vertices")
+    if np.all(n == 3):
+        return flat.reshape(-1, 3).astype(np.int32)
     from warp_spt.io.obj import _fan
     return flat[_fan(n)].astype(np.int32)
 
@@ -528,6 +529,21 @@ def _strips(values: dict, e: _Element, nv: int, path: str) -> tuple[np.ndarray, 
     tri = np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1)[same]
     join = (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
     return tri[~join].astype(np.int32), int(np.count_nonzero(join))
+
+
+def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Mask of triangles whose area is not exactly zero, in float64 (as OBJ's reader decides), with
+    the cross product's components formed one at a time (np.cross is 3x slower on large arrays)."""
+    if len(faces) == 0:
+        return np.ones(0, dtype=bool)
+    p = np.asarray(positions, np.float64)
+    p0 = p[faces[:, 0]]
+    e1 = p[faces[:, 1]] - p0
+    e2 = p[faces[:, 2]] - p0
+    x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
+    x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
+    x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]
+    return x
 
 
 # --------------------------------------------------------------------------------------- vertex colours

@@ -51,7 +51,6 @@ __all__ = ["load_gltf", "parse_gltf_bytes", "choose_camera", "GltfCamera", "Gltf
 MAX_NODE_DEPTH = 256                   # nesting of nodes below a root
 MAX_DATA_URI_BYTES = 256 << 20         # decoded size of one base64 data URI
 MAX_JSON_BYTES = 64 << 20
-MAX_JSON_NESTING = 64                  # JSON arrays/objects inside each other (json.loads recurses)
 GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -184,12 +183,11 @@ class _Reader:
     def _json(self, text: bytes) -> dict:
         if len(text) > MAX_JSON_BYTES:
             raise _err(self.path, "", f"the JSON is {len(text)} bytes, more than the {MAX_JSON_BYTES >> 20} MiB limit")
-        depth = _json_depth(text)
-        if depth > MAX_JSON_NESTING:
-            raise _err(self.path, "", f"the JSON nests {depth} levels deep, more than {MAX_JSON_NESTING}")
         try:
             doc = json.loads(text.decode("utf-8-sig"))
-        except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        except RecursionError:      # Python's decoder recurses once per level of nesting
+            raise _err(self.path, "", "the JSON nests deeper than Python's recursion limit") from None
+        except (UnicodeDecodeError, ValueError) as err:
             raise _err(self.path, "", f"not valid glTF JSON: {err}") from None
         if not isinstance(doc, dict):
             raise _err(self.path, "", f"expected a JSON object at the top, got {type(doc).__name__}")
@@ -774,28 +772,6 @@ def _unit(v: np.ndarray) -> tuple[float, float, float] | None:
     n = float(np.linalg.norm(v))
     return tuple(float(c) for c in np.asarray(v) / n) if n > 0 and math.isfinite(n) else None
 
-
-def _json_depth(text: bytes) -> int:
-    """The deepest nesting of brackets outside strings (json.loads recurses once per level)."""
-    arr = np.frombuffer(text, np.uint8)
-    quote = arr == ord('"')
-    if quote.any():
-        # a quote escaped by an odd run of backslashes does not end a string
-        back = arr == ord("\\")
-        run = np.zeros(len(arr), np.int64)
-        k = np.flatnonzero(back)
-        if len(k):
-            starts = np.concatenate([[True], np.diff(k) != 1])
-            grp = np.cumsum(starts) - 1
-            first = k[starts][grp]
-            run[k] = k - first + 1
-        prev_run = np.concatenate([[0], run[:-1]])
-        quote &= (prev_run % 2) == 0
-    inside = (np.cumsum(quote) - quote) % 2 == 1
-    opening = ((arr == ord("{")) | (arr == ord("["))) & ~inside
-    closing = ((arr == ord("}")) | (arr == ord("]"))) & ~inside
-    depth = np.cumsum(opening.astype(np.int64) - closing.astype(np.int64))
-    return int(depth.max(initial=0))
 
 
 def choose_camera(cameras: list[GltfCamera], choice: str | int, width: int, height: int):

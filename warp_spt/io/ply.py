@@ -179,7 +179,9 @@ def _read_binary(data: bytes, pos: int, order: str, elements: list[_Element], pa
                 raise SceneError(path, 0, f"element {e.name!r} (header line {e.line}): {e.count} rows of "
                                  f"{dtype.itemsize} bytes need {need} bytes at offset {pos}, but the file has "
                                  f"{size - pos} left")
-            if wanted:
+            if wanted and dtype.itemsize == 0:        # no properties: nothing to read
+                out[e.name] = {}
+            elif wanted:
                 rows = np.frombuffer(data, dtype=dtype, count=e.count, offset=pos)
                 out[e.name] = {p.name: rows[f"p{k}"] for k, p in enumerate(e.properties)}
             pos += need

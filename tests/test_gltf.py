@@ -276,3 +276,16 @@ def test_the_cli_camera_flag(tmp_path, capsys):
                  "-out", str(tmp_path / "o.png")]) == 1
     assert capsys.readouterr().err.endswith("error: --camera back: no camera 'back'; the files have 0: 'front', "
                                             "1: 'side'\n")
+
+
+def test_animation_static_files_and_the_api_read_gltf_and_ply(tmp_path):
+    import warp_spt
+    from tests.format_files import ply_bytes
+    from warp_spt.animation import ObjSequence
+
+    (tmp_path / "box.glb").write_bytes(gltf_box().glb())
+    (tmp_path / "p.ply").write_bytes(ply_bytes("binary_little_endian"))
+    seq = ObjSequence([str(tmp_path / "box.glb"), str(tmp_path / "p.ply")])
+    assert seq.scene(0).num_triangles == 12 + 6 and seq.scene(1) is seq.scene(0) and seq.loads == 2
+    assert np.array_equal(warp_spt.load_gltf(tmp_path / "box.glb").faces, CUBE_TRIANGLES)
+    assert len(warp_spt.load_ply(tmp_path / "p.ply").faces) == 6

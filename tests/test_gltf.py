@@ -289,3 +289,26 @@ def test_animation_static_files_and_the_api_read_gltf_and_ply(tmp_path):
     assert seq.scene(0).num_triangles == 12 + 6 and seq.scene(1) is seq.scene(0) and seq.loads == 2
     assert np.array_equal(warp_spt.load_gltf(tmp_path / "box.glb").faces, CUBE_TRIANGLES)
     assert len(warp_spt.load_ply(tmp_path / "p.ply").faces) == 6
+
+
+def test_vertex_colours_times_the_base_colour_factor_are_baked():
+    from warp_spt.core.textures import sample_texture_np
+
+    g = GltfBuilder()
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)
+    rgba = np.array([[255, 0, 0, 255], [0, 255, 0, 0], [0, 0, 255, 128]], np.uint8)
+    g.mesh(tri, COLOR_0=(rgba, "VEC4", 5121))
+    g.doc["accessors"][-1]["normalized"] = True
+    g.doc["meshes"][0]["primitives"][0]["material"] = 0
+    g.doc["materials"] = [{"name": "half red", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 1, 1, 1]}}]
+    g.mesh(tri + [2, 0, 0])                         # a second mesh without colours keeps its material
+    g.doc["meshes"][1]["primitives"][0]["material"] = 0
+    g.node(mesh=0)
+    g.node(mesh=1)
+    d = _load(g)
+    assert d.material_names == ["Inner_CheckerTexture", "half red", "half red (vertex colours)"]
+    assert np.array_equal(d.face_material, [2, 1])
+    image = d.materials["half red (vertex colours)"].diffuse_map.image
+    corners = d.texcoords[d.face_texcoords[0]]
+    assert np.allclose(sample_texture_np(image, corners), [[0.5, 0, 0], [0, 1, 0], [0, 0, 1]])
+    assert np.all(d.face_texcoords[1] == -1)

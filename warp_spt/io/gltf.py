@@ -514,6 +514,7 @@ class _Reader:
             return a
 
         normals = attribute("NORMAL", "VEC3")
+        colours = self._colours(attrs, aptr, nv, mat)
         uv = attribute(f"TEXCOORD_{self._uv_set(mat)}", "VEC2")
         k = self.index(prim, "indices", ptr, "accessors")
         if k is None:
@@ -529,7 +530,7 @@ class _Reader:
                            "elements")
         tri = _triangles(idx, mode)
         if len(tri) == 0:
-            return np.zeros((0, 3)), tri, None, None
+            return np.zeros((0, 3)), tri, None, None, None
         p = pos @ np.ascontiguousarray(world[:3, :3].T) + world[:3, 3] if not np.array_equal(world, np.eye(4)) else pos
         if np.abs(p).max() > MAX_COORDINATE:
             raise _err(self.path, ptr, f"a vertex lies at {np.abs(p).max():g}, beyond the supported range of "
@@ -546,7 +547,23 @@ class _Reader:
         if uv is not None:
             uv = self._uv_transform(uv, mat)
             uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)
-        return p, tri, uv, n
+        return p, tri, uv, n, colours
+
+    def _colours(self, attrs: dict, aptr: str, nv: int, mat: int | None) -> np.ndarray | None:
+        """COLOR_0 (RGB; alpha dropped) times the material's base colour factor, or None. With a base
+        colour texture it is ignored (the renderer's texture replaces the colour: no product)."""
+        k = self.index(attrs, "COLOR_0", aptr, "accessors")
+        if k is None:
+            return None
+        a = self.accessor(k, widths=("VEC3", "VEC4"))
+        if len(a) != nv:
+            raise _err(self.path, f"{aptr}/COLOR_0", f"accessor {k} has {len(a)} elements; POSITION has {nv}")
+        if self._base_texture(mat) is not None:
+            self.warnings.append(f"{self.path}: {aptr}/COLOR_0: vertex colours beside a base colour texture are "
+                                 "ignored")
+            return None
+        factor = np.array(self._material_record(mat).base_color[:3]) if mat is not None else np.ones(3)
+        return np.clip(a[:, :3] * factor, 0.0, 1.0)
 
     # ---------------------------------------------------------------------------- textures/materials
 
@@ -709,10 +726,10 @@ class _Reader:
                 ) -> ObjData:
         from warp_spt.io.ply import nonzero_area
 
-        positions, faces, ftex, fnrm, fmat, uvs, nrms = [], [], [], [], [], [], []
+        positions, faces, ftex, fnrm, fmat, uvs, nrms, cols = [], [], [], [], [], [], [], []
         nv = nt = nn = 0
         dropped = 0
-        for p, tri, uv, n, row in parts:
+        for p, tri, uv, n, c, row in parts:
             if len(tri) == 0:
                 continue
             keep = nonzero_area(p, tri)
@@ -723,6 +740,7 @@ class _Reader:
             ftex.append(tri + nt if uv is not None else np.full_like(tri, -1))
             fnrm.append(tri + nn if n is not None else np.full_like(tri, -1))
             fmat.append(np.full(len(tri), row, np.int32))
+            cols.append((c, len(tri)))
             if uv is not None:
                 uvs.append(uv)
                 nt += len(uv)
@@ -740,7 +758,39 @@ class _Reader:
             material_names=names, material_lines=[0] * len(names), dropped_degenerate=dropped,
             materials=materials, extras=extras, warnings=list(self.warnings),
         )
+        if any(c is not None for c, _ in cols):
+            self._bake_colours(data, positions, cols)
         return data
+
+    def _bake_colours(self, data: ObjData, positions: list[np.ndarray], cols: list) -> None:
+        """Vertex colours as PLY's are (io.ply.vertex_colour_texture): one texture for the file, its
+        coloured triangles moved to a variant of their material that names it."""
+        from warp_spt.io.ply import vertex_colour_texture
+
+        per_vertex = np.zeros((len(data.positions), 3))
+        coloured = np.zeros(len(data.faces), bool)
+        v = f = 0
+        for p, (c, nf) in zip(positions, cols):
+            if c is not None:
+                per_vertex[v:v + len(p)] = c
+                coloured[f:f + nf] = True
+            v, f = v + len(p), f + nf
+        uv, ft, image = vertex_colour_texture(per_vertex, data.faces[coloured])
+        ref = TextureRef("vertex-colours", self.path, 0, image=image)
+        variant: dict[int, int] = {}
+        for row in np.unique(data.face_material[coloured]).tolist():
+            base = data.materials[data.material_names[row]]
+            name = f"{base.name} (vertex colours)"
+            data.materials[name] = Material(name, diffuse=(1.0, 1.0, 1.0), diffuse_map=ref, emission=base.emission,
+                                            roughness=1.0, fuzz=0.0, ior=1.0, source=self.path, seed_dialect=False)
+            variant[row] = len(data.material_names)
+            data.material_names.append(name)
+            data.material_lines.append(0)
+        lut = np.arange(len(data.material_names), dtype=np.int32)
+        lut[list(variant)] = list(variant.values())
+        data.face_material[coloured] = lut[data.face_material[coloured]]
+        data.face_texcoords[coloured] = ft + len(data.texcoords)
+        data.texcoords = np.concatenate([data.texcoords, uv]).astype(np.float32)
 
 
 def _triangles(idx: np.ndarray, mode: int) -> np.ndarray:

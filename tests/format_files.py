@@ -201,7 +201,9 @@ def gltf_textured_box() -> GltfBuilder:
     g.doc["textures"] = [{"source": 0}]
     g.doc["materials"] = [{"name": "checker", "pbrMetallicRoughness": {
         "baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
-        "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.25, 0.0]}}}}}]
+        "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.25, 0.0]}}}},
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2.0}, "KHR_materials_ior": {"ior": 1.4},
+                       "KHR_materials_specular": {"specularFactor": 0.5}}}]
     g.doc["extensionsUsed"] = ["KHR_texture_transform"]
     g.node(mesh=0)
     return g

@@ -634,14 +634,56 @@ class _Reader:
         name = rec.name or f"material {mat}"
         while name in names or name == CHECKER_NAME:
             name = f"{name} ({mat})"
+        mptr = f"/materials/{mat}"
+        ext = lambda key: self.obj(rec.extensions, key, f"{mptr}/extensions")      # noqa: E731
+        image = lambda k, where: None if k is None else self._image(k, f"{mptr}/{where}")  # noqa: E731
         base = tuple(min(max(c, 0.0), 1.0) for c in rec.base_color[:3])
-        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture"
-        tex = self._image(rec.base_color_texture, ptr) if rec.base_color_texture is not None else None
-        strength = self.get(rec.extensions.get("KHR_materials_emissive_strength", {}), "emissiveStrength", float,
-                            f"/materials/{mat}/extensions/KHR_materials_emissive_strength", 1.0)
+        tex = image(rec.base_color_texture, "pbrMetallicRoughness/baseColorTexture")
+        strength = self.get(ext("KHR_materials_emissive_strength"), "emissiveStrength", float,
+                            f"{mptr}/extensions/KHR_materials_emissive_strength", 1.0)
         emission = tuple(min(max(c * strength, 0.0), MAX_RADIANCE) for c in rec.emissive)
+        if hasattr(Material, "pbr"):        # the pbr material kind (issue 29)
+            return name, self._pbr(name, rec, mptr, ext, image, base, tex, emission)
         return name, Material(name, diffuse=base, diffuse_map=tex, emission=emission, roughness=1.0, fuzz=0.0,
                               ior=1.0, source=self.path, seed_dialect=False)
+
+    def _pbr(self, name, rec: GltfMaterial, mptr: str, ext, image, base, tex, emission) -> Material:
+        """glTF's metallic-roughness material and the KHR_materials_* that the pbr kind has columns for.
+        The packed metallic-roughness texture is named by both maps (the kind reads B and G)."""
+        eptr = f"{mptr}/extensions"
+        orm = image(rec.metallic_roughness_texture, "pbrMetallicRoughness/metallicRoughnessTexture")
+        fields = dict(base_color=base, base_color_map=tex, metallic=min(max(rec.metallic, 0.0), 1.0),
+                      roughness=min(max(rec.roughness, 0.0), 1.0), metallic_map=orm, roughness_map=orm,
+                      normal=rec.normal_scale, normal_map=image(rec.normal_texture, "normalTexture"),
+                      emission=emission, emission_map=image(rec.emissive_texture, "emissiveTexture"))
+        if rec.alpha_mode == "MASK":
+            fields["alpha_cutoff"] = rec.alpha_cutoff
+        if rec.alpha_mode != "OPAQUE":
+            fields["opacity"] = min(max(rec.base_color[3], 0.0), 1.0)
+        ior = ext("KHR_materials_ior")
+        if ior:
+            fields["ior"] = self.get(ior, "ior", float, f"{eptr}/KHR_materials_ior", 1.5)
+        transmission = ext("KHR_materials_transmission")
+        if transmission:
+            fields["transmission"] = self.get(transmission, "transmissionFactor", float,
+                                              f"{eptr}/KHR_materials_transmission", 0.0)
+            # without KHR_materials_volume a transmissive glTF surface is thin-walled
+            volume = ext("KHR_materials_volume")
+            fields["thin"] = not volume or self.get(volume, "thicknessFactor", float,
+                                                    f"{eptr}/KHR_materials_volume", 0.0) == 0.0
+        specular = ext("KHR_materials_specular")
+        if specular:
+            sptr = f"{eptr}/KHR_materials_specular"
+            fields["specular"] = self.get(specular, "specularFactor", float, sptr, 1.0)
+            fields["specular_color"] = tuple(self.numbers(specular, "specularColorFactor", sptr, 3, [1.0, 1.0, 1.0]))
+        anisotropy = ext("KHR_materials_anisotropy")
+        if anisotropy:
+            aptr = f"{eptr}/KHR_materials_anisotropy"
+            fields["anisotropy"] = self.get(anisotropy, "anisotropyStrength", float, aptr, 0.0)
+            fields["anisotropy_rotation"] = self.get(anisotropy, "anisotropyRotation", float, aptr, 0.0)
+        material = Material.pbr(name, **fields)
+        material.source, material.seed_dialect = self.path, False
+        return material
 
     def _material_record(self, mat: int) -> GltfMaterial:
         m = self.item("materials", mat)

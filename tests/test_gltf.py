@@ -52,6 +52,7 @@ def test_an_external_bin_file_is_read_relative_to_the_gltf(tmp_path):
 def test_two_instances_with_parent_child_and_matrix_transforms():
     d = _load(gltf_two_instances())
     assert np.allclose(d.positions, two_instances_expected(), atol=1e-12)
+    assert [(node, mesh) for node, mesh, _ in d.extras.instances] == [(0, 0), (2, 0)]
     assert np.array_equal(d.faces, np.concatenate([CUBE_TRIANGLES, CUBE_TRIANGLES + 8]))
 
 

@@ -124,6 +124,9 @@ class GltfExtras:
     cameras: list[GltfCamera] = field(default_factory=list)
     lights: list[GltfLight] = field(default_factory=list)
     materials: list[GltfMaterial] = field(default_factory=list)
+    # every placement of a mesh: (node, mesh index, 4x4 world matrix); a mesh placed by several nodes
+    # is copied per node in the triangles for now (the scene graph an instancing upload would use)
+    instances: list[tuple[int, int, np.ndarray]] = field(default_factory=list)
 
 
 def load_gltf(path: str | os.PathLike[str]) -> ObjData:
@@ -416,6 +419,7 @@ class _Reader:
             world = parent @ self._local(node, ptr)
             mesh = self.index(node, "mesh", ptr, "meshes")
             if mesh is not None:
+                extras.instances.append((k, mesh, world))
                 for prim_k, prim in enumerate(self._primitives(mesh)):
                     pptr = f"/meshes/{mesh}/primitives/{prim_k}"
                     mat = self.index(prim, "material", pptr, "materials")

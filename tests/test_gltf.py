@@ -313,3 +313,20 @@ def test_vertex_colours_times_the_base_colour_factor_are_baked():
     corners = d.texcoords[d.face_texcoords[0]]
     assert np.allclose(sample_texture_np(image, corners), [[0.5, 0, 0], [0, 1, 0], [0, 0, 1]])
     assert np.all(d.face_texcoords[1] == -1)
+
+
+def test_base_colour_textures_are_decoded_from_srgb(tmp_path):
+    import base64
+    import io
+
+    from PIL import Image
+
+    from warp_spt.io.loader import load_scene
+
+    buf = io.BytesIO()
+    Image.fromarray(np.full((1, 1, 3), 128, np.uint8)).save(buf, format="PNG")
+    g = gltf_textured_box()
+    g.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()}]
+    scene = load_scene([_load(g)])
+    # IEC 61966-2-1: ((c + 0.055) / 1.055) ** 2.4 for c = 128 / 255 above 0.04045
+    assert np.allclose(scene.textures[0], ((128 / 255 + 0.055) / 1.055) ** 2.4, rtol=1e-6)

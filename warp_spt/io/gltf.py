@@ -607,7 +607,7 @@ class _Reader:
         su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
         return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
 
-    def _image(self, tex: int, ptr: str) -> TextureRef:
+    def _image(self, tex: int, ptr: str, srgb: bool = False) -> TextureRef:
         t = self.item("textures", tex)
         tptr = f"/textures/{tex}"
         source = self.index(t, "source", tptr, "images")
@@ -619,14 +619,14 @@ class _Reader:
         name = f"images/{source}"
         if uri is not None and not uri.startswith("data:"):
             self._local_file(uri, f"{iptr}/uri")             # exists and is local; the loader reads it
-            return TextureRef(urllib.parse.unquote(uri), self.path, 0)
+            return TextureRef(urllib.parse.unquote(uri), self.path, 0, srgb=srgb)
         if uri is not None:
-            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"))
+            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"), srgb=srgb)
         view = self.index(img, "bufferView", iptr, "bufferViews")
         if view is None:
             raise _err(self.path, iptr, "an image needs a 'uri' or a 'bufferView'")
         buf, off, length, _ = self.view(view)
-        return TextureRef(name, self.path, 0, image=buf[off:off + length])
+        return TextureRef(name, self.path, 0, image=buf[off:off + length], srgb=srgb)
 
     def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
         """A unique name and a Material of the seed's model (diffuse; see the module docs)."""
@@ -640,9 +640,9 @@ class _Reader:
             name = f"{name} ({mat})"
         mptr = f"/materials/{mat}"
         ext = lambda key: self.obj(rec.extensions, key, f"{mptr}/extensions")      # noqa: E731
-        image = lambda k, where: None if k is None else self._image(k, f"{mptr}/{where}")  # noqa: E731
+        image = lambda k, where, srgb=False: None if k is None else self._image(k, f"{mptr}/{where}", srgb)  # noqa: E731
         base = tuple(min(max(c, 0.0), 1.0) for c in rec.base_color[:3])
-        tex = image(rec.base_color_texture, "pbrMetallicRoughness/baseColorTexture")
+        tex = image(rec.base_color_texture, "pbrMetallicRoughness/baseColorTexture", True)
         strength = self.get(ext("KHR_materials_emissive_strength"), "emissiveStrength", float,
                             f"{mptr}/extensions/KHR_materials_emissive_strength", 1.0)
         emission = tuple(min(max(c * strength, 0.0), MAX_RADIANCE) for c in rec.emissive)
@@ -659,7 +659,7 @@ class _Reader:
         fields = dict(base_color=base, base_color_map=tex, metallic=min(max(rec.metallic, 0.0), 1.0),
                       roughness=min(max(rec.roughness, 0.0), 1.0), metallic_map=orm, roughness_map=orm,
                       normal=rec.normal_scale, normal_map=image(rec.normal_texture, "normalTexture"),
-                      emission=emission, emission_map=image(rec.emissive_texture, "emissiveTexture"))
+                      emission=emission, emission_map=image(rec.emissive_texture, "emissiveTexture", True))
         if rec.alpha_mode == "MASK":
             fields["alpha_cutoff"] = rec.alpha_cutoff
         if rec.alpha_mode != "OPAQUE":

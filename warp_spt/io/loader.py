@@ -288,8 +288,9 @@ class _TextureCache:
                 self.procedural.append(ref)
             return TEX_PROC_BASE - self.procedural.index(ref)
         path = _find_texture(ref) if ref.image is None else f"{ref.mtl_file}#{ref.path}"
+        path += "#srgb" if ref.srgb else ""
         if path not in self._index:
-            image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h))
+            image = _read_image(path.removesuffix("#srgb"), ref, self._note, lambda w, h: self._check_atlas(ref, w, h))
             self._index[path] = len(self.images)
             self.images.append(image)
             self.refs.append(ref)
@@ -346,6 +347,8 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
                                      f"than the budget of {TEXEL_BUDGET:,} (8192x8192); downsample it")
                 check_atlas(w, h)
                 rgb = _to_rgb(img)
+                if ref.srgb:        # the sRGB transfer function's inverse (IEC 61966-2-1)
+                    rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4).astype(np.float32)
     except (OSError, ValueError, Image.DecompressionBombError) as err:
         if isinstance(err, SceneError):
             raise

@@ -45,12 +45,14 @@ class TextureRef:
 
     ``image``, when given, is the texture itself: an encoded image file's bytes (a glTF's embedded
     PNG or JPEG) or an (H, W, 3) float32 array in [0, 1] (a PLY's baked vertex colours); ``path`` then
-    only names it (it must be unique: the loader reads each name once)."""
+    only names it (it must be unique: the loader reads each name once). ``srgb`` asks the loader to
+    decode the sRGB transfer function (MTL textures are read as the seed reads them: value / 255)."""
 
     path: str
     mtl_file: str
     line: int
     image: bytes | np.ndarray | None = field(default=None, compare=False, repr=False)
+    srgb: bool = False           # the texels are sRGB-encoded colours (glTF's base colour, emission): decode
 
 
 def _material_fields() -> list[tuple]:

@@ -330,3 +330,10 @@ def test_base_colour_textures_are_decoded_from_srgb(tmp_path):
     scene = load_scene([_load(g)])
     # IEC 61966-2-1: ((c + 0.055) / 1.055) ** 2.4 for c = 128 / 255 above 0.04045
     assert np.allclose(scene.textures[0], ((128 / 255 + 0.055) / 1.055) ** 2.4, rtol=1e-6)
+
+
+def test_an_accessor_of_zeros_cannot_allocate_from_a_forged_count():
+    g = gltf_sparse()
+    g.doc["accessors"][1]["count"] = 10 ** 8            # no bufferView: zeros, then the sparse values
+    with pytest.raises(SceneError, match=r"/accessors/1/count: count 100000000 of zeros \(1200000000 bytes\) is far"):
+        _load(g)

@@ -135,6 +135,8 @@ BAD_ASCII = [
     (b"-3 0\n", b"-3 0\n4 0 3 2 1\n", None),                # one row more than declared: ignored
     (b"0.5 0.5 1 0 0 0", b"0.5 0.5 1 0 0 0 0", "bad.ply:24: element 'vertex': expected 6 numbers, got 7"),
     (b"9 0 1 4 -1", b"9 0 1 4 -2", "bad.ply:28: tristrips row 0: vertex index -2 is out of range"),
+    (b"list uchar int vertex_indices", b"list uchar float vertex_indices",
+     "bad.ply:15: element 'face': list 'vertex_indices' has a float type"),
 ]
 
 

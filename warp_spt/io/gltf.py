@@ -148,6 +148,7 @@ class _Reader:
     def __init__(self, data: bytes, path: str) -> None:
         self.path = path
         self.folder = Path(path).parent
+        self.input_bytes = len(data)
         self.bin: bytes | None = None
         if data[:4] == b"glTF":
             text = self._glb(data)
@@ -336,8 +337,12 @@ class _Reader:
         elem = n * item
         view_k = self.index(a, "bufferView", ptr, "bufferViews")
         if view_k is None:
-            if count * elem > MAX_FILE_BYTES:
-                raise _err(self.path, f"{ptr}/count", f"count {count} of zeros is more than a file could hold")
+            # zeros (sparse values may follow): bounded by what the file holds, so a forged count
+            # cannot make the reader allocate for it
+            held = self.input_bytes + sum(len(b) for b in self.buffers.values())
+            if count * elem > 8 * held + (1 << 20):
+                raise _err(self.path, f"{ptr}/count", f"count {count} of zeros ({count * elem} bytes) is far more "
+                           f"than the file's {held} bytes of data")
             values = np.zeros((count, n), kind)
         else:
             buf, voff, vlen, stride = self.view(view_k)

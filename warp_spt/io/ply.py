@@ -500,6 +500,10 @@ def _index_list(values: dict, e: _Element, path: str) -> tuple[np.ndarray, np.nd
     for name in ("vertex_indices", "vertex_index"):
         if name in values and isinstance(values[name], tuple):
             flat, lengths = values[name]
+            prop = next(p for p in e.properties if p.name == name)
+            if prop.kind[0] == "f":
+                raise SceneError(path, prop.line, f"element {e.name!r}: list {name!r} has a float type; vertex indices "
+                                 "must be integers")
             return np.asarray(flat, np.int64), np.asarray(lengths, np.int64)
     raise SceneError(path, e.line, f"element {e.name!r} has no list property 'vertex_indices'")
 

@@ -174,3 +174,13 @@ def test_the_cli_reports_a_bad_ply_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"warp-spt: error: {bad}: element 'face' (header line 14): 4000000000 rows need")
+
+
+def test_the_colour_texture_bound_covers_the_texture_made():
+    from warp_spt.io.ply import colour_texture_fits
+
+    for f in (1, 2, 3, 5, 99, 1000, 12345, 10**6 + 7):
+        faces = np.zeros((f, 3), np.int64)
+        _, _, image = vertex_colour_texture(np.zeros((1, 3)), faces)
+        assert image.shape[0] * image.shape[1] <= 4 * (f + 2 * int(np.sqrt(f)) + 1)
+    assert colour_texture_fits(16_000_000) and not colour_texture_fits(2**24)

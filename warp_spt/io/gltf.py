@@ -810,7 +810,13 @@ class _Reader:
             materials=materials, extras=extras, warnings=list(self.warnings),
         )
         if any(c is not None for c, _ in cols):
-            self._bake_colours(data, positions, cols)
+            from warp_spt.io.ply import colour_texture_fits, colour_texture_note
+
+            coloured = sum(nf for c, nf in cols if c is not None)
+            if colour_texture_fits(coloured):
+                self._bake_colours(data, positions, cols)
+            else:
+                data.warnings.append(colour_texture_note(self.path, coloured))
         return data
 
     def _bake_colours(self, data: ObjData, positions: list[np.ndarray], cols: list) -> None:

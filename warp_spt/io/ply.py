@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from warp_spt.io.tokens import read_file
+from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef
 from warp_spt.scene.validate import MAX_COORDINATE
@@ -458,6 +459,10 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
     materials: dict[str, Material] = {}
     texcoords = uv.astype(np.float32) if uv is not None else np.zeros((0, 2), np.float32)
     face_tex = has(uv)
+    notes = []
+    if colours is not None and not colour_texture_fits(len(tri)):
+        notes.append(colour_texture_note(path, len(tri)))
+        colours = None
     if colours is not None and len(tri):
         texcoords, face_tex, image = vertex_colour_texture(colours, tri)
         names.append(VERTEX_COLOUR_MATERIAL)
@@ -475,7 +480,7 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
         spheres=np.zeros((0, 4)), sphere_material=np.zeros(0, np.int32),
         material_names=names, material_lines=[0] * len(names),
         dropped_degenerate=int(len(keep) - np.count_nonzero(keep)),
-        materials=materials,
+        materials=materials, warnings=notes,
     )
 
 
@@ -576,6 +581,17 @@ def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------- vertex colours
+
+def colour_texture_fits(triangles: int) -> bool:
+    """Whether the vertex colours of ``triangles`` triangles fit the texel budget (4 texels each,
+    checked before the texture is made)."""
+    return 4 * (triangles + 2 * int(np.sqrt(triangles)) + 1) <= TEXEL_BUDGET
+
+
+def colour_texture_note(path: str, triangles: int) -> str:
+    return (f"{path}: the vertex colours of {triangles:,} triangles need more than the texture budget of "
+            f"{TEXEL_BUDGET:,} texels (4 per triangle); they are ignored")
+
 
 def vertex_colour_texture(colours: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(texcoords (3F, 2), face_texcoords (F, 3), image (H, W, 3) float32): every triangle's corner

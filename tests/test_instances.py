@@ -8,13 +8,29 @@ import pytest
 import warp as wp
 
 from warp_spt.core.device_scene import DeviceScene, Features, Geometry
-from warp_spt.core.geometry import make_closest_hit
-from warp_spt.core.instances import Instances, make_instance_closest_hit, upload_instances
+from warp_spt.core.geometry import make_closest_hit, make_occluded
+from warp_spt.core.instances import Instances, make_instance_closest_hit, make_instance_occluded, upload_instances
 from warp_spt.io.gltf import quaternion_matrix
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
 
 _flat = make_closest_hit(Features.general(), small_scene=0)
 _inst = make_instance_closest_hit(Features.general())
+_flat_occ = make_occluded(Features.general(), small_scene=0)
+_inst_occ = make_instance_occluded(Features.general())
+
+
+@wp.kernel(enable_backward=False)
+def _occ_flat(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
+              out: wp.array(dtype=int)):
+    i = wp.tid()
+    out[i] = wp.where(_flat_occ(s, o[i], d[i], t_max[i]), 1, 0)
+
+
+@wp.kernel(enable_backward=False)
+def _occ_inst(s: Geometry, inst: Instances, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
+              t_max: wp.array(dtype=float), out: wp.array(dtype=int)):
+    i = wp.tid()
+    out[i] = wp.where(_inst_occ(s, inst, o[i], d[i], t_max[i]), 1, 0)
 
 
 @wp.kernel(enable_backward=False)
@@ -123,6 +139,18 @@ def test_instanced_hits_equal_the_flattened_scene(wide_limit):
     both = same & hit
     assert np.allclose(ti[both], tf[both], rtol=1e-4, atol=0)     # measured: 2.8e-5 at most
     assert np.allclose(ni[both], nf[both], atol=2e-4)
+    # shadow rays ending at a random fraction of the way to the closest hit, or beyond it: blocked
+    # exactly when they reach it (rays ending within 1e-3 of the hit are left out: rounding)
+    frac = rng.uniform(0.0, 2.0, len(o)).astype(np.float32)
+    t_max = np.where(hit, tf * frac, 50.0).astype(np.float32)
+    clear = ~hit | (np.abs(frac - 1) > 1e-3)
+    args = [wp.array(o, dtype=wp.vec3), wp.array(d, dtype=wp.vec3), wp.array(t_max, dtype=float)]
+    flat_out, inst_out = wp.zeros(len(o), dtype=int), wp.zeros(len(o), dtype=int)
+    wp.launch(_occ_flat, dim=len(o), inputs=[flat.geometry, *args, flat_out])
+    wp.launch(_occ_inst, dim=len(o), inputs=[inst.meshes.geometry, inst.instances, *args, inst_out])
+    want = hit & (frac > 1)
+    assert np.array_equal(flat_out.numpy()[clear], want[clear])
+    assert np.array_equal(inst_out.numpy()[clear], want[clear])
 
 
 def test_bad_instances_are_refused():

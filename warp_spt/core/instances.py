@@ -24,7 +24,7 @@ import warp as wp
 from warp_spt.core.bvh import Tlas, build_tlas
 from warp_spt.core.device_scene import DeviceScene, Geometry
 from warp_spt.core.geometry import KIND_MISS, KIND_TRIANGLE, NO_HIT, STACK, Hit, box_entry, safe_inverse
-from warp_spt.core.wide_traversal import mesh_ray, make_closest_query
+from warp_spt.core.wide_traversal import make_any_hit_query, make_closest_query, mesh_ray
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
 
 vec_stack_i = wp.types.vector(length=STACK, dtype=wp.int32)
@@ -219,3 +219,54 @@ def make_instance_closest_hit(features):
         return hit
 
     return closest
+
+
+def make_instance_occluded(features):
+    """``occluded(g, inst, o, d, t_max) -> bool``: something of some instance lies on the ray before
+    ``t_max`` (shadow rays; the first blocker found ends the search)."""
+    wide_any_hit = make_any_hit_query(max(features.bvh_stack, 1))
+    wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
+
+    @wp.func(inline=True)
+    def blocks(g: Geometry, inst: Instances, i: int, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        m = inst.mesh[i]
+        a = inst.inv_linear[i]
+        oo = a * o + inst.inv_offset[i]
+        dd = a * d
+        if wp.static(warp_bvh):
+            if not wp.static(wide) or g.mesh_root[m] < 0:
+                return wp.mesh_query_ray_anyhit(g.mesh_ids[m], oo, dd, t_max)
+        if wp.static(wide):
+            return wide_any_hit(g, m, mesh_ray(oo, dd), t_max)
+        return False
+
+    @wp.func
+    def occluded(g: Geometry, inst: Instances, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+        inv = safe_inverse(d)
+        nodes = vec_stack_i()
+        sp = int(0)
+        if box_entry(inst.node_lower[0], inst.node_upper[0], o, inv, t_max) < NO_HIT:
+            nodes[0] = 0
+            sp = 1
+        while sp > 0:
+            sp -= 1
+            node = nodes[sp]
+            left = inst.node_left[node]
+            if left < 0:
+                first = inst.node_first[node]
+                for k in range(first, first + inst.node_count[node]):
+                    if blocks(g, inst, inst.items[k], o, d, t_max):
+                        return True
+            else:
+                right = inst.node_right[node]
+                if box_entry(inst.node_lower[left], inst.node_upper[left], o, inv, t_max) < NO_HIT \
+                        and sp < wp.static(STACK):
+                    nodes[sp] = left
+                    sp += 1
+                if box_entry(inst.node_lower[right], inst.node_upper[right], o, inv, t_max) < NO_HIT \
+                        and sp < wp.static(STACK):
+                    nodes[sp] = right
+                    sp += 1
+        return False
+
+    return occluded

@@ -266,3 +266,26 @@ def write_all(out: Path) -> None:
 
 if __name__ == "__main__":
     write_all(Path(sys.argv[1] if len(sys.argv) > 1 else "format_files"))
+
+
+def gltf_animated(interpolation: str = "LINEAR") -> GltfBuilder:
+    """The cube on node 0, animated over t in [0, 2]: translation keys (0,0,0), (2,0,0), (2,4,0) at t = 0,
+    1, 2 and a rotation about z from 0 to 90 degrees over [0, 2]. CUBICSPLINE keys carry tangents:
+    translation in-tangents 0 and out-tangents (1, 0, 0)."""
+    g = GltfBuilder()
+    g.mesh(CUBE_POSITIONS, CUBE_TRIANGLES)
+    g.node(mesh=0)
+    times = g.accessor(np.array([0.0, 1.0, 2.0], np.float32), "SCALAR", 5126)
+    keys = np.array([[0, 0, 0], [2, 0, 0], [2, 4, 0]], np.float32)
+    if interpolation == "CUBICSPLINE":
+        zero, out_t = np.zeros(3, np.float32), np.array([1, 0, 0], np.float32)
+        keys = np.stack([np.stack([zero, k, out_t]) for k in keys]).reshape(-1, 3)
+    trans = g.accessor(keys, "VEC3", 5126)
+    s = np.sqrt(0.5)
+    rtimes = g.accessor(np.array([0.0, 2.0], np.float32), "SCALAR", 5126)
+    rot = g.accessor(np.array([[0, 0, 0, 1], [0, 0, s, s]], np.float32), "VEC4", 5126)
+    g.doc["animations"] = [{"samplers": [{"input": times, "output": trans, "interpolation": interpolation},
+                                         {"input": rtimes, "output": rot}],
+                            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                                         {"sampler": 1, "target": {"node": 0, "path": "rotation"}}]}]
+    return g

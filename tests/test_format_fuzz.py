@@ -10,7 +10,14 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tests.format_files import gltf_camera_and_light, gltf_sparse, gltf_textured_box, gltf_two_instances, ply_bytes
+from tests.format_files import (
+    gltf_animated,
+    gltf_camera_and_light,
+    gltf_sparse,
+    gltf_textured_box,
+    gltf_two_instances,
+    ply_bytes,
+)
 from warp_spt.io.gltf import parse_gltf_bytes
 from warp_spt.io.ply import parse_ply_bytes
 from warp_spt.scene.errors import SceneError
@@ -82,7 +89,8 @@ def test_mutated_ply_is_data_or_a_scene_error_in_bounded_memory(data):
 
 def _docs():
     out = []
-    for make in (gltf_two_instances, gltf_sparse, gltf_textured_box, gltf_camera_and_light):
+    for make in (gltf_two_instances, gltf_sparse, gltf_textured_box, gltf_camera_and_light, gltf_animated,
+                 lambda: gltf_animated("CUBICSPLINE")):
         g = make()
         out.append((g.gltf()[0], g.glb()))
     return out
@@ -134,7 +142,8 @@ def mutated_gltf(draw) -> tuple[bytes, bool]:
 @given(mutated_gltf())
 def test_mutated_gltf_is_data_or_a_scene_error_in_bounded_memory(case):
     data, glb = case
-    _bounded(parse_gltf_bytes, data, "fuzz.glb" if glb else "fuzz.gltf")
+    # posed at a time inside the animated seeds' range (the others ignore it)
+    _bounded(lambda b, p: parse_gltf_bytes(b, p, time=0.7), data, "fuzz.glb" if glb else "fuzz.gltf")
 
 
 @SETTINGS

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from tests import format_files
 from tests.format_files import (
     CUBE_POSITIONS,
     CUBE_TRIANGLES,
@@ -337,3 +338,44 @@ def test_an_accessor_of_zeros_cannot_allocate_from_a_forged_count():
     g.doc["accessors"][1]["count"] = 10 ** 8            # no bufferView: zeros, then the sparse values
     with pytest.raises(SceneError, match=r"/accessors/1/count: count 100000000 of zeros \(1200000000 bytes\) is far"):
         _load(g)
+
+
+def test_sample_channel_by_hand():
+    from warp_spt.io.gltf import sample_channel, slerp
+
+    times = np.array([0.0, 1.0, 3.0])
+    v = np.array([[0.0, 0, 0], [2, 0, 0], [2, 4, 0]])
+    assert sample_channel(times, v, "LINEAR", 0.25) == [0.5, 0, 0]
+    assert sample_channel(times, v, "LINEAR", 2.0) == [2, 2, 0]             # halfway through [1, 3]
+    assert sample_channel(times, v, "STEP", 2.9) == [2, 0, 0]
+    assert sample_channel(times, v, "LINEAR", -1) == [0, 0, 0] and sample_channel(times, v, "LINEAR", 9) == [2, 4, 0]
+    # Hermite on [1, 3] at u = 1/2 with value tangents (in a, out b) scaled by dt = 2:
+    # h00 = 1/2, h10 = 1/8, h01 = 1/2, h11 = -1/8: 0.5 v1 + 0.125 * 2 b1 + 0.5 v2 - 0.125 * 2 a2
+    a = np.array([[0.0, 0, 0], [0, 0, 0], [0, 0, 8]])
+    b = np.array([[0.0, 0, 0], [4, 0, 0], [0, 0, 0]])
+    cubic = np.stack([a, v, b], axis=1).reshape(-1, 3)
+    assert np.allclose(sample_channel(times, cubic, "CUBICSPLINE", 2.0), [2 + 1, 2, -2])
+    s = math.sqrt(0.5)
+    q = slerp(np.array([0, 0, 0, 1.0]), np.array([0, 0, s, s]), 0.5)       # 0 -> 90 degrees about z
+    assert np.allclose(q, [0, 0, math.sin(math.pi / 8), math.cos(math.pi / 8)])
+    # the shorter arc: -q is the same rotation as q
+    assert np.allclose(slerp(np.array([0, 0, 0, 1.0]), -np.array([0, 0, s, s]), 0.5), q)
+
+
+@pytest.mark.parametrize("interpolation", ["LINEAR", "STEP", "CUBICSPLINE"])
+def test_animated_nodes_are_posed_at_the_time_asked(interpolation):
+    g = format_files.gltf_animated(interpolation)
+    data = g.gltf()[0]
+    assert np.array_equal(parse_gltf_bytes(data, "a.gltf").positions, CUBE_POSITIONS)     # no time: the bind pose
+    d = parse_gltf_bytes(data, "a.gltf", time=0.5)
+    assert d.extras.time_range == (0.0, 2.0)
+    # rotation at t = 0.5: a quarter of the way from 0 to 90 degrees about z (slerp: 22.5 degrees)
+    a = math.radians(22.5)
+    r = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    if interpolation == "LINEAR":
+        t = np.array([1.0, 0, 0])
+    elif interpolation == "STEP":
+        t = np.array([0.0, 0, 0])     # held at the key of t = 0 (the rotation's sampler is LINEAR in all)
+    else:     # Hermite on [0, 1] at u = 1/2, dt = 1: 0.5 v0 + 0.125 b0 + 0.5 v1 - 0.125 a1 = (1 + 0.125, 0, 0)
+        t = np.array([1.125, 0, 0])
+    assert np.allclose(d.positions, CUBE_POSITIONS @ r.T + t, atol=1e-6)

@@ -127,17 +127,21 @@ class GltfExtras:
     # every placement of a mesh: (node, mesh index, 4x4 world matrix); a mesh placed by several nodes
     # is copied per node in the triangles for now (the scene graph an instancing upload would use)
     instances: list[tuple[int, int, np.ndarray]] = field(default_factory=list)
+    # the first animation's time range in seconds (None: the file has no animation)
+    time_range: tuple[float, float] | None = None
 
 
-def load_gltf(path: str | os.PathLike[str]) -> ObjData:
-    """Read a ``.gltf`` or ``.glb`` file into world-space triangles; see the module docs."""
+def load_gltf(path: str | os.PathLike[str], time: float | None = None) -> ObjData:
+    """Read a ``.gltf`` or ``.glb`` file into world-space triangles; see the module docs. ``time``
+    (seconds) poses the nodes by the file's first animation (:func:`sample_channel`); None: the
+    nodes' own transforms."""
     path = str(path)
-    return parse_gltf_bytes(read_file(path, "glTF", binary=True), path)
+    return parse_gltf_bytes(read_file(path, "glTF", binary=True), path, time)
 
 
-def parse_gltf_bytes(data: bytes, path: str = "<input>") -> ObjData:
+def parse_gltf_bytes(data: bytes, path: str = "<input>", time: float | None = None) -> ObjData:
     """Parse glTF JSON or GLB bytes; ``path`` names the file in errors and anchors relative URIs."""
-    return _Reader(data, path).run()
+    return _Reader(data, path, time).run()
 
 
 def _err(path: str, pointer: str, message: str) -> SceneError:
@@ -145,7 +149,10 @@ def _err(path: str, pointer: str, message: str) -> SceneError:
 
 
 class _Reader:
-    def __init__(self, data: bytes, path: str) -> None:
+    def __init__(self, data: bytes, path: str, time: float | None = None) -> None:
+        if time is not None and not math.isfinite(time):
+            raise ValueError(f"time must be finite, got {time!r}")
+        self.time = time
         self.path = path
         self.folder = Path(path).parent
         self.input_bytes = len(data)
@@ -404,8 +411,9 @@ class _Reader:
     def run(self) -> ObjData:
         nodes = self.get(self.doc, "nodes", list, "", [])
         roots = self._roots(len(nodes))
+        channels, time_range = self._animation(len(nodes))
         parts: list[tuple] = []           # (positions, triangles, uv or None, normals or None, material row)
-        extras = GltfExtras()
+        extras = GltfExtras(time_range=time_range)
         material_rows: dict[int | None, int] = {}
         names = [CHECKER_NAME]
         materials: dict[str, Material] = {}
@@ -421,7 +429,7 @@ class _Reader:
             if depth > MAX_NODE_DEPTH:
                 raise _err(self.path, ptr, f"nodes nest more than {MAX_NODE_DEPTH} deep")
             node = self.item("nodes", k)
-            world = parent @ self._local(node, ptr)
+            world = parent @ self._local(node, ptr, channels.get(k))
             mesh = self.index(node, "mesh", ptr, "meshes")
             if mesh is not None:
                 extras.instances.append((k, mesh, world))
@@ -452,6 +460,64 @@ class _Reader:
                                  "rendered yet")
         return self._object(parts, names, materials, extras)
 
+    def _animation(self, n_nodes: int) -> tuple[dict[int, dict], tuple[float, float] | None]:
+        """The first animation's channels as {node: {path: sampler(time)}} and its time range.
+        Morph target weights are not animated (a warning); other animations are not played."""
+        animations = self.get(self.doc, "animations", list, "", [])
+        if not animations:
+            return {}, None
+        if len(animations) > 1:
+            self.warnings.append(f"{self.path}: {len(animations)} animations; the first is played")
+        ptr = "/animations/0"
+        anim = self.item("animations", 0)
+        samplers = self.get(anim, "samplers", list, ptr, required=True)
+        out: dict[int, dict] = {}
+        lo, hi = math.inf, -math.inf
+        for c, channel in enumerate(self.get(anim, "channels", list, ptr, required=True)):
+            cptr = f"{ptr}/channels/{c}"
+            if not isinstance(channel, dict):
+                raise _err(self.path, cptr, "expected an object")
+            target = self.obj(channel, "target", cptr, required=True)
+            path = self.get(target, "path", str, f"{cptr}/target", required=True)
+            node = self.get(target, "node", int, f"{cptr}/target")
+            if node is None:
+                continue                    # an extension's target: nothing to animate here
+            if not 0 <= node < n_nodes:
+                raise _err(self.path, f"{cptr}/target/node", f"node index {node} is out of range: the file has "
+                           f"{n_nodes} nodes")
+            if path == "weights":
+                self.warnings.append(f"{self.path}: {cptr}: morph target weights are not animated yet")
+                continue
+            if path not in ("translation", "rotation", "scale"):
+                raise _err(self.path, f"{cptr}/target/path", f"expected translation, rotation, scale or weights, "
+                           f"got {path!r}")
+            k = self.get(channel, "sampler", int, cptr, required=True)
+            if not 0 <= k < len(samplers) or not isinstance(samplers[k], dict):
+                raise _err(self.path, f"{cptr}/sampler", f"sampler index {k} is out of range: the animation has "
+                           f"{len(samplers)} samplers")
+            times, values, interpolation = self._sampler(samplers[k], f"{ptr}/samplers/{k}", path)
+            lo, hi = min(lo, float(times[0])), max(hi, float(times[-1]))
+            out.setdefault(node, {})[path] = _channel(times, values, interpolation, path == "rotation")
+        return out, ((lo, hi) if lo <= hi else None)
+
+    def _sampler(self, sampler: dict, ptr: str, path: str):
+        interpolation = self.get(sampler, "interpolation", str, ptr, "LINEAR")
+        if interpolation not in ("LINEAR", "STEP", "CUBICSPLINE"):
+            raise _err(self.path, f"{ptr}/interpolation", f"expected LINEAR, STEP or CUBICSPLINE, got {interpolation!r}")
+        k_in = self.index(sampler, "input", ptr, "accessors", required=True)
+        times = self.accessor(k_in, widths=("SCALAR",)).reshape(-1)
+        if self.item("accessors", k_in).get("componentType") != 5126:
+            raise _err(self.path, f"/accessors/{k_in}", "animation times must be float (5126) scalars")
+        if np.any(np.diff(times) <= 0) or times[0] < 0:
+            raise _err(self.path, f"/accessors/{k_in}", "animation times must be >= 0 and increase strictly")
+        k_out = self.index(sampler, "output", ptr, "accessors", required=True)
+        values = self.accessor(k_out, widths=("VEC4",) if path == "rotation" else ("VEC3",))
+        per_key = 3 if interpolation == "CUBICSPLINE" else 1
+        if len(values) != per_key * len(times):
+            raise _err(self.path, f"/accessors/{k_out}", f"{len(values)} output values for {len(times)} key times; "
+                       f"{interpolation} needs {per_key * len(times)}")
+        return times, values, interpolation
+
     def _scene_index(self) -> int:
         scenes = self.get(self.doc, "scenes", list, "", [])
         k = self.get(self.doc, "scene", int, "", 0 if scenes else None)
@@ -475,8 +541,10 @@ class _Reader:
                            f"{json.dumps(k)[:40]}")
         return roots
 
-    def _local(self, node: dict, ptr: str) -> np.ndarray:
+    def _local(self, node: dict, ptr: str, animated: dict | None = None) -> np.ndarray:
         matrix = self.numbers(node, "matrix", ptr, 16, None)
+        if matrix is not None and animated:
+            raise _err(self.path, f"{ptr}/matrix", "a node with a matrix cannot be animated (glTF: use TRS)")
         if matrix is not None:
             m = np.array(matrix, np.float64).reshape(4, 4).T          # column-major
             if not np.allclose(m[3], [0, 0, 0, 1]):
@@ -485,12 +553,18 @@ class _Reader:
         t = self.numbers(node, "translation", ptr, 3, [0.0, 0.0, 0.0])
         q = self.numbers(node, "rotation", ptr, 4, [0.0, 0.0, 0.0, 1.0])
         s = self.numbers(node, "scale", ptr, 3, [1.0, 1.0, 1.0])
+        if animated and self.time is not None:
+            t = animated["translation"](self.time) if "translation" in animated else t
+            q = animated["rotation"](self.time) if "rotation" in animated else q
+            s = animated["scale"](self.time) if "scale" in animated else s
         norm = math.sqrt(sum(v * v for v in q))
         if not norm > 0:
             raise _err(self.path, f"{ptr}/rotation", "a rotation quaternion must not be zero")
         m = np.eye(4)
         m[:3, :3] = quaternion_matrix(np.array(q) / norm) * np.array(s)
         m[:3, 3] = t
+        if not np.isfinite(m).all():        # animated values far out of range
+            raise _err(self.path, ptr, "the node's transform is not finite")
         return m
 
     def _primitives(self, mesh: int) -> list[dict]:
@@ -541,7 +615,7 @@ class _Reader:
         if len(tri) == 0:
             return np.zeros((0, 3)), tri, None, None, None
         p = pos @ np.ascontiguousarray(world[:3, :3].T) + world[:3, 3] if not np.array_equal(world, np.eye(4)) else pos
-        if np.abs(p).max() > MAX_COORDINATE:
+        if not np.abs(p).max() <= MAX_COORDINATE:          # NaN too
             raise _err(self.path, ptr, f"a vertex lies at {np.abs(p).max():g}, beyond the supported range of "
                        f"+-{MAX_COORDINATE:g}")
         linear = world[:3, :3]
@@ -848,6 +922,63 @@ class _Reader:
         data.face_material[coloured] = lut[data.face_material[coloured]]
         data.face_texcoords[coloured] = ft + len(data.texcoords)
         data.texcoords = np.concatenate([data.texcoords, uv]).astype(np.float32)
+
+
+def _channel(times: np.ndarray, values: np.ndarray, interpolation: str, rotation: bool):
+    """A function of time giving the channel's value: clamped outside the key times."""
+    return lambda t: sample_channel(times, values, interpolation, t, rotation)
+
+
+def sample_channel(times: np.ndarray, values: np.ndarray, interpolation: str, t: float,
+                   rotation: bool = False) -> list[float]:
+    """glTF's keyframe interpolation at time ``t`` (seconds; clamped to the key times): STEP holds the
+    previous key, LINEAR blends (rotations: spherical, along the shorter arc), CUBICSPLINE is the
+    Hermite spline of the (in-tangent, value, out-tangent) triples with tangents scaled by the key
+    interval; rotations are normalised."""
+    cubic = interpolation == "CUBICSPLINE"
+    keys = values.reshape(len(times), 3, -1)[:, 1] if cubic else values
+    if t <= times[0] or len(times) == 1:
+        out = keys[0]
+    elif t >= times[-1]:
+        out = keys[-1]
+    else:
+        k = int(np.searchsorted(times, t, side="right")) - 1
+        t0, t1 = float(times[k]), float(times[k + 1])
+        dt = t1 - t0
+        u = (t - t0) / dt
+        if interpolation == "STEP":
+            out = keys[k]
+        elif cubic:
+            v = values.reshape(len(times), 3, -1)
+            u2, u3 = u * u, u * u * u
+            out = ((2 * u3 - 3 * u2 + 1) * v[k, 1] + (u3 - 2 * u2 + u) * dt * v[k, 2]
+                   + (-2 * u3 + 3 * u2) * v[k + 1, 1] + (u3 - u2) * dt * v[k + 1, 0])
+        elif rotation:
+            out = slerp(keys[k], keys[k + 1], u)
+        else:
+            out = (1 - u) * keys[k] + u * keys[k + 1]
+    out = np.asarray(out, np.float64)
+    if rotation:
+        norm = np.linalg.norm(out)
+        out = out / norm if norm > 0 else np.array([0.0, 0.0, 0.0, 1.0])
+    return [float(c) for c in out]
+
+
+def slerp(a: np.ndarray, b: np.ndarray, u: float) -> np.ndarray:
+    """Spherical interpolation of unit quaternions along the shorter arc."""
+    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+    if not (na > 0 and nb > 0):         # a zero key: no rotation to blend from or to
+        return np.asarray(a if na > 0 else b if nb > 0 else [0.0, 0.0, 0.0, 1.0], np.float64)
+    a = np.asarray(a, np.float64) / na
+    b = np.asarray(b, np.float64) / nb
+    dot = float(np.dot(a, b))
+    if dot < 0:
+        b, dot = -b, -dot
+    if dot > 0.9995:                     # nearly equal: the chord is the arc
+        out = a + u * (b - a)
+        return out / np.linalg.norm(out)
+    theta = math.acos(dot)
+    return (math.sin((1 - u) * theta) * a + math.sin(u * theta) * b) / math.sin(theta)
 
 
 def _triangles(idx: np.ndarray, mode: int) -> np.ndarray:

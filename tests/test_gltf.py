@@ -379,3 +379,23 @@ def test_animated_nodes_are_posed_at_the_time_asked(interpolation):
     else:     # Hermite on [0, 1] at u = 1/2, dt = 1: 0.5 v0 + 0.125 b0 + 0.5 v1 - 0.125 a1 = (1 + 0.125, 0, 0)
         t = np.array([1.125, 0, 0])
     assert np.allclose(d.positions, CUBE_POSITIONS @ r.T + t, atol=1e-6)
+
+
+def test_an_animated_gltf_through_frames(tmp_path):
+    from warp_spt.animation import ObjSequence
+    from warp_spt.cli.main import main
+
+    (tmp_path / "a.glb").write_bytes(format_files.gltf_animated().glb())
+    seq = ObjSequence([str(tmp_path / "a.glb")], fps=4)
+    for k in (0, 2, 9):                              # t = 0, 0.5 and 2.25 (past the end: the last pose)
+        want = parse_gltf_bytes(format_files.gltf_animated().glb(), "a.glb", time=k / 4).positions
+        got = seq.scene(k).meshes[0].positions
+        assert np.array_equal(got, want)
+    assert seq.loads == 1 and seq.scene(2) is seq.scene(2) and seq.scene(2) is not seq.scene(0)
+    # frame 1 rendered alone equals frame 1 of the sequence, bit for bit
+    common = ["-obj", str(tmp_path / "a.glb"), "--fps", "4", "-res", "8", "8", "-sr", "2", "--quiet",
+              "--look-at", "1", "0", "0"]
+    assert main([*common, "--frames", "0:2", "-out", str(tmp_path / "seq_{frame}.npy")]) == 0
+    assert main([*common, "--frames", "1:2", "-out", str(tmp_path / "one_{frame}.npy")]) == 0
+    assert (tmp_path / "seq_1.npy").read_bytes() == (tmp_path / "one_1.npy").read_bytes()
+    assert (tmp_path / "seq_0.npy").read_bytes() != (tmp_path / "seq_1.npy").read_bytes()

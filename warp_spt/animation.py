@@ -206,13 +206,15 @@ class ObjSequence:
     ``loads`` counts OBJ files parsed (tests check that static files are parsed once).
     """
 
-    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker") -> None:
+    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker",
+                 fps: float = 24.0) -> None:
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
         self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
+        self.fps = float(fps)                         # an animated glTF's frame k is posed at k / fps seconds
         self.loads = 0
         self._parsed: dict[str, ObjData] = {}
-        self._last_scene: tuple[tuple[str, ...], Scene] | None = None
+        self._last_scene: tuple[tuple, Scene] | None = None     # ((paths, frame or None), scene)
 
     @property
     def animated(self) -> bool:
@@ -228,18 +230,26 @@ class ObjSequence:
         from warp_spt.io.loader import load_scene, read_model
 
         paths = tuple(self.paths(frame))
-        if self._last_scene is not None and self._last_scene[0] == paths:
-            return self._last_scene[1]
         wanted = set(paths)
         self._parsed = {p: d for p, d in self._parsed.items() if p in wanted}   # drop other frames' files
         for p in paths:
             if p not in self._parsed:
                 self._parsed[p] = read_model(p)
                 self.loads += 1
-        scene = load_scene([self._parsed[p] for p in paths], self.mtls, warn=lambda message: None,
-                           default_material=self.default_material)
-        self._last_scene = (paths, scene)
+        # an animated glTF is posed again for each frame (its nodes move; its file is the same)
+        posed = [p for p in paths if getattr(self._parsed[p].extras, "time_range", None) is not None]
+        key = (paths, frame if posed else None)
+        if self._last_scene is not None and self._last_scene[0] == key:
+            return self._last_scene[1]
+        data = [self._posed(p, frame) if p in posed else self._parsed[p] for p in paths]
+        scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material)
+        self._last_scene = (key, scene)
         return scene
+
+    def _posed(self, path: str, frame: int):
+        from warp_spt.io.gltf import load_gltf
+
+        return load_gltf(path, time=frame / self.fps)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -125,6 +125,7 @@ class Options:
     frames: range | None = None
     camera_path: str | None = None
     gif: str | None = None
+    fps: float = 24.0                # --fps: frame k of an animated glTF is posed at k / fps seconds
 
     @property
     def animated(self) -> bool:
@@ -240,6 +241,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                       "'wave_{frame:04d}.obj' and -out 'frame_{frame:04d}.png'")
     more.add_argument("--camera-path", metavar="FILE", help="JSON camera keyframes, interpolated per frame")
     more.add_argument("--gif", metavar="PATH", help="also write the frames as an animated GIF preview")
+    more.add_argument("--fps", type=finite_float, default=24.0, metavar="N",
+                      help="frames per second of a glTF's animation: frame k is posed at k / N seconds (default 24)")
     return p
 
 
@@ -500,8 +503,10 @@ def with_animation_options(opts, ns, *, explicit_out: bool):
         frames = parse_frames(ns.frames) if ns.frames is not None else None
     except ValueError as err:
         raise UsageError(f"argument --frames: {err}") from None
+    if not 0 < ns.fps <= 1e6:
+        raise UsageError(f"--fps must lie in (0, 1e6], got {ns.fps:g}")
     opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
-                   gif=ns.gif)
+                   gif=ns.gif, fps=ns.fps)
     check_budget_flags(opts)
     if not opts.animated:
         return opts

@@ -289,3 +289,47 @@ def gltf_animated(interpolation: str = "LINEAR") -> GltfBuilder:
                             "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
                                          {"sampler": 1, "target": {"node": 0, "path": "rotation"}}]}]
     return g
+
+
+# A strip along x (x = 0, 1, 2; y = 0, 0.2) skinned to two joints: joint 0 at the origin, joint 1 at
+# x = 1 (its child), which turns about z from 0 to 90 degrees over t in [0, 2]. Weights: x = 0 all
+# joint 0, x = 1 half and half, x = 2 all joint 1.
+BAR_POSITIONS = np.array([[x, y, 0] for x in (0.0, 1.0, 2.0) for y in (0.0, 0.2)], np.float64)
+BAR_WEIGHTS = np.array([[1, 0], [1, 0], [0.5, 0.5], [0.5, 0.5], [0, 1], [0, 1]], np.float64)
+
+
+def gltf_skinned_bar() -> GltfBuilder:
+    g = GltfBuilder()
+    tri = np.array([[0, 2, 3], [0, 3, 1], [2, 4, 5], [2, 5, 3]])
+    joints = np.array([[0, 1, 0, 0]] * 6, np.uint8)
+    weights = np.concatenate([BAR_WEIGHTS, np.zeros((6, 2))], axis=1).astype(np.float32)
+    g.mesh(BAR_POSITIONS, tri, JOINTS_0=(joints, "VEC4", 5121), WEIGHTS_0=(weights, "VEC4", 5126))
+    g.node(children=[1])                                  # node 0: joint 0
+    g.node(root=False, translation=[1, 0, 0])             # node 1: joint 1
+    ibm = np.stack([np.eye(4), np.array([[1, 0, 0, -1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])])
+    ibm_acc = g.accessor(ibm.transpose(0, 2, 1).reshape(2, 16).astype(np.float32), "MAT4", 5126)
+    g.doc["skins"] = [{"joints": [0, 1], "inverseBindMatrices": ibm_acc}]
+    g.node(mesh=0, skin=0, translation=[50, 50, 50])      # node 2: ignored for a skinned mesh
+    times = g.accessor(np.array([0.0, 2.0], np.float32), "SCALAR", 5126)
+    s = np.sqrt(0.5)
+    rot = g.accessor(np.array([[0, 0, 0, 1], [0, 0, s, s]], np.float32), "VEC4", 5126)
+    g.doc["animations"] = [{"samplers": [{"input": times, "output": rot}],
+                            "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}]}]
+    return g
+
+
+def gltf_morph() -> GltfBuilder:
+    """A triangle with one morph target lifting vertex 2 by (0, 0, 1); mesh weight 0.5; an animation
+    of the weight from 0 to 1 over t in [0, 1]."""
+    g = GltfBuilder()
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)
+    g.mesh(tri)
+    lift = g.accessor(np.array([[0, 0, 0], [0, 0, 0], [0, 0, 1]], np.float32), "VEC3", 5126)
+    g.doc["meshes"][0]["primitives"][0]["targets"] = [{"POSITION": lift}]
+    g.doc["meshes"][0]["weights"] = [0.5]
+    g.node(mesh=0)
+    times = g.accessor(np.array([0.0, 1.0], np.float32), "SCALAR", 5126)
+    w = g.accessor(np.array([0.0, 1.0], np.float32), "SCALAR", 5126)
+    g.doc["animations"] = [{"samplers": [{"input": times, "output": w}],
+                            "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}]}]
+    return g

@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 from tests.format_files import (
     gltf_animated,
     gltf_camera_and_light,
+    gltf_morph,
+    gltf_skinned_bar,
     gltf_sparse,
     gltf_textured_box,
     gltf_two_instances,
@@ -90,7 +92,7 @@ def test_mutated_ply_is_data_or_a_scene_error_in_bounded_memory(data):
 def _docs():
     out = []
     for make in (gltf_two_instances, gltf_sparse, gltf_textured_box, gltf_camera_and_light, gltf_animated,
-                 lambda: gltf_animated("CUBICSPLINE")):
+                 lambda: gltf_animated("CUBICSPLINE"), gltf_skinned_bar, gltf_morph):
         g = make()
         out.append((g.gltf()[0], g.glb()))
     return out

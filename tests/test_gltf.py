@@ -399,3 +399,34 @@ def test_an_animated_gltf_through_frames(tmp_path):
     assert main([*common, "--frames", "1:2", "-out", str(tmp_path / "one_{frame}.npy")]) == 0
     assert (tmp_path / "seq_1.npy").read_bytes() == (tmp_path / "one_1.npy").read_bytes()
     assert (tmp_path / "seq_0.npy").read_bytes() != (tmp_path / "seq_1.npy").read_bytes()
+
+
+@pytest.mark.parametrize("time", [0.0, 1.0, 2.0])
+def test_a_two_bone_skinned_bar_against_a_numpy_reference(time):
+    d = parse_gltf_bytes(format_files.gltf_skinned_bar().gltf()[0], "bar.gltf", time=time)
+    # reference: joint worlds W0 = I, W1 = T(1, 0, 0) Rz(theta), theta = 45 degrees per second;
+    # inverse binds B0 = I, B1 = T(-1, 0, 0); v' = sum_j w_j W_j B_j v
+    theta = math.radians(45 * time)
+    rz = np.eye(4)
+    rz[:2, :2] = [[math.cos(theta), -math.sin(theta)], [math.sin(theta), math.cos(theta)]]
+    t1, b1 = np.eye(4), np.eye(4)
+    t1[0, 3], b1[0, 3] = 1, -1
+    mats = [np.eye(4), t1 @ rz @ b1]
+    v = np.concatenate([format_files.BAR_POSITIONS, np.ones((6, 1))], axis=1)
+    want = sum(w[:, None] * (v @ m.T) for w, m in zip(format_files.BAR_WEIGHTS.T, mats))[:, :3]
+    assert np.allclose(d.positions, want, atol=1e-6)
+    if time == 2.0:      # the tip turned 90 degrees about joint 1: x = 2 -> (1, 1), (1 - 0.2, 1)
+        assert np.allclose(d.positions[4:], [[1, 1, 0], [0.8, 1, 0]], atol=1e-6)
+
+
+def test_morph_target_weights_from_the_mesh_and_the_animation():
+    g = format_files.gltf_morph()
+    data = g.gltf()[0]
+    assert np.allclose(parse_gltf_bytes(data, "m.gltf").positions[2], [0, 1, 0.5])          # mesh weights
+    assert np.allclose(parse_gltf_bytes(data, "m.gltf", time=0.25).positions[2], [0, 1, 0.25])
+    g.doc["nodes"][0]["weights"] = [2.0]                                                       # node's win
+    assert np.allclose(parse_gltf_bytes(g.gltf()[0], "m.gltf").positions[2], [0, 1, 2.0])
+    g.doc["meshes"][0]["weights"] = [1, 2]
+    g.doc["nodes"][0].pop("weights")
+    with pytest.raises(SceneError, match=r"/meshes/0/primitives/0/targets: 1 morph targets for 2 weights"):
+        parse_gltf_bytes(g.gltf()[0], "m.gltf")

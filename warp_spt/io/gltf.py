@@ -418,6 +418,8 @@ class _Reader:
         names = [CHECKER_NAME]
         materials: dict[str, Material] = {}
         seen: set[int] = set()
+        worlds: dict[int, np.ndarray] = {}
+        order: list[int] = []
         stack = [(k, np.eye(4), 0, f"/scenes/{self._scene_index()}/nodes") for k in reversed(roots)]
         while stack:
             k, parent, depth, via = stack.pop()
@@ -430,18 +432,8 @@ class _Reader:
                 raise _err(self.path, ptr, f"nodes nest more than {MAX_NODE_DEPTH} deep")
             node = self.item("nodes", k)
             world = parent @ self._local(node, ptr, channels.get(k))
-            mesh = self.index(node, "mesh", ptr, "meshes")
-            if mesh is not None:
-                extras.instances.append((k, mesh, world))
-                for prim_k, prim in enumerate(self._primitives(mesh)):
-                    pptr = f"/meshes/{mesh}/primitives/{prim_k}"
-                    mat = self.index(prim, "material", pptr, "materials")
-                    if mat not in material_rows:
-                        name, material = self._material(mat, names)
-                        material_rows[mat] = len(names)
-                        names.append(name)
-                        materials[name] = material
-                    parts.append((*self._primitive(prim, pptr, world, mat), material_rows[mat]))
+            worlds[k] = world
+            order.append(k)
             cam = self.index(node, "camera", ptr, "cameras")
             if cam is not None:
                 extras.cameras.append(self._camera(cam, k, world))
@@ -454,6 +446,25 @@ class _Reader:
                     raise _err(self.path, f"{ptr}/children/{c}", f"expected a node index in 0..{len(nodes) - 1}, got "
                                f"{json.dumps(child)[:40]}")
                 stack.append((child, world, depth + 1, f"{ptr}/children/{c}"))
+        # meshes after the walk: a skin needs its joints' world matrices, wherever they are in the tree
+        for k in order:
+            node, ptr = self.item("nodes", k), f"/nodes/{k}"
+            mesh = self.index(node, "mesh", ptr, "meshes")
+            if mesh is None:
+                continue
+            world = worlds[k]
+            extras.instances.append((k, mesh, world))
+            skin = self._skin(node, ptr, worlds)
+            weights = self._morph_weights(node, ptr, mesh, channels.get(k, {}).get("weights"))
+            for prim_k, prim in enumerate(self._primitives(mesh)):
+                pptr = f"/meshes/{mesh}/primitives/{prim_k}"
+                mat = self.index(prim, "material", pptr, "materials")
+                if mat not in material_rows:
+                    name, material = self._material(mat, names)
+                    material_rows[mat] = len(names)
+                    names.append(name)
+                    materials[name] = material
+                parts.append((*self._primitive(prim, pptr, world, mat, skin, weights), material_rows[mat]))
         extras.materials = [self._material_record(m) for m in range(len(self.get(self.doc, "materials", list, "", [])))]
         if extras.lights:
             self.warnings.append(f"{self.path}: {len(extras.lights)} KHR_lights_punctual light(s) are read but not "
@@ -485,22 +496,30 @@ class _Reader:
             if not 0 <= node < n_nodes:
                 raise _err(self.path, f"{cptr}/target/node", f"node index {node} is out of range: the file has "
                            f"{n_nodes} nodes")
-            if path == "weights":
-                self.warnings.append(f"{self.path}: {cptr}: morph target weights are not animated yet")
-                continue
-            if path not in ("translation", "rotation", "scale"):
+            if path not in ("translation", "rotation", "scale", "weights"):
                 raise _err(self.path, f"{cptr}/target/path", f"expected translation, rotation, scale or weights, "
                            f"got {path!r}")
             k = self.get(channel, "sampler", int, cptr, required=True)
             if not 0 <= k < len(samplers) or not isinstance(samplers[k], dict):
                 raise _err(self.path, f"{cptr}/sampler", f"sampler index {k} is out of range: the animation has "
                            f"{len(samplers)} samplers")
-            times, values, interpolation = self._sampler(samplers[k], f"{ptr}/samplers/{k}", path)
+            targets = self._targets_of_node(node) if path == "weights" else 0
+            if path == "weights" and targets == 0:
+                raise _err(self.path, f"{cptr}/target", f"node {node} has no mesh with morph targets to weigh")
+            times, values, interpolation = self._sampler(samplers[k], f"{ptr}/samplers/{k}", path, targets)
             lo, hi = min(lo, float(times[0])), max(hi, float(times[-1]))
             out.setdefault(node, {})[path] = _channel(times, values, interpolation, path == "rotation")
         return out, ((lo, hi) if lo <= hi else None)
 
-    def _sampler(self, sampler: dict, ptr: str, path: str):
+    def _targets_of_node(self, node: int) -> int:
+        mesh = self.index(self.item("nodes", node), "mesh", f"/nodes/{node}", "meshes")
+        if mesh is None:
+            return 0
+        prims = self._primitives(mesh)
+        targets = self.get(prims[0], "targets", list, f"/meshes/{mesh}/primitives/0", []) if prims else []
+        return len(targets)
+
+    def _sampler(self, sampler: dict, ptr: str, path: str, targets: int = 0):
         interpolation = self.get(sampler, "interpolation", str, ptr, "LINEAR")
         if interpolation not in ("LINEAR", "STEP", "CUBICSPLINE"):
             raise _err(self.path, f"{ptr}/interpolation", f"expected LINEAR, STEP or CUBICSPLINE, got {interpolation!r}")
@@ -511,8 +530,15 @@ class _Reader:
         if np.any(np.diff(times) <= 0) or times[0] < 0:
             raise _err(self.path, f"/accessors/{k_in}", "animation times must be >= 0 and increase strictly")
         k_out = self.index(sampler, "output", ptr, "accessors", required=True)
-        values = self.accessor(k_out, widths=("VEC4",) if path == "rotation" else ("VEC3",))
+        values = self.accessor(k_out, widths=("VEC4",) if path == "rotation" else ("SCALAR",) if path == "weights"
+                               else ("VEC3",))
         per_key = 3 if interpolation == "CUBICSPLINE" else 1
+        if path == "weights":           # one value per target and key: rows of the targets' weights
+            values = np.asarray(values, np.float64).reshape(-1)
+            if len(values) != per_key * len(times) * targets:
+                raise _err(self.path, f"/accessors/{k_out}", f"{len(values)} weights for {len(times)} key times "
+                           f"and {targets} morph targets; {interpolation} needs {per_key * len(times) * targets}")
+            return times, values.reshape(per_key * len(times), targets), interpolation
         if len(values) != per_key * len(times):
             raise _err(self.path, f"/accessors/{k_out}", f"{len(values)} output values for {len(times)} key times; "
                        f"{interpolation} needs {per_key * len(times)}")
@@ -575,7 +601,7 @@ class _Reader:
                 raise _err(self.path, f"{ptr}/primitives/{k}", "expected an object")
         return prims
 
-    def _primitive(self, prim: dict, ptr: str, world: np.ndarray, mat: int | None):
+    def _primitive(self, prim: dict, ptr: str, world: np.ndarray, mat: int | None, skin=None, weights=None):
         mode = self.get(prim, "mode", int, ptr, 4)
         if mode not in _MODES:
             raise _err(self.path, f"{ptr}/mode", f"unknown mode {mode}")
@@ -598,6 +624,12 @@ class _Reader:
 
         normals = attribute("NORMAL", "VEC3")
         colours = self._colours(attrs, aptr, nv, mat)
+        if weights is not None:
+            pos, normals = self._morph(prim, ptr, weights, pos, normals)
+        if skin is not None:
+            joints, inverse_bind, joint_worlds = skin
+            pos, normals = self._skinned(attrs, aptr, nv, pos, normals, joint_worlds @ inverse_bind)
+            world = np.eye(4)           # a skinned mesh is placed by its joints; its node's transform is ignored
         uv = attribute(f"TEXCOORD_{self._uv_set(mat)}", "VEC2")
         k = self.index(prim, "indices", ptr, "accessors")
         if k is None:
@@ -649,6 +681,104 @@ class _Reader:
         return np.clip(a[:, :3] * factor, 0.0, 1.0)
 
     # ---------------------------------------------------------------------------- textures/materials
+
+    def _skin(self, node: dict, ptr: str, worlds: dict[int, np.ndarray]):
+        """(joints, inverse bind matrices (J, 4, 4), the joints' world matrices (J, 4, 4)) or None."""
+        k = self.index(node, "skin", ptr, "skins")
+        if k is None:
+            return None
+        sptr = f"/skins/{k}"
+        skin = self.item("skins", k)
+        joints = self.get(skin, "joints", list, sptr, required=True)
+        if not joints:
+            raise _err(self.path, f"{sptr}/joints", "a skin needs at least one joint")
+        for j, joint in enumerate(joints):
+            if not isinstance(joint, int) or isinstance(joint, bool) or joint not in worlds:
+                raise _err(self.path, f"{sptr}/joints/{j}", f"joint {json.dumps(joint)[:40]} is not a node of the "
+                           "scene")
+        ibm_k = self.index(skin, "inverseBindMatrices", sptr, "accessors")
+        if ibm_k is None:
+            ibm = np.tile(np.eye(4), (len(joints), 1, 1))
+        else:
+            if self.item("accessors", ibm_k).get("componentType") != 5126:
+                raise _err(self.path, f"/accessors/{ibm_k}", "inverse bind matrices must be floats (5126)")
+            m = self.accessor(ibm_k, widths=("MAT4",))
+            if len(m) < len(joints):
+                raise _err(self.path, f"/accessors/{ibm_k}", f"{len(m)} inverse bind matrices for {len(joints)} joints")
+            ibm = m[:len(joints)].reshape(-1, 4, 4).transpose(0, 2, 1)       # column-major
+        return joints, ibm, np.stack([worlds[j] for j in joints])
+
+    def _skinned(self, attrs: dict, aptr: str, nv: int, pos: np.ndarray, normals, joint_matrices: np.ndarray):
+        """Linear blend skinning: each vertex by the weighted sum of its joints' matrices (weights
+        normalised to sum 1; a vertex without weight stays put); normals by its inverse transpose."""
+        out_n = None
+        sets = 0
+        while f"JOINTS_{sets}" in attrs and f"WEIGHTS_{sets}" in attrs:
+            sets += 1
+        if sets == 0:
+            raise _err(self.path, aptr, "a skinned mesh needs JOINTS_0 and WEIGHTS_0")
+        total = np.zeros(nv)
+        blended = np.zeros((nv, 4, 4))
+        for s in range(sets):
+            kj = self.index(attrs, f"JOINTS_{s}", aptr, "accessors", required=True)
+            if self.item("accessors", kj).get("componentType") not in (5121, 5123):
+                raise _err(self.path, f"/accessors/{kj}", "joint indices must be unsigned bytes or shorts")
+            joints = self.accessor(kj, widths=("VEC4",)).astype(np.int64)
+            w = self.accessor(self.index(attrs, f"WEIGHTS_{s}", aptr, "accessors", required=True), widths=("VEC4",))
+            if len(joints) != nv or len(w) != nv:
+                raise _err(self.path, f"{aptr}/JOINTS_{s}", f"joints and weights need {nv} elements (POSITION's)")
+            if joints.max() >= len(joint_matrices) or joints.min() < 0:
+                raise _err(self.path, f"/accessors/{kj}", f"joint index {int(joints.max())} is out of range: the skin "
+                           f"has {len(joint_matrices)} joints")
+            w = np.maximum(w, 0.0)
+            blended += np.einsum("nc,ncij->nij", w, joint_matrices[joints])
+            total += w.sum(1)
+        ok = total > 0
+        blended[ok] /= total[ok, None, None]
+        blended[~ok] = np.eye(4)        # unweighted vertices stay where they are
+        out_p = np.einsum("nij,nj->ni", blended[:, :3, :3], pos) + blended[:, :3, 3]
+        if normals is not None:
+            inv_t = np.linalg.inv(blended[:, :3, :3] + np.where(
+                np.abs(np.linalg.det(blended[:, :3, :3]))[:, None, None] > 0, 0, np.eye(3))).transpose(0, 2, 1)
+            out_n = np.einsum("nij,nj->ni", inv_t, normals)
+        return out_p, out_n
+
+    def _morph_weights(self, node: dict, ptr: str, mesh: int, animated) -> np.ndarray | None:
+        """The morph target weights of a node's mesh: animated, else the node's, else the mesh's."""
+        if animated is not None and self.time is not None:
+            return np.asarray(animated(self.time), np.float64)
+        w = self.get(node, "weights", list, ptr)
+        where = f"{ptr}/weights"
+        if w is None:
+            w = self.get(self.item("meshes", mesh), "weights", list, f"/meshes/{mesh}")
+            where = f"/meshes/{mesh}/weights"
+        if w is None:
+            return None
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in w):
+            raise _err(self.path, where, "expected finite numbers")
+        return np.asarray(w, np.float64)
+
+    def _morph(self, prim: dict, ptr: str, weights: np.ndarray, pos: np.ndarray, normals):
+        """Positions (and normals) plus the weighted morph target displacements."""
+        targets = self.get(prim, "targets", list, ptr, [])
+        if len(targets) != len(weights):
+            raise _err(self.path, f"{ptr}/targets", f"{len(targets)} morph targets for {len(weights)} weights")
+        pos = pos.copy()
+        normals = None if normals is None else normals.copy()
+        for t, (target, w) in enumerate(zip(targets, weights)):
+            tptr = f"{ptr}/targets/{t}"
+            if not isinstance(target, dict):
+                raise _err(self.path, tptr, "expected an object")
+            for name, base in (("POSITION", pos), ("NORMAL", normals)):
+                k = self.index(target, name, tptr, "accessors")
+                if k is None or base is None or w == 0:
+                    continue
+                d = self.accessor(k, widths=("VEC3",))
+                if len(d) != len(base):
+                    raise _err(self.path, f"{tptr}/{name}", f"accessor {k} has {len(d)} elements; the base has "
+                               f"{len(base)}")
+                base += w * d
+        return pos, normals
 
     def _base_texture(self, mat: int | None) -> dict | None:
         if mat is None:

@@ -23,6 +23,7 @@ from tests.format_files import (
 )
 from warp_spt.io.gltf import MAX_NODE_DEPTH, parse_gltf_bytes
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.material_schema import KIND_PBR
 
 
 def _load(g: GltfBuilder, container: str = "gltf"):
@@ -125,7 +126,7 @@ def test_the_textured_box_has_its_data_uri_image_and_transformed_uv():
 
     d = _load(gltf_textured_box())
     m = d.materials["checker"]
-    assert isinstance(m.diffuse_map.image, bytes)
+    assert isinstance(m.base_color_map.image, bytes) and m.kind == KIND_PBR and m.metallic == 0.0
     # uv = (x + 0.5, y + 0.5) offset by (0.25, 0), then v -> 1 - v
     want = np.stack([CUBE_POSITIONS[:, 0] + 0.75, 1 - (CUBE_POSITIONS[:, 1] + 0.5)], axis=1)
     assert np.allclose(d.texcoords, want)
@@ -310,7 +311,7 @@ def test_vertex_colours_times_the_base_colour_factor_are_baked():
     d = _load(g)
     assert d.material_names == ["Inner_CheckerTexture", "half red", "half red (vertex colours)"]
     assert np.array_equal(d.face_material, [2, 1])
-    image = d.materials["half red (vertex colours)"].diffuse_map.image
+    image = d.materials["half red (vertex colours)"].base_color_map.image
     corners = d.texcoords[d.face_texcoords[0]]
     assert np.allclose(sample_texture_np(image, corners), [[0.5, 0, 0], [0, 1, 0], [0, 0, 1]])
     assert np.all(d.face_texcoords[1] == -1)
@@ -430,3 +431,42 @@ def test_morph_target_weights_from_the_mesh_and_the_animation():
     g.doc["nodes"][0].pop("weights")
     with pytest.raises(SceneError, match=r"/meshes/0/primitives/0/targets: 1 morph targets for 2 weights"):
         parse_gltf_bytes(g.gltf()[0], "m.gltf")
+
+
+def test_materials_map_onto_the_pbr_kind():
+    import base64
+
+    from warp_spt.io.loader import load_scene
+    from warp_spt.scene.model import texture_decode
+
+    g = gltf_textured_box()
+    png = "data:image/png;base64," + base64.b64encode(format_files.png_2x2()).decode()
+    g.doc["images"] += [{"uri": png}, {"uri": png}]
+    g.doc["textures"] += [{"source": 1}, {"source": 2}]
+    g.doc["materials"] = [{
+        "name": "full", "alphaMode": "MASK", "alphaCutoff": 0.3, "emissiveFactor": [0.5, 0.25, 0],
+        "normalTexture": {"index": 2, "scale": 0.7},
+        "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.4, 0.6, 0.9], "baseColorTexture": {"index": 0},
+                                 "metallicFactor": 0.3, "roughnessFactor": 0.8,
+                                 "metallicRoughnessTexture": {"index": 1}},
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4},
+                       "KHR_materials_ior": {"ior": 1.33}, "KHR_materials_transmission": {"transmissionFactor": 0.5},
+                       "KHR_materials_specular": {"specularFactor": 0.4, "specularColorFactor": [1, 0.5, 0.5]},
+                       "KHR_materials_anisotropy": {"anisotropyStrength": 0.6, "anisotropyRotation": 1.0}}}]
+    d = _load(g)
+    m = d.materials["full"]
+    assert m.kind == KIND_PBR and m.base_color == (0.2, 0.4, 0.6) and (m.metallic, m.roughness) == (0.3, 0.8)
+    assert m.metallic_map is m.roughness_map and m.metallic_map.path == "images/1"       # the packed texture
+    assert (m.normal, m.normal_map.path) == (0.7, "images/2")
+    assert m.emission == (2.0, 1.0, 0.0) and m.alpha_cutoff == 0.3 and m.opacity == 0.9
+    assert m.opacity_map is m.base_color_map
+    assert (m.ior, m.transmission, m.thin, m.specular, m.specular_color) == (1.33, 0.5, True, 0.4, (1, 0.5, 0.5))
+    assert (m.anisotropy, m.anisotropy_rotation) == (0.6, 1.0)
+    assert [texture_decode(m, c) for c in ("base_color", "opacity", "metallic", "normal")] == \
+        ["srgb", "alpha", "linear", "linear"]
+    scene = load_scene([d])
+    # base colour (sRGB), its alpha, the packed metallic-roughness (read once for both maps), the normal map
+    assert len(scene.textures) == 4
+    d2 = _load(gltf_box())
+    default = d2.materials["gltf default material"]
+    assert (default.kind, default.base_color, default.metallic, default.roughness) == (KIND_PBR, (1, 1, 1), 1, 1)

@@ -136,99 +136,122 @@ def test_a_new_column_is_one_line(tmp_path):
     assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]
 
 
-# A second material kind: one module (here built in the probe) and one name in MATERIAL_KINDS.
+# A glossy probe kind: one module (written here to a file) and one name in MATERIAL_KINDS. Its lobe is
+# glossy with a density (a constant BRDF rho/pi, sampled uniformly over the hemisphere), so it goes
+# through the whole contract: light sampling and MIS from its flags, eval, pdf, sample, albedo.
 KIND_MODULE = textwrap.dedent('''
     from types import SimpleNamespace
+    import numpy as np
     import warp as wp
-    from warp_spt.core.device_scene import Materials, Textures
-    from warp_spt.core.materials.common import BsdfSample
-    from warp_spt.core.surface import Surface
+    from warp_spt.core.lobes import LOBE_GLOSSY, LOBE_REFLECTION
+    from warp_spt.core.materials.common import BsdfSample, to_local, to_world, with_flags
+    from warp_spt.core.structs import Materials, Textures
+    from warp_spt.core.surface import INV_PI, INV_TWO_PI, Surface
 
-    def make(features, color):
+    LOBE = LOBE_GLOSSY | LOBE_REFLECTION
+
+    def declare(table, rows):
+        return LOBE, frozenset({"frame"})
+
+    def make(features, base):
         @wp.func
-        def sample(m: Materials, t: Textures, sf: Surface, d: wp.vec3, u_lobe: float, u_dir: wp.vec2,
+        def shade(m: Materials, t: Textures, sf: Surface) -> Surface:
+            return sf
+
+        @wp.func
+        def sample(m: Materials, t: Textures, sf: Surface, u_lobe: float, u_dir: wp.vec2,
                    u_fresnel: float) -> BsdfSample:
+            z = u_dir[0]
+            r = wp.sqrt(wp.max(0.0, 1.0 - z * z))
+            phi = 6.2831855 * u_dir[1]
             out = BsdfSample()
-            out.weight = wp.vec3(1.0, 2.0, 3.0)
-            out.alive = 1
-            return out
+            out.dir = to_world(sf, wp.vec3(r * wp.cos(phi), r * wp.sin(phi), z))
+            out.pdf = INV_TWO_PI
+            out.weight = m.diffuse[sf.mat] * (2.0 * z)          # (rho / pi) cos / (1 / 2 pi)
+            out.alive = wp.where(wp.dot(out.dir, sf.ng) > 0.0, 1, 0)
+            return with_flags(out, LOBE)
 
         @wp.func
         def eval(m: Materials, t: Textures, sf: Surface, wi: wp.vec3) -> wp.vec3:
-            return wp.vec3(0.0, 0.0, 0.0)
+            c = to_local(sf, wi)[2]
+            if c <= 0.0:
+                return wp.vec3(0.0, 0.0, 0.0)
+            return m.diffuse[sf.mat] * (c * INV_PI)
 
         @wp.func
-        def pdf(m: Materials, sf: Surface, wi: wp.vec3) -> float:
-            return 7.0
+        def pdf(m: Materials, t: Textures, sf: Surface, wi: wp.vec3) -> float:
+            return wp.where(wp.dot(wi, sf.ns) > 0.0, INV_TWO_PI, 0.0)
 
         @wp.func
-        def has_density(m: Materials, sf: Surface) -> bool:
-            return False
+        def albedo(m: Materials, t: Textures, sf: Surface) -> wp.vec3:
+            return m.diffuse[sf.mat]
 
-        return SimpleNamespace(sample=sample, eval=eval, pdf=pdf, has_density=has_density)
+        @wp.func
+        def lobes(m: Materials, t: Textures, sf: Surface) -> int:
+            return LOBE
+
+        return SimpleNamespace(shade=shade, sample=sample, eval=eval, pdf=pdf, albedo=albedo, lobes=lobes)
 ''')
 
 KIND_PROBE = textwrap.dedent('''
     import importlib.util, sys
     import numpy as np
     path, module_src, folder = sys.argv[1:4]
-    src = open(path).read().replace('MATERIAL_KINDS: tuple[str, ...] = ("seed",)',
-                                    'MATERIAL_KINDS: tuple[str, ...] = ("seed", "probe")')
+    line = 'MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr")'
+    src = open(path).read()
+    assert line in src, "the registry line moved"
+    src = src.replace(line, 'MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr", "probe")')   # the one registry line
     spec = importlib.util.spec_from_loader("warp_spt.scene.material_schema", loader=None)
     schema = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = schema
     exec(compile(src, path, "exec"), schema.__dict__)
     import warp as wp
-    import warp_spt.core.device_scene  # noqa: F401  (the kind module imports it)
+    import warp_spt.core.structs  # noqa: F401  (the kind module imports it)
     kspec = importlib.util.spec_from_file_location("warp_spt.core.materials.probe", module_src)
     kind = importlib.util.module_from_spec(kspec)
     sys.modules[kind.__name__] = kind         # what importlib finds for the registered name
     kspec.loader.exec_module(kind)            # from a file: Warp reads its functions' source
 
-    from warp_spt.core.device_scene import DeviceScene, Materials, Textures
-    from warp_spt.core.materials import make_materials
-    from warp_spt.core.surface import INV_PI, Surface
+    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.core.lobes import LOBE_GLOSSY
     from warp_spt.io.loader import load_scene
+    from warp_spt.rendering import tiles as R
+    from warp_spt.scene.camera import Camera
+    from warp_spt.scene.sky import Sky
 
+    # a sphere of the probe kind (Kd 0.5) and one of the seed's (row 1 and 2): a furnace of radiance 1
     scene = load_scene([folder + "/a.obj"], [folder + "/a.mtl"])
-    scene.materials.kind[1] = 1
+    probe = scene.materials.names.index("probe")
+    scene.materials.kind[probe] = 2
     dev = DeviceScene(scene)
     assert dev.features.material_kinds == ("seed", "probe"), dev.features
-    mat = make_materials(dev.features)
-
-    @wp.kernel(enable_backward=False, module="unique")
-    def probe(m: Materials, t: Textures, dens: wp.array(dtype=int), pdf: wp.array(dtype=float),
-              weight: wp.array(dtype=wp.vec3)):
-        i = wp.tid()
-        sf = Surface()
-        sf.ng = wp.vec3(0.0, 0.0, 1.0)
-        sf.ns = sf.ng
-        sf.front = 1
-        sf.mat = i
-        dens[i] = wp.where(mat.has_density(m, sf), 1, 0)
-        pdf[i] = mat.pdf(m, sf, wp.vec3(0.0, 0.0, 1.0))
-        weight[i] = mat.sample(m, t, sf, wp.vec3(0.0, 0.0, -1.0), 0.99, wp.vec2(0.5, 0.5), 0.5).weight
-
-    dens, pdf, weight = wp.zeros(2, dtype=int), wp.zeros(2, dtype=float), wp.zeros(2, dtype=wp.vec3)
-    wp.launch(probe, dim=2, inputs=[dev.materials, dev.textures(), dens, pdf, weight])
-    assert dens.numpy().tolist() == [1, 0], dens
-    np.testing.assert_allclose(pdf.numpy(), [0.75 * INV_PI, 7.0], rtol=1e-6)   # the checker: Roughness 0.75
-    np.testing.assert_array_equal(weight.numpy()[1], [1.0, 2.0, 3.0])
+    assert dev.features.lobes & LOBE_GLOSSY and dev.features.scatters
+    cam = Camera(position=(0, -6, 0), direction=(0, 1, 0), fov=16.0, aperture=0.0, focus=6.0)
+    res = R.render_scene(dev, cam, R.RenderSettings(width=16, height=16, spp=256, max_depth=3, seed=1,
+                                                    sky=Sky.constant(1.0, 1.0, 1.0)))
+    img = res.image
+    centre = img[5:11, 5:11].reshape(-1, 3)      # every pixel inside the probe sphere's disc
+    # convex: one bounce reaches the sky, so each pixel's expectation is rho x L = 0.5 exactly
+    se = centre.std(0, ddof=1) / np.sqrt(len(centre))
+    mean = centre.mean(0)
+    assert np.all(np.abs(mean - 0.5) < 5 * np.maximum(se, 1e-3)), (mean, se)
+    assert np.all(np.abs(mean - 0.5) < 0.02), mean
     print("ok")
 ''')
 
 
-def test_a_second_material_kind_is_dispatched(tmp_path):
-    """A kind registered by name gets its rows (``kind`` column) through make_materials' dispatch."""
-    (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl red\nf 1 2 3\n")
-    (tmp_path / "a.mtl").write_text("newmtl red\nKd 1 0 0\n")
+def test_a_glossy_kind_is_one_module_and_a_registry_line(tmp_path):
+    """A glossy kind registered by name renders a furnace through nee (light sampling and MIS from its
+    lobe flags, its eval and pdf) to rho x L, beside the seed's kind in the same scene."""
+    (tmp_path / "a.obj").write_text("usemtl probe\nb 0 0 0 0.5\nusemtl red\nb 3 4 0 0.5\n")
+    (tmp_path / "a.mtl").write_text("newmtl probe\nKd 0.5 0.5 0.5\nnewmtl red\nKd 1 0 0\nKr 0 0 0\n")
     src = str(ROOT / "warp_spt" / "scene" / "material_schema.py")
     (tmp_path / "probe_kind.py").write_text(KIND_MODULE)
     (tmp_path / "probe.py").write_text(KIND_PROBE)       # Warp compiles functions from source files only
     out = subprocess.run([sys.executable, str(tmp_path / "probe.py"), src, str(tmp_path / "probe_kind.py"),
                           str(tmp_path)], capture_output=True,
                          text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=600)
-    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:] + out.stdout[-2000:]
 
 
 def test_kinds_are_registered():
@@ -236,4 +259,4 @@ def test_kinds_are_registered():
 
     assert tuple(KINDS) == schema.MATERIAL_KINDS and schema.COLUMN["kind"].high == len(KINDS) - 1
     for module in KINDS.values():
-        assert callable(module.make)
+        assert callable(module.make) and callable(module.declare)

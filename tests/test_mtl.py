@@ -19,8 +19,14 @@ def mtl(text: str, path: str = "lib/m.mtl"):
 
 
 def one(text: str):
+    """The material of a standard file (the pbr kind)."""
     (m,) = mtl("newmtl m\n" + text).values()
     return m
+
+
+def seed_one(text: str):
+    """The same material in a file of the seed's dialect (another material uses a seed tag)."""
+    return mtl("newmtl m\n" + text + "newmtl zz\nKl 0 0 0\n")["m"]
 
 
 def test_defaults_of_a_new_material():
@@ -65,32 +71,71 @@ def test_texture_tags_and_map_kt():
 
 
 def test_constant_and_texture_replace_each_other():
-    assert one("map_Kd a.png\nKd 1 1 1\n").diffuse_map is None
+    assert one("map_Kd a.png\nKd 1 1 1\n").base_color_map is None
     m = one("Kd 1 1 1\nmap_Kd a.png\n")
+    assert m.base_color_map.path == "a.png" and m.base_color == (1, 1, 1)
+    assert seed_one("map_Kd a.png\nKd 1 1 1\n").diffuse_map is None
+    m = seed_one("Kd 1 1 1\nmap_Kd a.png\n")
     assert m.diffuse_map.path == "a.png" and m.diffuse == (1, 1, 1)
 
 
 def test_texture_options_are_skipped_and_names_keep_spaces():
     m = one("map_Kd -s 2 2 1 -o 0.5 -clamp on -bm 0.3 dir\\my tex.png\n")
-    assert m.diffuse_map.path == "dir\\my tex.png"
+    assert m.base_color_map.path == "dir\\my tex.png"
 
 
 def test_later_definition_wins_and_lines_before_newmtl_are_ignored():
     lib = mtl("Kd 0 0 0\nnewmtl a\nKd 1 0 0\nnewmtl b\nKd 0 1 0\nnewmtl a\nKd 0 0 1\n")
     assert set(lib) == {"a", "b"}
-    assert lib["a"].diffuse == (0, 0, 1) and lib["a"].line == 6 and lib["b"].diffuse == (0, 1, 0)
+    assert lib["a"].base_color == (0, 0, 1) and lib["a"].line == 6 and lib["b"].base_color == (0, 1, 0)
 
 
 def test_unknown_tags_comments_case_and_grey_colours():
     m = one("# c\nKa 1 1 1\nNs 100\nbump b.png\nfoo bar\nkd 0.5  # grey\nKE 2\n")
-    assert m.diffuse == m.reflect == (0.5, 0.5, 0.5) and m.emission == (2, 2, 2)
+    assert m.base_color == (0.5, 0.5, 0.5) and m.emission == (2, 2, 2) and m.bump_map.path == "b.png"
+    m = seed_one("# c\nKa 1 1 1\nNs 100\nbump b.png\nfoo bar\nkd 0.5  # grey\nKE 2\n")
+    assert m.diffuse == m.reflect == (0.5, 0.5, 0.5) and m.emission == (2, 2, 2) and m.bump_map is None
 
 
 def test_standard_tags():
+    from warp_spt.scene.material_schema import KIND_PBR
+
     m = one("Kd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nKe 1 2 3\nNi 1.45\nTf 0.9 1 0.9\n")
+    assert m.kind == KIND_PBR and not m.seed_dialect
+    assert m.base_color == (0.8, 0.8, 0.8) and m.specular_color == (1.0, 1.0, 1.0)     # Blender's Ks 0.5 = F0 4%
+    assert m.emission == (1, 2, 3) and m.ior == 1.45 and m.transmission == 0.0      # Tf tints transmission only
+    assert one("map_Ke e.png\nmap_Ks s.png\n").emission_map.path == "e.png"
+    assert one("Kd 1 1 1\n").ior == 1.5                                             # no Ni: glass's 1.5
+    m = one("Pm 0.7\nPr 0.3\nmap_Pm m.png\nmap_Pr r.png\nnorm -bm 0.5 n.png\nmap_d a.png\naniso 0.4\nanisor 0.25\n")
+    assert (m.metallic, m.roughness, m.anisotropy) == (0.7, 0.3, 0.4)
+    assert m.anisotropy_rotation == pytest.approx(1.5707963)
+    assert (m.metallic_map.path, m.roughness_map.path, m.normal_map.path, m.opacity_map.path) == (
+        "m.png", "r.png", "n.png", "a.png")
+    assert m.normal == 0.5
+    m = seed_one("Kd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nKe 1 2 3\nNi 1.45\nTf 0.9 1 0.9\n")
     assert m.diffuse == (0.8, 0.8, 0.8) and m.reflect == (0.5, 0.5, 0.5)
     assert m.emission == (1, 2, 3) and m.ior == 1.45 and m.refract == (0.9, 1, 0.9)
-    assert one("map_Ke e.png\nmap_Ks s.png\n").emission_map.path == "e.png"
+
+
+@pytest.mark.parametrize("text, metallic, rough, transmission", [
+    ("illum 2\n", 0.0, 1.0, 0.0),                 # no Ns, no Pr: matte
+    ("illum 3\n", 1.0, 0.0, 0.0),                 # ray-traced reflection: a smooth metal
+    ("illum 4\n", 0.0, 0.0, 1.0),                 # ray-traced refraction: smooth glass
+    ("illum 7\nNs 98\n", 0.0, 0.02 ** 0.25, 1.0),  # Phong exponent: alpha = sqrt(2 / (Ns + 2))
+    ("d 0.25\n", 0.0, 1.0, 0.75),
+    ("Tr 0.75\n", 0.0, 1.0, 0.75),
+    ("illum 4\nd 0.9\n", 0.0, 0.0, pytest.approx(0.1)),
+    ("Pm 0.5\nPr 0.2\nNs 5\n", 0.5, 0.2, 0.0),   # Pr wins over Ns
+])
+def test_standard_illum_opacity_and_roughness(text, metallic, rough, transmission):
+    m = one(text)
+    assert (m.metallic, m.roughness, m.transmission) == (metallic, pytest.approx(rough), transmission)
+
+
+def test_unmodelled_standard_tags_are_reported_once():
+    said = []
+    parse_mtl_bytes(b"newmtl a\nPs 0.5\nPc 1\nnewmtl b\nPs 0.2\nmap_Ks s.png\n", "x.mtl", said.append)
+    assert len(said) == 1 and "Ps" in said[0] and "Pc" in said[0] and "map_Ks" in said[0], said
 
 
 @pytest.mark.parametrize("text, rough, fuzz, refractable", [
@@ -107,6 +152,13 @@ def test_standard_tags():
     ("d 0.2\nRoughness 0.6\n", 0.6, 0.62, True),
 ])
 def test_illum_and_opacity_mapping(text, rough, fuzz, refractable):
+    if "Roughness" not in text and "Fuzz" not in text:
+        if text.startswith(("illum 2", "d 1")):
+            return              # a standard Kd-only material: the pbr kind (test_standard_illum_opacity_and_roughness)
+        m = seed_one(text)      # the seed's dialect keeps its mapping onto the seed's model
+        assert (m.roughness, m.fuzz, m.refractable) == (pytest.approx(min(rough, 0.85) if rough else 0.0),
+                                                       pytest.approx(fuzz), refractable)
+        return
     m = one(text)
     assert (m.roughness, m.fuzz, m.refractable) == (pytest.approx(rough), pytest.approx(fuzz), refractable)
 
@@ -146,7 +198,7 @@ def test_crlf_and_utf8_names(tmp_path):
     p = tmp_path / "u.mtl"
     p.write_bytes("newmtl 红色 材质\r\nKd 1 0 0\r\n".encode("utf-8"))
     lib = load_mtl(p)
-    assert lib["红色 材质"].diffuse == (1, 0, 0)
+    assert lib["红色 材质"].base_color == (1, 0, 0)
 
 
 def test_seed_demo_library(seed_demo):
@@ -167,8 +219,9 @@ def test_a_kd_only_material_is_matte_in_a_standard_file_and_keeps_the_seed_lobe_
     standard = mtl("newmtl plain\nKd 0.8 0.8 0.8\nnewmtl shiny\nKd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nNs 98\n"
                    "newmtl blurred\nKd 0.5 0.5 0.5\nNs 18\n")
     assert standard["plain"].roughness == 1.0 and not standard["plain"].seed_dialect
-    assert standard["shiny"].roughness == pytest.approx(0.5)                    # Ks: max(Kd)/(max(Kd)+max(Ks))
-    assert standard["blurred"].roughness == 0.85 and standard["blurred"].fuzz == pytest.approx(0.5)  # Ns alone
+    assert standard["plain"].metallic == 0.0 and standard["plain"].transmission == 0.0
+    assert standard["shiny"].roughness == pytest.approx(0.02 ** 0.25)           # alpha = sqrt(2 / (Ns + 2))
+    assert standard["blurred"].roughness == pytest.approx(0.1 ** 0.25)
     # the same Kd-only material in a file that uses one of the seed's own tags, before or after it
     for text in ("newmtl plain\nKd 0.8 0.8 0.8\nnewmtl lamp\nKl 1 1 1\n",
                  "newmtl lamp\nKl 1 1 1\nnewmtl plain\nKd 0.8 0.8 0.8\n"):

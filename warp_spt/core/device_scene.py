@@ -1,9 +1,11 @@
 """Scene upload: numpy Scene -> Warp meshes (one per OBJ), our top-level BVH, texture atlas, material table.
 
-The result, :class:`DeviceScene`, carries one small struct per concept that kernels take
-(:class:`Geometry`, :class:`Materials`, :class:`Textures` with procedural instances; the light table is built by
-``warp_spt.core.lights``), plus the :class:`Features` the scene actually uses, from which the
-integrators specialise their kernels.
+The high half of the device scene: the structs it fills are ``warp_spt.core.structs`` (the low half,
+what kernels read). The result, :class:`DeviceScene`, carries one small struct per concept that
+kernels take (:class:`Geometry`, :class:`Materials`, :class:`Textures` with procedural instances; the
+light table is built by ``warp_spt.core.lights``), plus the :class:`Features` the scene actually uses
+(its material part declared by the material kinds, ``warp_spt.core.materials.declare``), from which
+the integrators specialise their kernels.
 """
 
 from __future__ import annotations
@@ -16,115 +18,31 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.bvh import build_tlas
-from warp_spt.core.material_table import Materials, upload_materials  # noqa: F401 (kernels import Materials from here)
+from warp_spt.core.material_table import upload_materials
+from warp_spt.core.materials import declare
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
+from warp_spt.core.structs import (  # noqa: F401 (re-exported: the structs' old home)
+    BVH_STACKS,
+    Features,
+    Geometry,
+    Materials,
+    Textures,
+    vec_wide_f,
+    vec_wide_i,
+)
+from warp_spt.core.tangents import corner_tangents
 from warp_spt.core.textures import pack_atlas
 from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.warp_init import init_warp
-from warp_spt.scene.material_schema import MATERIAL_KINDS
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
-# One wide BVH node's child slots, one lane per child (core.geometry tests a node's boxes at once).
-vec_wide_f = wp.types.vector(length=WIDTH, dtype=wp.float32)
-vec_wide_i = wp.types.vector(length=WIDTH, dtype=wp.int32)
-# Traversal stack lengths a kernel may be compiled with (Features.bvh_stack): the least one that holds
-# every mesh's WideBvh.stack_bound. A short stack is faster to set up (it is zeroed per query), and
-# three sizes keep the number of kernel variants small.
-BVH_STACKS = (16, 64, 512)
 # Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
 # Warp builds its BVH in C++ (0.02 s for 51k triangles), ours costs about 7 us per triangle in numpy
 # (0.34 s for 51k, 10 s for 1M; benchmarks/bench_wide_build.py) and saves about a fifth of a render's
 # time, so a model this large would pay more in start-up than a default render gains.
 WIDE_BVH_MAX_TRIANGLES = 100_000
 
-
-@wp.struct
-class Geometry:
-    """What intersection and surface lookup read: meshes, spheres, the top-level BVH, per-face data."""
-
-    # Triangles: one wp.Mesh per OBJ file (surface points, light sampling); per-face data is
-    # concatenated across meshes.
-    mesh_ids: wp.array(dtype=wp.uint64)
-    # Each mesh's wide BVH (core.wide_bvh), concatenated: node i's boxes are rows 6i..6i+5 of
-    # bvh_box (lower x, y, z, upper x, y, z; one lane per child), its children bvh_child[i]; leaves
-    # index the triangles' leaf-ordered corners tri_v0..2 and their face numbers within the mesh.
-    bvh_box: wp.array(dtype=vec_wide_f)
-    bvh_child: wp.array(dtype=vec_wide_i)
-    mesh_root: wp.array(dtype=wp.int32)        # root node of mesh i; -1: the mesh uses Warp's BVH
-    tri_v0: wp.array(dtype=wp.vec3)
-    tri_v1: wp.array(dtype=wp.vec3)
-    tri_v2: wp.array(dtype=wp.vec3)
-    tri_face: wp.array(dtype=wp.int32)
-    face_offset: wp.array(dtype=wp.int32)      # first face of mesh i in the per-face arrays
-    face_material: wp.array(dtype=wp.int32)
-    corner_uv: wp.array(dtype=wp.vec2)         # 3 per face
-    corner_normal: wp.array(dtype=wp.vec3)     # 3 per face (smooth shading only)
-    # 1 when corner_normal holds 3 normals per face. A kernel compiled with smooth-shading code
-    # (e.g. Features.general()) for a scene without vn must not read the one-element dummy array:
-    # it did, out of bounds, and shaded with garbage normals.
-    has_corner_normals: int
-    num_meshes: int
-    # Analytic spheres
-    spheres: wp.array(dtype=wp.vec4)           # centre xyz, radius
-    sphere_material: wp.array(dtype=wp.int32)
-    # Top-level BVH over mesh bounds (items 0..num_meshes-1) and spheres (the rest)
-    node_lower: wp.array(dtype=wp.vec3)
-    node_upper: wp.array(dtype=wp.vec3)
-    node_left: wp.array(dtype=wp.int32)
-    node_right: wp.array(dtype=wp.int32)
-    node_first: wp.array(dtype=wp.int32)
-    node_count: wp.array(dtype=wp.int32)
-    items: wp.array(dtype=wp.int32)
-    # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
-    extent: float
-
-
-@wp.struct
-class Textures:
-    """The texture atlas (flat), its tile table (offset, w, h, stride) and the filter (0 nearest, 1 bilinear)."""
-
-    texels: wp.array(dtype=wp.vec3)
-    tiles: wp.array(dtype=wp.vec4i)
-    bilinear: int
-    # procedural instances (warp_spt.core.proctex): kind = index into Features.procedural, parameters
-    proc_kind: wp.array(dtype=wp.int32)
-    proc_params: wp.array(dtype=ProcParams)
-
-
-@dataclass(frozen=True)
-class Features:
-    """What a scene uses; each False lets the kernel drop that code entirely (wp.static)."""
-
-    meshes: bool = True
-    spheres: bool = True
-    textures: bool = True
-    checker: bool = True
-    refraction: bool = True
-    emitters: bool = True
-    smooth: bool = True
-    diffuse: bool = True       # some material has a diffuse lobe (Roughness > 0)
-    specular: bool = True      # some material has a mirror/glass lobe (Roughness < 1)
-    sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
-    # procedural textures used: sorted (name, source hash); () compiles no procedural code
-    procedural: tuple[tuple[str, str], ...] = ()
-    # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch
-    material_kinds: tuple[str, ...] = MATERIAL_KINDS
-    # entries of the wide BVHs' traversal stack (one of BVH_STACKS, enough for every mesh's tree; 0: no
-    # mesh has a wide BVH), and whether some mesh keeps Warp's BVH (WIDE_BVH_MAX_TRIANGLES)
-    bvh_stack: int = BVH_STACKS[-1]
-    warp_meshes: bool = True
-
-    @staticmethod
-    def general() -> "Features":
-        """The kernel that handles any scene (used to check specialisations against)."""
-        return Features()
-
-    def covering(self, scene: "Features") -> "Features":
-        """These features with the mesh traversal that ``scene``'s meshes need added: a kernel
-        compiled for other features (an override) must still trace this scene's rays."""
-        stack = self.bvh_stack if scene.bvh_stack == 0 else max(self.bvh_stack, scene.bvh_stack)
-        return replace(self, bvh_stack=stack, warp_meshes=self.warp_meshes or scene.warp_meshes)
 
 
 # Triangles per leaf of each mesh's BVH (Warp's default is 4). Two traces the same hits (same triangle
@@ -225,7 +143,7 @@ class DeviceScene:
         return t
 
     def _upload_meshes(self, s: Geometry, scene: Scene, device: str) -> None:
-        offsets, mats, uvs, normals = [], [], [], []
+        offsets, mats, uvs, normals, tangents = [], [], [], [], []
         start = 0
         cache = self._mesh_cache
         for m in scene.meshes:
@@ -248,6 +166,8 @@ class DeviceScene:
             uvs.append(m.corner_uv.reshape(-1, 2).astype(np.float32))
             if self.features.smooth:
                 normals.append(_corner_normals(m).reshape(-1, 3))
+            if self.features.needs("frame.uv"):
+                tangents.append(corner_tangents(m.positions, m.indices, m.corner_uv, _corner_normals(m)).reshape(-1, 4))
         s.num_meshes = len(self._meshes)
         s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
         self._upload_wide(s, scene, device)
@@ -256,6 +176,8 @@ class DeviceScene:
         s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32)
         s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
         s.has_corner_normals = int(self.features.smooth)
+        s.corner_tangent = _arr(_cat(tangents, (0, 4), np.float32), wp.vec4, device, np.float32)
+        s.has_corner_tangents = int(bool(tangents))
 
     def _upload_wide(self, s: Geometry, scene: Scene, device: str) -> None:
         """Concatenate the meshes' wide BVHs (node and triangle numbers offset per mesh), size the
@@ -332,24 +254,25 @@ def _upload_procedural(scene: Scene, key: tuple, device: str) -> tuple[wp.array,
 
 
 def _features(scene: Scene) -> Features:
-    """Which code paths the scene's used materials and geometry need."""
+    """Which code paths the scene's used materials and geometry need (the materials' part declared
+    by their kinds, ``warp_spt.core.materials.declare``)."""
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
     mt = scene.materials
     tex = mt.tex[used]
     emits = ((mt.emission[used] > 0).any() or (tex[:, SLOT_EMISSION] >= 0).any()
              or (tex[:, SLOT_EMISSION] <= TEX_PROC_BASE).any())
+    kinds, lobes, flags = declare(mt, used)
     return Features(
         meshes=any(len(m.indices) for m in scene.meshes),
         spheres=len(scene.spheres) > 0,
         textures=bool((tex >= 0).any()),
         checker=bool((tex == TEX_CHECKER).any()),
-        refraction=bool(mt.refractable[used].any()),
         emitters=bool(emits),
         smooth=any(m.corner_normal is not None for m in scene.meshes),
-        diffuse=bool((mt.roughness[used] > 0).any()),
-        specular=bool((mt.roughness[used] < 1).any()),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
-        material_kinds=tuple(MATERIAL_KINDS[k] for k in np.unique(mt.kind[used])),
+        material_kinds=kinds,
+        lobes=lobes,
+        material_flags=flags,
     )
 
 

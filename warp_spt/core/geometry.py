@@ -12,7 +12,7 @@ from __future__ import annotations
 import warp as wp
 
 from warp_spt.core.adjoint import zero_adjoint
-from warp_spt.core.device_scene import Features, Geometry
+from warp_spt.core.structs import Features, Geometry
 from warp_spt.core.wide_traversal import NO_HIT, MeshRay, make_any_hit_query, make_closest_query, mesh_ray
 
 STACK = 64                 # traversal stack; bvh.build_tlas guarantees depth < 64

@@ -1,7 +1,12 @@
-"""The surface at a hit: position, normals, material, uv; and where new rays start from it.
+"""The surface at a hit, the shading point every material call receives; and where new rays start.
 
-``make_surface(features)`` builds ``surface_at`` for the primitives the scene has. Materials
-(``warp_spt.core.materials``) and lights (``warp_spt.core.lights``) read the :class:`Surface` it returns.
+``make_surface(features)`` builds ``surface_at`` for the primitives the scene has. It gives the
+position, the geometric and shading normals (both towards the side the ray came from), the material,
+the uv, ``wo`` (the direction back along the ray) and, where a material kind asked for one
+(``Features.needs("frame")``), a shading frame: the tangent ``t`` (from the mesh's uv where the kind
+needs it to follow the uv, ``"frame.uv"``: normal maps, anisotropy; else any direction orthogonal to
+``ns``) and the uv's bitangent ``b``. Materials (``warp_spt.core.materials``; their ``shade`` may
+perturb the frame) and lights (``warp_spt.core.lights``) read the :class:`Surface` it returns.
 """
 
 from __future__ import annotations
@@ -9,8 +14,8 @@ from __future__ import annotations
 import warp as wp
 
 from warp_spt.core.adjoint import zero_adjoint
-from warp_spt.core.device_scene import Features, Geometry
 from warp_spt.core.geometry import KIND_TRIANGLE, Hit
+from warp_spt.core.structs import Features, Geometry
 
 INV_PI = wp.constant(0.3183098861837907)
 INV_TWO_PI = wp.constant(0.15915494309189535)
@@ -36,6 +41,28 @@ class Surface:
     front: int         # 1 when the ray arrived from outside (against the outward/winding normal)
     mat: int
     uv: wp.vec2
+    wo: wp.vec3        # unit direction back towards where the ray came from (-d)
+    t: wp.vec3         # shading tangent, orthogonal to ns (Features.needs("frame") only; else zero)
+    b: wp.vec3         # the uv's bitangent direction, orthogonal to ns and t (normal maps' y axis)
+
+
+@wp.func
+def any_tangent(n: wp.vec3) -> wp.vec3:
+    """A unit vector orthogonal to unit ``n``, continuous except where n.z changes sign (Duff et al.
+    2017's branchless basis: no normalisation, no special case near the poles)."""
+    s = wp.where(n[2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (s + n[2])
+    return wp.vec3(1.0 + s * n[0] * n[0] * a, s * n[0] * n[1] * a, -s * n[0])
+
+
+@wp.func
+def frame_from(ns: wp.vec3, t_hint: wp.vec3) -> wp.vec3:
+    """The tangent ``t_hint`` made orthogonal to ``ns`` and unit (``any_tangent`` where it is zero
+    or parallel to ``ns``)."""
+    t = t_hint - ns * wp.dot(t_hint, ns)
+    if wp.length(t) > 1.0e-12:
+        return wp.normalize(t)
+    return any_tangent(ns)
 
 
 @wp.func
@@ -125,6 +152,30 @@ def make_surface(features: Features):
         if wp.dot(ns, sf.ng) < 0.0:
             ns = -ns
         sf.ns = ns
+        sf.wo = -d
+        if wp.static(features.needs("frame")):
+            hint = wp.vec3(0.0, 0.0, 0.0)
+            sign = float(1.0)
+            if wp.static(features.needs("frame.uv")):
+                if h.kind == KIND_TRIANGLE:
+                    if wp.static(features.meshes):
+                        if s.has_corner_tangents != 0:
+                            g = s.face_offset[h.index] + h.face
+                            w = 1.0 - h.u - h.v
+                            c0 = s.corner_tangent[3 * g]
+                            c1 = s.corner_tangent[3 * g + 1]
+                            c2 = s.corner_tangent[3 * g + 2]
+                            hint = (wp.vec3(c0[0], c0[1], c0[2]) * h.u + wp.vec3(c1[0], c1[1], c1[2]) * h.v
+                                    + wp.vec3(c2[0], c2[1], c2[2]) * w)
+                            sign = c0[3]
+                else:
+                    # a sphere's u grows with the azimuth about z (surface_at's spherical uv)
+                    hint = wp.vec3(-ns[1], ns[0], 0.0)
+            sf.t = frame_from(ns, hint)
+            # the uv's bitangent about the outward normal: flipped with ns on a back face, so that
+            # (t, b, outward n) stays the frame a tangent-space normal map was baked in
+            n_face = wp.where(sf.front != 0, ns, -ns)
+            sf.b = wp.cross(n_face, sf.t) * sign
         return sf
 
     return surface_at

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_spt.core.device_scene import Geometry, vec_wide_f
+from warp_spt.core.structs import Geometry, vec_wide_f
 from warp_spt.core.wide_bvh import WIDTH
 
 NO_HIT = wp.constant(3.0e38)     # "no hit" distance of every query (core.geometry re-exports it)

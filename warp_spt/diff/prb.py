@@ -58,7 +58,7 @@ from __future__ import annotations
 import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams
-from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import NO_HIT, Hit, make_closest_hit
 from warp_spt.core.lights import Lights
 from warp_spt.integrators import PathState, RenderParams, get_vertex

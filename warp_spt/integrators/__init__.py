@@ -21,7 +21,7 @@ from collections.abc import MutableMapping
 import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray
-from warp_spt.core.device_scene import Features
+from warp_spt.core.structs import Features
 from warp_spt.core.proctex import explain_compile_failure
 from warp_spt.integrators.common import (
     Integrator,

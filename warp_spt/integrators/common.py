@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray  # noqa: F401 (re-exported)
-from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.core.materials import BsdfSample
 from warp_spt.core.surface import Surface, offset_origin
@@ -265,11 +265,13 @@ def make_start_path(sampler: Sampler):
 def make_bsdf_dims(sampler: Sampler, stride: int, features: Features):
     """``bsdf_dims(path) -> (u_lobe, u_dir, u_fresnel, path)``: this bounce's material dimensions.
 
-    The lobe choice is drawn only where materials mix lobes, the Fresnel choice only where some
-    material refracts (a Sobol' request costs a dozen hashes); skipping a dimension shifts no other,
-    and the independent sampler's chain still advances past it, so its numbers do not change.
+    The lobe and Fresnel choices are drawn only where a material kind of the scene declared it draws
+    them (``Features.needs("dims.lobe")``, ``"dims.fresnel"``; a Sobol' request costs a dozen hashes);
+    skipping a dimension shifts no other, and the independent sampler's chain still advances past
+    it, so its numbers do not change.
     """
-    mixed = features.diffuse and features.specular
+    mixed = features.needs("dims.lobe")
+    fresnel = features.needs("dims.fresnel")
 
     @wp.func
     def bsdf_dims(path: PathState):
@@ -280,7 +282,7 @@ def make_bsdf_dims(sampler: Sampler, stride: int, features: Features):
             u_lobe, st = sampler.next_1d(st, base + OFF_LOBE)
         u_dir, st = sampler.next_2d(st, base + OFF_DIR)
         u_fresnel = float(0.0)
-        if wp.static(features.refraction):
+        if wp.static(fresnel):
             u_fresnel, st = sampler.next_1d(st, base + OFF_FRESNEL)
         p = path
         p.sampler = st

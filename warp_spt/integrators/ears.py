@@ -57,7 +57,7 @@ from typing import Any, Mapping
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.integrators.common import (
     DIM_BOUNCE,

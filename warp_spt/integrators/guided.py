@@ -64,7 +64,7 @@ import time
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded
 from warp_spt.core.guiding import (
     GuideRecord,
@@ -79,6 +79,7 @@ from warp_spt.core.guiding import (
     upload_tree,
 )
 from warp_spt.core.lights import Lights, make_lights
+from warp_spt.core.lobes import LOBE_GLOSSY, LOBE_REFLECTION, LOBE_SMOOTH, LOBE_TRANSMISSION
 from warp_spt.core.materials import BsdfSample, make_materials
 from warp_spt.core.surface import Surface, make_surface
 from warp_spt.integrators import guiding_tree
@@ -149,8 +150,8 @@ def make_vertex_guided(features: Features, sampler: Sampler):
     surface_at = make_surface(features)
     mat = make_materials(features)
     bsdf_dims = make_bsdf_dims(sampler, STRIDE, features)
-    sample_lights = (features.emitters or features.sky) and features.diffuse
-    guiding = features.diffuse
+    sample_lights = (features.emitters or features.sky) and features.scatters
+    guiding = features.scatters
     occluded = make_occluded(features)
     light = make_lights(features, surface_at, mat.emission)
     light_sample = make_light_sample(sampler, light)
@@ -176,7 +177,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 if not occluded(geo, x, ls.dir, ls.t_max):
                     # MIS against the material's share of the mixture, (1 - a) p_material: the
                     # emitter the sampled direction meets is weighed with the same density (see vertex)
-                    w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, sf, ls.dir))
+                    w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir))
                     contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 
@@ -192,7 +193,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
             p.alive = 0
             return p, wp.vec2i(-1, -1), float(0.0), hit_le[0] + hit_le[1] + hit_le[2]
         p.depth += 1
-        sf = surface_at(geo, h, p.o, p.d)
+        sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
         emitted = float(0.0)
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
@@ -211,7 +212,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         rqi = int(-1)
         a = float(0.0)
         if wp.static(guiding):
-            dense = mat.has_density(mats, sf)
+            dense = (mat.lobes(mats, tex, sf) & LOBE_SMOOTH) != 0
             if dense:
                 qi = int(-1)
                 if rec.on != 0:
@@ -244,9 +245,11 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 gd, pg = guide_sample(g, root, wp.vec2(wp.min(u_dir[0] / a, 0.99999994), u_dir[1]))
                 bs.dir = gd
                 bs.singular = 0
-                bs.through = 0
                 bs.alive = 1
-                bs.pdf = (1.0 - a) * mat.pdf(mats, sf, gd)
+                # the guide covers the sphere: below the surface it continues a transmission
+                bs.through = wp.where(wp.dot(gd, sf.ng) < 0.0, 1, 0)
+                bs.flags = LOBE_GLOSSY | wp.where(bs.through != 0, LOBE_TRANSMISSION, LOBE_REFLECTION)
+                bs.pdf = (1.0 - a) * mat.pdf(mats, tex, sf, gd)
                 pm = bs.pdf + a * pg
                 f = mat.eval(mats, tex, sf, gd)
                 if pm > 0.0 and wp.max(wp.max(f[0], f[1]), f[2]) > 0.0:
@@ -255,7 +258,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                     bs.alive = 0
             else:
                 u_mat = wp.vec2(wp.min((u_dir[0] - a) / (1.0 - a), 0.99999994), u_dir[1])
-                bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_mat, u_fresnel)
+                bs = mat.sample(mats, tex, sf, u_lobe, u_mat, u_fresnel)
                 if bs.singular == 0:
                     if bs.alive != 0:
                         # weight = f cos / p_material, so f cos = weight x p_material: no eval again
@@ -265,7 +268,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 else:
                     bs.weight = bs.weight / (1.0 - a)
         else:
-            bs = mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel)
+            bs = mat.sample(mats, tex, sf, u_lobe, u_dir, u_fresnel)
             pm = bs.pdf
         node = wp.vec2i(-1, -1)
         rpdf = pm

@@ -1,10 +1,11 @@
 """Next-event estimation with multiple importance sampling (power heuristic), and Russian roulette.
 
-At every vertex whose material has a diffuse lobe (the only lobe with a density), one light is
+At every vertex whose material has a lobe with a density (diffuse or glossy: ``lobes &
+LOBE_SMOOTH``, the material contract's flags), one light is
 sampled from the light table (``warp_spt.core.lights``) and joined by an any-hit shadow ray; the BSDF
 sample that continues the path may hit an emitter too, and each of the two estimates is weighted by
-the power heuristic, so their sum counts each light path once. Singular lobes (fuzzy mirror, glass)
-continue by sampling only and the emitter they hit counts in full. Camera rays count emitters in
+the power heuristic, so their sum counts each light path once. Specular lobes (the seed's fuzzy
+mirror and glass, smooth metal and glass) continue by sampling only and the emitter they hit counts in full. Camera rays count emitters in
 full. NEE happens only at vertices that may still scatter (hits < max_depth), so the image
 converges to the seed integrator's.
 
@@ -18,7 +19,7 @@ from __future__ import annotations
 import warp as wp
 
 from warp_spt.core.adjoint import zero_adjoint
-from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import (
     KIND_MISS,
     NO_HIT,
@@ -27,6 +28,7 @@ from warp_spt.core.geometry import (
     make_occluded,
 )
 from warp_spt.core.lights import Lights, detach_lights, make_lights, reuse_pick
+from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
 from warp_spt.integrators.common import (
@@ -158,7 +160,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
     bsdf_dims = make_bsdf_dims(sampler, stride, features)
-    sample_lights = light_sampling and (features.emitters or features.sky) and features.diffuse
+    sample_lights = light_sampling and (features.emitters or features.sky) and features.scatters
     occluded = make_occluded(features)
     light = make_lights(features, surface_at, mat.emission)
     if replay:
@@ -193,7 +195,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         contrib = wp.vec3(0.0, 0.0, 0.0)
         seen = int(VIS_TRACE)
         st = p.sampler
-        if mat.has_density(mats, sf):      # light sampling needs a lobe with a density to weigh against
+        if (mat.lobes(mats, tex, sf) & LOBE_SMOOTH) != 0:    # light sampling needs a lobe with a density
             # light.sample in two halves, the geometric one having no adjoint in path replay
             ls, x, st = light_sample(geo, lights, st, sf, base)
             if ls.pdf > 0.0:
@@ -206,7 +208,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                         if occluded(geo, x, ls.dir, ls.t_max):
                             seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
-                        w = mis_weight(ls.pdf, mat.pdf(mats, sf, ls.dir))
+                        w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st, seen
 
@@ -221,7 +223,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             p.alive = 0
             return p
         p.depth += 1
-        sf = surface_at(geo, h, p.o, p.d)
+        sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):       # NaN: the guard reports it
@@ -242,7 +244,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             lit.sampler = st
             lit.vis = seen
             p = lit
-        p = continue_path(p, sf, mat.sample(mats, tex, sf, p.d, u_lobe, u_dir, u_fresnel), geo.extent)
+        p = continue_path(p, sf, mat.sample(mats, tex, sf, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
             if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:
                 u_rr, st = sampler.next_1d(p.sampler, base + OFF_ROULETTE)

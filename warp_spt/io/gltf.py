@@ -13,10 +13,9 @@ coordinates are read through the same path. Texture coordinates are turned to th
 convention (v = 0 at the image's bottom row: v' = 1 - v), after KHR_texture_transform of the base
 colour texture.
 
-Materials: until the ``pbr`` material kind exists, a glTF material becomes a diffuse material of
-the seed's model whose colour is the base colour factor, or the base colour texture (which then
-replaces the factor) and whose emission is ``emissiveFactor`` (times KHR_materials_emissive_strength);
-the rest of the glTF material is kept in :class:`GltfMaterial` records on :class:`GltfExtras`.
+Materials become the ``pbr`` kind (base colour, packed metallic-roughness, normal map, emission,
+alpha, KHR_materials_ior/transmission/volume/specular/anisotropy/emissive_strength); every field is
+also kept in :class:`GltfMaterial` records on :class:`GltfExtras`.
 Cameras (perspective) and KHR_lights_punctual lights are kept as :class:`GltfCamera` and
 :class:`GltfLight` records; lights are not rendered yet (one warning).
 
@@ -36,7 +35,7 @@ import math
 import os
 import struct
 import urllib.parse
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -816,7 +815,7 @@ class _Reader:
         su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
         return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
 
-    def _image(self, tex: int, ptr: str, srgb: bool = False) -> TextureRef:
+    def _image(self, tex: int, ptr: str) -> TextureRef:
         t = self.item("textures", tex)
         tptr = f"/textures/{tex}"
         source = self.index(t, "source", tptr, "images")
@@ -828,51 +827,46 @@ class _Reader:
         name = f"images/{source}"
         if uri is not None and not uri.startswith("data:"):
             self._local_file(uri, f"{iptr}/uri")             # exists and is local; the loader reads it
-            return TextureRef(urllib.parse.unquote(uri), self.path, 0, srgb=srgb)
+            return TextureRef(urllib.parse.unquote(uri), self.path, 0)
         if uri is not None:
-            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"), srgb=srgb)
+            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"))
         view = self.index(img, "bufferView", iptr, "bufferViews")
         if view is None:
             raise _err(self.path, iptr, "an image needs a 'uri' or a 'bufferView'")
         buf, off, length, _ = self.view(view)
-        return TextureRef(name, self.path, 0, image=buf[off:off + length], srgb=srgb)
+        return TextureRef(name, self.path, 0, image=buf[off:off + length])
 
     def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
-        """A unique name and a Material of the seed's model (diffuse; see the module docs)."""
-        if mat is None:
+        """A unique name and a material of the ``pbr`` kind: glTF's metallic-roughness model and the
+        KHR_materials_* that the kind has columns for. The packed metallic-roughness texture is named by
+        both maps (the kind reads its B and G channels); the base colour texture's alpha is the opacity
+        map of a MASK or BLEND material. Colour maps are decoded from sRGB by the loader (by slot)."""
+        if mat is None:          # glTF's default material: white, metallic 1, roughness 1
             name = "gltf default material"
-            return name, Material(name, diffuse=(1.0, 1.0, 1.0), roughness=1.0, fuzz=0.0, ior=1.0, source=self.path,
-                                  seed_dialect=False)
+            return name, self._pbr_material(name, dict(base_color=(1.0, 1.0, 1.0), metallic=1.0, roughness=1.0))
         rec = self._material_record(mat)
         name = rec.name or f"material {mat}"
         while name in names or name == CHECKER_NAME:
             name = f"{name} ({mat})"
         mptr = f"/materials/{mat}"
-        ext = lambda key: self.obj(rec.extensions, key, f"{mptr}/extensions")      # noqa: E731
-        image = lambda k, where, srgb=False: None if k is None else self._image(k, f"{mptr}/{where}", srgb)  # noqa: E731
-        base = tuple(min(max(c, 0.0), 1.0) for c in rec.base_color[:3])
-        tex = image(rec.base_color_texture, "pbrMetallicRoughness/baseColorTexture", True)
-        strength = self.get(ext("KHR_materials_emissive_strength"), "emissiveStrength", float,
-                            f"{mptr}/extensions/KHR_materials_emissive_strength", 1.0)
-        emission = tuple(min(max(c * strength, 0.0), MAX_RADIANCE) for c in rec.emissive)
-        if hasattr(Material, "pbr"):        # the pbr material kind (issue 29)
-            return name, self._pbr(name, rec, mptr, ext, image, base, tex, emission)
-        return name, Material(name, diffuse=base, diffuse_map=tex, emission=emission, roughness=1.0, fuzz=0.0,
-                              ior=1.0, source=self.path, seed_dialect=False)
-
-    def _pbr(self, name, rec: GltfMaterial, mptr: str, ext, image, base, tex, emission) -> Material:
-        """glTF's metallic-roughness material and the KHR_materials_* that the pbr kind has columns for.
-        The packed metallic-roughness texture is named by both maps (the kind reads B and G)."""
         eptr = f"{mptr}/extensions"
+        ext = lambda key: self.obj(rec.extensions, key, eptr)      # noqa: E731
+        image = lambda k, where: None if k is None else self._image(k, f"{mptr}/{where}")  # noqa: E731
+        tex = image(rec.base_color_texture, "pbrMetallicRoughness/baseColorTexture")
+        strength = self.get(ext("KHR_materials_emissive_strength"), "emissiveStrength", float,
+                            f"{eptr}/KHR_materials_emissive_strength", 1.0)
         orm = image(rec.metallic_roughness_texture, "pbrMetallicRoughness/metallicRoughnessTexture")
-        fields = dict(base_color=base, base_color_map=tex, metallic=min(max(rec.metallic, 0.0), 1.0),
-                      roughness=min(max(rec.roughness, 0.0), 1.0), metallic_map=orm, roughness_map=orm,
-                      normal=rec.normal_scale, normal_map=image(rec.normal_texture, "normalTexture"),
-                      emission=emission, emission_map=image(rec.emissive_texture, "emissiveTexture", True))
+        fields = dict(base_color=tuple(min(max(c, 0.0), 1.0) for c in rec.base_color[:3]), base_color_map=tex,
+                      metallic=min(max(rec.metallic, 0.0), 1.0), roughness=min(max(rec.roughness, 0.0), 1.0),
+                      metallic_map=orm, roughness_map=orm,
+                      normal=min(max(rec.normal_scale, 0.0), 10.0), normal_map=image(rec.normal_texture, "normalTexture"),
+                      emission=tuple(min(max(c * strength, 0.0), MAX_RADIANCE) for c in rec.emissive),
+                      emission_map=image(rec.emissive_texture, "emissiveTexture"))
         if rec.alpha_mode == "MASK":
             fields["alpha_cutoff"] = rec.alpha_cutoff
         if rec.alpha_mode != "OPAQUE":
             fields["opacity"] = min(max(rec.base_color[3], 0.0), 1.0)
+            fields["opacity_map"] = tex
         ior = ext("KHR_materials_ior")
         if ior:
             fields["ior"] = self.get(ior, "ior", float, f"{eptr}/KHR_materials_ior", 1.5)
@@ -894,6 +888,9 @@ class _Reader:
             aptr = f"{eptr}/KHR_materials_anisotropy"
             fields["anisotropy"] = self.get(anisotropy, "anisotropyStrength", float, aptr, 0.0)
             fields["anisotropy_rotation"] = self.get(anisotropy, "anisotropyRotation", float, aptr, 0.0)
+        return name, self._pbr_material(name, fields)
+
+    def _pbr_material(self, name: str, fields: dict) -> Material:
         material = Material.pbr(name, **fields)
         material.source, material.seed_dialect = self.path, False
         return material
@@ -1042,8 +1039,7 @@ class _Reader:
         for row in np.unique(data.face_material[coloured]).tolist():
             base = data.materials[data.material_names[row]]
             name = f"{base.name} (vertex colours)"
-            data.materials[name] = Material(name, diffuse=(1.0, 1.0, 1.0), diffuse_map=ref, emission=base.emission,
-                                            roughness=1.0, fuzz=0.0, ior=1.0, source=self.path, seed_dialect=False)
+            data.materials[name] = replace(base, name=name, base_color=(1.0, 1.0, 1.0), base_color_map=ref)
             variant[row] = len(data.material_names)
             data.material_names.append(name)
             data.material_lines.append(0)

@@ -282,19 +282,21 @@ class _TextureCache:
         self._note = note
         self.procedural: list = []          # procedural instances (warp_spt.core.proctex.ProcRef)
 
-    def index(self, ref: TextureRef) -> int:
+    def index(self, ref: TextureRef, decode: str = "raw") -> int:
+        """The texture's index, reading it (``decode``: ``scene.model.texture_decode``'s modes) the
+        first time that file is needed in that mode."""
         if not isinstance(ref, TextureRef):             # a proctex.ProcRef: one instance per (name, params)
             if ref not in self.procedural:
                 self.procedural.append(ref)
             return TEX_PROC_BASE - self.procedural.index(ref)
         path = _find_texture(ref) if ref.image is None else f"{ref.mtl_file}#{ref.path}"
-        path += "#srgb" if ref.srgb else ""
-        if path not in self._index:
-            image = _read_image(path.removesuffix("#srgb"), ref, self._note, lambda w, h: self._check_atlas(ref, w, h))
-            self._index[path] = len(self.images)
+        key = (path, decode)
+        if key not in self._index:
+            image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h), decode)
+            self._index[key] = len(self.images)
             self.images.append(image)
             self.refs.append(ref)
-        return self._index[path]
+        return self._index[key]
 
     def _check_atlas(self, ref: TextureRef, w: int, h: int) -> None:
         """All textures so far plus a new w x h one (from its header) must fit the texel budget."""
@@ -317,15 +319,18 @@ def _find_texture(ref: TextureRef) -> str:
     raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path!r} cannot be read ({'; '.join(problems)})")
 
 
-def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[[int, int], None]) -> np.ndarray:
-    """(H, W, 3) float32 in [0, 1], row 0 at the top; 8-bit values / 255, 16-bit values / 65535.
+def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[[int, int], None],
+                decode: str = "raw") -> np.ndarray:
+    """(H, W, 3) float32 in [0, 1], row 0 at the top; 8-bit values / 255, 16-bit values / 65535;
+    ``decode`` (``scene.model.texture_decode``): "srgb" turns the values into linear ones, "alpha"
+    reads the image's alpha channel (its grey value if it has none) into all three channels.
 
     The size is checked against the texel budget from the header, before anything is decoded: alone,
     then with the textures read before it (``check_atlas(w, h)`` raises if they do not fit).
     Pillow's own warnings become one-line notes naming the MTL line; its decompression-bomb check is
     replaced by the budget.
     """
-    if isinstance(ref.image, np.ndarray):          # baked in memory (PLY vertex colours)
+    if isinstance(ref.image, np.ndarray):          # baked in memory (vertex colours): linear, taken as it is
         h, w = ref.image.shape[:2]
         if w * h > TEXEL_BUDGET:
             raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path} is {w}x{h} = {w * h:,} texels, more "
@@ -346,9 +351,7 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
                     raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "
                                      f"than the budget of {TEXEL_BUDGET:,} (8192x8192); downsample it")
                 check_atlas(w, h)
-                rgb = _to_rgb(img)
-                if ref.srgb:        # the sRGB transfer function's inverse (IEC 61966-2-1)
-                    rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4).astype(np.float32)
+                rgb = _alpha(img) if decode == "alpha" else _to_rgb(img)
     except (OSError, ValueError, Image.DecompressionBombError) as err:
         if isinstance(err, SceneError):
             raise
@@ -356,7 +359,23 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     for w in caught:
         if not issubclass(w.category, Image.DecompressionBombWarning):
             note(f"{ref.mtl_file}:{ref.line}: texture {path}: {w.message}")
-    return rgb
+    return srgb_to_linear(rgb) if decode == "srgb" else rgb
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function inverted (IEC 61966-2-1), float32 in [0, 1]."""
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / np.float32(12.92),
+                    ((c + np.float32(0.055)) / np.float32(1.055)) ** np.float32(2.4)).astype(np.float32)
+
+
+def _alpha(img: "Image.Image") -> np.ndarray:
+    """The image's alpha channel as grey RGB in [0, 1], or its grey value where it has no alpha."""
+    if "A" in img.getbands():
+        a = np.asarray(img.getchannel("A"), dtype=np.float32) / np.float32(255.0)
+        return np.repeat(a[:, :, None], 3, axis=2)
+    grey = _to_rgb(img).mean(axis=2, keepdims=True)
+    return np.repeat(grey, 3, axis=2).astype(np.float32)
 
 
 def _to_rgb(img: "Image.Image") -> np.ndarray:

@@ -19,32 +19,44 @@ A constant and a texture of the same slot replace each other: the later line win
 kept one texture object per slot).
 
 A file that uses any of the seed's own tags (``Kr``, ``Kt``, ``Kl``, their maps, ``Roughness``,
-``Fuzz``, ``Kn``, ``Refractable``) is in the seed's dialect: its materials keep the seed's defaults
-(a 15% fuzzy specular lobe). In a standard file a material without ``Ks``, ``Ns``, ``Pm``/``Pr``
-or a reflecting/refracting ``illum``/``d`` is purely diffuse (roughness 1): a ``Kd``-only material
-is matte, as every other renderer draws it (``Material.seed_dialect`` records which).
-
-Standard tags mapped onto the same model:
+``Fuzz``, ``Kn``, ``Refractable``) is in the seed's dialect: its materials are of the seed's kind and
+keep the seed's defaults (a 15% fuzzy specular lobe) and its raw texture mapping (SEMANTICS Q18). The
+standard tags it may also use map onto the seed's model as they always did:
 
 * ``Ke`` / ``map_Ke``: emission (as ``Kl``); ``Ks`` / ``map_Ks``: reflect colour (as ``Kr``);
   ``Tf``: refract colour (as ``Kt``); ``Ni``: index of refraction (as ``Kn``).
 * ``d a`` (opacity) and ``Tr t`` (= ``d 1-t``): when the opacity is below 1 the material becomes
   refractable and its diffuse probability is at most the opacity (``d 0`` is clear glass).
-* ``illum 3`` or ``5`` (ray-traced reflection): a mirror, roughness 0 and fuzz 0.
-  ``illum 4``, ``6`` or ``7`` (ray-traced refraction): glass, refractable, roughness 0, fuzz 0.
-  Other illum values change nothing.
+* ``illum 3`` or ``5``: a mirror, roughness 0 and fuzz 0; ``illum 4``, ``6`` or ``7``: glass.
 * The values derived from ``d``/``Tr``/``illum`` never override an explicit ``Roughness``,
   ``Fuzz`` or ``Refractable`` of the same material, wherever the lines stand.
-* ``Ks`` with ``Ns`` (Phong): when ``Ks`` is given, the probability of the specular lobe is
-  max(Ks) / (max(Kd) + max(Ks)) (so ``Ks 0`` is a purely diffuse material), and the Phong exponent
-  gives the reflection blur ``Fuzz = min(1, sqrt(5 / (Ns + 2)))`` (a cos^n lobe and the seed's fuzz
-  ball have the same RMS angle, sqrt(2 / (n + 2)) = sqrt(2/5) Fuzz).
-* PBR ``Pm`` (metallic) and ``Pr`` (roughness): specular probability Pm + 0.04 (1 - Pm) (a
-  dielectric's normal-incidence Fresnel is about 4%); ``Fuzz = Pr``. They take precedence over
-  ``Ks``/``Ns``.
-* Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); they are skipped and
-  ignored. Every other tag (``Ka``, ``bump``, ``map_d``...) is ignored, as are lines before the
-  first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
+* ``Ks`` with ``Ns``: the specular probability max(Ks) / (max(Kd) + max(Ks)), the blur
+  ``Fuzz = min(1, sqrt(5 / (Ns + 2)))``; ``Pm``/``Pr``: specular probability Pm + 0.04 (1 - Pm),
+  ``Fuzz = Pr``.
+
+Every other file is **standard**: its materials are of the physically based kind ``pbr``
+(``warp_spt.core.materials.pbr``; docs/materials.md), colour maps decoded from sRGB, data maps linear:
+
+* ``Kd`` / ``map_Kd``: base colour; ``Ke`` / ``map_Ke``: emission.
+* ``Pm`` / ``map_Pm``: metallic; ``Pr`` / ``map_Pr``: roughness (perceptual, alpha = Pr^2). Without
+  ``Pr``, the Phong exponent gives it: alpha = sqrt(2 / (Ns + 2)) (Walter et al. 2007's Phong-Beckmann
+  correspondence, which GGX shares near the peak), roughness = sqrt(alpha); without either, roughness 1.
+* ``Ks``: Blender's "Specular" (0.5 is a 4% reflection at normal incidence): specular colour = 2 Ks,
+  so F0 = ((Ni - 1)/(Ni + 1))^2 x 2 Ks; ``Ks 0`` has no specular reflection. ``Ni``: the IOR (1.5
+  when absent).
+* ``illum 3`` or ``5`` (ray-traced reflection): a metal (metallic 1, base colour Ks if given, else Kd);
+  with ``illum`` 3 to 7 the roughness is 0 unless ``Pr`` or ``Ns`` say otherwise.
+* ``d a`` / ``Tr t`` (= ``d 1-t``): transmission 1 - d (glass, tinted by ``Tf`` where given);
+  ``illum 4``, ``6`` or ``7``: transmission 1 unless ``d`` says otherwise.
+* ``map_d``: cut-out (the map's alpha channel, else its grey value, is the opacity; below 0.5 a hole).
+* ``norm``: a tangent-space normal map (``-bm`` its strength); ``bump`` / ``map_Bump``: a bump map
+  (height, ``-bm`` its multiplier).
+* ``aniso a`` / ``anisor r``: anisotropy strength and its rotation (a fraction of a turn).
+* ``Ps``/``Pc``/``Pcr`` (sheen, clearcoat) and ``map_Ks`` are not modelled: reported once per file.
+
+* Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); ``-bm`` is read for bump
+  and normal maps, the others are skipped. Every other tag (``Ka``...) is ignored, as are lines before
+  the first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
   options it read but does not support.
 
 ``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
@@ -53,8 +65,8 @@ built-ins: :mod:`warp_spt.core.proctex`); an unknown name or key is a SceneError
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.io.loader.load_scene`, and only for materials that geometry uses.
 Bad values (a non-number, NaN, a reflectance colour outside [0, 1], an emission above 1e30, a
-roughness outside [0, 1], an IOR outside [0.001, 1000], an opacity outside [0, 1]) raise
-:class:`SceneError` with the file and line.
+roughness outside [0, 1], an IOR outside [0.001, 1000], an opacity outside [0, 1], an anisotropy
+outside [0, 1]) raise :class:`SceneError` with the file and line.
 """
 
 from __future__ import annotations
@@ -75,7 +87,7 @@ from warp_spt.io.tokens import (
 )
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.material_schema import COLUMN
-from warp_spt.scene.model import CHECKER_NAME, Material, TextureRef
+from warp_spt.scene.model import CHECKER_NAME, PBR_DEFAULTS, Material, TextureRef
 from warp_spt.scene.validate import MAX_RADIANCE
 
 # Texture options and how many values follow them; (1, 3) means one to three numbers.
@@ -89,6 +101,12 @@ _MAP_SLOTS = {"map_kd": ("diffuse", "reflect"), "map_kr": ("reflect",), "map_ks"
               "map_kt": ("refract",), "map_kl": ("emission",), "map_ke": ("emission",)}
 # Tags only the seed's dialect has: a file using any of them keeps the seed's material defaults.
 SEED_TAGS = frozenset({"kr", "map_kr", "kt", "map_kt", "kl", "map_kl", "roughness", "fuzz", "kn", "refractable"})
+# Maps of standard files only (the pbr kind's data maps): tag -> the pbr column whose map it is.
+_PBR_MAPS = {"map_pr": "roughness", "map_pm": "metallic", "map_d": "opacity", "norm": "normal",
+             "bump": "bump", "map_bump": "bump"}
+# Tags of standard files the pbr kind does not model (yet): reported once per file.
+_UNMODELLED = {"ps": "sheen", "pc": "clearcoat", "pcr": "clearcoat roughness", "map_ps": "sheen",
+               "map_pc": "clearcoat", "map_ks": "specular colour map"}
 
 
 def builtin_checker() -> Material:
@@ -111,9 +129,14 @@ class _Draft:
     opacity: float = 1.0
     illum: int = -1
     phong: dict[str, float] = field(default_factory=dict)   # ks, ns, pr, pm as read
+    ks: tuple[float, float, float] | None = None           # the Ks colour as read
+    tf: tuple[float, float, float] | None = None           # the Tf colour as read
+    pbr: dict[str, object] = field(default_factory=dict)   # pbr-only values and maps (standard files)
 
     def finish(self, seed_dialect: bool) -> Material:
         """The material as read; ``seed_dialect``: its file uses the seed's own tags (module docs)."""
+        if not seed_dialect:
+            return self._pbr_material()
         derived = self._phong_and_pbr()
         if not seed_dialect and not self.phong and self.illum not in (3, 4, 5, 6, 7):
             derived["roughness"] = 1.0       # a standard Kd-only material is matte
@@ -125,6 +148,37 @@ class _Draft:
         if self.opacity < 1.0:
             derived["roughness"] = min(float(derived.get("roughness", self.mat.roughness)), self.opacity)
         return replace(self.mat, **{k: v for k, v in derived.items() if k not in self.explicit})
+
+    def _pbr_material(self) -> Material:
+        """A standard file's material as the pbr kind (module docs: the mapping)."""
+        m, p = self.mat, self.phong
+        if "pr" in p:
+            rough = p["pr"]
+        elif "ns" in p:
+            rough = (2.0 / (p["ns"] + 2.0)) ** 0.25          # sqrt(alpha), alpha = sqrt(2 / (Ns + 2))
+        else:
+            rough = 0.0 if self.illum in (3, 4, 5, 6, 7) else 1.0     # ray-traced reflection/refraction: smooth
+        fields = dict(name=m.name, source=m.source, line=m.line, base_color=m.diffuse, base_color_map=m.diffuse_map,
+                      emission=m.emission, emission_map=m.emission_map, roughness=rough,
+                      metallic=p.get("pm", 0.0), ior=m.ior if self.pbr.get("ni") else PBR_DEFAULTS["ior"])
+        if self.ks is not None:
+            fields["specular_color"] = tuple(min(2.0 * c, 1000.0) for c in self.ks)
+        if self.illum in (3, 5) and "pm" not in p:
+            fields["metallic"] = 1.0
+            if self.ks is not None:
+                fields.update(base_color=self.ks, base_color_map=None)
+        transmission = 1.0 - self.opacity
+        if self.illum in (4, 6, 7) and "d" not in self.pbr:
+            transmission = 1.0
+        if transmission > 0:
+            fields["transmission"] = transmission
+            if self.tf is not None:
+                fields.update(base_color=self.tf, base_color_map=None)
+        for key in ("anisotropy", "anisotropy_rotation", "normal", "bump", "metallic_map", "roughness_map",
+                    "opacity_map", "normal_map", "bump_map"):
+            if key in self.pbr:
+                fields[key] = self.pbr[key]
+        return Material.pbr(**fields)
 
     def _phong_and_pbr(self) -> dict[str, object]:
         """Roughness (diffuse probability) and fuzz from Ks/Ns or Pm/Pr; see the module docs."""
@@ -160,6 +214,7 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
     draft: _Draft | None = None
     seed_dialect = False
     ignored: dict[str, None] = {}        # unsupported tags and texture options, in order of appearance
+    standard_only: dict[str, None] = {}  # tags only the pbr kind reads, or it does not model
     data = normalise_text(data, path, "MTL")
     for lineno, toks in iter_lines(data):
         tag = toks[0].decode("latin-1").lower()
@@ -174,6 +229,12 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
                 ignored[toks[0].decode("latin-1")] = None
             elif tag in _MAP_SLOTS:
                 ignored.update((f"texture option {o}", None) for o in _texture_options(toks[1:]))
+            if tag in _PBR_MAPS or tag in ("aniso", "anisor", "map_ks"):
+                standard_only[toks[0].decode("latin-1")] = None
+    if seed_dialect:        # the seed's kind has no normal, bump or cut-out maps, no anisotropy
+        ignored.update((t, None) for t in standard_only if t.lower() != "map_ks")
+    elif "map_Ks" in standard_only or "map_ks" in standard_only:
+        ignored["map_Ks"] = None
     if warn is not None:
         _report(path, list(ignored), warn)
     return {name: d.finish(seed_dialect) for name, d in drafts.items()}
@@ -205,8 +266,12 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
             setattr(m, slot + "_map", None)
         if tag == "ks":
             d.phong["ks"] = max(colour)
+            d.ks = colour
+        elif tag == "tf":
+            d.tf = colour
     elif tag in _MAP_SLOTS:
-        ref = _proc_map(args, path, lineno, name) or TextureRef(path=_texture_path(args, path, lineno, name),
+        high = min(COLUMN[slot].high for slot in _MAP_SLOTS[tag])     # the schema's, as for colours
+        ref = _proc_map(args, path, lineno, name, high) or TextureRef(path=_texture_path(args, path, lineno, name),
                                                                 mtl_file=path, line=lineno)
         for slot in _MAP_SLOTS[tag]:
             setattr(m, slot + "_map", ref)
@@ -218,13 +283,28 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         d.explicit.add("fuzz")
     elif tag in ("kn", "ni"):
         m.ior = _column_value(args, path, lineno, name, "ior")
+        d.pbr["ni"] = True
+    elif tag in _PBR_MAPS:
+        column = _PBR_MAPS[tag]
+        ref = _proc_map(args, path, lineno, name, COLUMN[column].high) if tag in ("map_pr", "map_pm") else None
+        d.pbr[column + "_map"] = ref or TextureRef(path=_texture_path(args, path, lineno, name), mtl_file=path,
+                                                   line=lineno)
+        bm = _bump_multiplier(args, path, lineno, name)
+        if bm is not None and column in ("normal", "bump"):
+            d.pbr[column] = bm
+    elif tag == "aniso":
+        d.pbr["anisotropy"] = _column_value(args, path, lineno, name, "anisotropy")
+    elif tag == "anisor":
+        d.pbr["anisotropy_rotation"] = 2.0 * np.pi * _number(args, path, lineno, name, lo=-100.0, hi=100.0)
     elif tag == "refractable":
         m.refractable = True
         d.explicit.add("refractable")
     elif tag == "d":
         d.opacity = _number(args, path, lineno, name, lo=0.0, hi=1.0)
+        d.pbr["d"] = True
     elif tag == "tr":
         d.opacity = 1.0 - _number(args, path, lineno, name, lo=0.0, hi=1.0)
+        d.pbr["d"] = True
     elif tag == "illum":
         if len(args) != 1:
             raise SceneError(path, lineno, f"expected 1 integer after 'illum', got {len(args)}")
@@ -236,6 +316,15 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     else:
         return False
     return True
+
+
+def _bump_multiplier(args: list[bytes], path: str, lineno: int, tag: str) -> float | None:
+    """The ``-bm`` option of a bump or normal map statement, if it has one (checked: a plain number
+    in the bump column's range)."""
+    for i, a in enumerate(args[:-1]):
+        if a.decode("latin-1").lower() == "-bm":
+            return _column_value(args[i + 1:i + 2], path, lineno, f"{tag} -bm", "bump")
+    return None
 
 
 def _column_value(args: list[bytes], path: str, lineno: int, tag: str, column: str) -> float:
@@ -272,14 +361,14 @@ def _texture_path(args: list[bytes], path: str, lineno: int, tag: str) -> str:
 def _texture_options(args: list[bytes]) -> list[str]:
     """The options written before a texture's file name (e.g. ``-s``), as they are spelled."""
     return [a.decode("latin-1") for a in args[:-1] if a.decode("latin-1").lower() in _TEX_OPTIONS]
-def _proc_map(args: list[bytes], path: str, lineno: int, tag: str):
-    """``map_* proc:NAME key=value...``: a procedural texture (warp_spt.core.proctex), else None."""
+def _proc_map(args: list[bytes], path: str, lineno: int, tag: str, high: float):
+    """``map_* proc:NAME key=value...``: a procedural texture (warp_spt.core.proctex) whose values may
+    reach ``high``, else None."""
     if not args or not args[0].startswith(b"proc:"):
         return None
     from warp_spt.core.proctex import (
         parse_proc_map,  # imports Warp: only for scenes that use procedural textures
     )
-    high = min(COLUMN[slot].high for slot in _MAP_SLOTS[tag.lower()])     # the schema's, as for colours
     return parse_proc_map(args, path, lineno, tag, high)
 
 

@@ -2,8 +2,9 @@
 
 Open Image Denoise keeps edges and textures much better when it also sees, per pixel, the surface
 colour and normal of what the pixel shows. Through mirrors and glass that is the first surface with
-a lobe with a density (the material kind's ``has_density``: a diffuse lobe, Roughness > 0, for the
-seed's model), seen through the specular bounces, whose colours tint the albedo.
+a lobe with a density (the material contract's ``lobes & LOBE_SMOOTH``: for the seed's model a
+diffuse lobe, Roughness > 0), seen through the specular bounces, whose colours tint the albedo; its
+colour is the kind's ``albedo``.
 Rays that leave the scene give albedo 1 (OIDN's convention for a background) and normal 0.
 
 One small kernel of its own per feature set (the "aov" kind of ``rendering.setup.KERNEL_KINDS``),
@@ -20,14 +21,10 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_ray
-from warp_spt.core.device_scene import (
-    DeviceScene,
-    Features,
-    Geometry,
-    Materials,
-    Textures,
-)
+from warp_spt.core.device_scene import DeviceScene
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import KIND_MISS, NO_HIT, make_closest_hit
+from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import make_surface, offset_origin
 from warp_spt.integrators.common import DIM_BOUNCE, DIM_LENS, DIM_PIXEL, RenderParams
@@ -72,15 +69,15 @@ def _make_kernel(features: Features, sampler: Sampler):
                 if h.kind == KIND_MISS:
                     a = tint
                     break
-                sf = surface_at(g, h, o, d)
-                a = wp.cw_mul(tint, mats.color(t, m.tex[sf.mat][0], m.diffuse[sf.mat], sf))
+                sf = mats.shade(m, t, surface_at(g, h, o, d))
+                a = wp.cw_mul(tint, mats.albedo(m, t, sf))
                 n = sf.ns
-                if mats.has_density(m, sf):
+                if (mats.lobes(m, t, sf) & LOBE_SMOOTH) != 0:
                     break                  # the first surface with a lobe that has a density (diffuse)
                 base = DIM_BOUNCE + AOV_STRIDE * bounce
                 u_dir, st = sampler.next_2d(st, base + AOV_OFF_DIR)
                 u_fresnel, st = sampler.next_1d(st, base + AOV_OFF_FRESNEL)
-                bs = mats.sample(m, t, sf, d, 1.0, u_dir, u_fresnel)     # u_lobe = 1: the specular lobe
+                bs = mats.sample(m, t, sf, 1.0, u_dir, u_fresnel)     # u_lobe = 1: the last (specular) lobe
                 if bs.alive == 0:
                     break
                 tint = wp.cw_mul(tint, bs.weight)

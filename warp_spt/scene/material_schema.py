@@ -32,8 +32,11 @@ INDEX = "index"      # host (M,) int32, device int32; Material: an int
 SLOTS = "slots"      # host (M, NUM_SLOTS) int32, device vec4i: the texture of each slot (model.TEX_*)
 
 # The material models, by index in the ``kind`` column: each is the module
-# warp_spt.core.materials.<name> (a new kind: that module and its name here).
-MATERIAL_KINDS: tuple[str, ...] = ("seed",)
+# warp_spt.core.materials.<name> (a new kind: that module and its name here). ``seed`` is the seed's
+# model (its dialect, the built-in demo, the studio's clay); ``pbr`` the physically based one
+# (glTF metallic-roughness and its extensions; standard MTL files).
+MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr")
+KIND_SEED, KIND_PBR = (MATERIAL_KINDS.index(n) for n in ("seed", "pbr"))
 
 
 @dataclass(frozen=True)
@@ -46,6 +49,11 @@ class Column:
     ``checker``: the built-in checker pattern fills that slot of a ``Material.checker`` material.
     ``differentiable``: a named parameter (``"<material>.<name>"``) that gradients reach;
     ``pathwise``: its derivative bends sampled directions, so only the tape takes it (not path replay).
+    ``channel``: for a scalar with a texture slot, the texel channel its map is read from (glTF packs
+    roughness in G and metallic in B of one texture; a grey map gives the same value in every channel);
+    ``srgb``: a colour whose map is decoded from sRGB in standard files (data maps stay linear; the
+    seed's dialect keeps its raw mapping, SEMANTICS Q18). ``kinds``: the material kinds that read the
+    column (empty: every kind).
     """
 
     name: str
@@ -58,27 +66,59 @@ class Column:
     checker: bool = False
     differentiable: bool = False
     pathwise: bool = False
+    channel: int | None = None
+    srgb: bool = False
+    kinds: tuple[str, ...] = ()
 
 
 # The seed's defaults (SEMANTICS §6): its MTL colours are bytes / 256.
 COLUMNS: tuple[Column, ...] = (
     Column("diffuse", COLOR, (0x9F / 256, 0x8F / 256, 0x7C / 256), 0.0, 1.0, "diffuse colour (Kd)",
-           slot=0, checker=True, differentiable=True),
+           slot=0, checker=True, differentiable=True, srgb=True, kinds=("seed",)),
     Column("reflect", COLOR, (0xAF / 256, 0xBF / 256, 0xCF / 256), 0.0, 1.0, "mirror colour (Kr, Ks)",
-           slot=1, checker=True, differentiable=True),
+           slot=1, checker=True, differentiable=True, srgb=True, kinds=("seed",)),
     Column("refract", COLOR, (0xBB / 256, 0xBC / 256, 0xB1 / 256), 0.0, 1.0, "transmission colour of glass (Kt, Tf)",
-           slot=2, differentiable=True),
+           slot=2, differentiable=True, srgb=True, kinds=("seed",)),
     Column("emission", COLOR, (0.0, 0.0, 0.0), 0.0, MAX_RADIANCE, "emitted radiance, both faces (Kl, Ke)",
-           slot=3, differentiable=True),
+           slot=3, differentiable=True, srgb=True),
     Column("tex", SLOTS, None, None, None, "texture of each slot: TEX_NONE, TEX_CHECKER, a texture or a "
            "procedural instance (from the colours' maps and Material.checker)"),
-    Column("roughness", SCALAR, 0.85, 0.0, 1.0, "probability of the diffuse lobe (the seed's diffuseWeight)",
-           differentiable=True),
+    Column("roughness", SCALAR, 0.85, 0.0, 1.0, "seed: probability of the diffuse lobe (the seed's "
+           "diffuseWeight); pbr: perceptual roughness (alpha = roughness^2; glTF roughnessFactor, MTL Pr)",
+           differentiable=True, slot=6, channel=1),
     Column("fuzz", SCALAR, 0.62, 0.0, None, "length of the mirror's random perturbation (1 - reflectClearness)",
-           differentiable=True, pathwise=True),
+           differentiable=True, pathwise=True, kinds=("seed",)),
     Column("ior", SCALAR, 1.0, MIN_IOR, MAX_IOR, "index of refraction (Kn, Ni)"),
-    Column("refractable", FLAG, False, None, None, "the specular lobe may refract: glass"),
+    Column("refractable", FLAG, False, None, None, "the specular lobe may refract: glass", kinds=("seed",)),
     Column("kind", INDEX, 0, 0, len(MATERIAL_KINDS) - 1, "the material model: an index into MATERIAL_KINDS"),
+    # The pbr kind's own columns (glTF 2.0 metallic-roughness and KHR_materials_*; docs/materials.md).
+    Column("base_color", COLOR, (0.8, 0.8, 0.8), 0.0, 1.0, "base colour (glTF baseColorFactor, MTL Kd)",
+           slot=4, differentiable=True, srgb=True, kinds=("pbr",)),
+    Column("metallic", SCALAR, 0.0, 0.0, 1.0, "metalness: 1 a conductor whose F0 is the base colour (Pm)",
+           slot=5, channel=2, differentiable=True, kinds=("pbr",)),
+    Column("anisotropy", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_anisotropy strength: alpha along the "
+           "tangent becomes mix(alpha, 1, anisotropy^2) (MTL aniso)", differentiable=True, kinds=("pbr",)),
+    Column("anisotropy_rotation", SCALAR, 0.0, -1000.0, 1000.0, "rotation of the anisotropy direction from "
+           "the tangent (the uv's u direction), radians (MTL anisor x 2 pi)", kinds=("pbr",)),
+    Column("specular", SCALAR, 1.0, 0.0, 1.0, "KHR_materials_specular specularFactor: scales the dielectric "
+           "reflection's F0", kinds=("pbr",)),
+    Column("specular_color", COLOR, (1.0, 1.0, 1.0), 0.0, 1000.0, "KHR_materials_specular specularColorFactor "
+           "(MTL Ks); F0 = min(((ior - 1) / (ior + 1))^2 x colour, 1) x specular", kinds=("pbr",)),
+    Column("transmission", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_transmission: share of the dielectric base "
+           "that refracts instead of scattering diffusely (MTL Tr, 1 - d, illum 4/6/7)",
+           differentiable=True, kinds=("pbr",)),
+    Column("thin", FLAG, False, None, None, "thin-walled: transmitted light leaves on the other side "
+           "unbent (a sheet, not a solid)", kinds=("pbr",)),
+    Column("normal", SCALAR, 1.0, 0.0, 10.0, "normal-map strength (glTF normalTexture.scale; the map is "
+           "normal_map, tangent space)", slot=7, kinds=("pbr",)),
+    Column("bump", SCALAR, 1.0, -1000.0, 1000.0, "bump-map multiplier (MTL -bm; the height map is bump_map, "
+           "in uv units)", slot=8, channel=0, kinds=("pbr",)),
+    Column("opacity", SCALAR, 1.0, 0.0, 1.0, "coverage: below alpha_cutoff the surface is a hole (cut-out; "
+           "glTF alpha, MTL d / map_d)", slot=9, channel=0, kinds=("pbr",)),
+    Column("alpha_cutoff", SCALAR, 0.5, 0.0, 1.0, "opacity below which the surface is a hole", kinds=("pbr",)),
+    Column("multiscatter", FLAG, True, None, None, "compensate the GGX reflection lobes' single-scattering "
+           "energy loss (Turquin 2019); off: the bare single-scattering lobes, as most real-time viewers draw "
+           "them", kinds=("pbr",)),
 )
 
 COLUMN = {c.name: c for c in COLUMNS}
@@ -108,7 +148,9 @@ def _check_schema() -> None:
     """Slots number 0..NUM_SLOTS-1 once each and belong to colours; names are unique."""
     assert len(COLUMN) == len(COLUMNS), "duplicate column names"
     assert [c.slot for c in SLOT_COLUMNS] == list(range(NUM_SLOTS)), "slots must be 0..n-1"
-    assert all(c.type == COLOR for c in SLOT_COLUMNS), "only colours have texture slots"
+    assert all(c.type == COLOR or (c.type == SCALAR and c.channel is not None) or c.name == "normal"
+               for c in SLOT_COLUMNS), "texture slots belong to colours and to scalars that name their channel"
+    assert all(set(c.kinds) <= set(MATERIAL_KINDS) for c in COLUMNS), "columns name registered kinds"
     assert sum(c.type == SLOTS for c in COLUMNS) == 1, "one slots column"
 
 

@@ -45,14 +45,13 @@ class TextureRef:
 
     ``image``, when given, is the texture itself: an encoded image file's bytes (a glTF's embedded
     PNG or JPEG) or an (H, W, 3) float32 array in [0, 1] (a PLY's baked vertex colours); ``path`` then
-    only names it (it must be unique: the loader reads each name once). ``srgb`` asks the loader to
-    decode the sRGB transfer function (MTL textures are read as the seed reads them: value / 255)."""
+    only names it (it must be unique: the loader reads each name once). A baked array holds linear
+    values: the loader takes it as it is, whatever its slot's decoding."""
 
     path: str
     mtl_file: str
     line: int
     image: bytes | np.ndarray | None = field(default=None, compare=False, repr=False)
-    srgb: bool = False           # the texels are sRGB-encoded colours (glTF's base colour, emission): decode
 
 
 def _material_fields() -> list[tuple]:
@@ -68,8 +67,24 @@ def _material_fields() -> list[tuple]:
                ("line", "int", field(default=0))])             # line of its ``newmtl``
 
 
-Material = make_dataclass("Material", _material_fields(), namespace={"__module__": __name__, "__doc__": """\
-One material of the seed's model (SEMANTICS §6), before textures are loaded.
+# The pbr kind's defaults for Material.pbr: a grey dielectric of medium roughness, glass's IOR. (glTF's
+# own defaults, metallic 1 and roughness 1, are the glTF reader's to apply.)
+PBR_DEFAULTS = {"base_color": (0.8, 0.8, 0.8), "metallic": 0.0, "roughness": 0.5, "ior": 1.5,
+                "specular": 1.0, "specular_color": (1.0, 1.0, 1.0), "transmission": 0.0, "seed_dialect": False}
+
+
+def _pbr(cls, name: str, **fields) -> "Material":
+    """A material of the physically based kind (``kind`` = KIND_PBR) with :data:`PBR_DEFAULTS` for the
+    fields not given (docs/materials.md: base_color, metallic, roughness, anisotropy, ior, specular,
+    transmission, thin, emission, normal/bump/opacity maps, ...)."""
+    from warp_spt.scene.material_schema import KIND_PBR
+    return cls(name=name, **{**PBR_DEFAULTS, **fields, "kind": KIND_PBR})
+
+
+Material = make_dataclass("Material", _material_fields(), namespace={"__module__": __name__, "pbr": classmethod(_pbr),
+                                                                     "__doc__": """\
+One material row (the seed's model, SEMANTICS §6, unless ``kind`` names another), before textures are
+loaded. ``Material.pbr(name, **fields)`` makes one of the physically based kind.
 
 Its fields and defaults come from the material schema (``warp_spt.scene.material_schema``): a
 field per column (``roughness`` is the probability of the diffuse lobe, the seed's diffuseWeight;
@@ -143,8 +158,9 @@ def _from_rows(cls, rows: list, texture_index: Callable[[object], int] | None = 
     return cls(names=[m.name for m in rows], **columns)
 
 
-def _slots(rows: list, texture_index: Callable[[object], int] | None) -> np.ndarray:
-    """(M, NUM_SLOTS) int32: the checker in the checker slots of checker materials, then each map."""
+def _slots(rows: list, texture_index: Callable[[object, str], int] | None) -> np.ndarray:
+    """(M, NUM_SLOTS) int32: the checker in the checker slots of checker materials, then each map,
+    read by ``texture_index(ref, decode)`` as :func:`texture_decode` says."""
     tex = np.full((len(rows), NUM_SLOTS), TEX_NONE, dtype=np.int32)
     for r, m in enumerate(rows):
         if m.checker:
@@ -152,8 +168,21 @@ def _slots(rows: list, texture_index: Callable[[object], int] | None) -> np.ndar
         for c in SLOT_COLUMNS:
             ref = getattr(m, f"{c.name}_map")
             if ref is not None:
-                tex[r, c.slot] = texture_index(ref)
+                tex[r, c.slot] = texture_index(ref, texture_decode(m, c.name))
     return tex
+
+
+def texture_decode(m, column: str) -> str:
+    """How material ``m``'s map of ``column`` is read into linear values: ``"raw"`` (the seed's kind
+    keeps its maps' values as stored, SEMANTICS Q18), ``"srgb"`` (a colour map of another kind:
+    decoded from sRGB), ``"alpha"`` (an opacity map: its alpha channel, else its grey value) or
+    ``"linear"`` (a data map: roughness, metallic, normal, bump)."""
+    from warp_spt.scene.material_schema import COLUMN, KIND_SEED
+    if m.kind == KIND_SEED:
+        return "raw"
+    if column == "opacity":
+        return "alpha"
+    return "srgb" if COLUMN[column].srgb else "linear"
 
 
 def _with_rows(self, rows: list) -> "MaterialTable":

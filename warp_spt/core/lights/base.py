@@ -14,7 +14,7 @@ from typing import Any, Callable
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import Features
+from warp_spt.core.structs import Features
 from warp_spt.core.geometry import Hit
 from warp_spt.core.textures import checker_np, sample_texture_np
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene

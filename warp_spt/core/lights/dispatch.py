@@ -23,7 +23,7 @@ from types import SimpleNamespace
 
 import warp as wp
 
-from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
+from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import KIND_MISS, Hit
 from warp_spt.core.lights.base import LightSample
 from warp_spt.core.lights.registry import KINDS

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import Features, Geometry
+from warp_spt.core.structs import Features, Geometry
 from warp_spt.core.geometry import KIND_MISS, NO_HIT
 from warp_spt.core.lights.base import LightKind, LightSample, Weighed
 from warp_spt.core.sampling import TWO_PI

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import Features, Geometry
+from warp_spt.core.structs import Features, Geometry
 from warp_spt.core.geometry import KIND_SPHERE, NO_HIT, Hit, sphere_hit
 from warp_spt.core.lights.base import (
     LightKind,

@@ -17,27 +17,57 @@ Fixes over the seed: inside/outside comes from the geometry (Q3), diffuse sampli
 cosine-weighted, a fuzzed reflection below the surface is absorbed (Q6), total internal reflection
 reflects.
 
-:func:`make` compiles only the lobes the scene's materials use (Features.diffuse, .specular,
-.refraction). It is the kind ``"seed"`` of the material-kind registry (``warp_spt.core.materials``;
-the interface is in ``warp_spt.core.materials.common``).
+:func:`declare` names the lobes the scene's rows of this kind use (``"seed.diffuse"``: some
+Roughness > 0, ``"seed.specular"``: some < 1, ``"seed.refraction"``: some refractable) and :func:`make`
+compiles only those. It draws the lobe choice only where both lobes exist and the Fresnel choice only
+where some row refracts, as the renderer always did, so the seed's scenes keep their images bit for
+bit. It is the kind ``"seed"`` of the material-kind registry (``warp_spt.core.materials``; the
+contract is in ``warp_spt.core.materials.common``); it needs no shading frame (it works in world space).
 """
 
 from __future__ import annotations
 
 from types import SimpleNamespace
 
+import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import Features, Materials, Textures
+from warp_spt.core.lobes import (
+    LOBE_DIFFUSE,
+    LOBE_REFLECTION,
+    LOBE_SPECULAR,
+    LOBE_TRANSMISSION,
+)
 from warp_spt.core.materials.common import BsdfSample, lobe_weight
 from warp_spt.core.sampling import cosine_hemisphere, uniform_sphere
+from warp_spt.core.structs import Features, Materials, Textures
 from warp_spt.core.surface import INV_PI, Surface
 from warp_spt.scene.model import SLOT_DIFFUSE, SLOT_REFLECT, SLOT_REFRACT
 
+DIFFUSE_LOBE = LOBE_DIFFUSE | LOBE_REFLECTION
+MIRROR_LOBE = LOBE_SPECULAR | LOBE_REFLECTION
+GLASS_LOBE = LOBE_SPECULAR | LOBE_TRANSMISSION
 
-def make(features: Features, color) -> SimpleNamespace:
-    """``sample``, ``eval``, ``pdf``, ``has_density`` of the seed's model as Warp functions for these
-    features; ``color`` reads a colour column with its texture (``common.make_color``)."""
+
+def declare(table, rows: np.ndarray) -> tuple[int, frozenset]:
+    """The lobes of the seed's ``rows`` of ``table`` and the code paths they need (module docs)."""
+    rough = table.roughness[rows]
+    diffuse, specular = bool((rough > 0).any()), bool((rough < 1).any())
+    refraction = bool(table.refractable[rows].any())
+    lobes = (DIFFUSE_LOBE if diffuse else 0) | (MIRROR_LOBE if specular else 0) | (GLASS_LOBE if refraction else 0)
+    flags = {name for name, on in (("seed.diffuse", diffuse), ("seed.specular", specular),
+                                   ("seed.refraction", refraction), ("dims.lobe", diffuse and specular),
+                                   ("dims.fresnel", refraction)) if on}
+    return lobes, frozenset(flags)
+
+
+def make(features: Features, base) -> SimpleNamespace:
+    """The contract's functions (``shade``, ``sample``, ``eval``, ``pdf``, ``albedo``, ``lobes``) of the
+    seed's model for these features; ``base.color`` reads a colour column with its texture."""
+    color = base.color
+    has_diffuse = features.needs("seed.diffuse")
+    has_specular = features.needs("seed.specular")
+    has_refraction = features.needs("seed.refraction")
 
     @wp.func
     def specular(m: Materials, t: Textures, sf: Surface, d: wp.vec3, u_dir: wp.vec2, u_fresnel: float) -> BsdfSample:
@@ -46,10 +76,11 @@ def make(features: Features, color) -> SimpleNamespace:
         out.alive = 1
         out.through = 0
         out.singular = 1
+        out.flags = MIRROR_LOBE
         out.pdf = 0.0
         tex = m.tex[sf.mat]
         cos_i = wp.clamp(-wp.dot(d, sf.ns), 0.0, 1.0)
-        if wp.static(features.refraction):
+        if wp.static(has_refraction):
             if m.refractable[sf.mat] != 0:
                 eta = m.ior[sf.mat]                # ratio n_incident / n_transmitted
                 if sf.front != 0:
@@ -65,6 +96,7 @@ def make(features: Features, color) -> SimpleNamespace:
                         out.dir = wp.normalize(tr)
                         out.weight = color(t, tex[wp.static(SLOT_REFRACT)], m.refract[sf.mat], sf)
                         out.through = 1
+                        out.flags = GLASS_LOBE
                         if wp.dot(out.dir, sf.ng) >= 0.0:
                             out.alive = 0
                         return out
@@ -76,37 +108,38 @@ def make(features: Features, color) -> SimpleNamespace:
         return out
 
     @wp.func
-    def sample(m: Materials, t: Textures, sf: Surface, d: wp.vec3, u_lobe: float, u_dir: wp.vec2,
-               u_fresnel: float) -> BsdfSample:
+    def sample(m: Materials, t: Textures, sf: Surface, u_lobe: float, u_dir: wp.vec2, u_fresnel: float) -> BsdfSample:
         """Choose a lobe with ``u_lobe`` and sample its direction with ``u_dir`` (and ``u_fresnel``)."""
-        if wp.static(features.diffuse):
+        d = -sf.wo
+        if wp.static(has_diffuse):
             rough = m.roughness[sf.mat]
             diffuse = u_lobe < rough
-            if wp.static(not features.specular):
+            if wp.static(not has_specular):
                 diffuse = True
             if diffuse:
                 out = BsdfSample()
                 out.alive = 1
                 out.through = 0
                 out.singular = 0
+                out.flags = DIFFUSE_LOBE
                 out.weight = color(t, m.tex[sf.mat][wp.static(SLOT_DIFFUSE)], m.diffuse[sf.mat], sf)
-                if wp.static(features.specular):
+                if wp.static(has_specular):
                     out.weight = out.weight * lobe_weight(rough)
                 out.dir = cosine_hemisphere(sf.ns, u_dir[0], u_dir[1])
                 out.pdf = rough * wp.max(wp.dot(out.dir, sf.ns), 0.0) * INV_PI
                 if wp.dot(out.dir, sf.ng) <= 0.0:
                     out.alive = 0          # a smooth normal pointed it below the real surface
                 return out
-            if wp.static(features.specular):
+            if wp.static(has_specular):
                 sp = specular(m, t, sf, d, u_dir, u_fresnel)
                 sp.weight = sp.weight * lobe_weight(1.0 - rough)
                 return sp
         return specular(m, t, sf, d, u_dir, u_fresnel)
 
     @wp.func
-    def pdf(m: Materials, sf: Surface, wi: wp.vec3) -> float:
+    def pdf(m: Materials, t: Textures, sf: Surface, wi: wp.vec3) -> float:
         """Density of ``sample`` producing ``wi`` through its diffuse lobe (singular lobes have none)."""
-        if wp.static(features.diffuse):
+        if wp.static(has_diffuse):
             return m.roughness[sf.mat] * wp.max(wp.dot(wi, sf.ns), 0.0) * INV_PI
         return 0.0
 
@@ -114,7 +147,7 @@ def make(features: Features, color) -> SimpleNamespace:
     def eval(m: Materials, t: Textures, sf: Surface, wi: wp.vec3) -> wp.vec3:
         """f(wi) cos for the diffuse lobe: zero below the shading or the geometric surface, as in
         ``sample``, which absorbs such directions."""
-        if wp.static(features.diffuse):
+        if wp.static(has_diffuse):
             c = wp.dot(wi, sf.ns)
             if c > 0.0 and wp.dot(wi, sf.ng) > 0.0:
                 kd = color(t, m.tex[sf.mat][wp.static(SLOT_DIFFUSE)], m.diffuse[sf.mat], sf)
@@ -122,8 +155,25 @@ def make(features: Features, color) -> SimpleNamespace:
         return wp.vec3(0.0, 0.0, 0.0)
 
     @wp.func
-    def has_density(m: Materials, sf: Surface) -> bool:
-        """The diffuse lobe is the only one with a density: it exists where Roughness > 0."""
-        return m.roughness[sf.mat] > 0.0
+    def lobes(m: Materials, t: Textures, sf: Surface) -> int:
+        """The diffuse lobe exists where Roughness > 0 (the only lobe with a density), the mirror or
+        glass lobe where it is < 1."""
+        rough = m.roughness[sf.mat]
+        out = int(0)
+        if rough > 0.0:
+            out = out | DIFFUSE_LOBE
+        if rough < 1.0:
+            out = out | wp.where(m.refractable[sf.mat] != 0, MIRROR_LOBE | GLASS_LOBE, MIRROR_LOBE)
+        return out
 
-    return SimpleNamespace(sample=sample, pdf=pdf, eval=eval, has_density=has_density)
+    @wp.func
+    def albedo(m: Materials, t: Textures, sf: Surface) -> wp.vec3:
+        """The diffuse colour (with its texture): what the denoiser's albedo pass has always recorded."""
+        return color(t, m.tex[sf.mat][wp.static(SLOT_DIFFUSE)], m.diffuse[sf.mat], sf)
+
+    @wp.func
+    def shade(m: Materials, t: Textures, sf: Surface) -> Surface:
+        """The seed's model shades with the surface as it is."""
+        return sf
+
+    return SimpleNamespace(shade=shade, sample=sample, pdf=pdf, eval=eval, albedo=albedo, lobes=lobes)

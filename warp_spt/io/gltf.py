@@ -56,7 +56,8 @@ _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "M
 _MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
           6: "triangle fans"}
 SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_lights_punctual",
-                        "KHR_materials_emissive_strength"}
+                        "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission",
+                        "KHR_materials_volume", "KHR_materials_specular", "KHR_materials_anisotropy"}
 
 
 @dataclass

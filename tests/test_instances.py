@@ -142,7 +142,7 @@ def test_instanced_hits_equal_the_flattened_scene(wide_limit):
     # shadow rays ending at a random fraction of the way to the closest hit, or beyond it: blocked
     # exactly when they reach it (rays ending within 1e-3 of the hit are left out: rounding)
     frac = rng.uniform(0.0, 2.0, len(o)).astype(np.float32)
-    t_max = np.where(hit, tf * frac, 50.0).astype(np.float32)
+    t_max = np.where(hit, np.where(hit, tf, 0.0) * frac, 50.0).astype(np.float32)   # misses: t = 3e38
     clear = ~hit | (np.abs(frac - 1) > 1e-3)
     args = [wp.array(o, dtype=wp.vec3), wp.array(d, dtype=wp.vec3), wp.array(t_max, dtype=float)]
     flat_out, inst_out = wp.zeros(len(o), dtype=int), wp.zeros(len(o), dtype=int)

@@ -470,3 +470,19 @@ def test_materials_map_onto_the_pbr_kind():
     d2 = _load(gltf_box())
     default = d2.materials["gltf default material"]
     assert (default.kind, default.base_color, default.metallic, default.roughness) == (KIND_PBR, (1, 1, 1), 1, 1)
+
+
+def test_an_animated_gltf_gives_the_frames_of_its_time_range(tmp_path):
+    from PIL import Image
+
+    from warp_spt.animation import ObjSequence
+    from warp_spt.cli.main import main
+
+    (tmp_path / "a.glb").write_bytes(format_files.gltf_animated().glb())      # keys over t in [0, 2]
+    (tmp_path / "box.glb").write_bytes(gltf_box().glb())
+    assert ObjSequence([str(tmp_path / "a.glb"), str(tmp_path / "box.glb")], fps=4).default_frames() == range(0, 9)
+    assert ObjSequence([str(tmp_path / "box.glb")]).default_frames() is None
+    assert main(["-obj", str(tmp_path / "a.glb"), "--fps", "1", "--gif", str(tmp_path / "a.gif"), "-res", "8", "8",
+                 "-sr", "1", "--quiet", "--look-at", "1", "0", "0"]) == 0
+    with Image.open(tmp_path / "a.gif") as gif:
+        assert gif.n_frames == 3                                              # t = 0, 1, 2

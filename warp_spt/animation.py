@@ -221,6 +221,23 @@ class ObjSequence:
         """True when some OBJ path is a per-frame template."""
         return any(is_template(p) for p in self.objs)
 
+    def default_frames(self) -> range | None:
+        """The frames that cover the animated glTF files' time ranges at ``fps`` (from frame 0, at time
+        0), or None when no static file is an animated glTF."""
+        from warp_spt.io.loader import read_model
+
+        end = None
+        for p in self.objs:
+            if is_template(p):
+                continue
+            if p not in self._parsed:
+                self._parsed[p] = read_model(p)
+                self.loads += 1
+            span = getattr(self._parsed[p].extras, "time_range", None)
+            if span is not None:
+                end = max(end or 0.0, span[1])
+        return None if end is None else range(0, int(math.floor(end * self.fps + 1e-9)) + 1)
+
     def paths(self, frame: int) -> list[str]:
         """The OBJ files of ``frame``."""
         return [frame_path(p, frame) for p in self.objs]

@@ -486,3 +486,18 @@ def test_an_animated_gltf_gives_the_frames_of_its_time_range(tmp_path):
                  "-sr", "1", "--quiet", "--look-at", "1", "0", "0"]) == 0
     with Image.open(tmp_path / "a.gif") as gif:
         assert gif.n_frames == 3                                              # t = 0, 1, 2
+
+
+def test_an_animated_camera_follows_its_node_per_frame(tmp_path):
+    from warp_spt.animation import ObjSequence
+    from warp_spt.io.gltf import choose_camera
+
+    g = gltf_camera_and_light()
+    times = g.accessor(np.array([0.0, 1.0], np.float32), "SCALAR", 5126)
+    moves = g.accessor(np.array([[0, 0, 5], [0, 0, 9]], np.float32), "VEC3", 5126)
+    g.doc["animations"] = [{"samplers": [{"input": times, "output": moves}],
+                            "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}]}]
+    (tmp_path / "c.glb").write_bytes(g.glb())
+    seq = ObjSequence([str(tmp_path / "c.glb")], fps=2)
+    positions = [choose_camera(seq.scene(k).cameras, "front", 10, 10).position for k in (0, 1, 2)]
+    assert np.allclose(positions, [(0, 0, 5), (0, 0, 7), (0, 0, 9)])

@@ -125,7 +125,7 @@ def test_the_textured_box_has_its_data_uri_image_and_transformed_uv():
     from warp_spt.io.loader import load_scene
 
     d = _load(gltf_textured_box())
-    m = d.materials["checker"]
+    m = d.materials["scene.gltf: checker"]
     assert isinstance(m.base_color_map.image, bytes) and m.kind == KIND_PBR and m.metallic == 0.0
     # uv = (x + 0.5, y + 0.5) offset by (0.25, 0), then v -> 1 - v
     want = np.stack([CUBE_POSITIONS[:, 0] + 0.75, 1 - (CUBE_POSITIONS[:, 1] + 0.5)], axis=1)
@@ -309,9 +309,9 @@ def test_vertex_colours_times_the_base_colour_factor_are_baked():
     g.node(mesh=0)
     g.node(mesh=1)
     d = _load(g)
-    assert d.material_names == ["Inner_CheckerTexture", "half red", "half red (vertex colours)"]
+    assert d.material_names == ["Inner_CheckerTexture", "scene.gltf: half red", "scene.gltf: half red (vertex colours)"]
     assert np.array_equal(d.face_material, [2, 1])
-    image = d.materials["half red (vertex colours)"].base_color_map.image
+    image = d.materials["scene.gltf: half red (vertex colours)"].base_color_map.image
     corners = d.texcoords[d.face_texcoords[0]]
     assert np.allclose(sample_texture_np(image, corners), [[0.5, 0, 0], [0, 1, 0], [0, 0, 1]])
     assert np.all(d.face_texcoords[1] == -1)
@@ -454,7 +454,7 @@ def test_materials_map_onto_the_pbr_kind():
                        "KHR_materials_specular": {"specularFactor": 0.4, "specularColorFactor": [1, 0.5, 0.5]},
                        "KHR_materials_anisotropy": {"anisotropyStrength": 0.6, "anisotropyRotation": 1.0}}}]
     d = _load(g)
-    m = d.materials["full"]
+    m = d.materials["scene.gltf: full"]
     assert m.kind == KIND_PBR and m.base_color == (0.2, 0.4, 0.6) and (m.metallic, m.roughness) == (0.3, 0.8)
     assert m.metallic_map is m.roughness_map and m.metallic_map.path == "images/1"       # the packed texture
     assert (m.normal, m.normal_map.path) == (0.7, "images/2")
@@ -468,7 +468,7 @@ def test_materials_map_onto_the_pbr_kind():
     # base colour (sRGB), its alpha, the packed metallic-roughness (read once for both maps), the normal map
     assert len(scene.textures) == 4
     d2 = _load(gltf_box())
-    default = d2.materials["gltf default material"]
+    default = d2.materials["scene.gltf: default material"]
     assert (default.kind, default.base_color, default.metallic, default.roughness) == (KIND_PBR, (1, 1, 1), 1, 1)
 
 
@@ -501,3 +501,17 @@ def test_an_animated_camera_follows_its_node_per_frame(tmp_path):
     seq = ObjSequence([str(tmp_path / "c.glb")], fps=2)
     positions = [choose_camera(seq.scene(k).cameras, "front", 10, 10).position for k in (0, 1, 2)]
     assert np.allclose(positions, [(0, 0, 5), (0, 0, 7), (0, 0, 9)])
+
+
+def test_materials_of_the_same_name_in_two_files_stay_apart(tmp_path):
+    from warp_spt.io.loader import load_scene
+
+    for name, colour in (("a.gltf", [1, 0, 0, 1]), ("b.gltf", [0, 0, 1, 1])):
+        g = gltf_box()
+        g.doc["meshes"][0]["primitives"][0]["material"] = 0
+        g.doc["materials"] = [{"name": "Material", "pbrMetallicRoughness": {"baseColorFactor": colour}}]
+        (tmp_path / name).write_bytes(g.gltf()[0])
+    scene = load_scene([tmp_path / "a.gltf", tmp_path / "b.gltf"])
+    rows = [scene.materials.names.index(n) for n in ("a.gltf: Material", "b.gltf: Material")]
+    assert [m.face_material[0] for m in scene.meshes] == rows
+    assert np.array_equal(scene.materials.base_color[rows], [[1, 0, 0], [0, 0, 1]])

@@ -25,7 +25,7 @@ def test_the_pyramid_reads_as_written_by_hand(fmt, colours, junk):
     assert np.array_equal(d.positions, PLY_POSITIONS)
     assert np.array_equal(d.faces, PLY_TRIANGLES)          # quad fanned, strips restarted, odd ones swapped
     assert d.dropped_degenerate == 0
-    assert (VERTEX_COLOUR_MATERIAL in d.materials) == colours
+    assert (f"p.ply: {VERTEX_COLOUR_MATERIAL}" in d.materials) == colours
     assert np.all(d.face_material == (1 if colours else 0))
 
 
@@ -43,7 +43,7 @@ def test_vertex_colours_are_the_corners_and_bilinear_is_linear_inside():
     from warp_spt.core.textures import sample_texture_np
 
     d = parse_ply_bytes(ply_bytes(), "p.ply")
-    image = d.materials[VERTEX_COLOUR_MATERIAL].diffuse_map.image
+    image = d.materials[f"p.ply: {VERTEX_COLOUR_MATERIAL}"].diffuse_map.image
     want = PLY_COLOURS.astype(np.float32) / 255
     uv = d.texcoords[d.face_texcoords]                       # (F, 3, 2)
     for f, corners in zip(d.faces, uv):
@@ -161,7 +161,8 @@ def test_through_the_loader_by_suffix_and_by_content(tmp_path):
     a = load_scene([tmp_path / "pyramid.ply"])
     b = load_scene([tmp_path / "misnamed.obj"])
     assert a.num_triangles == b.num_triangles == len(PLY_TRIANGLES)
-    assert a.materials.names == ["Inner_CheckerTexture", VERTEX_COLOUR_MATERIAL] and len(a.textures) == 1
+    assert a.materials.names == ["Inner_CheckerTexture", f"pyramid.ply: {VERTEX_COLOUR_MATERIAL}"]
+    assert len(a.textures) == 1
     assert b.bare and not a.bare                # vertex colours count as the file's own material
 
 
@@ -184,3 +185,13 @@ def test_the_colour_texture_bound_covers_the_texture_made():
         _, _, image = vertex_colour_texture(np.zeros((1, 3)), faces)
         assert image.shape[0] * image.shape[1] <= 4 * (f + 2 * int(np.sqrt(f)) + 1)
     assert colour_texture_fits(16_000_000) and not colour_texture_fits(2**24)
+
+
+def test_two_coloured_files_keep_their_own_colours(tmp_path):
+    from warp_spt.io.loader import load_scene
+
+    (tmp_path / "a.ply").write_bytes(ply_bytes("ascii"))
+    (tmp_path / "b.ply").write_bytes(ply_bytes("ascii").replace(b"0 0 0 255 0 0", b"0 0 0 0 0 0"))
+    scene = load_scene([tmp_path / "a.ply", tmp_path / "b.ply"])
+    assert len(scene.textures) == 2 and not np.array_equal(scene.textures[0], scene.textures[1])
+    assert [m.face_material[0] for m in scene.meshes] == [1, 2]

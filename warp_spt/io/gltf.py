@@ -843,10 +843,11 @@ class _Reader:
         both maps (the kind reads its B and G channels); the base colour texture's alpha is the opacity
         map of a MASK or BLEND material. Colour maps are decoded from sRGB by the loader (by slot)."""
         if mat is None:          # glTF's default material: white, metallic 1, roughness 1
-            name = "gltf default material"
+            name = f"{Path(self.path).name}: default material"
             return name, self._pbr_material(name, dict(base_color=(1.0, 1.0, 1.0), metallic=1.0, roughness=1.0))
         rec = self._material_record(mat)
-        name = rec.name or f"material {mat}"
+        # named after the file: materials of the same name in two files of a scene stay apart
+        name = f"{Path(self.path).name}: {rec.name or f'material {mat}'}"
         while name in names or name == CHECKER_NAME:
             name = f"{name} ({mat})"
         mptr = f"/materials/{mat}"

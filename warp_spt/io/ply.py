@@ -49,7 +49,7 @@ _FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"
 MAX_HEADER_BYTES = 1 << 20      # a header is a few hundred bytes; this bounds the search for its end
 MAX_HEADER_LINES = 10_000
 MAX_LIST_LENGTH = 1 << 20       # corners of one polygon or indices of one strip row (beyond: a forged count)
-VERTEX_COLOUR_MATERIAL = "ply_vertex_colours"
+VERTEX_COLOUR_MATERIAL = "vertex colours"   # the material's name after the file's: "scan.ply: vertex colours"
 _UV_NAMES = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 _COLOUR_NAMES = (("red", "green", "blue"), ("diffuse_red", "diffuse_green", "diffuse_blue"),
                  ("r", "g", "b"))
@@ -465,9 +465,11 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
         colours = None
     if colours is not None and len(tri):
         texcoords, face_tex, image = vertex_colour_texture(colours, tri)
-        names.append(VERTEX_COLOUR_MATERIAL)
-        materials[VERTEX_COLOUR_MATERIAL] = Material(
-            VERTEX_COLOUR_MATERIAL, diffuse=(1.0, 1.0, 1.0), roughness=1.0, fuzz=0.0, ior=1.0,  # diffuse, as clay
+        # named after the file: several coloured files in one scene each keep their own texture
+        name = f"{os.path.basename(path)}: {VERTEX_COLOUR_MATERIAL}"
+        names.append(name)
+        materials[name] = Material(
+            name, diffuse=(1.0, 1.0, 1.0), roughness=1.0, fuzz=0.0, ior=1.0,  # diffuse, as clay
             diffuse_map=TextureRef(
                 f"{os.path.basename(path)}#vertex-colours", path, 0, image=image),
             source=path, seed_dialect=False)

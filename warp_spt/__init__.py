@@ -54,8 +54,10 @@ _EXPORTS = {
     "SceneParameters": "diff.params",
     "SceneError": "scene.errors",
     "Sky": "scene.sky",
+    "load_gltf": "io.gltf",
     "load_mtl": "io.mtl",
     "load_obj": "io.obj",
+    "load_ply": "io.ply",
     "load_scene": "io.loader",
     "parameters": "diff.params",
     "proc_texture": "core.proctex",
@@ -90,9 +92,11 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.diff.params import SceneParameters, parameters
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.io.images import save_image, to_display, tonemap_seed, tonemap_srgb
+    from warp_spt.io.gltf import load_gltf
     from warp_spt.io.loader import load_scene
     from warp_spt.io.mtl import load_mtl
     from warp_spt.io.obj import load_obj
+    from warp_spt.io.ply import load_ply
     from warp_spt.rendering.film import Film
     from warp_spt.rendering.progressive import render_progressive
     from warp_spt.rendering.result import (

@@ -206,18 +206,37 @@ class ObjSequence:
     ``loads`` counts OBJ files parsed (tests check that static files are parsed once).
     """
 
-    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker") -> None:
+    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker",
+                 fps: float = 24.0) -> None:
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
         self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
+        self.fps = float(fps)                         # an animated glTF's frame k is posed at k / fps seconds
         self.loads = 0
         self._parsed: dict[str, ObjData] = {}
-        self._last_scene: tuple[tuple[str, ...], Scene] | None = None
+        self._last_scene: tuple[tuple, Scene] | None = None     # ((paths, frame or None), scene)
 
     @property
     def animated(self) -> bool:
         """True when some OBJ path is a per-frame template."""
         return any(is_template(p) for p in self.objs)
+
+    def default_frames(self) -> range | None:
+        """The frames that cover the animated glTF files' time ranges at ``fps`` (from frame 0, at time
+        0), or None when no static file is an animated glTF."""
+        from warp_spt.io.loader import read_model
+
+        end = None
+        for p in self.objs:
+            if is_template(p):
+                continue
+            if p not in self._parsed:
+                self._parsed[p] = read_model(p)
+                self.loads += 1
+            span = getattr(self._parsed[p].extras, "time_range", None)
+            if span is not None:
+                end = max(end or 0.0, span[1])
+        return None if end is None else range(0, int(math.floor(end * self.fps + 1e-9)) + 1)
 
     def paths(self, frame: int) -> list[str]:
         """The OBJ files of ``frame``."""
@@ -225,22 +244,29 @@ class ObjSequence:
 
     def scene(self, frame: int) -> Scene:
         """The validated scene of ``frame`` (the same object while no file name changes)."""
-        from warp_spt.io.loader import load_scene
-        from warp_spt.io.obj import load_obj
+        from warp_spt.io.loader import load_scene, read_model
 
         paths = tuple(self.paths(frame))
-        if self._last_scene is not None and self._last_scene[0] == paths:
-            return self._last_scene[1]
         wanted = set(paths)
         self._parsed = {p: d for p, d in self._parsed.items() if p in wanted}   # drop other frames' files
         for p in paths:
             if p not in self._parsed:
-                self._parsed[p] = load_obj(p)
+                self._parsed[p] = read_model(p)
                 self.loads += 1
-        scene = load_scene([self._parsed[p] for p in paths], self.mtls, warn=lambda message: None,
-                           default_material=self.default_material)
-        self._last_scene = (paths, scene)
+        # an animated glTF is posed again for each frame (its nodes move; its file is the same)
+        posed = [p for p in paths if getattr(self._parsed[p].extras, "time_range", None) is not None]
+        key = (paths, frame if posed else None)
+        if self._last_scene is not None and self._last_scene[0] == key:
+            return self._last_scene[1]
+        data = [self._posed(p, frame) if p in posed else self._parsed[p] for p in paths]
+        scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material)
+        self._last_scene = (key, scene)
         return scene
+
+    def _posed(self, path: str, frame: int):
+        from warp_spt.io.gltf import load_gltf
+
+        return load_gltf(path, time=frame / self.fps)
 
 
 # ---------------------------------------------------------------------------------------------

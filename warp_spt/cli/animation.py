@@ -122,8 +122,8 @@ def run_cli(opts, err, started: float | None = None) -> int:
     say = say_for(opts, err)
     objs, mtls = scene_files(opts)
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
-    frames = opts.frames or (path.frames if path is not None else range(0, 1))
-    seq = ObjSequence(objs, mtls, default_material=opts.default_material)
+    seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps)
+    frames = opts.frames or (path.frames if path is not None else seq.default_frames() or range(0, 1))
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
     init_warp(opts)

@@ -116,6 +116,7 @@ class Options:
     sky_given: bool = False          # -sky, --sky-color or a --demo preset chose the sky
     exposure: float = 0.0            # --exposure, in stops, for tone-mapped outputs
     default_material: str = "auto"
+    file_camera: str | None = None   # --camera: a camera of the model files (glTF), by name or index
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
@@ -124,6 +125,7 @@ class Options:
     frames: range | None = None
     camera_path: str | None = None
     gif: str | None = None
+    fps: float = 24.0                # --fps: frame k of an animated glTF is posed at k / fps seconds
 
     @property
     def animated(self) -> bool:
@@ -189,7 +191,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
                             "and the OBJ/MTL dialect of the seed, SimplePathTracer, and standard OBJ/MTL.")
     seed = p.add_argument_group("the seed's flags")
-    seed.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable)")
+    seed.add_argument("-obj", action="append", default=[], metavar="PATH",
+                      help="model file: OBJ, PLY, glTF or GLB (repeatable)")
     seed.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable, any order)")
     seed.add_argument("-cam", nargs=9, type=finite_float,
                       metavar=("PX", "PY", "PZ", "DX", "DY", "DZ", "FOV", "FOCUS", "APERTURE"),
@@ -238,6 +241,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                       "'wave_{frame:04d}.obj' and -out 'frame_{frame:04d}.png'")
     more.add_argument("--camera-path", metavar="FILE", help="JSON camera keyframes, interpolated per frame")
     more.add_argument("--gif", metavar="PATH", help="also write the frames as an animated GIF preview")
+    more.add_argument("--fps", type=finite_float, default=24.0, metavar="N",
+                      help="frames per second of a glTF's animation: frame k is posed at k / N seconds (default 24)")
     return p
 
 
@@ -283,7 +288,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
         studio=ns.studio, sky_given=ns.sky is not None or ns.sky_color is not None or preset is not None,
-        exposure=ns.exposure, default_material=ns.default_material,
+        exposure=ns.exposure, default_material=ns.default_material, file_camera=ns.file_camera,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
     return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
@@ -356,6 +361,8 @@ def _add_model_flags(g) -> None:
                         "elevation EL, in degrees")
     g.add_argument("--look-at", nargs=3, type=finite_float, metavar=("TX", "TY", "TZ"),
                    help="aim the camera (-cam's or the default position) at this point and focus on it")
+    g.add_argument("--camera", metavar="NAME|INDEX", dest="file_camera",
+                   help="look through a camera of the model files (glTF), by name or by index in file order")
     g.add_argument("--fov", type=finite_float, metavar="DEG", help="horizontal field of view, overriding -cam's")
     g.add_argument("--aperture", type=finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
     g.add_argument("--frame", action="store_true",
@@ -412,8 +419,12 @@ def _check_model_flags(ns: argparse.Namespace) -> None:
         raise UsageError("give either --view or --orbit, not both")
     if (ns.view is not None or ns.orbit is not None) and ns.cam is not None:
         raise UsageError("--view and --orbit place the camera themselves; they cannot be combined with -cam")
+    if ns.file_camera is not None and (ns.cam is not None or ns.look_at is not None or ns.frame
+                                       or ns.view is not None or ns.orbit is not None):
+        raise UsageError("--camera uses a camera of the model files; it cannot be combined with -cam, --look-at, "
+                         "--frame, --view or --orbit")
     for flag, given in (("--frame", ns.frame), ("--studio", ns.studio), ("--view", ns.view is not None),
-                        ("--orbit", ns.orbit is not None)):
+                        ("--orbit", ns.orbit is not None), ("--camera", ns.file_camera is not None)):
         if given and not ns.obj:
             raise UsageError(f"{flag} is for your own -obj files, not the built-in demo")
 
@@ -492,8 +503,10 @@ def with_animation_options(opts, ns, *, explicit_out: bool):
         frames = parse_frames(ns.frames) if ns.frames is not None else None
     except ValueError as err:
         raise UsageError(f"argument --frames: {err}") from None
+    if not 0 < ns.fps <= 1e6:
+        raise UsageError(f"--fps must lie in (0, 1e6], got {ns.fps:g}")
     opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
-                   gif=ns.gif)
+                   gif=ns.gif, fps=ns.fps)
     check_budget_flags(opts)
     if not opts.animated:
         return opts

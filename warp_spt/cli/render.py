@@ -53,7 +53,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
-    what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} OBJ file(s)"
+    what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} model file(s)"
     say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")

@@ -249,15 +249,20 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
     from warp_spt.scene.camera import AXES
     from warp_spt.scene.conventions import up_axis, wants_studio
 
+    file_camera = None
+    if getattr(opts, "file_camera", None) is not None:       # --camera: the files' camera, never framed
+        file_camera = _file_camera(opts, scene)
+        opts = replace(opts, camera=file_camera, cam_given=True, cam_explicit=False, frame=False, view=None)
     scene, camera, offset = recentre(scene, opts.camera)
     if offset.any():
         say(f"recentred the scene by {format_point(-offset)} for precision (far from the origin)")
     up = up_axis(opts.up, demo=opts.uses_demo_scene, seed_dialect=scene.seed_dialect, cam_given=opts.cam_explicit)
-    camera = camera.with_(up=AXES[up.axis])
+    camera = camera.with_(up=AXES[up.axis] if file_camera is None or opts.up else file_camera.up)
     if opts.uses_demo_scene and opts.quiet:
         return scene, camera, opts.sky
     pr = None
-    if not opts.uses_demo_scene and not (opts.cam_explicit or (opts.cam_given and scene.seed_dialect)):
+    if not opts.uses_demo_scene and file_camera is None and not (
+            opts.cam_explicit or (opts.cam_given and scene.seed_dialect)):
         why = _why_frame(opts, scene, up.axis)
         if not why:      # a scene in the seed's dialect: frame only if the camera would not show it
             pr = probe(scene, camera, PROBE_SIZE, max(1, round(PROBE_SIZE * opts.height / opts.width)))
@@ -277,6 +282,16 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
         scene = add_studio(scene, up=up.axis, camera=camera)
         sky = opts.sky if opts.sky_given else studio_sky()
     return scene, camera, sky
+
+
+def _file_camera(opts, scene) -> Camera:
+    """The camera --camera names, for this image's aspect (the file's vertical field of view)."""
+    from warp_spt.io.gltf import choose_camera
+
+    try:
+        return choose_camera(scene.cameras, opts.file_camera, opts.width, opts.height)
+    except ValueError as err:
+        raise RunError(f"--camera {opts.file_camera}: {err}") from None
 
 
 def _why_frame(opts, scene, up: str) -> str:

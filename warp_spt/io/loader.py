@@ -41,7 +41,6 @@ from typing import TYPE_CHECKING, Callable, Iterable
 import numpy as np
 
 from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
-from warp_spt.io.obj import load_obj
 from warp_spt.io.tokens import file_problem
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
 from warp_spt.scene.errors import SceneError
@@ -94,8 +93,11 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     if default_material not in DEFAULT_MATERIALS:
         raise ValueError(f"default_material must be one of {DEFAULT_MATERIALS}, got {default_material!r}")
     mtls = [str(p) for p in mtls]
-    data = [p if isinstance(p, ObjData) else load_obj(p) for p in objs]   # parsed ones: OBJ sequences
+    data = [p if isinstance(p, ObjData) else read_model(p) for p in objs]   # parsed ones: OBJ sequences
     _require_geometry(data)
+    for d in data:
+        for message in d.warnings:
+            note(message)
     library, libraries_read = _read_materials(data, mtls, note)
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
@@ -112,12 +114,46 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
         seed_dialect=any(len(d.spheres) for d in data) or any(m.seed_dialect for m in library.values()),
         bare=not libraries_read,
+        cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
+        lights=[c for d in data for c in getattr(d.extras, "lights", ())],
     )
     for d in data:
         if d.dropped_degenerate:
             note(f"{d.path}: dropped {d.dropped_degenerate} zero-area triangles")
     validate_scene(scene)
     return scene
+
+
+# Model readers by suffix, as "module:function" imported on first use (a scene of OBJ files imports neither)
+MODEL_READERS = {".obj": "warp_spt.io.obj:load_obj", ".ply": "warp_spt.io.ply:load_ply",
+                 ".gltf": "warp_spt.io.gltf:load_gltf", ".glb": "warp_spt.io.gltf:load_gltf"}
+_HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"))
+
+
+def read_model(path: PathLike) -> ObjData:
+    """One model file (OBJ, PLY, glTF or GLB) as an :class:`ObjData`: the reader is chosen by the file's
+    first bytes (a PLY or binary glTF magic, a JSON object with an ``"asset"``), else by its suffix, else
+    OBJ (whose reader names any other format it recognises)."""
+    import importlib
+
+    path = str(path)
+    kind = _kind_by_content(path) or Path(path).suffix.lower()
+    module, function = MODEL_READERS.get(kind, MODEL_READERS[".obj"]).split(":")
+    return getattr(importlib.import_module(module), function)(path)
+
+
+def _kind_by_content(path: str) -> str | None:
+    if file_problem(path) is not None:          # missing, a FIFO, a directory...: the reader says so
+        return None
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError:
+        return None
+    kind = next((k for magic, k in _HEADS if head.startswith(magic)), None)
+    if kind is None and head.lstrip(b" \t\r\n\xef\xbb\xbf").startswith(b"{") and b'"asset"' in head:
+        kind = ".gltf"
+    return kind
 
 
 def _require_geometry(data: list[ObjData]) -> None:
@@ -130,6 +166,8 @@ def _require_geometry(data: list[ObjData]) -> None:
     for d in data:
         if d.dropped_degenerate:
             why = f"all {d.dropped_degenerate} triangles have zero area"
+        elif len(d.positions) and Path(d.path).suffix.lower() in (".ply", ".gltf", ".glb"):
+            why = f"{len(d.positions)} vertices but no faces"
         elif len(d.positions):
             why = f"{len(d.positions)} 'v' lines but no faces ('f') or spheres ('b')"
         else:
@@ -158,6 +196,10 @@ def _read_materials(data: list[ObjData], mtls: list[str], note: WarnFn) -> tuple
                 where = f"{d.path}:{line}" if line else d.path
                 why = "not found" if problem == "no such file or directory" else f"cannot be read ({problem})"
                 note(f"{where}: mtllib {lib} {why}; its materials are not loaded")
+    for d in data:
+        if d.materials:
+            library.update(d.materials)
+            read = True
     for path in mtls:
         library.update(load_mtl(path, note))
     if CHECKER_NAME in library:
@@ -247,7 +289,7 @@ class _TextureCache:
             if ref not in self.procedural:
                 self.procedural.append(ref)
             return TEX_PROC_BASE - self.procedural.index(ref)
-        path = _find_texture(ref)
+        path = _find_texture(ref) if ref.image is None else f"{ref.mtl_file}#{ref.path}"
         key = (path, decode)
         if key not in self._index:
             image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h), decode)
@@ -288,13 +330,22 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     Pillow's own warnings become one-line notes naming the MTL line; its decompression-bomb check is
     replaced by the budget.
     """
+    if isinstance(ref.image, np.ndarray):          # baked in memory (vertex colours): linear, taken as it is
+        h, w = ref.image.shape[:2]
+        if w * h > TEXEL_BUDGET:
+            raise SceneError(ref.mtl_file, ref.line, f"texture {ref.path} is {w}x{h} = {w * h:,} texels, more "
+                             f"than the budget of {TEXEL_BUDGET:,} (8192x8192)")
+        check_atlas(w, h)
+        return ref.image
     # here: scenes without image textures need no Pillow (9 ms of every start)
+    import io
+
     from PIL import Image
 
     try:
         with _warnings.catch_warnings(record=True) as caught:
             _warnings.simplefilter("always")
-            with Image.open(path) as img:
+            with Image.open(path if ref.image is None else io.BytesIO(ref.image)) as img:
                 w, h = img.size
                 if w * h > TEXEL_BUDGET:
                     raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "

@@ -132,7 +132,7 @@ def is_regular_file(path: str | os.PathLike[str]) -> bool:
     return file_problem(path) is None
 
 
-def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
+def read_file(path: str, kind: str, *, limit: int | None = None, binary: bool = False) -> bytes:
     """The whole file as bytes (read once), or a SceneError naming it: the one guarded opener of
     every input reader (OBJ, MTL, camera paths).
 
@@ -143,7 +143,8 @@ def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
     (default MAX_FILE_BYTES) is refused from its size, before more than its first HEAD_BYTES are
     read; a file whose first bytes are binary (NUL bytes, a PNG, UTF-16) is refused after reading
     only those (:func:`normalise_text` names the line). Every reader is a text reader; the caller
-    checks the whole text with normalise_text.
+    checks the whole text with normalise_text. ``binary=True`` (PLY, glTF) skips both checks of the
+    first bytes.
     """
     limit = MAX_FILE_BYTES if limit is None else limit
     try:
@@ -159,10 +160,12 @@ def read_file(path: str, kind: str, *, limit: int | None = None) -> bytes:
         with os.fdopen(fd, "rb") as f:
             fd = -1                                    # the file object owns it now
             head = f.read(HEAD_BYTES)
-            refuse_other_format(path, head, kind)      # a PLY, glTF, FBX... file: say so, not "binary data"
+            if not binary:
+                refuse_other_format(path, head, kind)  # a PLY, glTF, FBX... file: say so, not "binary data"
             if info.st_size > limit:
                 raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
-            normalise_text(head, path, kind)           # binary data is refused from its first bytes
+            if not binary:
+                normalise_text(head, path, kind)       # binary data is refused from its first bytes
             data = head + f.read(limit + 1 - len(head))
     except OSError as err:
         raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None

@@ -41,11 +41,17 @@ CHECKER_NAME = "Inner_CheckerTexture"
 
 @dataclass
 class TextureRef:
-    """A texture path as written in an MTL file, with where it was written (for errors)."""
+    """A texture path as written in an MTL file, with where it was written (for errors).
+
+    ``image``, when given, is the texture itself: an encoded image file's bytes (a glTF's embedded
+    PNG or JPEG) or an (H, W, 3) float32 array in [0, 1] (a PLY's baked vertex colours); ``path`` then
+    only names it (it must be unique: the loader reads each name once). A baked array holds linear
+    values: the loader takes it as it is, whatever its slot's decoding."""
 
     path: str
     mtl_file: str
     line: int
+    image: bytes | np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 def _material_fields() -> list[tuple]:
@@ -108,6 +114,10 @@ class ObjData:
     mtllibs: list[str] = field(default_factory=list)  # mtllib paths resolved relative to the OBJ
     mtllib_lines: list[int] = field(default_factory=list)  # the line naming each of them
     dropped_degenerate: int = 0  # zero-area triangles dropped while parsing
+    # materials the file defines itself (PLY vertex colours, glTF), by name; an MTL of the same name wins
+    materials: dict[str, Material] = field(default_factory=dict)
+    extras: object = None        # what else the format holds (glTF: io.gltf.GltfExtras, cameras and lights)
+    warnings: list[str] = field(default_factory=list)   # the reader's notes; the loader passes them on
 
 
 @dataclass
@@ -213,6 +223,9 @@ class Scene:
     # default material). Scenes built in code count as the seed's and not bare.
     seed_dialect: bool = True
     bare: bool = False
+    # cameras and lights the model files define (glTF: io.gltf.GltfCamera, GltfLight), in file order
+    cameras: list = field(default_factory=list)
+    lights: list = field(default_factory=list)
 
     @property
     def num_triangles(self) -> int:

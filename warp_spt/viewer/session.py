@@ -32,6 +32,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP
+
 from . import display, navigation
 from .command import CommandSpec, command_line
 from .raycast import first_hit
@@ -107,7 +109,7 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
                "tonemap": ("srgb", "seed")}
     if key in choices and value not in choices[key]:
         raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
-    limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, 4096), "max_spp": (1, 1 << 20),
+    limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, MAX_DEPTH), "max_spp": (1, MAX_SPP),
               "preview_scale": (1, 16), "exposure": (-20.0, 20.0)}
     if key in limits and not limits[key][0] <= value <= limits[key][1]:
         raise ValueError(f"{key} must lie in [{limits[key][0]}, {limits[key][1]}], got {value}")

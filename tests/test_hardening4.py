@@ -1,0 +1,155 @@
+"""Issue 32, the fourth hardening round: giant triangles, integrator options, out of memory, usage
+errors of the budgets, the viewer's messages, --fov, the API's arguments and the smaller ones.
+One test per class; the fuzzers of this round are in tests/test_fuzz_api.py."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import warp_spt
+from warp_spt.cli.main import main
+from warp_spt.cli.options import parse_args
+from warp_spt.integrators import INTEGRATORS, get_integrator
+from warp_spt.io.loader import load_scene
+from warp_spt.rendering import tiles as R
+from warp_spt.rendering.settings import RenderSettings, check_args
+from warp_spt.scene import limits
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.errors import SceneError
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def _tri_scene(tmp_path: Path):
+    (tmp_path / "t.obj").write_text(TRI)
+    return load_scene([str(tmp_path / "t.obj")])
+
+
+def _one_line(capsys, argv, status) -> str:
+    assert main(argv) == status
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("warp-spt: error")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+# ---------------------------------------------------------------- 3: integrator options bound memory and time
+
+@pytest.mark.parametrize("name", sorted(INTEGRATORS))
+def test_every_numeric_integrator_option_has_both_bounds(name):
+    for p in get_integrator(name).params:
+        if p.kind is not bool:
+            assert p.low is not None and p.high is not None, f"{name}.{p.name} is unbounded"
+
+
+@pytest.mark.parametrize("integrator, option, value", [
+    ("guided", "rho", 1e-4),            # 3.4 GB and 24 s at 64x64, 64 spp (measured)
+    ("guided", "spatial_c", 0.1),       # 5.7 GB at 32x32, 16 spp
+    ("guided", "spatial_c", 1e-9),
+    ("guided", "stop_after", 10**9),
+    ("guided", "min_hits", 2**40),
+    ("ears", "train_fraction", 2**40),
+    ("ears", "min_records", 2**40),
+    ("ears", "q_max", 1e30),
+    ("ears", "v_scale", 1e300),
+])
+def test_options_that_grow_memory_or_time_are_refused_before_any_upload(integrator, option, value):
+    rs = RenderSettings(integrator=integrator, integrator_options={option: value})
+    with pytest.raises(ValueError, match=option):
+        check_args(rs)
+    with pytest.raises(ValueError, match=option):       # no scene: nothing was looked at or uploaded
+        R.render_scene(None, None, rs)
+
+
+# ---------------------------------------------------------------- 7: --fov is bounded like -cam's
+
+def test_a_vanishing_fov_is_a_usage_error(tmp_path, capsys):
+    (tmp_path / "t.obj").write_text(TRI)
+    base = ["-obj", str(tmp_path / "t.obj"), "-res", "8", "8", "-sr", "1", "-out", str(tmp_path / "o.png")]
+    line = _one_line(capsys, base + ["--fov", "1e-300"], 2)
+    assert "fov" in line and "internal error" not in line
+    line = _one_line(capsys, base[:2] + ["-cam", "0", "0", "5", "0", "0", "-1", "1e-300", "5", "0"] + base[2:], 2)
+    assert "fov" in line
+    with pytest.raises(ValueError, match="fov"):
+        Camera(fov=1e-300).validate(8, 8)
+
+
+def test_framing_that_would_stand_too_far_is_one_error_line(tmp_path, capsys):
+    # the narrowest fov allowed, on a scene a million times as wide as the camera may stand away
+    big = 4e11
+    (tmp_path / "t.obj").write_text(f"v 0 0 0\nv {big} 0 0\nv 0 {big} 0\nf 1 2 3\n"
+                                    f"v 0 0 {2 * big}\nv 1 0 {2 * big}\nv 0 1 {2 * big}\nf 4 5 6\n")
+    line = _one_line(capsys, ["-obj", str(tmp_path / "t.obj"), "--fov", "0.0001", "-res", "8", "8", "-sr", "1",
+                              "-out", str(tmp_path / "o.png")], 1)
+    assert "cannot frame" in line and "--fov" in line and "internal error" not in line
+
+
+# ---------------------------------------------------------------- 8: the API's arguments
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(max_depth=2**31), ["max_depth", "[1, 4096]"]),
+    (dict(max_depth=4097), ["max_depth"]),
+    (dict(spp=(1 << 20) + 1), ["spp"]),
+    (dict(roulette_depth=2**31), ["roulette_depth"]),
+    (dict(tile_pixels=2**40), ["tile_pixels"]),
+    (dict(threads=0), ["threads"]), (dict(threads=-1), ["threads"]), (dict(threads=8.5), ["threads"]),
+    (dict(threads=math.nan), ["threads"]), (dict(threads=1e20), ["threads"]),
+    (dict(threads=1025), ["threads"]),
+    (dict(height=True), ["height"]), (dict(width=np.bool_(True)), ["width"]),
+])
+def test_render_settings_out_of_the_documented_bounds_are_value_errors(kw, words):
+    with pytest.raises(ValueError) as err:
+        check_args(RenderSettings(**{"width": 8, "height": 8, "spp": 1, **kw}))
+    for w in words:
+        assert w in str(err.value)
+
+
+def test_render_arguments_are_checked_before_anything_renders(tmp_path):
+    scene = _tri_scene(tmp_path)
+    cam = Camera.look_at((0.3, 0.3, 3), (0.3, 0.3, 0))
+    with pytest.raises(TypeError, match="sky must be a warp_spt.Sky"):
+        warp_spt.render(scene, cam, width=8, height=8, spp=1, sky=5)
+    with pytest.raises(ValueError, match=r"batches must be an integer in \[2, 64\]"):
+        warp_spt.render_progressive(scene, cam, width=8, height=8, spp=8, batches=10**5)
+    with pytest.raises(ValueError, match="batches"):
+        warp_spt.render_progressive(scene, cam, width=8, height=8, spp=8, batches=True)
+
+
+def test_the_command_line_and_the_viewer_take_the_apis_bounds(tmp_path, capsys):
+    from warp_spt.viewer.session import ViewSettings, checked_settings
+
+    for flag, value in (("-depth", limits.MAX_DEPTH + 1), ("-sr", limits.MAX_SPP + 1),
+                        ("--threads", limits.MAX_THREADS + 1)):
+        assert flag in _one_line(capsys, [flag, str(value)], 2)
+        parse_args([flag, str(value - 1)])                  # the bound itself is allowed
+    with pytest.raises(ValueError, match="max_depth"):
+        checked_settings(ViewSettings(), "max_depth", limits.MAX_DEPTH + 1)
+    with pytest.raises(ValueError, match="max_spp"):
+        checked_settings(ViewSettings(), "max_spp", limits.MAX_SPP + 1)
+
+
+def test_parameters_check_their_arguments(tmp_path):
+    scene = _tri_scene(tmp_path)
+    with pytest.raises(TypeError, match="sky"):
+        warp_spt.parameters(scene, Camera(), 1)
+    with pytest.raises(TypeError, match="camera"):
+        warp_spt.parameters(scene, 1)
+    p = warp_spt.parameters(scene, Camera())
+    with pytest.raises(KeyError, match="no parameter 'nope'"):
+        p["nope"] = 1.0
+    colour = next(n for n in p.names() if n.endswith(".diffuse"))
+    before = p[colour].copy()
+    for bad in ([10**400, 0, 0], ["a", 0, 0], [[1, 2], 3, 4]):
+        with pytest.raises(ValueError, match=colour):
+            p[colour] = bad
+    assert np.array_equal(p[colour], before)
+
+
+@pytest.mark.parametrize("aspect", [0, -1.0, math.nan, math.inf, True, "wide"])
+def test_frame_refuses_an_aspect_that_is_no_positive_number(tmp_path, aspect):
+    with pytest.raises(ValueError, match="aspect"):
+        Camera.frame(_tri_scene(tmp_path), aspect=aspect)

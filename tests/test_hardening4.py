@@ -153,3 +153,24 @@ def test_parameters_check_their_arguments(tmp_path):
 def test_frame_refuses_an_aspect_that_is_no_positive_number(tmp_path, aspect):
     with pytest.raises(ValueError, match="aspect"):
         Camera.frame(_tri_scene(tmp_path), aspect=aspect)
+
+
+# ---------------------------------------------------------------- 5: guided/ears with batch flags: usage errors
+
+@pytest.mark.parametrize("integrator", ["guided", "ears"])
+@pytest.mark.parametrize("flags", [["--time-budget", "5"], ["--target-error", "2%"], ["--adaptive"],
+                                   ["--save-partial"], ["--workers", "2"], ["--min-spp", "4"],
+                                   ["--progressive", "p.png"], ["--error-map", "e.npy"], ["--spp-map", "s.npy"]])
+def test_integrators_with_their_own_passes_refuse_batch_flags_before_loading(tmp_path, capsys, monkeypatch,
+                                                                             integrator, flags):
+    import warp_spt.io.loader as loader
+
+    def no_loading(*a, **k):
+        raise AssertionError("the scene was loaded")
+    monkeypatch.setattr(loader, "load_scene", no_loading)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "t.obj").write_text(TRI)
+    line = _one_line(capsys, ["-obj", "t.obj", "--integrator", integrator, *flags, "-res", "8", "8", "-sr", "2",
+                              "-out", "o.png"], 2)
+    assert flags[0] in line and integrator in line
+    assert "internal error" not in line and "render_scene" not in line

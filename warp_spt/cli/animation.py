@@ -113,6 +113,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
     from warp_spt.cli.common import (
         EXIT_OK,
         check_files,
+        check_registry_names,
         init_warp,
         scene_files,
     )
@@ -127,6 +128,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
     init_warp(opts)
+    check_registry_names(opts)
     load_texture_modules(opts, say)
     start = time.perf_counter()
     first = seq.scene(frames[0])

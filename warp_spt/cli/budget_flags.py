@@ -32,6 +32,13 @@ class BudgetOptions:
     denoise: bool = False
     adaptive_metric: str | None = None
 
+    def flags(self) -> list[str]:
+        """The flags given, as typed (those that switch to the progressive renderer)."""
+        return [flag for flag, value in (
+            ("--time-budget", self.time_budget), ("--target-error", self.target_error), ("--adaptive", self.adaptive),
+            ("--min-spp", self.min_spp), ("--save-partial", self.save_partial), ("--progressive", self.progressive),
+            ("--error-map", self.error_map), ("--spp-map", self.spp_map), ("--denoise", self.denoise)) if value]
+
     @property
     def active(self) -> bool:
         return any((self.time_budget, self.target_error, self.adaptive, self.save_partial, self.progressive,

@@ -174,15 +174,25 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
 
 
 def check_registry_names(opts) -> None:
-    """--integrator and --sampler name entries of the registries, and every --integrator-option is
-    one of that integrator's parameters with a value it allows (a usage error otherwise)."""
-    from warp_spt.integrators import INTEGRATORS
+    """--integrator and --sampler name entries of the registries, every --integrator-option is
+    one of that integrator's parameters with a value it allows, and an integrator that trains over
+    its own passes of the whole image (``Integrator.render_passes``: guided, ears) is given no flag
+    that renders in batches or slices (budgets, error maps, --save-partial, --workers, --cluster);
+    a usage error otherwise, before anything is loaded."""
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
     from warp_spt.samplers import SAMPLERS
 
     for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
         if name is not None and name not in registry:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
     integrator_options_of(opts)
+    name = opts.integrator or DEFAULT_INTEGRATOR
+    if INTEGRATORS[name].render_passes is not None:
+        given = opts.budget.flags() + [flag for flag, value in (("--workers", opts.workers),
+                                                                ("--cluster", opts.cluster)) if value]
+        if given:
+            raise UsageError(f"--integrator {name} trains over its own passes of the whole image: it cannot "
+                             f"render with {', '.join(given)} (use -sr, or another --integrator)")
 
 
 def integrator_options_of(opts) -> dict:

@@ -5,6 +5,10 @@ One test per class; the fuzzers of this round are in tests/test_fuzz_api.py."""
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +25,7 @@ from warp_spt.scene import limits
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.errors import SceneError
 
+REPO = Path(__file__).resolve().parents[1]
 TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
 
 
@@ -174,3 +179,37 @@ def test_integrators_with_their_own_passes_refuse_batch_flags_before_loading(tmp
                               "-out", "o.png"], 2)
     assert flags[0] in line and integrator in line
     assert "internal error" not in line and "render_scene" not in line
+
+
+# ---------------------------------------------------------------- 4: out of memory is said as documented
+
+@pytest.mark.skipif(shutil.which("prlimit") is None, reason="needs prlimit (util-linux)")
+@pytest.mark.parametrize("extra", [[], ["--progressive", "p.png"]])
+def test_out_of_memory_under_an_address_space_limit_is_the_documented_line(tmp_path, extra):
+    (tmp_path / "t.obj").write_text(TRI)
+    # a 12000 x 12000 film is 3.5 GB of float64 sums: Warp's allocation fails under a 3 GB address space
+    run = subprocess.run(["prlimit", "--as=3000000000", sys.executable, "-m", "warp_spt", "-obj", "t.obj",
+                          "-res", "12000", "12000", "-sr", "1", "-out", "o.png", "--quiet", *extra],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert run.returncode == 1, run.stderr
+    lines = run.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warp-spt: error: out of memory"), run.stderr
+    assert "try a smaller -res or fewer --threads" in lines[0]
+
+
+@pytest.mark.parametrize("error", [MemoryError(), RuntimeError("Failed to allocate 3456000000 bytes on device 'cpu'")])
+def test_out_of_memory_while_rendering_a_device_scene_names_its_size(tmp_path, capsys, monkeypatch, error):
+    import warp_spt.cli.render as cli_render
+    import warp_spt.rendering.tiles as tiles
+    from warp_spt.core.device_scene import DeviceScene
+
+    def no_memory(scene, *a, **k):
+        assert isinstance(scene, DeviceScene)       # whose textures are a method: the reporter crashed
+        raise error
+    monkeypatch.setattr(tiles, "render_scene", no_memory)
+    monkeypatch.setattr(cli_render, "warm_up", lambda *a, **k: None)
+    (tmp_path / "t.obj").write_text(TRI)
+    line = _one_line(capsys, ["-obj", str(tmp_path / "t.obj"), "-res", "8", "8", "-sr", "1", "--no-studio",
+                              "-out", str(tmp_path / "o.png")], 1)
+    assert "out of memory while uploading and rendering the scene (1 triangles, 0 texels) at 8x8" in line

@@ -173,6 +173,13 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
         raise RunError(f"cannot write -out {out!r}: {file_problem(target)}")
 
 
+def out_of_memory(err: BaseException) -> bool:
+    """Whether ``err`` means memory ran out: Python's MemoryError, or Warp's failed allocation (a
+    RuntimeError "Failed to allocate N bytes on device ...", which is no MemoryError)."""
+    return isinstance(err, MemoryError) or (isinstance(err, RuntimeError)
+                                            and str(err).startswith("Failed to allocate "))
+
+
 def check_registry_names(opts) -> None:
     """--integrator and --sampler name entries of the registries, every --integrator-option is
     one of that integrator's parameters with a value it allows, and an integrator that trains over

@@ -213,3 +213,43 @@ def test_out_of_memory_while_rendering_a_device_scene_names_its_size(tmp_path, c
     line = _one_line(capsys, ["-obj", str(tmp_path / "t.obj"), "-res", "8", "8", "-sr", "1", "--no-studio",
                               "-out", str(tmp_path / "o.png")], 1)
     assert "out of memory while uploading and rendering the scene (1 triangles, 0 texels) at 8x8" in line
+
+
+# ---------------------------------------------------------------- 1: giant triangles
+
+@pytest.mark.parametrize("half", [4e9, 4e12, 1e15])
+def test_a_triangle_too_large_for_float32_is_refused_with_its_line(tmp_path, capsys, half):
+    # a square of half-size 4e9 shaded black, one of 4e12 was missed, and the loader took +-1e15
+    (tmp_path / "sq.obj").write_text(f"# a flat square\nv {-half} {-half} 0\nv {half} {-half} 0\nv {half} {half} 0\n"
+                                     f"v {-half} {half} 0\nf 1 2 3 4\n")
+    with pytest.raises(SceneError) as err:
+        load_scene([str(tmp_path / "sq.obj")])
+    assert err.value.line == 6 and "1e+09" in err.value.message
+    line = _one_line(capsys, ["-obj", str(tmp_path / "sq.obj"), "-res", "8", "8", "-sr", "1",
+                              "-out", str(tmp_path / "o.png")], 1)
+    assert "sq.obj:6:" in line
+
+
+def test_the_largest_accepted_triangle_loads_and_an_api_scene_is_checked_too(tmp_path):
+    from dataclasses import replace
+
+    from warp_spt.scene.validate import validate_scene
+
+    e = limits.MAX_TRIANGLE_EDGE
+    (tmp_path / "t.obj").write_text(f"v 0 0 0\nv {e} 0 0\nv {e / 2} {e / 4} 0\nf 1 2 3\n")   # longest edge: e
+    scene = load_scene([str(tmp_path / "t.obj")])
+    mesh = scene.meshes[0]
+    big = replace(scene, meshes=[replace(mesh, positions=mesh.positions * 1.001)])
+    with pytest.raises(SceneError, match="meshes.0. .*edge of 1e\\+09 is longer"):
+        validate_scene(big)
+
+
+def test_the_room_at_the_largest_accepted_size_renders_as_the_room_at_unit_size(scene_dir):
+    from .stability_scenes import assert_same_image, cornell_camera, cornell_files, load, render_batches, sky
+
+    # the room's longest triangle edge is a wall's diagonal, 32 sqrt(2): scaled to the bound
+    scale = limits.MAX_TRIANGLE_EDGE / (32 * math.sqrt(2)) * 0.999
+    kw = dict(width=24, height=24, max_depth=6, sky=sky(50.0))
+    reference = render_batches(load(*cornell_files(scene_dir)), cornell_camera(), 32, 16, seed=1, **kw)
+    big = render_batches(load(*cornell_files(scene_dir, scale)), cornell_camera(scale), 32, 16, seed=2, **kw)
+    assert_same_image(reference, big, f"scale {scale:g}")

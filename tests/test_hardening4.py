@@ -253,3 +253,155 @@ def test_the_room_at_the_largest_accepted_size_renders_as_the_room_at_unit_size(
     reference = render_batches(load(*cornell_files(scene_dir)), cornell_camera(), 32, 16, seed=1, **kw)
     big = render_batches(load(*cornell_files(scene_dir, scale)), cornell_camera(scale), 32, 16, seed=2, **kw)
     assert_same_image(reference, big, f"scale {scale:g}")
+
+
+# ---------------------------------------------------------------- 6 and 9: the viewer's messages, memory, shutdown
+
+class _Inbox:
+    def __init__(self):
+        self.messages: list[dict] = []
+
+    def __call__(self, message, buffers):
+        self.messages.append(message)
+
+    push = __call__                 # as the server's client
+
+
+@pytest.fixture(scope="module")
+def live_session(tmp_path_factory):
+    from warp_spt.viewer.session import Session
+
+    d = tmp_path_factory.mktemp("view")
+    (d / "t.obj").write_text(TRI)
+    session = Session(load_scene([str(d / "t.obj")]), width=16, height=12, max_spp=8)
+    session.wait_for(1, timeout=300)          # the rig exists: navigation messages reach it
+    yield session
+    session.close()
+
+
+@pytest.mark.parametrize("message, field", [
+    ({"type": "dolly", "steps": 1e308}, "steps"),
+    ({"type": "zoom", "steps": -1e308}, "steps"),
+    ({"type": "dolly", "steps": math.inf}, "steps"),
+    ({"type": "pan", "dx": math.nan, "dy": 0}, "dx"),
+    ({"type": "orbit", "dx": 0, "dy": "up"}, "dy"),
+    ({"type": "pick", "x": 0.5}, "y"),
+    ({"type": "set", "key": "width", "value": math.inf}, "width"),
+    ({"type": "set", "key": "height", "value": 10**400}, "height"),
+    ({"type": "set", "key": "max_spp", "value": 8.5}, "max_spp"),
+    ({"type": "set", "key": "sky_color", "value": [1, 2]}, "sky_color"),
+    ({"type": "set", "key": "fov", "value": [1]}, "fov"),
+    ({"type": "param", "name": "x", "value": 10**400}, "value"),
+    ({"type": "param", "name": "x", "value": [[1, 2], 3]}, "value"),
+    ({"type": "command", "width": -5, "height": 1}, "width"),      # the copied command carried -res -5 1
+    ({"type": "command", "spp": 0}, "spp"),
+    ({"type": "up", "axis": ["x"]}, "axis"),
+    ({"type": "interact", "active": "yes"}, "active"),
+    ({"type": "save", "format": "x" * 100_000}, "format"),
+])
+def test_a_bad_page_message_is_one_notice_naming_its_field_and_changes_nothing(live_session, message, field):
+    import warnings
+
+    before = (live_session.camera, live_session.settings, dict(live_session._pending))
+    inbox = _Inbox()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")       # NaN pans printed raw RuntimeWarning lines
+        live_session.handle(message, reply=inbox)
+    assert [m["type"] for m in inbox.messages] == ["notice"], inbox.messages
+    text = inbox.messages[0]["text"]
+    assert field in text and "Error" not in text, text
+    assert (live_session.camera, live_session.settings, dict(live_session._pending)) == before
+
+
+def test_a_view_is_bounded_to_a_pixel_budget(live_session):
+    inbox = _Inbox()
+    live_session.handle({"type": "set", "key": "width", "value": 4096}, reply=inbox)
+    live_session.handle({"type": "set", "key": "height", "value": 4096}, reply=inbox)  # 6-7.4 GB before
+    notices = [m["text"] for m in inbox.messages if m["type"] == "notice"]
+    assert len(notices) == 1 and "2,097,152 pixels" in notices[0]
+    assert live_session.settings.width * live_session.settings.height <= limits.MAX_VIEW_PIXELS
+    live_session.handle({"type": "set", "key": "width", "value": 16}, reply=inbox)
+
+
+def test_the_statistics_of_a_view_copy_no_batches_and_match_the_batch_formula():
+    import tracemalloc
+
+    from warp_spt.viewer.session import Accumulator
+
+    rng = np.random.default_rng(5)
+    acc = Accumulator(0, 5, 7)
+    for b in range(8):
+        acc.add(b, rng.random((5, 7, 3)) * 3, 3, 0.0)
+    mean, se = acc.statistics()
+    batch_means = acc.sums / 3.0
+    expected = np.sqrt(3.0 * batch_means.var(axis=0, ddof=1) / 24.0)     # between-batch variance / n
+    assert np.allclose(se, expected, rtol=1e-6) and np.allclose(mean, batch_means.mean(axis=0), rtol=1e-6)
+
+    big = Accumulator(0, 540, 960)
+    big.counts[:] = 1
+    image = 540 * 960 * 3 * 8
+    tracemalloc.start()
+    big.statistics()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 6 * image, f"statistics allocated {peak / image:.1f} images (8 batches: a copy is 8 or more)"
+
+
+def test_messages_nested_deeply_or_with_constants_are_notices(live_session, capfd):
+    from warp_spt.viewer.server import ViewerServer
+
+    server = ViewerServer(live_session)
+    inbox = _Inbox()
+    for text in ["[" * 5000 + "]" * 5000, '{"a":' * 5000 + "1" + "}" * 5000, '{"type": "pan", "dx": NaN, "dy": 0}',
+                 '{"type": "dolly", "steps": Infinity}', "[1, 2]", "not json"]:
+        server._receive(text, inbox)
+    assert [m["type"] for m in inbox.messages] == ["notice"] * 6
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_shutdown_with_a_page_connected_is_prompt(tmp_path):
+    aiohttp = pytest.importorskip("aiohttp")
+    import asyncio
+    import threading
+    import time
+
+    from warp_spt.viewer.server import ViewerServer
+    from warp_spt.viewer.session import open_session
+
+    (tmp_path / "t.obj").write_text(TRI)
+    session = open_session(objs=[str(tmp_path / "t.obj")], width=16, height=12)
+    server = ViewerServer(session)
+    url = server.start_thread()
+    connected = threading.Event()
+
+    async def page():
+        async with aiohttp.ClientSession() as http:
+            async with http.ws_connect(url.replace("http", "ws") + "ws", origin=url.rstrip("/")) as ws:
+                await ws.send_str('{"type": "hello"}')
+                connected.set()
+                async for _ in ws:
+                    pass
+    browser = threading.Thread(target=lambda: asyncio.run(page()), daemon=True)
+    browser.start()
+    assert connected.wait(60)
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    server.stop_thread(timeout=30)        # what SIGTERM does: _stopped is set, the server closes
+    seconds = time.monotonic() - t0
+    session.close()
+    assert not server._thread.is_alive() and seconds < 5, f"stopping took {seconds:.1f} s"
+
+
+def test_a_second_viewer_on_a_busy_port_says_so(tmp_path):
+    import socket
+
+    pytest.importorskip("aiohttp")
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        run = subprocess.run([sys.executable, "-m", "warp_spt", "view", "--port", str(port), "--no-browser"],
+                             capture_output=True, text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert run.returncode == 1
+    assert run.stderr.splitlines() == [f"warp-spt: error: port {port} is in use (another viewer?): choose another "
+                                       "--port, or leave --port out for a free one"]

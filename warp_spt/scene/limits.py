@@ -52,3 +52,6 @@ MAX_DEPTH = 4096
 MAX_THREADS = 1024
 MAX_TILE_PIXELS = 1 << 22       # a launch's own buffers: 4M pixels of float32 RGB and more
 MAX_BATCHES = 64
+# The live viewer's view (width x height): its refined image is 8 float64 batch sums, at most
+# 8 x 2**21 x 3 x 8 bytes = 384 MiB (docs/viewer.md); a 4096 x 4096 view held 6-7.4 GB.
+MAX_VIEW_PIXELS = 1 << 21

@@ -405,3 +405,58 @@ def test_a_second_viewer_on_a_busy_port_says_so(tmp_path):
     assert run.returncode == 1
     assert run.stderr.splitlines() == [f"warp-spt: error: port {port} is in use (another viewer?): choose another "
                                        "--port, or leave --port out for a free one"]
+
+
+# ---------------------------------------------------------------- 9: the smaller ones
+
+@pytest.mark.parametrize("value", ["1_0", "inf", "nan", "\u0661", "1e5_0"])
+def test_procedural_numbers_take_the_one_number_syntax(tmp_path, value):
+    (tmp_path / "m.mtl").write_text(f"newmtl m\nKd 0.5 0.5 0.5\nmap_Kd proc:marble scale={value}\n")
+    (tmp_path / "t.obj").write_text("mtllib m.mtl\nusemtl m\n" + TRI)
+    with pytest.raises(SceneError) as err:
+        load_scene([str(tmp_path / "t.obj")], [str(tmp_path / "m.mtl")])
+    assert err.value.line == 3 and "scale" in err.value.message
+    (tmp_path / "m.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\nmap_Kd proc:marble scale=10\n")
+    load_scene([str(tmp_path / "t.obj")], [str(tmp_path / "m.mtl")])          # a plain number is taken
+
+
+@pytest.mark.parametrize("flags", [["-out", "a.npy", "--error-map", "a.npy"],
+                                   ["-out", "a.png", "--progressive", "./a.png"],
+                                   ["-out", "x.png", "--error-map", "e.npy", "--spp-map", "sub/../e.npy"]])
+def test_two_outputs_naming_one_file_are_a_usage_error(tmp_path, capsys, monkeypatch, flags):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "t.obj").write_text(TRI)
+    (tmp_path / "sub").mkdir()
+    line = _one_line(capsys, ["-obj", "t.obj", "-res", "8", "8", "-sr", "2", *flags], 2)
+    assert "name the same file" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sub", "t.obj"]
+
+
+def test_a_gif_that_cannot_be_written_fails_before_the_first_frame(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "t.obj").write_text(TRI)
+    line = _one_line(capsys, ["-obj", "t.obj", "-res", "8", "8", "-sr", "1", "--frames", "0:2",
+                              "-out", "f_{frame}.png", "--gif", "missing/a.gif"], 1)
+    assert line == "warp-spt: error: cannot write --gif 'missing/a.gif': directory 'missing' does not exist"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.obj"]        # no frame was rendered
+
+
+def test_sigterm_with_save_partial_exits_143(tmp_path, capsys, monkeypatch):
+    import signal
+
+    from warp_spt.rendering import progressive
+
+    launched, real = [], progressive._Driver._launch
+
+    def launch(self, *args, **kw):
+        real(self, *args, **kw)
+        launched.append(args)
+        if len(launched) == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(progressive._Driver, "_launch", launch)
+    (tmp_path / "t.obj").write_text(TRI)
+    out = tmp_path / "partial.png"
+    assert main(["-obj", str(tmp_path / "t.obj"), "-res", "128", "128", "--threads", "1", "--save-partial",
+                 "-out", str(out)]) == 143
+    assert "terminated: saved the partial image" in capsys.readouterr().err and out.exists()

@@ -126,7 +126,9 @@ def run_cli(opts, err, started: float | None = None) -> int:
     frames = opts.frames or (path.frames if path is not None else range(0, 1))
     seq = ObjSequence(objs, mtls, default_material=opts.default_material)
     for k in frames:                       # every frame's inputs and outputs, before any rendering
-        check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
+        check_files(seq.paths(k), mtls, frame_path(opts.out, k) if opts.out else None)
+    if opts.gif:                           # written after the last frame: checked before the first
+        check_files((), (), opts.gif, "--gif")
     init_warp(opts)
     check_registry_names(opts)
     load_texture_modules(opts, say)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options
+from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options, shared_output
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
@@ -524,6 +524,9 @@ def check_budget_flags(opts) -> None:
     from warp_spt.cli.common import UsageError
 
     b = opts.budget
+    problem = shared_output(opts.out, b)
+    if problem:
+        raise UsageError(problem)
     if not (opts.cluster or opts.workers or opts.animated) or not b.active:
         return
     where = "an animation" if opts.animated else "a cluster"

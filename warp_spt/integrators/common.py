@@ -27,7 +27,7 @@ from warp_spt.core.device_scene import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.core.materials import BsdfSample
 from warp_spt.core.surface import Surface, offset_origin
-from warp_spt.io.numbers import plain_float, plain_int
+from warp_spt.scene.numbers import plain_float, plain_int
 from warp_spt.samplers import Sampler, SamplerState
 
 DIM_PIXEL = 0          # 2 dims: offset inside the pixel

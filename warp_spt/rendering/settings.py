@@ -93,7 +93,8 @@ def check_args(rs: RenderSettings) -> None:
     check_int("max_depth", rs.max_depth, 1, limits.MAX_DEPTH)
     check_int("tile_pixels", rs.tile_pixels, 1, limits.MAX_TILE_PIXELS)
     if rs.width * rs.height > MAX_PIXELS:
-        raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
+        raise ValueError(f"width x height: an image of {rs.width}x{rs.height} pixels is too large (at most "
+                         f"{MAX_PIXELS} pixels)")
     check_int("sample_offset", rs.sample_offset, 0)
     if rs.sample_offset + rs.spp > SAMPLE_INDEX_LIMIT:
         raise ValueError("sample indices must lie in [0, 2**31)")

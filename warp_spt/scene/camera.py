@@ -283,8 +283,9 @@ def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = N
     pinhole focused at the target.
     """
     if isinstance(aspect, bool) or not isinstance(aspect, (int, float, np.integer, np.floating)) \
-            or not 0.0 < aspect < math.inf:
-        raise ValueError(f"aspect must be a positive finite number (width / height), got {aspect!r}")
+            or not 0.0 < aspect < 1e300:       # an int such as 10**400 compares before float() overflows
+        raise ValueError(f"aspect must be a positive finite number (width / height), got {aspect!r:.40}")
+    aspect = float(aspect)
     b = _box(scene)
     base = template or Camera()
     u = up_vector(up if up is not None else base.up)

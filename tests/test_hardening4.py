@@ -460,3 +460,13 @@ def test_sigterm_with_save_partial_exits_143(tmp_path, capsys, monkeypatch):
     assert main(["-obj", str(tmp_path / "t.obj"), "-res", "128", "128", "--threads", "1", "--save-partial",
                  "-out", str(out)]) == 143
     assert "terminated: saved the partial image" in capsys.readouterr().err and out.exists()
+
+
+def test_gradients_take_a_list_of_names(tmp_path):
+    scene = _tri_scene(tmp_path)
+    p = warp_spt.parameters(scene, Camera.look_at((0.3, 0.3, 3), (0.3, 0.3, 0)))
+    settings = RenderSettings(width=4, height=4, spp=1)
+    with pytest.raises(TypeError, match="wrt must be a list of parameter names"):     # was: no parameter 'c'
+        warp_spt.render_gradients(p, settings, loss=lambda img: (img ** 2).sum(), wrt="camera.position")
+    with pytest.raises(KeyError, match="no parameter 'nope'"):
+        warp_spt.render_gradients(p, settings, loss=lambda img: (img ** 2).sum(), wrt=["nope"])

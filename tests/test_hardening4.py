@@ -84,10 +84,10 @@ def test_a_vanishing_fov_is_a_usage_error(tmp_path, capsys):
 
 
 def test_framing_that_would_stand_too_far_is_one_error_line(tmp_path, capsys):
-    # the narrowest fov allowed, on a scene a million times as wide as the camera may stand away
-    big = 4e11
-    (tmp_path / "t.obj").write_text(f"v 0 0 0\nv {big} 0 0\nv 0 {big} 0\nf 1 2 3\n"
-                                    f"v 0 0 {2 * big}\nv 1 0 {2 * big}\nv 0 1 {2 * big}\nf 4 5 6\n")
+    # the narrowest fov allowed, on two small triangles 8e11 apart: framed, the camera would stand 9e17 away
+    far = 8e11
+    (tmp_path / "t.obj").write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+                                    f"v 0 0 {far}\nv 1 0 {far}\nv 0 1 {far}\nf 4 5 6\n")
     line = _one_line(capsys, ["-obj", str(tmp_path / "t.obj"), "--fov", "0.0001", "-res", "8", "8", "-sr", "1",
                               "-out", str(tmp_path / "o.png")], 1)
     assert "cannot frame" in line and "--fov" in line and "internal error" not in line

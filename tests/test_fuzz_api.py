@@ -210,8 +210,6 @@ BUG_WORDS = ("Error:", "Exception", "Traceback", "Warning")
 @settings(SLOW, max_examples=400)
 @given(message=page_messages())
 def test_fuzzed_page_messages_are_acted_on_or_refused_naming_a_field(session, message):
-    from warp_spt.viewer.session import rig_camera
-
     inbox = _Inbox()
     session.handle(message, reply=inbox)
     notices = [m["text"] for m in inbox.messages if m.get("type") == "notice" and m.get("level") == "error"]

@@ -205,7 +205,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     new.add_argument("--version", action="store_true", help="print the version and exit")
     new.add_argument("--demo", choices=sorted(PRESETS), metavar="PRESET",
                      help="render the built-in demo like the seed's script: " + ", ".join(PRESETS))
-    new.add_argument("--threads", type=int_at_least(1, MAX_THREADS), metavar="N", help="worker threads (default: all cores)")
+    new.add_argument("--threads", type=int_at_least(1, MAX_THREADS), metavar="N",
+                     help="worker threads (default: all cores)")
     new.add_argument("--seed", type=int_at_least(0, 2**32 - 1), default=0, metavar="N",
                      help="random seed (default 0): the same seed gives the same image")
     new.add_argument("--sky-color", nargs=3, type=finite_float, metavar=("R", "G", "B"),

@@ -120,7 +120,8 @@ PARAMS = (
     Param("max_records", 16, "diffuse vertices of one path that record (deeper ones do not train)", int, 1, 256),
     Param("guide_cost", guiding_tree.GUIDE_COST, "the guide's relative cost per vertex that its variance "
           "reduction must pay for (learnt alpha)", float, 0.0, 1e3),
-    Param("min_hits", guiding_tree.MIN_HITS, "records a quadtree needs before it is sampled (learnt alpha)", int, 0, 1 << 30),
+    Param("min_hits", guiding_tree.MIN_HITS, "records a quadtree needs before it is sampled (learnt alpha)", int, 0,
+          1 << 30),
     Param("prior_records", guiding_tree.PRIOR_RECORDS, "how strongly a leaf's learnt energy is shrunk towards "
           "the cosine's, in records (learnt alpha)", float, 0.0, 1e9),
     Param("rho", guiding_tree.RHO, "a quadtree node holding more than this fraction of its tree's energy "

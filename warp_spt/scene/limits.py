@@ -19,7 +19,7 @@ They are chosen so that every product the kernel forms stays finite in float32 (
 * a triangle's longest edge is at most MAX_TRIANGLE_EDGE: the kernel squares its cross product
   (about edge^4: the geometric normal, areas) and forms triple products of edge-sized and
   distance-sized numbers in the hit test (about edge^2 x distance), in float32; a square of
-  half-size 4e9 shaded black and one of 4e12 was missed (tests/test_hardening4.py).
+  half-size 4e9 shades black and one of 4e12 is missed (tests/test_hardening4.py).
 
 The render settings have bounds too (``rendering.settings.check_args`` applies them for the API,
 the command line and the viewer alike), so that no setting can wrap a kernel's int32 or make
@@ -53,5 +53,5 @@ MAX_THREADS = 1024
 MAX_TILE_PIXELS = 1 << 22       # a launch's own buffers: 4M pixels of float32 RGB and more
 MAX_BATCHES = 64
 # The live viewer's view (width x height): its refined image is 8 float64 batch sums, at most
-# 8 x 2**21 x 3 x 8 bytes = 384 MiB (docs/viewer.md); a 4096 x 4096 view held 6-7.4 GB.
+# 8 x 2**21 x 3 x 8 bytes = 384 MiB (docs/viewer.md), where 4096 x 4096 would take 6-7.4 GB.
 MAX_VIEW_PIXELS = 1 << 21

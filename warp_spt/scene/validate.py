@@ -119,9 +119,10 @@ def validate_scene(scene: Scene) -> None:
     """Raise :class:`SceneError` unless every array of ``scene`` has its dtype, shape and range.
 
     Checks: meshes (finite float64 or float32 positions, int32 indices in range, no triangle edge
-    longer than MAX_TRIANGLE_EDGE, uv, unit normals, material rows), spheres (finite, radius > 0, material rows), the material table (row 0 is the checker,
-    every column in its range of the material schema, texture slots valid), textures
-    ((H, W, 3) float32 in [0, 1], non-empty), and that there is some geometry at all.
+    longer than MAX_TRIANGLE_EDGE, uv, unit normals, material rows), spheres (finite, radius > 0,
+    material rows), the material table (row 0 is the checker, every column in its range of the
+    material schema, texture slots valid), textures ((H, W, 3) float32 in [0, 1], non-empty), and
+    that there is some geometry at all.
     """
     n_mat = len(scene.materials.names)
     _check_materials(scene.materials, len(scene.textures), len(scene.procedural))

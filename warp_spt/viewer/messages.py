@@ -3,10 +3,10 @@
 :func:`parse` turns the text of a websocket frame into a JSON object (no NaN or Infinity, nesting
 bounded); :func:`checked` takes an object (from the browser host or the Jupyter widget) and returns
 a new one holding only the fields its type declares, each of its kind and within its bounds:
-numbers finite and bounded so that no step of navigation overflows (``1e308`` dolly steps gave an
-OverflowError, ``Infinity`` sizes a ZeroDivisionError), integers that fit (a 400-digit parameter
-value stopped the render thread), strings short. Anything else is a ValueError naming the field and
-what it must be; the session answers it with a notice and changes nothing.
+numbers finite and bounded so that no step of navigation overflows (``1e308`` dolly steps, an
+``Infinity`` size), integers that fit a float (a 400-digit parameter value), strings short.
+Anything else is a ValueError naming the field and what it must be; the session answers it with a
+notice and changes nothing.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def parse(text: str) -> dict:
     nested deeper than MAX_NESTING, not an object)."""
     depth = 0
     in_string = escaped = False
-    for ch in text:          # bounded before json recurses (5,000 levels raised RecursionError)
+    for ch in text:          # bounded before json recurses (deep nesting raises RecursionError)
         if in_string:
             if escaped:
                 escaped = False

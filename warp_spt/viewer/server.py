@@ -136,8 +136,8 @@ class ViewerServer:
         return self.url
 
     async def close(self) -> None:
-        """Close every page's socket first: the runner's clean-up waits for open handlers (about
-        45 s with a page connected, before)."""
+        """Close every page's socket first: the runner's clean-up waits for the open handlers, which
+        a connected page keeps open (for tens of seconds)."""
         from aiohttp import WSCloseCode
 
         for ws in list(self._sockets):

@@ -470,3 +470,43 @@ def test_gradients_take_a_list_of_names(tmp_path):
         warp_spt.render_gradients(p, settings, loss=lambda img: (img ** 2).sum(), wrt="camera.position")
     with pytest.raises(KeyError, match="no parameter 'nope'"):
         warp_spt.render_gradients(p, settings, loss=lambda img: (img ** 2).sum(), wrt=["nope"])
+
+
+def test_sigterm_stops_the_viewer_promptly_while_a_page_is_connected(tmp_path):
+    aiohttp = pytest.importorskip("aiohttp")
+    import asyncio
+    import signal
+    import threading
+    import time
+
+    from .test_viewer_server import read_line
+
+    (tmp_path / "t.obj").write_text(TRI)
+    proc = subprocess.Popen([sys.executable, "-m", "warp_spt", "view", "--no-browser", "-res", "16", "12",
+                             "-obj", str(tmp_path / "t.obj")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    connected = threading.Event()
+    try:
+        line = read_line(proc.stdout, 300)
+        assert line.startswith("warp-spt view: serving http://127.0.0.1:"), (line, proc.poll())
+        url = line.split()[3]
+
+        async def page():
+            async with aiohttp.ClientSession() as http:
+                async with http.ws_connect(url.replace("http", "ws") + "ws", origin=url.rstrip("/")) as ws:
+                    await ws.send_str('{"type": "hello"}')
+                    connected.set()
+                    async for _ in ws:
+                        pass
+        threading.Thread(target=lambda: asyncio.run(page()), daemon=True).start()
+        assert connected.wait(60)
+        time.sleep(0.5)
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+        seconds = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143 and err == "warp-spt view: terminated\n", err
+    assert seconds < 10, f"SIGTERM took {seconds:.1f} s with a page connected"

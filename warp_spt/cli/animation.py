@@ -113,6 +113,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
     from warp_spt.cli.common import (
         EXIT_OK,
         check_files,
+        check_registry_names,
         init_warp,
         scene_files,
     )
@@ -125,8 +126,11 @@ def run_cli(opts, err, started: float | None = None) -> int:
     seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps)
     frames = opts.frames or (path.frames if path is not None else seq.default_frames() or range(0, 1))
     for k in frames:                       # every frame's inputs and outputs, before any rendering
-        check_files(seq.paths(k), mtls, frame_path(opts.out or opts.gif, k))
+        check_files(seq.paths(k), mtls, frame_path(opts.out, k) if opts.out else None)
+    if opts.gif:                           # written after the last frame: checked before the first
+        check_files((), (), opts.gif, "--gif")
     init_warp(opts)
+    check_registry_names(opts)
     load_texture_modules(opts, say)
     start = time.perf_counter()
     first = seq.scene(frames[0])

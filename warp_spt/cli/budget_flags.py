@@ -7,11 +7,12 @@
 from __future__ import annotations
 
 import argparse
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from warp_spt.io.numbers import plain_float
+from warp_spt.scene.numbers import plain_float
 
 MAP_SUFFIXES = (".npy", ".pfm", ".exr", ".png")
 
@@ -31,6 +32,13 @@ class BudgetOptions:
     spp_given: bool = False
     denoise: bool = False
     adaptive_metric: str | None = None
+
+    def flags(self) -> list[str]:
+        """The flags given, as typed (those that switch to the progressive renderer)."""
+        return [flag for flag, value in (
+            ("--time-budget", self.time_budget), ("--target-error", self.target_error), ("--adaptive", self.adaptive),
+            ("--min-spp", self.min_spp), ("--save-partial", self.save_partial), ("--progressive", self.progressive),
+            ("--error-map", self.error_map), ("--spp-map", self.spp_map), ("--denoise", self.denoise)) if value]
 
     @property
     def active(self) -> bool:
@@ -126,6 +134,20 @@ def extra_outputs(b: BudgetOptions) -> list[tuple[str, str]]:
     """(flag, path) of every further file the render writes (for the early writability check)."""
     return [(f, p) for f, p in (("--progressive", b.progressive), ("--error-map", b.error_map),
                                 ("--spp-map", b.spp_map)) if p]
+
+
+def shared_output(out: str | None, b: BudgetOptions) -> str | None:
+    """Why two of the outputs (-out and the further ones) name the same file, or None: each is written
+    atomically on its own, so one would silently replace the other."""
+    seen: dict[str, str] = {}
+    for flag, path in [("-out", out), *extra_outputs(b)]:
+        if not path:
+            continue
+        key = os.path.realpath(path)
+        if key in seen:
+            return f"{seen[key]} and {flag} name the same file {path!r}: give each output its own name"
+        seen[key] = flag
+    return None
 
 
 def check_denoiser(b: BudgetOptions, error: Callable[[str], Exception]) -> None:

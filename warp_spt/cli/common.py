@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Sequence, TextIO
 
 from warp_spt.demo import demo_files
-from warp_spt.io.numbers import plain_float, plain_int
+from warp_spt.scene.numbers import plain_float, plain_int
 
 PROG = "warp-spt"
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
@@ -57,7 +57,7 @@ def int_at_least(low: int, high: int | None = None):
 
 
 def finite_float(text: str) -> float:
-    """An argparse ``type``: a plain decimal number, finite (:func:`warp_spt.io.numbers.plain_float`)."""
+    """An argparse ``type``: a plain decimal number, finite (:func:`warp_spt.scene.numbers.plain_float`)."""
     try:
         return plain_float(text)
     except ValueError as err:
@@ -148,11 +148,12 @@ def scene_files(opts) -> tuple[list[str], list[str]]:
     return list(opts.objs), list(opts.mtls)
 
 
-def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
+def check_files(objs: Sequence[str], mtls: Sequence[str], out: str | None, out_flag: str = "-out") -> None:
     """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place.
 
     Inputs must be regular files (a FIFO or a device is refused without being opened, so nothing
-    blocks); the output must not be an existing non-regular file (a symlink is written through).
+    blocks); the output (``out_flag``'s; None: none) must not be an existing non-regular file (a
+    symlink is written through).
     """
     from warp_spt.io.tokens import file_problem
 
@@ -163,26 +164,45 @@ def check_files(objs: Sequence[str], mtls: Sequence[str], out: str) -> None:
                 problem = "permission denied"
             if problem:
                 raise RunError(f"cannot read {flag} file {path!r}: {problem}")
+    if out is None:
+        return
     target = Path(os.path.realpath(out)) if Path(out).is_symlink() else Path(out)
     parent = target.parent
     if not parent.is_dir():
-        raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} does not exist")
+        raise RunError(f"cannot write {out_flag} {out!r}: directory {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK):
-        raise RunError(f"cannot write -out {out!r}: directory {str(parent)!r} is not writable")
+        raise RunError(f"cannot write {out_flag} {out!r}: directory {str(parent)!r} is not writable")
     if target.exists() and file_problem(target):
-        raise RunError(f"cannot write -out {out!r}: {file_problem(target)}")
+        raise RunError(f"cannot write {out_flag} {out!r}: {file_problem(target)}")
+
+
+def out_of_memory(err: BaseException) -> bool:
+    """Whether ``err`` means memory ran out: Python's MemoryError, or Warp's failed allocation (a
+    RuntimeError "Failed to allocate N bytes on device ...", which is no MemoryError)."""
+    return isinstance(err, MemoryError) or (isinstance(err, RuntimeError)
+                                            and str(err).startswith("Failed to allocate "))
 
 
 def check_registry_names(opts) -> None:
-    """--integrator and --sampler name entries of the registries, and every --integrator-option is
-    one of that integrator's parameters with a value it allows (a usage error otherwise)."""
-    from warp_spt.integrators import INTEGRATORS
+    """--integrator and --sampler name entries of the registries, every --integrator-option is
+    one of that integrator's parameters with a value it allows, and an integrator that trains over
+    its own passes of the whole image (``Integrator.render_passes``: guided, ears) is given no flag
+    that renders in batches or slices (budgets, error maps, --save-partial, --workers, --cluster);
+    a usage error otherwise, before anything is loaded."""
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
     from warp_spt.samplers import SAMPLERS
 
     for flag, name, registry in (("--integrator", opts.integrator, INTEGRATORS), ("--sampler", opts.sampler, SAMPLERS)):
         if name is not None and name not in registry:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
     integrator_options_of(opts)
+    name = opts.integrator or DEFAULT_INTEGRATOR
+    if INTEGRATORS[name].render_passes is not None:
+        given = opts.budget.flags() + [flag for flag, value in (("--workers", opts.workers),
+                                                                ("--cluster", opts.cluster)) if value]
+        if given:
+            raise UsageError(f"--integrator {name} trains over its own passes of the whole image: it cannot "
+                             f"render with {', '.join(given)} (use -sr, or another --integrator)")
 
 
 def integrator_options_of(opts) -> dict:

@@ -27,6 +27,7 @@ from warp_spt.cli.common import (
     UsageError,
     fail,
     one_line,
+    out_of_memory,
     process_start,
     registry_help,
 )
@@ -119,7 +120,7 @@ def _report(err: BaseException, stderr: TextIO) -> int:
         return fail(f"{err} (see {PROG} --help)", EXIT_USAGE, stderr)
     if isinstance(err, (RunError, SceneError)):
         return fail(str(err), EXIT_FAILURE, stderr)
-    if isinstance(err, MemoryError):
+    if out_of_memory(err):
         return fail("out of memory: try a smaller -res or fewer --threads", EXIT_FAILURE, stderr)
     if isinstance(err, OSError):
         where = f" {err.filename!r}" if err.filename else ""

@@ -14,10 +14,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options
+from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options, shared_output
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
+from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP, MAX_THREADS  # the API's caps (settings.check_args)
 from warp_spt.scene.sky import Sky
 
 if TYPE_CHECKING:
@@ -28,8 +29,6 @@ if TYPE_CHECKING:
 DEFAULT_RES, DEFAULT_SPP, DEFAULT_DEPTH, DEFAULT_SKY, DEFAULT_OUT = (500, 500), 16, 6, 0, "output.png"
 
 
-# Caps that keep nothing absurd from reaching a kernel; values above them are surely typos.
-MAX_SPP, MAX_DEPTH = 1 << 20, 4096
 OUTPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".npy", ".pfm", ".exr")
 
 
@@ -209,7 +208,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     new.add_argument("--version", action="store_true", help="print the version and exit")
     new.add_argument("--demo", choices=sorted(PRESETS), metavar="PRESET",
                      help="render the built-in demo like the seed's script: " + ", ".join(PRESETS))
-    new.add_argument("--threads", type=int_at_least(1), metavar="N", help="worker threads (default: all cores)")
+    new.add_argument("--threads", type=int_at_least(1, MAX_THREADS), metavar="N",
+                     help="worker threads (default: all cores)")
     new.add_argument("--seed", type=int_at_least(0, 2**32 - 1), default=0, metavar="N",
                      help="random seed (default 0): the same seed gives the same image")
     new.add_argument("--sky-color", nargs=3, type=finite_float, metavar=("R", "G", "B"),
@@ -538,6 +538,9 @@ def check_budget_flags(opts) -> None:
     from warp_spt.cli.common import UsageError
 
     b = opts.budget
+    problem = shared_output(opts.out, b)
+    if problem:
+        raise UsageError(problem)
     if not (opts.cluster or opts.workers or opts.animated) or not b.active:
         return
     where = "an animation" if opts.animated else "a cluster"

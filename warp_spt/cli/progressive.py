@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, TextIO
 
 from warp_spt.cli.budget_flags import BudgetOptions
-from warp_spt.cli.common import PROG, one_line
+from warp_spt.cli.common import EXIT_TERMINATED, PROG, one_line
+from warp_spt.runtime.signals import cli_interruption, exit_status
 
 if TYPE_CHECKING:
     import numpy as np
@@ -25,7 +26,8 @@ if TYPE_CHECKING:
 def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, err: TextIO | None = None) -> int:
     """Render ``opts`` progressively, save the image and maps, and report the relative error.
 
-    Returns the exit status: 0, or 130 after a Ctrl-C with --save-partial (the partial image written).
+    Returns the exit status: 0, or 130 after a Ctrl-C (143 after SIGTERM) with --save-partial (the partial
+    image written).
     ``err`` is where ``say`` writes (default stderr): on a terminal the passes rewrite one line there.
     """
     from warp_spt.cli.maps import save_error_map, save_spp_map
@@ -76,9 +78,11 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, 
         f"stopped by {s.stopped_by})")
     say(f"estimated relative error of the image: {_pct(res.relative_error)} (RMS of standard error / "
         f"max(value, 0.1 x mean); docs/error.md)")
-    if s.stopped_by == "interrupt":
-        say(f"interrupted: saved the partial image (--save-partial): {_unsampled(res.spp)}")
-        return 130
+    if s.stopped_by == "interrupt":      # Ctrl-C: 130, SIGTERM: 143, as without --save-partial
+        status = exit_status(cli_interruption() or KeyboardInterrupt())
+        word = "terminated" if status == EXIT_TERMINATED else "interrupted"
+        say(f"{word}: saved the partial image (--save-partial): {_unsampled(res.spp)}")
+        return status
     return 0
 
 

@@ -16,6 +16,7 @@ from warp_spt.cli.common import (
     check_registry_names,
     init_warp,
     load_texture_modules,
+    out_of_memory,
     say_for,
     scene_files,
     warm_up,
@@ -58,6 +59,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")
     notice = CompileNotice(say)
+    loaded = scene                  # the host Scene: prepare_view may hand back a DeviceScene
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)
     if opts.budget.active:      # passes, budgets and error estimates (cli/progressive.py)
         return render_and_save(replace(opts, camera=camera, sky=sky), scene, say=say, started=started, err=err)
@@ -68,9 +70,11 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     start = time.perf_counter()
     try:
         result = render_scene(scene, camera, settings, progress=bar or False)
-    except MemoryError:
-        texels = sum(int(np.prod(t.shape[:2])) for t in getattr(scene, "textures", []))
-        raise RunError(f"out of memory while uploading and rendering the scene ({scene.num_triangles:,} triangles, "
+    except Exception as error:
+        if not out_of_memory(error):
+            raise
+        texels = sum(int(np.prod(t.shape[:2])) for t in loaded.textures)
+        raise RunError(f"out of memory while uploading and rendering the scene ({loaded.num_triangles:,} triangles, "
                        f"{texels:,} texels) at {opts.width}x{opts.height}: try a smaller -res or fewer "
                        "--threads, or a smaller scene") from None
     finally:

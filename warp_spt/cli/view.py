@@ -7,6 +7,7 @@ command that renders the current view.
 
 from __future__ import annotations
 
+import errno
 import importlib.util
 import sys
 from typing import Sequence
@@ -23,6 +24,7 @@ from warp_spt.cli.common import (
 )
 from warp_spt.cli.options import UP_AXES, _camera, _join_up_operand
 from warp_spt.runtime.signals import exit_status
+from warp_spt.scene.limits import MAX_VIEW_PIXELS
 
 PROG = "warp-spt view"
 DEFAULT_VIEW = (384, 288)
@@ -55,6 +57,9 @@ def main(argv: Sequence[str]) -> int:
         ns = build_parser().parse_args(_join_up_operand(argv))
         if ns.mtl and not ns.obj:
             raise UsageError("-mtl given without any -obj file to use it")
+        if ns.res and ns.res[0] * ns.res[1] > MAX_VIEW_PIXELS:
+            raise UsageError(f"argument -res: a view of {ns.res[0]}x{ns.res[1]} is more than the "
+                             f"{MAX_VIEW_PIXELS:,} pixels a view may have (1920x1080 fits; docs/viewer.md)")
         camera = None
         if ns.cam is not None:
             from warp_spt.scene.camera import AXES
@@ -73,6 +78,11 @@ def main(argv: Sequence[str]) -> int:
                        open_browser=not ns.no_browser, width=width, height=height)
     except KeyboardInterrupt as err:          # a signal before the server's loop took over
         status = exit_status(err)
+    except OSError as err:
+        if err.errno != errno.EADDRINUSE:
+            raise
+        return fail(f"port {ns.port} is in use (another viewer?): choose another --port, or leave --port out "
+                    "for a free one", 1, sys.stderr)
     if status in (EXIT_INTERRUPTED, EXIT_TERMINATED):
         print(f"{PROG}: {'terminated' if status == EXIT_TERMINATED else 'interrupted'}", file=sys.stderr)
     return status

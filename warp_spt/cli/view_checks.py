@@ -320,12 +320,12 @@ def _framed(opts, scene, camera: Camera, up: str, offset, why: str) -> tuple[Cam
         towards = flat_normal(scene, orbit_vector(up, AZIMUTH, ELEVATION))
         if towards is not None:
             side = "face-on: a flat model (--view to choose)"
-    try:
+    try:     # with_ validates: a --fov so narrow that the camera would stand too far is refused here
         framed = frame_camera(scene, up=up, aspect=opts.width / opts.height, template=camera, azimuth=az,
                               elevation=el, target=target, towards=towards)
-    except ValueError as err:       # e.g. a --fov so narrow that the camera would stand too far
-        raise RunError(f"cannot frame the scene ({why}): {err}") from None
-    return framed.with_(aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture), side
+        return framed.with_(aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture), side
+    except ValueError as err:
+        raise RunError(f"cannot frame the scene ({why}): {err}; a wider --fov stands closer") from None
 
 
 def _framed_line(why: str, up, side: str, camera: Camera, offset) -> str:

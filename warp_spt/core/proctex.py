@@ -56,6 +56,7 @@ from warp_spt.core.textures import checker as _seed_checker
 from warp_spt.runtime import kernel_cache
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_RADIANCE
+from warp_spt.scene.numbers import plain_float
 
 MAX_PARAMS = 16
 ProcParams = wp.types.vector(length=MAX_PARAMS, dtype=wp.float32)
@@ -249,7 +250,7 @@ def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str,
             want = ", ".join(layout) or "none"
             raise SceneError(path, lineno, f"expected key=value for proc:{name} (keys: {want}), got {key!r}")
         try:
-            vals = tuple(float(v) for v in text.split(","))
+            vals = tuple(plain_float(v) for v in text.split(","))      # "1_0", "inf": not numbers here
         except ValueError:
             vals = ()
         size = layout[key][1]

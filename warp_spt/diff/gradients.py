@@ -236,6 +236,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     rs = settings or RenderSettings(width=64, height=64, spp=4, max_depth=4)
     if (loss is None) == (adjoint is None):
         raise ValueError("give exactly one of loss= and adjoint=")
+    if isinstance(wrt, str) or not (wrt is None or isinstance(wrt, (list, tuple))):
+        raise TypeError(f"wrt must be a list of parameter names (params.names()), got {wrt!r:.80}")
     names = list(params.differentiable() if wrt is None else wrt)
     infos = [params.info(n) for n in names]
     mode = choose_mode(mode, infos, rs.integrator)

@@ -80,6 +80,10 @@ class SceneParameters:
     """
 
     def __init__(self, scene: DeviceScene | Scene, camera: Camera | None = None, sky: Sky | None = None):
+        if camera is not None and not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a warp_spt.Camera or None, got {camera!r}")
+        if sky is not None and not isinstance(sky, Sky):
+            raise TypeError(f"sky must be a warp_spt.Sky or None, got {sky!r}")
         self.scene = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
         self.camera = camera or Camera()
         self.sky = sky or Sky.black()
@@ -103,7 +107,7 @@ class SceneParameters:
         return list(self._info)
 
     def info(self, name: str) -> ParamInfo:
-        if name not in self._info:
+        if not isinstance(name, str) or name not in self._info:
             raise KeyError(f"no parameter {name!r}; parameters are: {', '.join(self._info)}")
         return self._info[name]
 
@@ -123,7 +127,11 @@ class SceneParameters:
 
     def __setitem__(self, name: str, value) -> None:
         p = self.info(name)
-        v = np.asarray(value, dtype=np.float64)
+        try:
+            v = np.asarray(value, dtype=np.float64)
+        except (OverflowError, TypeError, ValueError):      # 10**400, "abc", ragged lists
+            raise ValueError(f"{name}: expected numbers of shape {p.shape} (finite in float32), "
+                             f"got {value!r:.80}") from None
         if v.shape != p.shape:
             raise ValueError(f"{name}: expected shape {p.shape}, got {v.shape}")
         _check_value(p, v)

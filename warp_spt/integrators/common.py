@@ -27,7 +27,7 @@ from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.core.materials import BsdfSample
 from warp_spt.core.surface import Surface, offset_origin
-from warp_spt.io.numbers import plain_float, plain_int
+from warp_spt.scene.numbers import plain_float, plain_int
 from warp_spt.samplers import Sampler, SamplerState
 
 DIM_PIXEL = 0          # 2 dims: offset inside the pixel
@@ -64,15 +64,18 @@ class Param:
 
     def allowed(self) -> str:
         """What a value may be, in words: "float in (0, 1]", "bool", "int >= 1 or None"."""
+        def num(v) -> str:          # ints in full: 1073741824, not 1.07374e+09
+            return str(int(v)) if self.kind is int else f"{v:g}"
+
         if self.kind is bool:
             text = "bool"
         elif self.low is not None and self.high is not None:
-            text = (f"{self.kind.__name__} in {'(' if self.low_open else '['}{self.low:g}, "
-                    f"{self.high:g}{')' if self.high_open else ']'}")
+            text = (f"{self.kind.__name__} in {'(' if self.low_open else '['}{num(self.low)}, "
+                    f"{num(self.high)}{')' if self.high_open else ']'}")
         elif self.low is not None:
-            text = f"{self.kind.__name__} {'>' if self.low_open else '>='} {self.low:g}"
+            text = f"{self.kind.__name__} {'>' if self.low_open else '>='} {num(self.low)}"
         elif self.high is not None:
-            text = f"{self.kind.__name__} {'<' if self.high_open else '<='} {self.high:g}"
+            text = f"{self.kind.__name__} {'<' if self.high_open else '<='} {num(self.high)}"
         else:
             text = f"finite {self.kind.__name__}"
         return text + (" or None" if self.optional else "")

@@ -76,6 +76,7 @@ from warp_spt.integrators.nee import make_path_step
 from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 from warp_spt.samplers.sobol import mix32
+from warp_spt.scene.limits import MAX_SPP
 
 STRIDE = FULL_STRIDE
 
@@ -83,16 +84,16 @@ PARAMS = (
     Param("relative", False, "EARS's relative error (factors scaled by the pixel's estimate, as the paper); "
           "False: absolute error (measured better on the benchmarks)", bool),
     Param("q_min", 0.2, "the factor's lower clamp (strongest roulette)", float, 0.0, 1.0, low_open=True),
-    Param("q_max", 10.0, "the factor's upper clamp (most splits; the stack caps them too)", float, 1.0),
-    Param("train_fraction", 4, "the first spp // train_fraction samples train (plain nee)", int, 1),
+    Param("q_max", 10.0, "the factor's upper clamp (most splits; the stack caps them too)", float, 1.0, 1e3),
+    Param("train_fraction", 4, "the first spp // train_fraction samples train (plain nee)", int, 1, MAX_SPP),
     Param("grid", 16, "cells per axis of the learnt grid over the scene's box", int, 1, 64),
-    Param("min_records", 32, "records a (bounce, cell) needs before it decides", int, 1),
+    Param("min_records", 32, "records a (bounce, cell) needs before it decides", int, 1, 1 << 30),
     Param("global_floor", 1.0, "floor of a cell's learnt second moment, a fraction of its bounce's mean over "
-          "the scene", float, 0.0),
+          "the scene", float, 0.0, 1e6),
     Param("v_scale", 1.0, "the pixel variance the factors are computed with, over the measured one", float, 0.0,
-          low_open=True),
+          1e6, low_open=True),
     Param("p_floor", 0.05, "relative error: pixel estimates floored at this fraction of the image's mean", float,
-          0.0, low_open=True),
+          0.0, 1e6, low_open=True),
     Param("max_records", 16, "vertices of one training path that record", int, 1, 256),
     Param("stack", 8, "pending split continuations per camera sample", int, 1, 64),
 )

@@ -103,26 +103,35 @@ from warp_spt.samplers import Sampler
 
 STRIDE = FULL_STRIDE      # nee's dimensions: the guide's choice reuses the direction's (see vertex)
 
+# Lower bounds that keep the SD-tree's memory and time in proportion to the default's: a quadtree
+# holds at most about 4 x MAX_DIR_DEPTH / rho nodes, a pass's spatial leaves about 2 x records / c.
+# Measured (cornell 64x64, 64 spp, guided): rho 0.03 197 MB, 0.001 328 MB, 1e-4 3.4 GB and 24 s;
+# spatial_c 4000 197 MB, 100 246 MB, 10 391 MB; 0.1 at 32x32 16 spp 5.7 GB and 22 s.
+MIN_RHO = 1e-3
+MIN_SPATIAL_C = 100.0
+MAX_TRAINING_PASSES = 32      # pass k renders 2**(k-1) spp: more than MAX_SPP allows
 PARAMS = (
     Param("alpha", None, "probability of sampling the guide, the same in every quadtree that learnt something "
           "(training then never stops); None: learnt per quadtree (guiding_tree.quadtree_alpha)",
           float, 0.0, 1.0, high_open=True, optional=True),
-    Param("stop_after", 2, "training passes before the guide may be found not worth it (1 + 1 spp)", int, 1),
+    Param("stop_after", 2, "training passes before the guide may be found not worth it (1 + 1 spp)", int, 1,
+          MAX_TRAINING_PASSES),
     # measured fractions: cornell 0.07-0.18, indirect 0.55-0.95, caustics 0.16-0.7
     Param("stop_fraction", 0.25, "training stops when fewer of the records than this fell where the guide "
           "is sampled", float, 0.0, 1.0),
     Param("max_records", 16, "diffuse vertices of one path that record (deeper ones do not train)", int, 1, 256),
     Param("guide_cost", guiding_tree.GUIDE_COST, "the guide's relative cost per vertex that its variance "
-          "reduction must pay for (learnt alpha)", float, 0.0),
-    Param("min_hits", guiding_tree.MIN_HITS, "records a quadtree needs before it is sampled (learnt alpha)", int, 0),
+          "reduction must pay for (learnt alpha)", float, 0.0, 1e3),
+    Param("min_hits", guiding_tree.MIN_HITS, "records a quadtree needs before it is sampled (learnt alpha)", int, 0,
+          1 << 30),
     Param("prior_records", guiding_tree.PRIOR_RECORDS, "how strongly a leaf's learnt energy is shrunk towards "
-          "the cosine's, in records (learnt alpha)", float, 0.0),
+          "the cosine's, in records (learnt alpha)", float, 0.0, 1e9),
     Param("rho", guiding_tree.RHO, "a quadtree node holding more than this fraction of its tree's energy "
-          "splits", float, 0.0, 1.0, low_open=True),
+          "splits", float, MIN_RHO, 1.0),
     Param("max_dir_depth", guiding_tree.MAX_DIR_DEPTH, "quadtree depth limit (float32 sample warping keeps "
           "about 24 bits over 12 levels)", int, 1, guiding_tree.MAX_DIR_DEPTH),
     Param("spatial_c", guiding_tree.SPATIAL_C, "records a spatial leaf may collect in a 1 spp pass before it "
-          "splits (times sqrt(2^k) in pass k)", float, 0.0, low_open=True),
+          "splits (times sqrt(2^k) in pass k)", float, MIN_SPATIAL_C, 1e9),
 )
 
 

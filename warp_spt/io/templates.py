@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 
-from warp_spt.io.numbers import plain_int
+from warp_spt.scene.numbers import plain_int
 
 FRAME_FIELD = "{frame"
 MAX_WIDTH = 12                   # digits of a zero-padded frame number

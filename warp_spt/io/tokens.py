@@ -19,7 +19,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from warp_spt.io.numbers import FLOAT_PATTERN, INT_PATTERN, MAX_TOKEN_DIGITS
+from warp_spt.scene.numbers import FLOAT_PATTERN, INT_PATTERN, MAX_TOKEN_DIGITS
 from warp_spt.scene.errors import SceneError
 
 # Strict decimal syntax; Python's float() would also take "nan", "inf", "1_0" and "0x1p3".

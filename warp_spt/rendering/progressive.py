@@ -57,6 +57,7 @@ from warp_spt.rendering.schedule import (
 from warp_spt.rendering.settings import TILE_PIXELS, RenderSettings, settings_from
 from warp_spt.rendering.setup import Bound, bind, check
 from warp_spt.runtime.threads import cores, run_jobs
+from warp_spt.scene import limits
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
 
@@ -150,8 +151,10 @@ def check_budget(time_budget, target_error, batches, min_spp, adaptive_metric=DE
         raise ValueError(f"time_budget must be a positive number of seconds, got {time_budget!r}")
     if target_error is not None and not (math.isfinite(target_error) and target_error > 0):
         raise ValueError(f"target_error must be a positive number, got {target_error!r}")
-    if not isinstance(batches, (int, np.integer)) or batches < 2:
-        raise ValueError(f"batches must be an integer >= 2 (the error estimate needs two), got {batches!r}")
+    if (not isinstance(batches, (int, np.integer)) or isinstance(batches, bool)
+            or not 2 <= batches <= limits.MAX_BATCHES):     # each batch holds a float64 image
+        raise ValueError(f"batches must be an integer in [2, {limits.MAX_BATCHES}] (the error estimate needs "
+                         f"two), got {batches!r}")
     if min_spp is not None and (not isinstance(min_spp, (int, np.integer)) or min_spp < 1):
         raise ValueError(f"min_spp must be a positive integer, got {min_spp!r}")
     if adaptive_metric not in ADAPTIVE_METRICS:

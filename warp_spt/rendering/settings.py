@@ -14,6 +14,7 @@ import numpy as np
 from warp_spt.core.structs import Features
 from warp_spt.integrators import DEFAULT_INTEGRATOR, get_integrator
 from warp_spt.samplers import DEFAULT_SAMPLER, check_sampler
+from warp_spt.scene import limits
 from warp_spt.scene.sky import Sky
 
 TILE_PIXELS = 4096        # pixels per launch
@@ -69,21 +70,41 @@ def settings_from(kw: dict) -> RenderSettings:
     return RenderSettings(**kw)
 
 
+def _is_int(v) -> bool:
+    """An integer that is not a bool (True is no image height)."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+def check_int(name: str, value, low: int, high: int | None = None) -> None:
+    """ValueError naming ``name`` unless ``value`` is an integer (not a bool) in [low, high]."""
+    if not _is_int(value) or value < low or (high is not None and value > high):
+        where = f"in [{low}, {high}]" if high is not None else f">= {low}"
+        raise ValueError(f"{name} must be an integer {where}, got {value!r}")
+
+
 def check_args(rs: RenderSettings) -> None:
     """Raise ValueError naming the first setting of ``rs`` a kernel must not see (sizes, sample indices,
-    seed, roulette depth, texture filter, integrator and sampler names, the integrator's options)."""
-    for name in ("width", "height", "spp", "max_depth", "tile_pixels"):
-        v = getattr(rs, name)
-        if not isinstance(v, (int, np.integer)) or v < 1:
-            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    seed, depths, threads, tile size, sky, texture filter, integrator and sampler names, the
+    integrator's options); the bounds are :mod:`warp_spt.scene.limits`', the command line's and the
+    viewer's too. Raises TypeError for a sky that is not a :class:`Sky`."""
+    check_int("width", rs.width, 1)
+    check_int("height", rs.height, 1)
+    check_int("spp", rs.spp, 1, limits.MAX_SPP)
+    check_int("max_depth", rs.max_depth, 1, limits.MAX_DEPTH)
+    check_int("tile_pixels", rs.tile_pixels, 1, limits.MAX_TILE_PIXELS)
     if rs.width * rs.height > MAX_PIXELS:
-        raise ValueError(f"image of {rs.width}x{rs.height} pixels is too large (at most {MAX_PIXELS} pixels)")
-    if rs.sample_offset < 0 or rs.sample_offset + rs.spp > SAMPLE_INDEX_LIMIT:
+        raise ValueError(f"width x height: an image of {rs.width}x{rs.height} pixels is too large (at most "
+                         f"{MAX_PIXELS} pixels)")
+    check_int("sample_offset", rs.sample_offset, 0)
+    if rs.sample_offset + rs.spp > SAMPLE_INDEX_LIMIT:
         raise ValueError("sample indices must lie in [0, 2**31)")
-    if not isinstance(rs.seed, (int, np.integer)):
+    if not _is_int(rs.seed):
         raise ValueError(f"seed must be an integer, got {rs.seed!r}")
-    if not isinstance(rs.roulette_depth, (int, np.integer)) or rs.roulette_depth < 0:
-        raise ValueError(f"roulette_depth must be a non-negative integer, got {rs.roulette_depth!r}")
+    check_int("roulette_depth", rs.roulette_depth, 0, limits.MAX_DEPTH)
+    if rs.threads is not None:
+        check_int("threads", rs.threads, 1, limits.MAX_THREADS)
+    if rs.sky is not None and not isinstance(rs.sky, Sky):
+        raise TypeError(f"sky must be a warp_spt.Sky (e.g. Sky.constant(1, 1, 1)) or None, got {rs.sky!r}")
     if rs.texture_filter not in ("nearest", "bilinear"):
         raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
     get_integrator(rs.integrator).options(rs.integrator_options)    # unknown, ill-typed, out of range

@@ -21,6 +21,7 @@ from warp_spt.scene.limits import (
     MAX_IMAGE_PLANE,
     MIN_DIRECTION,
     MIN_FOCUS,
+    MIN_FOV,
 )
 from warp_spt.scene.model import Scene
 
@@ -180,8 +181,8 @@ def camera_problem(cam: Camera, width: int = 1, height: int = 1) -> str | None:
         if not MIN_DIRECTION <= max(abs(v) for v in vec) <= MAX_COORDINATE:
             return (f"camera {name} must not be zero or huge: its largest component must lie in "
                     f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}] in size")
-    if not 0.0 < fov < 180.0:
-        return f"camera fov must be in (0, 180) degrees, got {fov:g}"
+    if not MIN_FOV <= fov < 180.0:
+        return f"camera fov must be in [{MIN_FOV:g}, 180) degrees, got {fov:g}"
     if not MIN_FOCUS <= focus <= MAX_CAMERA_COORDINATE:
         return f"camera focus distance must lie in [{MIN_FOCUS:g}, {MAX_CAMERA_COORDINATE:g}], got {focus:g}"
     if not 0.0 <= aperture <= MAX_CAMERA_COORDINATE:
@@ -281,6 +282,10 @@ def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = N
     (a vector from the target to the camera), as close as shows the whole box. The result is a
     pinhole focused at the target.
     """
+    if isinstance(aspect, bool) or not isinstance(aspect, (int, float, np.integer, np.floating)) \
+            or not 0.0 < aspect < 1e300:       # an int such as 10**400 compares before float() overflows
+        raise ValueError(f"aspect must be a positive finite number (width / height), got {aspect!r:.40}")
+    aspect = float(aspect)
     b = _box(scene)
     base = template or Camera()
     u = up_vector(up if up is not None else base.up)

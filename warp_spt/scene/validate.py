@@ -10,7 +10,13 @@ from __future__ import annotations
 import numpy as np
 
 from warp_spt.scene.errors import SceneError
-from warp_spt.scene.limits import MAX_COORDINATE, MAX_IOR, MAX_RADIANCE, MIN_IOR  # noqa: F401 (obj, mtl import them from here)
+from warp_spt.scene.limits import (  # noqa: F401 (obj, mtl import them from here)
+    MAX_COORDINATE,
+    MAX_IOR,
+    MAX_RADIANCE,
+    MAX_TRIANGLE_EDGE,
+    MIN_IOR,
+)
 from warp_spt.scene.material_schema import (
     COLUMNS,
     SLOT_COLUMNS,
@@ -56,12 +62,30 @@ def _check_index(a: np.ndarray, name: str, n: int) -> None:
         _fail(f"{name} holds indices outside [0, {n})")
 
 
+def longest_edges(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each triangle's longest edge, in float64 (``faces``: (F, 3) indices into ``positions``)."""
+    if len(faces) == 0:
+        return np.zeros(0)
+    p = positions.astype(np.float64)
+    corners = [p[faces[:, j]] for j in range(3)]
+    return np.max([np.linalg.norm(corners[(j + 1) % 3] - corners[j], axis=1) for j in range(3)], axis=0)
+
+
+def edge_problem(edge: float) -> str:
+    """Why a triangle with this longest edge is refused (docs/limits.md)."""
+    return (f"a triangle's edge of {edge:.3g} is longer than the supported {MAX_TRIANGLE_EDGE:g} "
+            "(float32 overflows in the hit test and the shading beyond it: scale the model down)")
+
+
 def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
     name = f"meshes[{k}] ({m.name})"
     pos = _check_array(m.positions, f"{name}.positions", COORDINATES, (None, 3))
     idx = _check_array(m.indices, f"{name}.indices", np.int32, (None, 3))
     f = len(idx)
     _check_index(idx, f"{name}.indices", len(pos))
+    edges = longest_edges(pos, idx)
+    if f and not edges.max() <= MAX_TRIANGLE_EDGE:
+        _fail(f"{name}: {edge_problem(float(edges.max()))}")
     _check_array(m.corner_uv, f"{name}.corner_uv", np.float32, (f, 3, 2))
     if m.corner_normal is not None:
         nrm = _check_array(m.corner_normal, f"{name}.corner_normal", np.float32, (f, 3, 3))
@@ -94,10 +118,11 @@ def _check_slots(tex: np.ndarray, n_textures: int, n_procedural: int) -> None:
 def validate_scene(scene: Scene) -> None:
     """Raise :class:`SceneError` unless every array of ``scene`` has its dtype, shape and range.
 
-    Checks: meshes (finite float64 or float32 positions, int32 indices in range, uv, unit normals, material
-    rows), spheres (finite, radius > 0, material rows), the material table (row 0 is the checker,
-    every column in its range of the material schema, texture slots valid), textures
-    ((H, W, 3) float32 in [0, 1], non-empty), and that there is some geometry at all.
+    Checks: meshes (finite float64 or float32 positions, int32 indices in range, no triangle edge
+    longer than MAX_TRIANGLE_EDGE, uv, unit normals, material rows), spheres (finite, radius > 0,
+    material rows), the material table (row 0 is the checker, every column in its range of the
+    material schema, texture slots valid), textures ((H, W, 3) float32 in [0, 1], non-empty), and
+    that there is some geometry at all.
     """
     n_mat = len(scene.materials.names)
     _check_materials(scene.materials, len(scene.textures), len(scene.procedural))

@@ -24,6 +24,8 @@ import threading
 import webbrowser
 from typing import Sequence, TextIO
 
+from . import messages
+
 PROG = "warp-spt view"
 EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_TERMINATED = 0, 2, 130, 143
 STATIC = {"/": ("index.html", "text/html"), "/viewer.js": ("viewer.js", "text/javascript")}
@@ -103,6 +105,7 @@ class ViewerServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._stopped: asyncio.Event | None = None
+        self._sockets: set = set()       # the pages' open websockets, closed first on shutdown
 
     def _app(self):
         from aiohttp import web
@@ -133,6 +136,12 @@ class ViewerServer:
         return self.url
 
     async def close(self) -> None:
+        """Close every page's socket first: the runner's clean-up waits for the open handlers, which
+        a connected page keeps open (for tens of seconds)."""
+        from aiohttp import WSCloseCode
+
+        for ws in list(self._sockets):
+            await ws.close(code=WSCloseCode.GOING_AWAY, message=b"the viewer is shutting down")
         if self._runner is not None:
             await self._runner.cleanup()
             self._runner = None
@@ -163,23 +172,24 @@ class ViewerServer:
         client = _Client(ws, asyncio.get_running_loop())
         self.session.add_listener(client.push)
         pump = asyncio.create_task(client.pump())
+        self._sockets.add(ws)
         try:
             async for raw in ws:
                 if raw.type == WSMsgType.TEXT:
                     self._receive(raw.data, client)
         finally:
+            self._sockets.discard(ws)
             self.session.remove_listener(client.push)
             pump.cancel()
         return ws
 
     def _receive(self, text: str, client: _Client) -> None:
         try:
-            message = json.loads(text)
-        except ValueError:
-            client.push({"type": "notice", "level": "error", "text": "the page sent a message that is not JSON"}, [])
+            message = messages.parse(text)      # the session checks its fields (messages.checked)
+        except ValueError as err:
+            client.push({"type": "notice", "level": "error", "text": str(err)}, [])
             return
-        if isinstance(message, dict):
-            self.session.handle(message, reply=client.push)
+        self.session.handle(message, reply=client.push)
 
     # -- running
     async def _serve_until_stopped(self, on_ready) -> None:

@@ -32,7 +32,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from . import display, navigation
+from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP, MAX_VIEW_PIXELS
+
+from . import display, messages, navigation
 from .command import CommandSpec, command_line
 from .raycast import first_hit
 
@@ -107,13 +109,17 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
                "tonemap": ("srgb", "seed")}
     if key in choices and value not in choices[key]:
         raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
-    limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, 4096), "max_spp": (1, 1 << 20),
+    limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, MAX_DEPTH), "max_spp": (1, MAX_SPP),
               "preview_scale": (1, 16), "exposure": (-20.0, 20.0)}
     if key in limits and not limits[key][0] <= value <= limits[key][1]:
         raise ValueError(f"{key} must lie in [{limits[key][0]}, {limits[key][1]}], got {value}")
     if key == "sky_color":
         warp_spt.Sky.constant(*value)          # Sky validates a colour (ValueError)
-    return replace(settings, **{key: value})
+    new = replace(settings, **{key: value})
+    if new.width * new.height > MAX_VIEW_PIXELS:     # the refined image's batch sums: docs/viewer.md
+        raise ValueError(f"a view of {new.width}x{new.height} is more than the {MAX_VIEW_PIXELS:,} pixels a view "
+                         "may have (1920x1080 fits); render larger images with the copied command line")
+    return new
 
 
 def preview_size(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int]:
@@ -185,8 +191,11 @@ class Accumulator:
         k = int(used.sum())
         if k < 2:
             return mean.astype(np.float32), np.full(mean.shape, np.nan, dtype=np.float32)
-        mb = self.sums[used] / n[used, None, None, None]
-        between = (n[used, None, None, None] * (mb - mean) ** 2).sum(axis=0) / (k - 1)
+        between = np.zeros_like(mean)
+        for b in np.flatnonzero(used):        # batch by batch: no copy of all the batches at once
+            d = self.sums[b] / n[b] - mean
+            between += n[b] * (d * d)
+        between /= k - 1
         return mean.astype(np.float32), np.sqrt(between / total).astype(np.float32)
 
 
@@ -216,7 +225,9 @@ class Session:
             raise ValueError("give a scene or a loader")
         self.objs, self.mtls = tuple(map(str, objs)), tuple(map(str, mtls))
         self._cond = threading.Condition()
-        self._settings = ViewSettings(**settings)
+        self._settings = ViewSettings()
+        for key, value in settings.items():      # the page's bounds hold for the first view too
+            self._settings = checked_settings(self._settings, key, value)
         self._given_camera = camera
         self._up = up or _axis_name(camera.up if camera is not None else (0.0, 0.0, 1.0))
         self._up_given = up is not None or camera is not None    # else warp_spt.up_axis's rule, on load
@@ -286,9 +297,14 @@ class Session:
         answers meant for that front end only (state, files, the command line); by default every
         listener does. An invalid request is answered with a "notice" message, never raised."""
         reply = reply or self._broadcast
-        handler = getattr(self, f"_on_{msg.get('type', '')}", None)
+        try:
+            msg = messages.checked(msg)        # the one gate: only declared fields, typed and bounded
+        except ValueError as err:
+            reply({"type": "notice", "level": "error", "text": str(err)}, [])
+            return
+        handler = getattr(self, f"_on_{msg['type']}", None)
         if handler is None:
-            reply({"type": "notice", "level": "error", "text": f"unknown message {msg.get('type')!r}"}, [])
+            reply({"type": "notice", "level": "error", "text": f"unknown message {msg['type']!r}"}, [])
             return
         try:
             handler(msg, reply)
@@ -327,6 +343,9 @@ class Session:
         """The ``warp-spt`` command that renders the current view at ``width`` x ``height``
         (default: the view's size; one given alone keeps the view's aspect) with ``spp`` samples."""
         s = self._settings
+        for name, side in (("width", width), ("height", height)):
+            if side is not None and (isinstance(side, bool) or not isinstance(side, (int, np.integer)) or side < 1):
+                raise ValueError(f"the command line's {name} must be a positive integer, got {side!r}")
         if width and not height:
             height = max(1, round(width * s.height / s.width))
         elif height and not width:

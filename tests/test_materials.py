@@ -324,3 +324,29 @@ def test_cutouts_are_holes_for_camera_rays_and_shadow_rays(tmp_path):
     clear, none = agree("map_d clear.png", None)
     opaque, plain = agree("map_d solid.png", "")
     assert opaque < 0.5 * clear            # the roof's shadow is there: the comparisons can fail
+
+
+def test_a_normal_map_that_is_not_a_normal_map_is_refused_with_file_and_line(tmp_path):
+    from PIL import Image
+
+    from warp_spt.scene.errors import SceneError
+
+    Image.fromarray(np.full((4, 4, 3), 128, np.uint8)).save(tmp_path / "grey.png")     # a height map
+    (tmp_path / "q.obj").write_text("mtllib q.mtl\n" + quad_obj([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)],
+                                                              material="m"))
+    (tmp_path / "q.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\nnorm grey.png\n")
+    with pytest.raises(SceneError) as info:
+        load_scene([str(tmp_path / "q.obj")])
+    assert info.value.line == 3 and "not a tangent-space normal map" in info.value.message
+
+
+@pytest.mark.parametrize("mtl, message", [("aniso 1.5\n", "after 'aniso'"), ("Pr -0.1\n", "after 'Pr'"),
+                                          ("Pm 2\n", "after 'Pm'"), ("Ni 0\n", "after 'Ni'"),
+                                          ("norm -bm x n.png\n", "after 'norm -bm'")])
+def test_out_of_range_pbr_values_name_file_and_line(mtl, message):
+    from warp_spt.io.mtl import parse_mtl_bytes
+    from warp_spt.scene.errors import SceneError
+
+    with pytest.raises(SceneError) as info:
+        parse_mtl_bytes(("newmtl m\n" + mtl).encode(), "x.mtl")
+    assert (info.value.path, info.value.line) == ("x.mtl", 2) and message in info.value.message, info.value.message

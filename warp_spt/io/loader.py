@@ -359,7 +359,24 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     for w in caught:
         if not issubclass(w.category, Image.DecompressionBombWarning):
             note(f"{ref.mtl_file}:{ref.line}: texture {path}: {w.message}")
+    if decode == "normal":
+        _check_normal_map(rgb, path, ref)
     return srgb_to_linear(rgb) if decode == "srgb" else rgb
+
+
+# A tangent-space normal map stores z = 2 b - 1 well above 0 (a normal tilted less than 84 degrees: b > 0.55)
+# in nearly every texel; a height, roughness or colour image given as one (mid-grey: b = 0.5) does not.
+NORMAL_MAP_MIN_BLUE = 0.55
+NORMAL_MAP_MIN_SHARE = 0.95
+
+
+def _check_normal_map(rgb: np.ndarray, path: str, ref: TextureRef) -> None:
+    """SceneError unless ``rgb`` looks like a tangent-space normal map (blue above 0.5 almost everywhere)."""
+    share = float((rgb[..., 2] > NORMAL_MAP_MIN_BLUE).mean())
+    if share < NORMAL_MAP_MIN_SHARE:
+        raise SceneError(ref.mtl_file, ref.line, f"texture {path} is not a tangent-space normal map: its blue "
+                         f"channel (the normal's z, 2b - 1) is above {NORMAL_MAP_MIN_BLUE:g} in {share:.0%} of its "
+                         f"texels, expected at least {NORMAL_MAP_MIN_SHARE:.0%} (a height map belongs in 'bump')")
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:

@@ -176,12 +176,15 @@ def texture_decode(m, column: str) -> str:
     """How material ``m``'s map of ``column`` is read into linear values: ``"raw"`` (the seed's kind
     keeps its maps' values as stored, SEMANTICS Q18), ``"srgb"`` (a colour map of another kind:
     decoded from sRGB), ``"alpha"`` (an opacity map: its alpha channel, else its grey value) or
-    ``"linear"`` (a data map: roughness, metallic, normal, bump)."""
+    ``"linear"`` (a data map: roughness, metallic, bump), ``"normal"`` (a tangent-space normal map:
+    linear, checked to be one)."""
     from warp_spt.scene.material_schema import COLUMN, KIND_SEED
     if m.kind == KIND_SEED:
         return "raw"
     if column == "opacity":
         return "alpha"
+    if column == "normal":
+        return "normal"
     return "srgb" if COLUMN[column].srgb else "linear"
 
 

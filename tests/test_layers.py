@@ -12,13 +12,13 @@ from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "warp_spt"
 
-# Bottom up. io/ sits above core/ only because an MTL file's ``proc:`` maps name procedural
-# textures, which are Warp functions (io/mtl.py imports core/proctex.py lazily, for such files only).
+# Bottom up. io/ reads files into the host model without Warp, so it sits below core/ and may not
+# import it at all (an MTL ``proc:`` map is read against scene/proctex_registry.py's declarations).
 LAYERS = [
     {"runtime"},
     {"scene", "demo", "losses"},
-    {"core"},
     {"io"},
+    {"core"},
     {"samplers"},
     {"integrators"},
     {"rendering"},

@@ -35,6 +35,12 @@ dispatch) and the kernel cache keys on them; a scene without procedural textures
 
 Built-ins, written the same way: ``checker`` (the seed's pattern, bit-identical), ``noise``
 (Perlin gradient noise), ``marble``, ``wood`` and ``grid``.
+
+Two halves: the declarations (names, parameter layouts and ranges, the built-ins' parameters), their
+registry, :class:`ProcRef` and the MTL hook ``parse_proc_map`` live Warp-free in
+:mod:`warp_spt.scene.proctex_registry`, so reading a scene needs no Warp; this module holds the Warp
+functions, registered beside the declarations under the same names, and compiles them. Every name
+of the host half is importable from here too.
 """
 
 from __future__ import annotations
@@ -43,10 +49,9 @@ import hashlib
 import importlib.machinery
 import importlib.util
 import inspect
-import math
 import sys
 import textwrap
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -55,74 +60,47 @@ import warp as wp
 from warp_spt.core.textures import checker as _seed_checker
 from warp_spt.runtime import kernel_cache
 from warp_spt.scene.errors import SceneError
-from warp_spt.scene.limits import MAX_RADIANCE
-from warp_spt.scene.numbers import plain_float
+from warp_spt.scene.proctex_registry import (  # noqa: F401 (re-exported: this module's public names)
+    BUILTINS,
+    MAX_PARAMETER,
+    MAX_PARAMS,
+    PREFIX,
+    ProcParam,
+    ProcRef,
+    ProcTexture,
+    colour_problem,
+    declare,
+    get_texture,
+    instance_arrays,
+    parse_proc_map,
+    proc_texture,
+    register_declaration,
+    registered,
+)
 
-MAX_PARAMS = 16
 ProcParams = wp.types.vector(length=MAX_PARAMS, dtype=wp.float32)
-PREFIX = "proc:"
 
 
 @dataclass(frozen=True)
-class ProcParam:
-    """A declared parameter: its default and the range its numbers may take (``texture(name,
-    scale=ProcParam(1.0, 1e-6, 1e6))``). A plain number or RGB triple declares the default range:
-    numbers within +-MAX_PARAMETER; an RGB triple is a colour, whose limits are those of the slot it
-    fills (reflectance in [0, 1], emission in [0, MAX_RADIANCE]: the material schema's ranges)."""
+class ProcFunction:
+    """The Warp half of a registered texture, beside its declaration (``texture``, the Warp-free
+    half in scene.proctex_registry): its function, always ``(uv, p, n, prm)``, and where it is written.
+    Other attributes (``name``, ``params``, ``layout()``, ``pack()``...) are the declaration's."""
 
-    default: object
-    low: float | None = None
-    high: float | None = None
-
-
-MAX_PARAMETER = 1e15      # undeclared numbers: as far as a coordinate may go (scene.limits.MAX_COORDINATE)
-
-
-@dataclass(frozen=True)
-class ProcTexture:
-    """One registered texture: its Warp function (always ``(uv, p, n, prm)``) and parameter layout."""
-
-    name: str
+    texture: ProcTexture
     func: object                                  # wp.Function (uv, p, n, prm) -> vec3
     user_func: object                             # the function as written (3 or 4 arguments)
-    params: tuple[tuple[str, tuple[float, ...]], ...]   # (key, default values) in layout order
     file: str
     line: int
     source_hash: str
-    ranges: tuple[tuple[float, float], ...] = ()        # (low, high) per key, in layout order
 
-    def layout(self) -> dict[str, tuple[int, int]]:
-        """``{key: (offset, size)}`` in the parameter vector."""
-        out, offset = {}, 0
-        for key, default in self.params:
-            out[key] = (offset, len(default))
-            offset += len(default)
-        return out
-
-    def colours(self) -> tuple[int, ...]:
-        """Offsets of the RGB triples (colours) in the parameter vector."""
-        return tuple(off for off, size in self.layout().values() if size == 3)
-
-    def check(self, key: str, vals: tuple[float, ...]) -> str | None:
-        """Why ``vals`` cannot be ``key``'s values (a scalar outside its declared range; colours are
-        checked against their slot by the MTL reader and validate_scene), or None."""
-        low, high = dict(zip((k for k, _ in self.params), self.ranges))[key]
-        if len(vals) == 1 and not low <= vals[0] <= high:
-            return f"{key} of proc:{self.name} must lie in [{low:g}, {high:g}], got {vals[0]:g}"
-        if len(vals) == 3 and not all(0.0 <= v <= MAX_RADIANCE for v in vals):
-            return f"{key} of proc:{self.name} is a colour: each value in [0, {MAX_RADIANCE:g}], got {vals}"
-        return None
-
-    def pack(self, values: dict[str, tuple[float, ...]] | None = None) -> tuple[float, ...]:
-        """The parameter vector (MAX_PARAMS floats): defaults overridden by ``values``."""
-        vec = [0.0] * MAX_PARAMS
-        given = values or {}
-        for (key, default), (offset, size) in zip(self.params, self.layout().values()):
-            vec[offset:offset + size] = given.get(key, default)
-        return tuple(float(np.float32(v)) for v in vec)
+    def __getattr__(self, attr: str):
+        if attr == "texture" or attr.startswith("__"):   # not yet set (copy, pickle): no recursion
+            raise AttributeError(attr)
+        return getattr(self.texture, attr)
 
 
-_REGISTRY: dict[str, ProcTexture] = {}     # a plugin registry, like INTEGRATORS: names -> textures
+_FUNCTIONS: dict[str, ProcFunction] = {}   # a plugin registry, beside the declarations': names -> Warp halves
 
 
 def texture(name: str, **params):
@@ -137,30 +115,33 @@ def texture(name: str, **params):
     return register
 
 
-def register_texture(name: str, fn, **params) -> ProcTexture:
+def register_texture(name: str, fn, **params) -> ProcFunction:
     """Register ``fn`` (``(uv, p, n[, prm]) -> vec3``) as ``name``; see :func:`texture`."""
-    if not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise ValueError(f"procedural texture name {name!r}: use letters, digits, '_' or '-'")
-    declared = {k: v if isinstance(v, ProcParam) else ProcParam(v) for k, v in params.items()}
-    layout = tuple((k, _default(name, k, d.default)) for k, d in declared.items())
-    ranges = tuple((-MAX_PARAMETER if d.low is None else d.low, MAX_PARAMETER if d.high is None else d.high)
-                   for d in declared.values())
-    if sum(len(d) for _, d in layout) > MAX_PARAMS:
-        raise ValueError(f"procedural texture {name!r}: at most {MAX_PARAMS} parameter values")
+    return _register(declare(name, **params), fn)
+
+
+def _builtin(name: str):
+    """Decorator for a built-in's Warp function: its parameters are the declaration's (BUILTINS)."""
+    def register(fn):
+        return _register(BUILTINS[name], fn).user_func
+    return register
+
+
+def _register(tex: ProcTexture, fn) -> ProcFunction:
+    """Register the declaration ``tex`` and ``fn``, its Warp function, together (both or neither)."""
     py = getattr(fn, "func", fn)                  # the Python function behind a wp.Function
-    user = fn if hasattr(fn, "adj") else wp.func(fn)  # a wp.Function already has its Adjoint
     nargs = len(inspect.signature(py).parameters)
     if nargs not in (3, 4):
-        raise ValueError(f"procedural texture {name!r}: expected (uv, p, n) or (uv, p, n, prm), "
+        raise ValueError(f"procedural texture {tex.name!r}: expected (uv, p, n) or (uv, p, n, prm), "
                          f"got {nargs} arguments")
-    source = _source_of(py)
-    tex = ProcTexture(name=name, func=user if nargs == 4 else _with_params(user), user_func=user,
-                      params=layout, file=inspect.getsourcefile(py) or "<unknown>",
-                      line=py.__code__.co_firstlineno,
-                      source_hash=hashlib.sha1((source + py.__qualname__ + repr(layout)).encode()).hexdigest()[:16],
-                      ranges=ranges)
-    _REGISTRY[name] = tex
-    return tex
+    user = fn if hasattr(fn, "adj") else wp.func(fn)  # a wp.Function already has its Adjoint
+    source_hash = hashlib.sha1((_source_of(py) + py.__qualname__ + repr(tex.params)).encode()).hexdigest()[:16]
+    entry = ProcFunction(texture=tex, func=user if nargs == 4 else _with_params(user), user_func=user,
+                         file=inspect.getsourcefile(py) or "<unknown>", line=py.__code__.co_firstlineno,
+                         source_hash=source_hash)
+    register_declaration(tex)
+    _FUNCTIONS[tex.name] = entry
+    return entry
 
 
 def _source_of(py) -> str:
@@ -174,15 +155,6 @@ def _source_of(py) -> str:
     return py.__code__.co_code.hex()
 
 
-def _default(name: str, key: str, value) -> tuple[float, ...]:
-    vals = (value,) if isinstance(value, (int, float)) else tuple(value)
-    if len(vals) not in (1, 3) or not all(isinstance(v, (int, float)) and math.isfinite(v)
-                                          and abs(v) <= MAX_PARAMETER for v in vals):
-        raise ValueError(f"procedural texture {name!r}: parameter {key!r} must be a finite number or "
-                         f"an RGB triple, got {value!r}")
-    return tuple(float(v) for v in vals)
-
-
 def _with_params(f):
     """``(uv, p, n, prm)`` around a texture written without parameters."""
     @wp.func
@@ -191,83 +163,8 @@ def _with_params(f):
     return adapted
 
 
-def get_texture(name: str) -> ProcTexture:
-    """The registered texture ``name`` (KeyError if none)."""
-    return _REGISTRY[name]
-
-
-def registered() -> list[str]:
-    """Names of all registered procedural textures, sorted."""
-    return sorted(_REGISTRY)
-
-
 # ---------------------------------------------------------------------------------------------
-# Host side: MTL statements, user modules, scene instances
-
-
-@dataclass(frozen=True)
-class ProcRef:
-    """A ``map_* proc:NAME key=value...`` statement: the texture, its packed parameters, where written."""
-
-    name: str
-    params: tuple[float, ...]
-    mtl_file: str = field(default="<api>", compare=False)     # instances are equal by (name, params)
-    line: int = field(default=0, compare=False)
-    colours: tuple[int, ...] = field(default=(), compare=False)   # offsets of its RGB triples (validation)
-
-
-def proc_texture(name: str, **values) -> ProcRef:
-    """A procedural texture for a :class:`~warp_spt.scene.model.Material` colour slot, from the API
-    (e.g. ``Material("m", diffuse_map=proc_texture("marble", scale=2.0))``)."""
-    tex = get_texture(name)
-    unknown = set(values) - set(tex.layout())
-    if unknown:
-        raise ValueError(f"proc:{name} has no parameter(s) {', '.join(sorted(unknown))}")
-    given = {k: _default(name, k, v) for k, v in values.items()}
-    for key, vals in given.items():
-        problem = tex.check(key, vals)
-        if problem:
-            raise ValueError(problem)
-    return ProcRef(name, tex.pack(given), colours=tex.colours())
-
-
-def parse_proc_map(args: list[bytes], path: str, lineno: int, tag: str,
-                   colour_high: float = MAX_RADIANCE) -> ProcRef | None:
-    """The MTL hook: a :class:`ProcRef` if the statement's arguments start with ``proc:``, else None.
-    ``colour_high``: the largest value the slots that ``tag`` fills take (the material schema's)."""
-    if not args or not args[0].decode("latin-1").startswith(PREFIX):
-        return None
-    name = args[0].decode("latin-1")[len(PREFIX):]
-    if name not in _REGISTRY:
-        known = ", ".join(registered())
-        raise SceneError(path, lineno, f"unknown procedural texture {name!r} after '{tag}' (registered: {known})")
-    tex = _REGISTRY[name]
-    layout = tex.layout()
-    values: dict[str, tuple[float, ...]] = {}
-    for tok in args[1:]:
-        key, sep, text = tok.decode("latin-1").partition("=")
-        if not sep or key not in layout:
-            want = ", ".join(layout) or "none"
-            raise SceneError(path, lineno, f"expected key=value for proc:{name} (keys: {want}), got {key!r}")
-        try:
-            vals = tuple(plain_float(v) for v in text.split(","))      # "1_0", "inf": not numbers here
-        except ValueError:
-            vals = ()
-        size = layout[key][1]
-        if len(vals) != size or not all(math.isfinite(v) for v in vals):
-            raise SceneError(path, lineno, f"expected {size} finite number(s) for {key} of proc:{name}, got {text!r}")
-        problem = tex.check(key, vals) or (size == 3 and colour_problem(tag, colour_high, key, name, vals))
-        if problem:
-            raise SceneError(path, lineno, problem)
-        values[key] = vals
-    return ProcRef(name, tex.pack(values), path, lineno, colours=tex.colours())
-
-
-def colour_problem(tag: str, high: float, key: str, name: str, vals) -> str | None:
-    """Why colour ``vals`` cannot fill ``tag``'s slots, whose values lie in [0, ``high``], or None."""
-    if all(0.0 <= v <= high for v in vals):
-        return None
-    return f"{key} of proc:{name} fills '{tag}': each value in [0, {high:g}], got {tuple(vals)}"
+# Host side: user modules, kernel keys
 
 
 def load_texture_module(path: str) -> list[str]:
@@ -278,7 +175,7 @@ def load_texture_module(path: str) -> list[str]:
     file = Path(path)
     if not file.is_file():
         raise SceneError(str(path), 0, "texture module not found")
-    before = dict(_REGISTRY)
+    before = dict(_FUNCTIONS)
     # a source loader whatever the file's suffix: spec_from_file_location gives None for "tex.txt"
     loader = importlib.machinery.SourceFileLoader(f"warp_spt_user_textures_{file.stem}", str(file))
     spec = importlib.util.spec_from_loader(loader.name, loader)
@@ -292,7 +189,7 @@ def load_texture_module(path: str) -> list[str]:
         line = _user_line(err, str(file))
         raise SceneError(str(file), line, f"cannot import texture module: {type(err).__name__}: {err}") from None
     sys.modules[spec.name] = module
-    return sorted(n for n, t in _REGISTRY.items() if before.get(n) is not t)
+    return sorted(n for n, t in _FUNCTIONS.items() if before.get(n) is not t)
 
 
 def _user_line(err: BaseException, file: str) -> int:
@@ -308,15 +205,7 @@ def _user_line(err: BaseException, file: str) -> int:
 
 def features_key(names) -> tuple[tuple[str, str], ...]:
     """``Features.procedural`` for these texture names: sorted (name, source hash) pairs."""
-    return tuple((n, _REGISTRY[n].source_hash) for n in sorted(set(names)))
-
-
-def instance_arrays(refs: list[ProcRef], key: tuple[tuple[str, str], ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-instance kind (index into ``key``) and (K, MAX_PARAMS) float32 parameters."""
-    order = {name: i for i, (name, _) in enumerate(key)}
-    kinds = np.array([order.get(r.name, -1) for r in refs], dtype=np.int32)
-    params = np.array([r.params for r in refs], dtype=np.float32).reshape(-1, MAX_PARAMS)
-    return kinds, params
+    return tuple((n, _FUNCTIONS[n].source_hash) for n in sorted(set(names)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -339,7 +228,7 @@ def make_dispatch(key: tuple[tuple[str, str], ...]):
     """
     if not key:
         return _no_texture
-    func = _REGISTRY[key[-1][0]].func
+    func = _FUNCTIONS[key[-1][0]].func
     rest = make_dispatch(key[:-1])
     kind = len(key) - 1
 
@@ -430,7 +319,7 @@ def explain_compile_failure(key: tuple[tuple[str, str], ...], err: Exception, de
     and line, as a :class:`SceneError`. If all compile alone, ``err`` is returned unchanged.
     """
     for name, source_hash in key:
-        tex = _REGISTRY[name]
+        tex = _FUNCTIONS[name]
         try:
             wp.load_module(_probe_kernel(((name, source_hash),)).module, device=device)
         except Exception as own:   # Warp's codegen/compile errors have no common base class
@@ -444,7 +333,7 @@ def explain_compile_failure(key: tuple[tuple[str, str], ...], err: Exception, de
 # Built-ins
 
 
-@texture("checker")
+@_builtin("checker")
 def seed_checker(uv: wp.vec2, p: wp.vec3, n: wp.vec3) -> wp.vec3:
     """The seed's Inner_CheckerTexture (parity of trunc(1000 u v), Java semantics; textures.checker)."""
     return _seed_checker(uv)
@@ -538,14 +427,14 @@ def _rgb(prm: ProcParams, i: int) -> wp.vec3:
     return wp.vec3(prm[i], prm[i + 1], prm[i + 2])
 
 
-@texture("noise", scale=ProcParam(4.0, -1e6, 1e6), color1=(0.0, 0.0, 0.0), color2=(1.0, 1.0, 1.0))
+@_builtin("noise")
 def noise(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Perlin noise of the world position: color1 at -1 to color2 at +1 (prm: scale, color1, color2)."""
     t = wp.clamp(0.5 + 0.5 * perlin(p * prm[0]), 0.0, 1.0)
     return wp.lerp(_rgb(prm, 1), _rgb(prm, 4), t)
 
 
-@texture("marble", scale=ProcParam(2.0, -1e6, 1e6), turbulence=ProcParam(4.0, -1e6, 1e6), color1=(0.92, 0.92, 0.9), color2=(0.25, 0.25, 0.3))
+@_builtin("marble")
 def marble(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Veins along x: 0.5 + 0.5 sin(scale x + turbulence * turb(p)), between color2 and color1."""
     q = p * prm[0]
@@ -556,7 +445,7 @@ def marble(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     return wp.lerp(_rgb(prm, 5), _rgb(prm, 2), t)
 
 
-@texture("wood", scale=ProcParam(1.0, -1e6, 1e6), rings=ProcParam(5.0, -1e6, 1e6), color1=(0.75, 0.52, 0.3), color2=(0.45, 0.28, 0.14))
+@_builtin("wood")
 def wood(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Rings around the y axis, distorted by noise: frac(rings * (r + 0.1 noise)) between the colours."""
     q = p * prm[0]
@@ -568,7 +457,7 @@ def wood(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     return wp.lerp(_rgb(prm, 2), _rgb(prm, 5), t * t)
 
 
-@texture("grid", cells=ProcParam(10.0, -1e6, 1e6), width=ProcParam(0.05, 0.0, 1.0), line=(0.05, 0.05, 0.05), fill=(0.9, 0.9, 0.9))
+@_builtin("grid")
 def grid(uv: wp.vec2, p: wp.vec3, n: wp.vec3, prm: ProcParams) -> wp.vec3:
     """Lines of relative ``width`` at every 1/cells in u and in v (colour ``line``), else ``fill``."""
     su = uv[0] * prm[0]

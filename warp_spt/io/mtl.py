@@ -60,7 +60,8 @@ Every other file is **standard**: its materials are of the physically based kind
   options it read but does not support.
 
 ``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
-built-ins: :mod:`warp_spt.core.proctex`); an unknown name or key is a SceneError with file and line.
+built-ins: :mod:`warp_spt.core.proctex`; read against the textures' Warp-free declarations,
+:mod:`warp_spt.scene.proctex_registry`); an unknown name or key is a SceneError with file and line.
 
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.io.loader.load_scene`, and only for materials that geometry uses.
@@ -88,6 +89,7 @@ from warp_spt.io.tokens import (
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.material_schema import COLUMN
 from warp_spt.scene.model import CHECKER_NAME, PBR_DEFAULTS, Material, TextureRef
+from warp_spt.scene.proctex_registry import parse_proc_map
 from warp_spt.scene.validate import MAX_RADIANCE
 
 # Texture options and how many values follow them; (1, 3) means one to three numbers.
@@ -271,8 +273,8 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
             d.tf = colour
     elif tag in _MAP_SLOTS:
         high = min(COLUMN[slot].high for slot in _MAP_SLOTS[tag])     # the schema's, as for colours
-        ref = _proc_map(args, path, lineno, name, high) or TextureRef(path=_texture_path(args, path, lineno, name),
-                                                                mtl_file=path, line=lineno)
+        ref = parse_proc_map(args, path, lineno, name, high) or TextureRef(
+            path=_texture_path(args, path, lineno, name), mtl_file=path, line=lineno)
         for slot in _MAP_SLOTS[tag]:
             setattr(m, slot + "_map", ref)
     elif tag == "roughness":
@@ -286,7 +288,7 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         d.pbr["ni"] = True
     elif tag in _PBR_MAPS:
         column = _PBR_MAPS[tag]
-        ref = _proc_map(args, path, lineno, name, COLUMN[column].high) if tag in ("map_pr", "map_pm") else None
+        ref = parse_proc_map(args, path, lineno, name, COLUMN[column].high) if tag in ("map_pr", "map_pm") else None
         d.pbr[column + "_map"] = ref or TextureRef(path=_texture_path(args, path, lineno, name), mtl_file=path,
                                                    line=lineno)
         bm = _bump_multiplier(args, path, lineno, name)
@@ -361,15 +363,6 @@ def _texture_path(args: list[bytes], path: str, lineno: int, tag: str) -> str:
 def _texture_options(args: list[bytes]) -> list[str]:
     """The options written before a texture's file name (e.g. ``-s``), as they are spelled."""
     return [a.decode("latin-1") for a in args[:-1] if a.decode("latin-1").lower() in _TEX_OPTIONS]
-def _proc_map(args: list[bytes], path: str, lineno: int, tag: str, high: float):
-    """``map_* proc:NAME key=value...``: a procedural texture (warp_spt.core.proctex) whose values may
-    reach ``high``, else None."""
-    if not args or not args[0].startswith(b"proc:"):
-        return None
-    from warp_spt.core.proctex import (
-        parse_proc_map,  # imports Warp: only for scenes that use procedural textures
-    )
-    return parse_proc_map(args, path, lineno, tag, high)
 
 
 def _is_number(tok: bytes) -> bool:

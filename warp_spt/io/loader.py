@@ -280,7 +280,7 @@ class _TextureCache:
         self.refs: list[TextureRef] = []
         self._index: dict[str, int] = {}
         self._note = note
-        self.procedural: list = []          # procedural instances (warp_spt.core.proctex.ProcRef)
+        self.procedural: list = []          # procedural instances (warp_spt.scene.proctex_registry.ProcRef)
 
     def index(self, ref: TextureRef, decode: str = "raw") -> int:
         """The texture's index, reading it (``decode``: ``scene.model.texture_decode``'s modes) the

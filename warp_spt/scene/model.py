@@ -219,7 +219,7 @@ class Scene:
     textures: list[np.ndarray]   # each (H, W, 3) float32 in [0, 1]; row 0 is the image's top row
     warnings: list[str] = field(default_factory=list)
     dropped_degenerate: int = 0
-    # procedural texture instances (warp_spt.core.proctex.ProcRef); slot value TEX_PROC_BASE - k names k
+    # procedural texture instances (warp_spt.scene.proctex_registry.ProcRef); slot value TEX_PROC_BASE - k names k
     procedural: list = field(default_factory=list)
     # Where it came from (the CLI's conventions, warp_spt.scene.conventions): written in the seed's
     # dialect (its spheres or MTL tags), and bare (no material library read: every face has the

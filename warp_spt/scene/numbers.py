@@ -4,7 +4,7 @@ Python's ``int()`` and ``float()`` also take ``1_0``, ``inf``, ``nan``, Arabic-I
 digits, and ``int()`` raises its own error past 4,300 digits: none of that is a number here. The
 patterns are kept as text so the OBJ/MTL tokenizer (bytes) and the command line (str) compile the
 same ones. It lives in ``scene/`` (no imports), below ``core/``, so that a procedural texture's
-``key=value`` numbers (``core.proctex.parse_proc_map``) take the same syntax.
+``key=value`` numbers (``scene.proctex_registry.parse_proc_map``) take the same syntax.
 """
 
 from __future__ import annotations

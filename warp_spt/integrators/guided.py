@@ -97,7 +97,7 @@ from warp_spt.integrators.common import (
     continue_path,
     make_bsdf_dims,
 )
-from warp_spt.integrators.nee import make_light_sample, power_heuristic
+from warp_spt.integrators.nee import make_light_sample, power_heuristic, shadow_ray
 from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 
@@ -184,7 +184,8 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         if ls.pdf > 0.0:
             le = wp.cw_mul(mat.eval(mats, tex, sf, ls.dir), light.le(geo, mats, tex, lights, ls, x))
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
-                if not blocked(geo, mats, tex, x, ls.dir, ls.t_max):
+                so, sd, st_max = shadow_ray(sf, x, ls, geo.extent)
+                if not blocked(geo, mats, tex, so, sd, st_max):
                     # MIS against the material's share of the mixture, (1 - a) p_material: the
                     # emitter the sampled direction meets is weighed with the same density (see vertex)
                     w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir))

@@ -22,7 +22,7 @@ from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.cutout import make_blocked, make_hit
 from warp_spt.core.geometry import KIND_MISS, Hit
-from warp_spt.core.lights import Lights, detach_lights, make_lights, reuse_pick
+from warp_spt.core.lights import LightSample, Lights, detach_lights, make_lights, reuse_pick
 from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
@@ -116,6 +116,22 @@ def make_light_sample(sampler: Sampler, light, inline: bool | None = None):
     return light_sample
 
 
+@wp.func
+def shadow_ray(sf: Surface, x: wp.vec3, ls: LightSample, extent: float):
+    """(origin, direction, length) of the shadow ray of light sample ``ls``, drawn from ``x`` (the
+    point offset to the side the ray came from): a light on the other side of the surface, reached
+    through a transmitting lobe (rough glass), is traced from that other side (traced from ``x``, it
+    was always blocked by the surface itself: rough glass under nee rendered 2% dark)."""
+    if wp.dot(ls.dir, sf.ng) >= 0.0:
+        return x, ls.dir, ls.t_max
+    o = offset_origin(sf.p, sf.ng, 1, extent)
+    if ls.h.kind == KIND_MISS:          # an infinite light: the direction is all there is
+        return o, ls.dir, ls.t_max
+    d = (x + ls.dir * ls.t_max) - o     # to the same point just short of the emitter
+    t = wp.length(d)
+    return o, d / t, t
+
+
 def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
     """A path-tracing bounce step: trace the path's ray, then ``make_path_vertex``'s vertex at what it
     meets. ``light_sampling`` False leaves pure BSDF sampling, no roulette, and the seed's four
@@ -201,7 +217,8 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                     seen = vis
                     if seen == VIS_TRACE:
                         seen = VIS_VISIBLE
-                        if blocked(geo, mats, tex, x, ls.dir, ls.t_max):
+                        so, sd, st_max = shadow_ray(sf, x, ls, geo.extent)
+                        if blocked(geo, mats, tex, so, sd, st_max):
                             seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
                         w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))

@@ -110,7 +110,8 @@ SCENES = (
         "base reflect 0.84 at normal incidence, ours 1; exact Fresnel (ours Schlick), separable masking"),
 )
 
-# Measured against ours, not compared in the test: a rougher gold, other Mitsuba models of the plastic (docs/materials.md, "Against Mitsuba 3").
+# Measured against ours, not compared in the test: a rougher gold, other Mitsuba models of the
+# plastic (docs/materials.md, "Against Mitsuba 3").
 ALTERNATIVES = (
     MitsubaScene(
         "gold_rough", "sphere", {"Kd": GOLD, "Pm": 1, "Pr": 0.5},

@@ -121,7 +121,8 @@ def comparison(ours: np.ndarray, ref: np.ndarray) -> dict:
 
 def describe(c: dict) -> str:
     return (f"worst block |t| {c['worst']:.2f} (bound {c['bound']:.2f}); whole image differs by "
-            f"{c['rel_diff']:+.2%} (standard error {c['rel_se']:.2%}, |t| {c['total']:.2f}, bound {c['bound_total']:.2f})")
+            f"{c['rel_diff']:+.2%} (standard error {c['rel_se']:.2%}, |t| {c['total']:.2f}, "
+            f"bound {c['bound_total']:.2f})")
 
 
 @pytest.fixture(scope="module")

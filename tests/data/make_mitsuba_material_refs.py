@@ -130,8 +130,8 @@ def main() -> None:
                     help="only print how much separable masking (Mitsuba) loses against height-correlated (ours)")
     a = ap.parse_args()
     if a.masking:
-        for what, ax, ay in (("gold", 0.25, 0.25), ("glass (reflection)", 0.09, 0.09), ("brushed", 0.4624, 0.16),
-                             ("plastic", 0.16, 0.16)):
+        for what, ax, ay in (("gold, glass (r 0.3)", 0.09, 0.09), ("gold_rough (r 0.5)", 0.25, 0.25),
+                             ("brushed", 0.4624, 0.16), ("plastic (r 0.4)", 0.16, 0.16)):
             cells = []
             for mu in (1.0, 0.5, 0.2):
                 hc, sep = masking_difference(ax, ay, mu)
@@ -153,7 +153,8 @@ def main() -> None:
     if a.out.exists():                      # --only re-renders some scenes and keeps the others
         data = dict(np.load(a.out))
     settings = json.loads(str(data["settings"])) if "settings" in data else {"scenes": {}}
-    settings.update(plastic_diffuse_scale=k, spp=a.spp, batches=a.batches, variant=a.variant, mitsuba=mi.__version__, block=BLOCK,
+    settings.update(plastic_diffuse_scale=k, spp=a.spp, batches=a.batches, variant=a.variant,
+                    mitsuba=mi.__version__, block=BLOCK,
                     width=MS.WIDTH, height=MS.HEIGHT, camera=MS.CAMERA, sky=MS.SKY, light=MS.LIGHT,
                     integrator="path, max_depth -1 (Russian roulette from depth 5)")
     with tempfile.TemporaryDirectory() as tmp:

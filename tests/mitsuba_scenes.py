@@ -20,7 +20,7 @@ into Mitsuba's dictionary, the test into warp_spt's files.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +50,6 @@ class MitsubaScene:
     mtl: dict                        # standard MTL tags of the object's material (warp_spt's side)
     bsdf: dict                       # Mitsuba's BSDF
     note: str = ""
-    extra: dict = field(default_factory=dict)
 
 
 def principled_anisotropic(roughness: float, anisotropy: float) -> tuple[float, float]:

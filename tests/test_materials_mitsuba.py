@@ -19,8 +19,10 @@ the alternatives included; docs/materials.md, "Against Mitsuba 3", has the figur
 * gold at roughness 0.5: there the separable masking takes up to 2% off the albedo at 78 degrees,
   and this comparison resolves it at the sphere's rim;
 * the rough plastic: its layer's Fresnel is Schlick's in ours (glTF's) and exact in every Mitsuba
-  plugin, which differ by up to 20% around 60 degrees: 6% in the block of the highlight;
-* the glass through next-event estimation: 2% darker, a bug (the xfail below).
+  plugin, which differ by up to 20% around 60 degrees: 6% in the block of the highlight.
+
+The glass is compared through both integrators: nee's shadow rays once started on the reflection
+side only, so a light seen through the glass was always occluded (2% dark; fixed: nee.shadow_ray).
 """
 
 from __future__ import annotations
@@ -158,15 +160,9 @@ def test_the_references_say_how_they_were_made(refs):
     assert settings["width"] == MS.WIDTH and settings["camera"]["fov"] == MS.CAMERA["fov"]
 
 
-# Rough glass through next-event estimation comes out 2% darker than through pure path tracing, in
-# this scene and in a furnace: nee's shadow rays start on the reflection side of the surface
-# (integrators/nee.py, light_sample: offset_origin(..., 0, ...)), so a light seen through the glass is
-# always occluded, while MIS still down-weights the paths that reach it by BSDF sampling. The glass is
-# compared through pure path tracing (the seed's integrator, which takes the pbr kind too), and
-# through nee as a known failure.
-CASES = [("gold", "nee"), ("glass", "seed"), ("brushed", "nee"),
-         pytest.param("glass", "nee", marks=pytest.mark.xfail(
-             strict=True, reason="nee's shadow rays never cross rough glass (a bug, reported)"))]
+# The glass through pure path tracing (the seed's integrator, which takes the pbr kind too) and through
+# nee, whose shadow rays cross the glass from the light's side (nee.shadow_ray).
+CASES = [("gold", "nee"), ("glass", "seed"), ("brushed", "nee"), ("glass", "nee")]
 # Measured, not asserted (the module's docstring says why).
 MEASURED = [("gold_rough", "gold_rough", "nee"), ("plastic", "plastic", "nee"), ("plastic_unscaled", "plastic", "nee"),
             ("plastic_principled", "plastic", "nee")]

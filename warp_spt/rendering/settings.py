@@ -13,6 +13,7 @@ import numpy as np
 
 from warp_spt.core.device_scene import Features
 from warp_spt.integrators import DEFAULT_INTEGRATOR, get_integrator
+from warp_spt.runtime.warp_init import check_device
 from warp_spt.samplers import DEFAULT_SAMPLER, check_sampler
 from warp_spt.scene.sky import Sky
 
@@ -31,7 +32,9 @@ class RenderSettings:
     names from ``warp_spt.integrators.INTEGRATORS`` and ``warp_spt.samplers.SAMPLERS``;
     ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
     ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
-    (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
+    (a superset gives the same image, slower); ``device`` ("cpu", "cuda" or "cuda:N") is where a host
+    Scene is uploaded and its kernels run (a DeviceScene keeps its own); on a CUDA device each pass is
+    one launch over the whole image from one thread, whatever ``tile_pixels`` and ``threads`` say.
     ``integrator_options`` sets the integrator's parameters by name (``Integrator.params``, e.g.
     ``{"alpha": 0.25}`` for ``guided``; see ``warp_spt.integrators.describe_options``); the rest keep
     their defaults. It is read, never changed.
@@ -71,7 +74,8 @@ def settings_from(kw: dict) -> RenderSettings:
 
 def check_args(rs: RenderSettings) -> None:
     """Raise ValueError naming the first setting of ``rs`` a kernel must not see (sizes, sample indices,
-    seed, roulette depth, texture filter, integrator and sampler names, the integrator's options)."""
+    seed, roulette depth, texture filter, integrator and sampler names, the integrator's options, the
+    device: a CUDA device this machine lacks)."""
     for name in ("width", "height", "spp", "max_depth", "tile_pixels"):
         v = getattr(rs, name)
         if not isinstance(v, (int, np.integer)) or v < 1:
@@ -88,6 +92,7 @@ def check_args(rs: RenderSettings) -> None:
         raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
     get_integrator(rs.integrator).options(rs.integrator_options)    # unknown, ill-typed, out of range
     check_sampler(rs.sampler)
+    check_device(rs.device)     # "cuda" where there is none: one line, before any upload
 
 
 def check_rows(rows, height: int) -> None:

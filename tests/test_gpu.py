@@ -13,7 +13,8 @@ image is then a CPU image): that is how they are checked on machines without a G
 * ``guided`` and ``ears`` are deterministic on the device: two renders are the same bit for bit
   (their records are order-independent integer sums, so concurrent threads cannot change them).
 * The progressive driver and the albedo/normal pass run there too; the command line's ``--device``
-  renders an image.
+  renders an image; with Warp's default device set to the other device, every integrator's
+  render still allocates and launches where its scene is.
 * Without the device: the API and the command line say so in one line (exit status 1).
 """
 
@@ -99,6 +100,19 @@ def test_every_integrator_and_sampler_renders_on_the_device(scenes, integrator, 
     assert np.isfinite(res.image).all() and res.image.mean() > 0.0
     if _is_cuda(dev.device):
         assert res.stats.tiles == 1 and res.stats.threads == 1       # one launch per pass
+
+
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
+def test_the_device_reaches_every_allocation_and_launch(scenes, integrator):
+    """With Warp's default device set to the other one, an array made without ``device=`` would
+    land there and the launch fail: every render still runs where its scene is."""
+    import warp as wp
+
+    dev, cpu = scenes
+    with wp.ScopedDevice("cpu"):
+        assert np.isfinite(_render(dev, integrator=integrator, spp=4).image).all()
+    with wp.ScopedDevice(dev.device):
+        assert np.isfinite(_render(cpu, integrator=integrator, spp=4).image).all()
 
 
 def test_meshes_use_warps_bvh_on_cuda_by_default(host, device):

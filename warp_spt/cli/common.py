@@ -78,12 +78,18 @@ def fail(message: str, status: int, stderr: TextIO) -> int:
 
 
 def init_warp(opts) -> None:
-    """Warp's banner, module-load lines and missing-CUDA-driver line only with ``opts.verbose``."""
+    """Warp's banner, module-load lines and missing-CUDA-driver line only with ``opts.verbose``; then
+    the ``--device`` asked for must exist (a :class:`RunError`, one line, before the scene loads)."""
     try:
+        from warp_spt.runtime.warp_init import check_device
         from warp_spt.runtime.warp_init import init_warp as init
         init(opts.verbose, quiet=opts.quiet)
     except ImportError:  # Warp missing: the renderer's import will report the real problem
-        pass
+        return
+    try:
+        check_device(getattr(opts, "device", "cpu"))
+    except ValueError as err:
+        raise RunError(str(err)) from None
 
 
 COMPILE_MESSAGE = "compiling kernels for this scene... (first run only)"

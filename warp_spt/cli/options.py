@@ -96,6 +96,7 @@ class Options:
     sky: Sky = field(default_factory=Sky.black)
     out: str = DEFAULT_OUT
     threads: int | None = None
+    device: str = "cpu"
     seed: int = 0
     tonemap: str = "seed"
     texture_filter: str = "nearest"
@@ -154,6 +155,15 @@ def cluster_address(text: str) -> str:
     return text if text.startswith("tcp://") else f"tcp://{text}"
 
 
+def device_name(text: str) -> str:
+    """An argparse ``type``: cpu, cuda or cuda:N (whether it exists is asked of Warp later)."""
+    from warp_spt.runtime.warp_init import DEVICE_SYNTAX      # stdlib only: parsing stays Warp-free
+
+    if not DEVICE_SYNTAX.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected cpu, cuda or cuda:N, got {text!r}")
+    return text
+
+
 def integrator_option(text: str) -> tuple[str, str]:
     """An argparse ``type``: ``NAME=VALUE`` as (name, value text); the value is parsed and checked by
     the integrator's parameter once Warp has started (:func:`warp_spt.cli.common.integrator_options_of`)."""
@@ -210,6 +220,8 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                      help="render the built-in demo like the seed's script: " + ", ".join(PRESETS))
     new.add_argument("--threads", type=int_at_least(1, MAX_THREADS), metavar="N",
                      help="worker threads (default: all cores)")
+    new.add_argument("--device", type=device_name, default="cpu", metavar="cpu|cuda[:N]",
+                     help="where kernels run (default cpu); cuda: one launch per pass, Warp's BVH")
     new.add_argument("--seed", type=int_at_least(0, 2**32 - 1), default=0, metavar="N",
                      help="random seed (default 0): the same seed gives the same image")
     new.add_argument("--sky-color", nargs=3, type=finite_float, metavar=("R", "G", "B"),
@@ -281,7 +293,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         spp=ns.sr or (preset.spp if preset else DEFAULT_SPP),
         depth=ns.depth or (preset.depth if preset else DEFAULT_DEPTH),
         sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
-        out=out, threads=ns.threads, seed=ns.seed, tonemap=ns.tonemap,
+        out=out, threads=ns.threads, device=ns.device, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
         integrator_options=_unique_options(ns.integrator_option),
@@ -477,7 +489,8 @@ def settings_of(opts, **overrides):
     if opts.integrator_options:
         chosen["integrator_options"] = integrator_options_of(opts)
     fields = dict(width=opts.width, height=opts.height, spp=opts.spp, max_depth=opts.depth, sky=opts.sky,
-                  seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, **chosen)
+                  seed=opts.seed, texture_filter=opts.texture_filter, threads=opts.threads, device=opts.device,
+                  **chosen)
     return RenderSettings(**{**fields, **overrides})
 
 

@@ -78,11 +78,14 @@ class DeviceScene:
     instead of uploaded and rebuilt (animation frames share their static meshes), new ones are added, and
     ``mesh_keys`` lists this scene's keys so that the cache's owner can drop the ones no scene uses.
     Meshes of at most ``wide_bvh_max_triangles`` triangles are traced through a wide BVH of ours,
-    larger ones through Warp's (0: every mesh through Warp's; the images are the same).
+    larger ones through Warp's (0: every mesh through Warp's; the images are the same). The default,
+    None, is ``WIDE_BVH_MAX_TRIANGLES`` on the CPU and 0 on a CUDA device: the wide BVH's eight-lane
+    node test is laid out for a CPU's vector registers, while Warp's BVH has a CUDA traversal of its
+    own (``benchmarks/gpu_check.py`` measures both on a GPU).
     """
 
     def __init__(self, scene: Scene, device: str = "cpu", meshes: MutableMapping[str, UploadedMesh] | None = None,
-                 wide_bvh_max_triangles: int = WIDE_BVH_MAX_TRIANGLES):
+                 wide_bvh_max_triangles: int | None = None):
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a warp_spt.Scene (from warp_spt.load_scene), got {type(scene).__name__}")
         scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
@@ -93,6 +96,8 @@ class DeviceScene:
         self.features = _features(scene)
         self._meshes: list[wp.Mesh] = []
         self._wide: list[WideBvh | None] = []
+        if wide_bvh_max_triangles is None:
+            wide_bvh_max_triangles = 0 if wp.get_device(device).is_cuda else WIDE_BVH_MAX_TRIANGLES
         self._wide_limit = wide_bvh_max_triangles
         self._mesh_cache = meshes
         self._mesh_bounds: list[tuple[np.ndarray, np.ndarray]] = []

@@ -27,11 +27,12 @@ once, choosing children by their probabilities (hierarchical sample warping: one
 is rescaled at every level), and takes a uniform point in the leaf; the same walk multiplies the
 density, ``prod(4 P(child)) x jacobian``, which :func:`guide_pdf` computes for any direction.
 
-Training records (:class:`GuideRecord`) go to integer arrays (fixed point, ``ENERGY_SCALE``):
-integer sums are exact and do not depend on the order of the additions, so the trained tree, and
-the image, are the same bit for bit whatever the threads (Warp's CPU ``atomic_add`` is a plain
-read-modify-write, so every concurrently running launch records into its own arrays, which the
-host adds up).
+Training records (:class:`GuideRecord`) go to integer arrays (fixed point, ``ENERGY_SCALE``) by
+``wp.atomic_add``: integer sums are exact and do not depend on the order of the additions, so the
+trained tree, and the image, are the same bit for bit whatever the threads. Within a launch the
+adds are atomic on CUDA (a launch's threads run at once there); Warp's CPU ``atomic_add`` is a plain
+read-modify-write (a CPU launch runs on one thread), so every concurrently running CPU launch
+records into its own arrays, which the host adds up.
 """
 
 from __future__ import annotations

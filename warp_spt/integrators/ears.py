@@ -252,9 +252,9 @@ def make_kernel(step, start_path):
                         k = rec.slot_k[tid, i]
                         v = rec.slot_v[tid, i]
                         lx = wp.min((total - v[1]) / v[0], LX_MAX_W)
-                        rec.count[k] = rec.count[k] + wp.int64(1)
-                        rec.m2[k] = rec.m2[k] + wp.int64(lx * lx * S2_W)
-                        rec.cost[k] = rec.cost[k] + wp.int64(path.rays - int(v[2]))
+                        wp.atomic_add(rec.count, k, wp.int64(1))
+                        wp.atomic_add(rec.m2, k, wp.int64(lx * lx * S2_W))
+                        wp.atomic_add(rec.cost, k, wp.int64(path.rays - int(v[2])))
             else:
                 bad += 1
         add_to_pixel(film, counters, pix, acc, rays, bad)

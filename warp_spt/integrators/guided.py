@@ -303,7 +303,8 @@ def make_kernel(step, start_path):
     plus the sampling tree ``g`` and the record ``rec``; each finished path adds, for each of its
     recording vertices (at most as many as ``rec``'s slots per thread: the ``max_records`` option),
     the radiance it gathered after that vertex over the throughput there and the direction's
-    density, in fixed point, to ``rec`` (the launch is serial on the CPU)."""
+    density, in fixed point, to ``rec`` with integer atomics (a CUDA launch's threads run at once;
+    integer sums are the same in any order)."""
 
     @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
@@ -340,8 +341,8 @@ def make_kernel(step, start_path):
                 for i in range(n):
                     where = rec.slot_node[wp.tid(), i]
                     v = rec.slot_value[wp.tid(), i]
-                    rec.energy[where[0]] = rec.energy[where[0]] + record_energy((total - v[0]) * v[1])
-                    rec.hits[where[0]] = rec.hits[where[0]] + wp.int64(1)
+                    wp.atomic_add(rec.energy, where[0], record_energy((total - v[0]) * v[1]))
+                    wp.atomic_add(rec.hits, where[0], wp.int64(1))
             else:
                 bad += 1
         add_to_pixel(film, counters, pix, acc, rays, bad)

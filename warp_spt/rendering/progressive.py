@@ -274,6 +274,7 @@ class _Driver:
 
         try:
             run_jobs(tasks, work, self.threads, lambda units: None)
+            wp.synchronize_device(self.dev.device)    # CUDA launches return at once: the pass's time is its work
         except BaseException:
             self.stop.set()               # no launches after an interruption
             raise

@@ -13,6 +13,7 @@ import numpy as np
 
 from warp_spt.core.structs import Features
 from warp_spt.integrators import DEFAULT_INTEGRATOR, get_integrator
+from warp_spt.runtime.warp_init import check_device
 from warp_spt.samplers import DEFAULT_SAMPLER, check_sampler
 from warp_spt.scene import limits
 from warp_spt.scene.sky import Sky
@@ -32,7 +33,9 @@ class RenderSettings:
     names from ``warp_spt.integrators.INTEGRATORS`` and ``warp_spt.samplers.SAMPLERS``;
     ``roulette_depth`` starts Russian roulette after that many hits (0: off; the seed integrator
     ignores it); ``threads`` defaults to every core; ``features`` overrides the scene's own feature set
-    (a superset gives the same image, slower); ``device`` is used when a host Scene is uploaded.
+    (a superset gives the same image, slower); ``device`` ("cpu", "cuda" or "cuda:N") is where a host
+    Scene is uploaded and its kernels run (a DeviceScene keeps its own); on a CUDA device each pass is
+    one launch over the whole image from one thread, whatever ``tile_pixels`` and ``threads`` say.
     ``integrator_options`` sets the integrator's parameters by name (``Integrator.params``, e.g.
     ``{"alpha": 0.25}`` for ``guided``; see ``warp_spt.integrators.describe_options``); the rest keep
     their defaults. It is read, never changed.
@@ -85,8 +88,9 @@ def check_int(name: str, value, low: int, high: int | None = None) -> None:
 def check_args(rs: RenderSettings) -> None:
     """Raise ValueError naming the first setting of ``rs`` a kernel must not see (sizes, sample indices,
     seed, depths, threads, tile size, sky, texture filter, integrator and sampler names, the
-    integrator's options); the bounds are :mod:`warp_spt.scene.limits`', the command line's and the
-    viewer's too. Raises TypeError for a sky that is not a :class:`Sky`."""
+    integrator's options, the device: a CUDA device this machine lacks); the bounds are
+    :mod:`warp_spt.scene.limits`', the command line's and the viewer's too. Raises TypeError for a sky
+    that is not a :class:`Sky`."""
     check_int("width", rs.width, 1)
     check_int("height", rs.height, 1)
     check_int("spp", rs.spp, 1, limits.MAX_SPP)
@@ -109,6 +113,7 @@ def check_args(rs: RenderSettings) -> None:
         raise ValueError(f"texture_filter must be 'nearest' or 'bilinear', got {rs.texture_filter!r}")
     get_integrator(rs.integrator).options(rs.integrator_options)    # unknown, ill-typed, out of range
     check_sampler(rs.sampler)
+    check_device(rs.device)     # "cuda" where there is none: one line, before any upload
 
 
 def check_rows(rows, height: int) -> None:

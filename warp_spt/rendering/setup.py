@@ -172,6 +172,10 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     check(rs, camera, rows)                 # settings first: ValueErrors name them before the scene's type
     check_inputs(scene, camera)
     dev, camera = upload(scene, camera, rs.device)
+    if wp.get_device(dev.device).is_cuda:
+        # a CUDA launch runs all its threads at once: each pass is one launch over the whole image,
+        # from one host thread (CPU tiles and worker threads would only serialise on the stream)
+        rs = replace(rs, tile_pixels=max(rs.tile_pixels, rs.width * rs.height), threads=1)
     sky = rs.sky or Sky.black()
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)
     b.options = b.integrator.options(rs.integrator_options)

@@ -80,6 +80,7 @@ def render_scene(scene: Scene | DeviceScene, camera: Camera | None = None,
             run_jobs(tiles, work, nthreads, report)   # Ctrl-C: workers stop, then KeyboardInterrupt
         else:
             launches = own(b, tiles, film, counters, nthreads, report, samples_per_pass(width, b.height))
+        wp.synchronize_device(b.dev.device)     # CUDA launches return at once: time the work itself
     finally:
         report(None)
     seconds = time.perf_counter() - start

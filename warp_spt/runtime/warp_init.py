@@ -17,6 +17,7 @@ in a new temporary directory in every process, 2.2-2.4 CPU s before the process'
 from __future__ import annotations
 
 import os
+import re
 import sys
 import tempfile
 
@@ -50,6 +51,33 @@ def init_warp(verbose: bool | None = None, *, quiet: bool = False) -> None:
         _init_capturing_stderr(wp)
     share_clang_pch(wp)
     _state["done"] = True
+
+
+DEVICE_SYNTAX = re.compile(r"cpu|cuda(:[0-9]{1,3})?")
+
+
+def check_device(name) -> str:
+    """``name`` ("cpu", "cuda" or "cuda:N") if Warp can run kernels there, else ValueError with one
+    line saying what was asked for and what this machine has. Syntax first, without Warp (the
+    command line parses before Warp starts); then, for CUDA, Warp is initialised (quietly) and asked.
+    A Warp ``Device`` is taken by its name (``cuda:0``)."""
+    if type(name).__name__ == "Device" and hasattr(name, "alias"):
+        name = name.alias
+    if not isinstance(name, str) or not DEVICE_SYNTAX.fullmatch(name):
+        raise ValueError(f"device must be 'cpu', 'cuda' or 'cuda:N', got {name!r}")
+    if name == "cpu":
+        return name
+    init_warp()
+    import warp as wp
+
+    count = wp.get_cuda_device_count()
+    if count == 0:
+        raise ValueError(f"device {name!r}: no CUDA device is available here (Warp found no NVIDIA driver "
+                         f"or GPU); render with device 'cpu'")
+    index = int(name.partition(":")[2] or 0)
+    if index >= count:
+        raise ValueError(f"device {name!r}: this machine has {count} CUDA device(s), cuda:0 to cuda:{count - 1}")
+    return name
 
 
 PCH_FOLDER = "wp_spt_clang_pch"     # "wp_" first: wp.clear_kernel_cache() removes it with the kernels

@@ -1,0 +1,316 @@
+"""GPU check: the GPU tests, then the main renders on ``cuda`` and on ``cpu`` side by side, one table.
+
+    python benchmarks/gpu_check.py             # 512x512, 16 spp (about 5 minutes on 16 cores + an H100, cold caches)
+    python benchmarks/gpu_check.py --quick     # 128x128, 4 spp, the tests too: a smoke run
+    python benchmarks/gpu_check.py --no-tests  # the table alone
+
+Where Warp finds no CUDA device it prints why and exits with status 0 (nothing to check). Nothing is
+fetched from the network; Warp's kernel cache may start empty: every kernel the run needs is first
+compiled and loaded from a thread pool (one thread per core: CUDA's NVRTC and the CPU's Clang
+compiles run outside Warp's code-generation lock), so the timings below never include a compile.
+
+Steps, each printed with its time:
+
+1. The machine: GPU (name, architecture, memory; ``nvidia-smi``'s driver), CPU model and cores,
+   Python, Warp and numpy versions, the kernel cache's folder.
+2. The kernel cache warmed (the tests' and the table's kernels, CUDA and CPU).
+3. ``tests/test_gpu.py`` with ``WARP_SPT_TEST_DEVICE=cuda`` (every integrator x sampler on the GPU,
+   ``guided``/``ears`` deterministic there, GPU and CPU images statistically equal, the
+   progressive and albedo/normal passes, ``--device cuda`` on the command line): pytest's summary
+   and, on failure, its last lines; the exit status is pytest's.
+4. The table: ``bench_vs_mitsuba``'s Cornell box and the built-in demo (its default camera, the
+   gradient sky), ``nee`` + ``sobol``, depth 6, rendered on the CPU (all cores, our wide BVH), on
+   CUDA with Warp's BVH (the default there) and on CUDA with our wide BVH
+   (``wide_bvh_max_triangles``): render seconds (launches only, after a warm-up render; the best
+   of ``--repeat``), camera samples/s, closest-hit rays/s, the speed-up over the CPU, and the GPU
+   image's mean against the CPU's: the relative difference of the two images' means and its t
+   statistic, the standard error estimated from the spread of the per-block differences
+   (16x16-pixel blocks; the two renders use different seeds, so they are independent estimates
+   of the same image and the differences' spread is their noise). |t| above 4 is flagged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from unittest import mock
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+import numpy as np  # noqa: E402
+
+BLOCK = 16            # pixels per side of the blocks whose differences estimate the noise
+FLAG_T = 4.0
+
+
+def say(text: str = "") -> None:
+    print(text, flush=True)
+
+
+def machine() -> None:
+    import warp as wp
+
+    say("## Machine")
+    cpu = platform.processor() or "?"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    say(f"CPU: {cpu}, {os.cpu_count()} logical cores; Python {platform.python_version()}, Warp {wp.__version__}, "
+        f"numpy {np.__version__}; kernel cache {wp.config.kernel_cache_dir}")
+    for d in wp.get_cuda_devices():
+        say(f"GPU {d.alias}: {d.name}, sm_{d.arch}, {d.total_memory / 2**30:.1f} GiB")
+    if shutil.which("nvidia-smi"):
+        out = subprocess.run(["nvidia-smi", "--query-gpu=name,driver_version,memory.total", "--format=csv,noheader"],
+                             capture_output=True, text=True)
+        say(f"nvidia-smi: {out.stdout.strip() or out.stderr.strip()}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Scenes and settings
+
+
+def bench_scenes(folder: Path) -> dict:
+    """name -> (host Scene, Camera, Sky) of the table's scenes."""
+    import bench_vs_mitsuba as mb
+
+    from warp_spt.demo import demo_files
+    from warp_spt.io.loader import load_scene
+    from warp_spt.scene.camera import Camera
+    from warp_spt.scene.sky import Sky
+
+    desc = mb.SCENES["cornell"]
+    (folder / "cornell.obj").write_text(mb.obj_text(desc["shapes"]))
+    (folder / "cornell.mtl").write_text(mb.mtl_text(desc["materials"]))
+    quiet = dict(warn=lambda message: None)
+    return {
+        "cornell": (load_scene([str(folder / "cornell.obj")], [str(folder / "cornell.mtl")], **quiet),
+                    mb.warp_camera(desc), Sky.constant(*desc["sky"])),
+        "builtin demo": (load_scene(*demo_files(), **quiet), Camera(), Sky.gradient()),
+    }
+
+
+def configs(gpu: str) -> tuple:
+    """(label, device, wide_bvh_max_triangles) of the table's rows: the CPU, then the GPU with its
+    default (Warp's BVH) and with our wide BVH."""
+    from warp_spt.core.device_scene import WIDE_BVH_MAX_TRIANGLES
+
+    return (("cpu", "cpu", None), (gpu, gpu, None), (f"{gpu}, wide BVH", gpu, WIDE_BVH_MAX_TRIANGLES))
+
+
+def device_scene(host, device: str, wide):
+    from warp_spt.core.device_scene import DeviceScene
+
+    return DeviceScene(host, device=device, wide_bvh_max_triangles=wide)
+
+
+# ---------------------------------------------------------------------------------------------
+# Warming the kernel cache in parallel
+
+
+def unloaded_kernel(dev, rs, mode: str = "fast"):
+    """The kernel ``bind(dev, camera, rs, mode=mode)`` would pick, built but not loaded."""
+    from warp_spt.rendering.setup import device_kernel
+    from warp_spt.runtime import kernel_cache
+
+    with mock.patch.object(kernel_cache, "load", lambda kernel, device="cpu": kernel):
+        return device_kernel(dev, rs, mode)
+
+
+def warm(jobs: list) -> None:
+    """Compile and load the modules of ``jobs`` [(kernel, device)] from a thread pool (a load that
+    fails there is retried on this thread, where the renderers load theirs). ``wp.load_module``, not
+    an ahead-of-time compile: a CPU launch's block size is 1, an AOT compile's 256, so an AOT object
+    is another cache entry than the one a render loads."""
+    import warp as wp
+
+    todo = list({(id(k.module), dev): (k, dev) for k, dev in jobs}.values())
+
+    def load_one(job):
+        k, dev = job
+        t = time.perf_counter()
+        try:
+            wp.load_module(k.module, device=dev)
+            return time.perf_counter() - t, None
+        except Exception as err:     # retried below, on this thread
+            return time.perf_counter() - t, err
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
+        done = list(pool.map(load_one, todo))
+    t1 = time.perf_counter()
+    failed = [job for job, (_, err) in zip(todo, done) if err is not None]
+    for (k, dev), (_, err) in zip(todo, done):
+        if err is not None:
+            say(f"  loading {k.key} on {dev} in a thread failed ({type(err).__name__}: {err}); again on this thread")
+            wp.load_module(k.module, device=dev)
+    each = [sec for sec, _ in done]
+    say(f"{len(todo)} modules compiled or loaded in {t1 - t0:.1f} s (longest {max(each, default=0):.1f} s, sum "
+        f"{sum(each):.1f} s)" + (f"; {len(failed)} retried in {time.perf_counter() - t1:.1f} s" if failed else ""))
+
+
+def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu: str) -> list:
+    import warp_spt.rendering.aux_buffers  # noqa: F401  (registers the "aov" kind)
+    from warp_spt.core.device_scene import WIDE_BVH_MAX_TRIANGLES
+    from warp_spt.integrators import INTEGRATORS
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.samplers import SAMPLERS
+    from warp_spt.scene.sky import Sky
+
+    jobs = []
+    for host, camera, sky in scenes.values():
+        for _, device, wide in configs(gpu):
+            dev = device_scene(host, device, wide)
+            jobs.append((unloaded_kernel(dev, RenderSettings(width=size, height=size, spp=spp, sky=sky,
+                                                             device=device)), device))
+    if tests:           # tests/test_gpu.py's kernels: its Cornell box, every integrator x sampler
+        from tests.stability_scenes import cornell_files
+
+        from warp_spt.io.loader import load_scene
+        host = load_scene(*cornell_files(folder), warn=lambda message: None)
+        sky = Sky.constant(0.1, 0.1, 0.1)
+        for device in (gpu, "cpu"):
+            dev = device_scene(host, device, None)
+            for i in INTEGRATORS:
+                for s in SAMPLERS:
+                    if device == "cpu" and s != "sobol":
+                        continue
+                    jobs.append((unloaded_kernel(dev, RenderSettings(integrator=i, sampler=s, sky=sky,
+                                                                     device=device)), device))
+            jobs.append((unloaded_kernel(dev, RenderSettings(sampler="independent", device=device), "aov"), device))
+        wide = device_scene(host, gpu, WIDE_BVH_MAX_TRIANGLES)
+        jobs.append((unloaded_kernel(wide, RenderSettings(sky=sky, device=gpu)), gpu))
+    return jobs
+
+
+# ---------------------------------------------------------------------------------------------
+# The tests
+
+
+def run_tests(timeout: float, gpu: str) -> int:
+    env = dict(os.environ, WARP_SPT_TEST_DEVICE=gpu, PYTHONPATH=os.pathsep.join(
+        [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    t = time.perf_counter()
+    try:
+        out = subprocess.run([sys.executable, "-m", "pytest", "tests/test_gpu.py", "-q", "-rs", "-p", "no:cacheprovider"],
+                             cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as err:
+        say(f"tests/test_gpu.py: TIMED OUT after {timeout:.0f} s")
+        say((err.stdout or b"").decode("utf-8", "replace")[-3000:] if isinstance(err.stdout, bytes) else
+            (err.stdout or "")[-3000:])
+        return 124
+    lines = (out.stdout + out.stderr).strip().splitlines()
+    say(f"tests/test_gpu.py (WARP_SPT_TEST_DEVICE={gpu}), {time.perf_counter() - t:.1f} s, exit status {out.returncode}:")
+    say("\n".join(lines[-60:] if out.returncode else lines[-8:]))
+    return out.returncode
+
+
+# ---------------------------------------------------------------------------------------------
+# The table
+
+
+def block_t(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(relative difference of the means of images a and b, its t statistic from the spread of the
+    per-block mean differences)."""
+    h, w = (a.shape[0] // BLOCK) * BLOCK, (a.shape[1] // BLOCK) * BLOCK
+    da = a[:h, :w].reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK, 3).mean(axis=(1, 3))
+    db = b[:h, :w].reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK, 3).mean(axis=(1, 3))
+    d = (da - db).mean(axis=2).ravel()
+    mean = float(b.mean())
+    se = float(d.std(ddof=1) / np.sqrt(d.size))
+    return float(d.mean()) / mean, (float(d.mean()) / se if se > 0 else (0.0 if d.mean() == 0 else np.inf))
+
+
+def table(scenes: dict, size: int, spp: int, repeat: int, gpu: str) -> None:
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render_scene
+
+    say(f"## {gpu} beside cpu: {size}x{size}, {spp} spp, nee + sobol, depth 6 (render seconds: launches only, "
+        f"best of {repeat})")
+    say("| scene | device | triangles | render s | M samples/s | M rays/s | speed-up over cpu | "
+        "mean vs cpu | t | agree |")
+    say("|---|---|---|---|---|---|---|---|---|---|")
+    for name, (host, camera, sky) in scenes.items():
+        cpu_image, cpu_seconds = None, None
+        for label, device, wide in configs(gpu):
+            dev = device_scene(host, device, wide)
+            seed = 0 if cpu_image is None else 1      # independent estimates of the same image
+
+            def rs(n: int, seed=seed, device=device) -> RenderSettings:
+                return RenderSettings(width=size, height=size, spp=n, sky=sky, seed=seed, device=device)
+
+            render_scene(dev, camera, rs(1))          # warm-up: load, first launch
+            best = None
+            for _ in range(repeat):
+                res = render_scene(dev, camera, rs(spp))
+                if best is None or res.stats.render_seconds < best.stats.render_seconds:
+                    best = res
+            sec = best.stats.render_seconds
+            image = best.image.astype(np.float64)
+            if cpu_image is None:
+                cpu_image, cpu_seconds = image, sec
+                cells = ["1.00x", "", "", ""]
+            else:
+                rel, t = block_t(image, cpu_image)
+                cells = [f"{cpu_seconds / sec:.1f}x", f"{rel:+.3%}", f"{t:+.2f}",
+                         "yes" if abs(t) <= FLAG_T else "NO"]
+            say(f"| {name} | {label} | {host.num_triangles:,} | {sec:.3f} | {size * size * spp / sec / 1e6:.2f} | "
+                f"{best.stats.rays / sec / 1e6:.1f} | " + " | ".join(cells) + " |")
+            if best.stats.dropped_samples:
+                say(f"  ({best.stats.dropped_samples} non-finite samples dropped)")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="128x128, 4 spp")
+    ap.add_argument("--size", type=int, default=None)
+    ap.add_argument("--spp", type=int, default=None)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--no-tests", action="store_true")
+    ap.add_argument("--test-timeout", type=float, default=300.0)
+    ap.add_argument("--device", default="cuda", help="the GPU (cuda:N); 'cpu' rehearses the script where there "
+                    "is no GPU")
+    args = ap.parse_args()
+    size = args.size or (128 if args.quick else 512)
+    spp = args.spp or (4 if args.quick else 16)
+
+    from warp_spt.runtime.warp_init import check_device, init_warp
+
+    init_warp()
+    try:
+        check_device(args.device)
+    except ValueError as err:
+        say(f"gpu_check: skipped: {err}")
+        return 0
+    t0 = time.perf_counter()
+    machine()
+    status = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        scenes = bench_scenes(folder)
+        say("\n## Kernel cache")
+        warm(warm_jobs(scenes, size, spp, not args.no_tests, folder, args.device))
+        if not args.no_tests:
+            say("\n## Tests")
+            status = run_tests(args.test_timeout, args.device)
+        say("")
+        table(scenes, size, spp, args.repeat, args.device)
+    say(f"\ngpu_check: {time.perf_counter() - t0:.0f} s in all")
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

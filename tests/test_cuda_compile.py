@@ -1,0 +1,210 @@
+"""Every kernel family compiles for CUDA, checked on machines without a GPU.
+
+Warp compiles CUDA kernels to PTX through its bundled NVRTC with no GPU and no driver
+(``wp.compile_aot_module(module, arch=..., use_ptx=True)``), so code that cannot run on CUDA (a
+CPU-only intrinsic, a type NVRTC refuses, an atomic on a type without one) fails here, on the CPU
+machines, instead of on the first GPU that runs it.
+
+What is compiled, for each architecture in ``ARCHS`` (sm_75, the oldest CUDA 13 supports, and
+sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides), every list built from the registries at collection
+time, so an integrator, sampler, kernel kind, material kind or procedural texture registered later
+is compiled too:
+
+* the fast kernel (``KERNEL_KINDS["fast"]``) of every integrator x every sampler (``INTEGRATORS`` x
+  ``SAMPLERS``, ``guided`` and ``ears`` with their own kernels and training records) for
+  ``Features.general()`` (every feature, every material kind of ``MATERIAL_KINDS``, both BVHs);
+* every other registered kernel kind (``tape``, ``replay``, ``aov``, and any added later) for
+  ``Features.general()``, each integrator once, with the samplers taken in turn from the default
+  (seed with sobol, nee with independent, guided with sobol, ...), so that every integrator and every
+  sampler is compiled into each kind (a sampler's functions do not depend on the integrator that
+  calls them; ``test_every_kind_compiles_every_sampler`` checks the cover). A kind that refuses an
+  integrator (``replay`` and ``tape`` for ``guided`` and ``ears``: a ValueError when built) is
+  reported as skipped; the tape kernel is unrolled to depth 2 (the same functions as any depth,
+  unrolled fewer times);
+* the default integrator and sampler's fast kernel for three more feature sets that together with
+  the general one cover every ``wp.func`` and every ``wp.static`` branch: every registered procedural
+  texture compiled in (``general()`` compiles none); meshes only, traced by Warp's BVH alone (the
+  default on CUDA), diffuse, lit by emitters, one material kind (no dispatch); spheres only,
+  specular, lit by the sky, the last material kind (no diffuse lobe, so no light sampling);
+* the small kernels outside the renderers: the procedural-texture probe (every registered texture)
+  and the command line's view-check probes (``cli/view_checks``). The viewer has no kernels of its
+  own: it renders through the same set-up (``rendering/setup.bind``).
+
+The kernels are built as the renderers build them (``KernelKind.build`` of a set-up stub, the one
+kernel cache) with ``kernel_cache.load`` made a no-op (nothing is loaded on the CPU), and compiled
+in a thread pool (one thread per core: NVRTC compiles run outside Warp's code-generation lock).
+Warp's kernel cache keeps each PTX file by the module's hash, so a second run compiles nothing.
+
+Cost, measured on the 2-core development machine (shared with other jobs, load 3-10): 38 compiles
+(19 modules x 2 architectures), about 30 CPU-minutes with Warp's cache cold: a fast kernel takes
+15-25 s per architecture, the replay and tape kernels (NVRTC optimising their adjoints) 2-3
+CPU-minutes each, two thirds of the total; 62 minutes of wall time here, over two runs. With
+Warp's cache warm (the modules unchanged since the last run): 5 s. ``WARP_SPT_CUDA_ARCHS=90`` halves
+a cold run.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
+
+import pytest
+import warp as wp
+
+import warp_spt.diff.gradients  # noqa: F401  (registers the "tape" kernel kind)
+import warp_spt.diff.prb  # noqa: F401  (registers "replay")
+import warp_spt.rendering.aux_buffers  # noqa: F401  (registers "aov")
+from warp_spt.core import proctex
+from warp_spt.core.device_scene import Features
+from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS, get_integrator
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.setup import KERNEL_KINDS, Bound
+from warp_spt.runtime import kernel_cache
+from warp_spt.runtime.warp_init import init_warp
+from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
+from warp_spt.scene.material_schema import MATERIAL_KINDS
+from warp_spt.scene.sky import Sky
+
+ARCHS = tuple(int(a) for a in os.environ.get("WARP_SPT_CUDA_ARCHS", "75,90").split(","))
+TAPE_DEPTH = 2
+
+FEATURE_SETS = {
+    "general": Features.general(),
+    "procedural": replace(Features.general(), procedural=proctex.features_key(proctex.registered())),
+    "meshes-warp-bvh": replace(Features.general(), spheres=False, textures=False, checker=False, refraction=False,
+                               specular=False, smooth=False, sky=False, bvh_stack=0, warp_meshes=True,
+                               material_kinds=MATERIAL_KINDS[:1]),
+    "spheres-specular": replace(Features.general(), meshes=False, textures=False, checker=False, emitters=False,
+                                smooth=False, diffuse=False, bvh_stack=0, warp_meshes=False,
+                                material_kinds=MATERIAL_KINDS[-1:]),
+}
+
+
+@dataclass(frozen=True)
+class Variant:
+    kind: str
+    integrator: str
+    sampler: str
+    features: str
+
+    @property
+    def id(self) -> str:
+        return f"{self.kind}-{self.integrator}-{self.sampler}-{self.features}"
+
+
+def variants() -> list[Variant]:
+    """The kernels compiled (see the module docs), from the registries."""
+    out = [Variant("fast", i, s, "general") for i in INTEGRATORS for s in SAMPLERS]
+    integrators = list(INTEGRATORS)
+    samplers = [DEFAULT_SAMPLER] + [s for s in SAMPLERS if s != DEFAULT_SAMPLER]
+    pairs = [(i, samplers[k % len(samplers)]) for k, i in enumerate(integrators)]
+    pairs += [(DEFAULT_INTEGRATOR, s) for s in samplers[len(integrators):]]
+    out += [Variant(k, i, s, "general") for k in KERNEL_KINDS if k != "fast" for i, s in pairs]
+    out += [Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, f) for f in FEATURE_SETS if f != "general"]
+    return out
+
+
+VARIANTS = variants()
+HELPERS = ("proctex-probe", "view-checks")
+
+
+def build(v: Variant) -> wp.Kernel:
+    """The kernel of ``v``, built as a render set-up builds it (not loaded anywhere)."""
+    kind = KERNEL_KINDS[v.kind]
+    rs = RenderSettings(integrator=v.integrator, sampler=v.sampler, max_depth=TAPE_DEPTH,
+                        features=FEATURE_SETS[v.features])
+    sky = Sky.black()
+    features = kind.features(FEATURE_SETS[v.features], rs, sky)
+    stub = Bound(SimpleNamespace(device="cuda"), None, rs, sky, features, get_integrator(v.integrator), kind)
+    return kind.build(stub)
+
+
+def build_helper(name: str):
+    if name == "proctex-probe":
+        return proctex._probe_kernel(proctex.features_key(proctex.registered())).module
+    from warp_spt.cli import view_checks
+    return view_checks._kernels()[0].module
+
+
+@pytest.fixture(scope="module")
+def compiled():
+    """{(name, arch): None, or the error's text, or ("skip", why)}: every variant built, then every
+    distinct module compiled to PTX for every arch in a thread pool."""
+    init_warp()
+    results, modules = {}, {}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kernel_cache, "load", lambda kernel, device="cpu": kernel)
+        for v in VARIANTS:
+            try:
+                modules[v.id] = build(v).module
+            except ValueError as err:           # the kind refuses this integrator (no tape, no replay)
+                for a in ARCHS:
+                    results[(v.id, a)] = ("skip", str(err))
+        for h in HELPERS:
+            modules[h] = build_helper(h)
+    # a tiny kernel first: a Warp without NVRTC (a CPU-only build) skips, and does not fail, the lot
+    try:
+        wp.compile_aot_module(_probe_nvrtc.module, arch=ARCHS[0], use_ptx=True)
+    except Exception as err:    # Warp raises plain RuntimeErrors/Exceptions here
+        pytest.skip(f"this Warp cannot compile CUDA kernels (no NVRTC): {err}")
+    distinct = {id(m): m for m in modules.values()}
+    jobs = [(key, a) for key in distinct for a in ARCHS]
+
+    def compile_one(job):
+        key, a = job
+        try:
+            wp.compile_aot_module(distinct[key], arch=a, use_ptx=True)
+            return job, None
+        except Exception as err:    # codegen and NVRTC errors have no common base class
+            return job, f"{type(err).__name__}: {err}"
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
+        done = dict(pool.map(compile_one, jobs))
+    print(f"\n{len(jobs)} CUDA compiles ({len(distinct)} modules x {len(ARCHS)} archs): "
+          f"{time.perf_counter() - t0:.1f} s")
+    for name, m in modules.items():
+        for a in ARCHS:
+            results[(name, a)] = done[(id(m), a)]
+    return results
+
+
+@wp.kernel(module="unique")
+def _probe_nvrtc(x: wp.array(dtype=wp.int64)):
+    wp.atomic_add(x, 0, wp.int64(1))
+
+
+def test_the_variants_come_from_the_registries():
+    """Every integrator x sampler has a fast kernel here, every registered kind is compiled, and the
+    feature sets together switch every feature on and off and use every material kind."""
+    fast = {(v.integrator, v.sampler) for v in VARIANTS if v.kind == "fast" and v.features == "general"}
+    assert fast == {(i, s) for i in INTEGRATORS for s in SAMPLERS}
+    assert {v.kind for v in VARIANTS} == set(KERNEL_KINDS)
+    assert {"tape", "replay", "aov"} <= set(KERNEL_KINDS)
+    sets = FEATURE_SETS.values()
+    for name in ("meshes", "spheres", "textures", "checker", "refraction", "emitters", "smooth", "diffuse",
+                 "specular", "sky", "warp_meshes"):
+        assert {getattr(f, name) for f in sets} == {True, False}, name
+    assert {f.bvh_stack == 0 for f in sets} == {True, False}
+    assert {k for f in sets for k in f.material_kinds} == set(MATERIAL_KINDS)
+    assert any(len(f.material_kinds) == 1 for f in sets)
+    assert set(FEATURE_SETS["procedural"].procedural) == set(proctex.features_key(proctex.registered()))
+
+
+def test_every_kind_compiles_every_sampler(compiled):
+    """The cover of the other kinds: among the variants each kind accepted, every sampler."""
+    for kind in KERNEL_KINDS:
+        built = {v.sampler for v in VARIANTS if v.kind == kind and not isinstance(compiled[(v.id, ARCHS[0])], tuple)}
+        assert built == set(SAMPLERS), (kind, built)
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+@pytest.mark.parametrize("name", [v.id for v in VARIANTS] + list(HELPERS))
+def test_compiles_for_cuda(compiled, name, arch):
+    result = compiled[(name, arch)]
+    if isinstance(result, tuple):
+        pytest.skip(result[1])
+    assert result is None, f"{name} does not compile for sm_{arch}:\n{result[:4000]}"

@@ -116,7 +116,7 @@ PROBE = textwrap.dedent('''
     bw.wants_texels = bw.wants_proc = False
     m = bw._tile_inputs(0, 1)[0]
     assert m.sheen.grad is not None and m.sheen.ptr == dev.materials.sheen.ptr          # the gradient alias
-    assert m.ior.grad is None
+    assert m.refractable.grad is None                  # not differentiable: no alias
     scene.materials.sheen[1, 0] = 2.0
     try:
         validate_scene(scene)

@@ -87,3 +87,30 @@ def test_pbr_gradients_are_the_derivative_of_the_expected_image(cup, mode):
               f"{f.mean():.4f} (se {f.std(ddof=1) / np.sqrt(seeds):.4f})")
         assert abs(f.mean()) > 5 * se, (n, f.mean(), se)          # resolved: the test can fail
         assert abs(g.mean() - f.mean()) < 4 * se + 0.02 * abs(f.mean()), (n, g.mean(), f.mean(), se)
+
+
+def test_pbr_ior_gradient_through_the_tape(cup):
+    """The index of refraction is a pathwise parameter (it bends the seed's glass and smooth
+    refraction), so only the tape takes it; on this rough cup (its layer's F0 and the rough
+    transmission's weights depend on it, the sampled directions are held still) it is the
+    derivative of the expected image, as the others."""
+    p = parameters(cup, CAM, Sky.gradient())
+    feats = p.scene.features
+    seeds = 12
+    with pytest.raises(ValueError, match="tape"):
+        render_gradients(p, RS, adjoint=_ones(RS), wrt=["cup.ior"], mode="prb")
+    g = np.array([float(render_gradients(p, replace(RS, seed=s), adjoint=_ones(RS), wrt=["cup.ior"], mode="tape")
+                        .grads["cup.ior"]) for s in range(seeds)])
+    v0, h, fd = float(p["cup.ior"]), 0.1, []
+    for s in range(seeds):
+        ends = []
+        for step in (h, -h):
+            p["cup.ior"] = v0 + step
+            ends.append(_image_sum(p, replace(RS, seed=100 + s, features=feats)))
+        fd.append((ends[0] - ends[1]) / (2 * h))
+    p["cup.ior"] = v0
+    f = np.array(fd)
+    se = np.sqrt(g.var(ddof=1) / seeds + f.var(ddof=1) / seeds)
+    print(f"tape cup.ior: gradient {g.mean():.4f}, finite differences {f.mean():.4f}, se {se:.4f}")
+    assert abs(f.mean()) > 5 * se, (f.mean(), se)
+    assert abs(g.mean() - f.mean()) < 4 * se + 0.02 * abs(f.mean()), (g.mean(), f.mean(), se)

@@ -88,7 +88,8 @@ COLUMNS: tuple[Column, ...] = (
            differentiable=True, slot=6, channel=1),
     Column("fuzz", SCALAR, 0.62, 0.0, None, "length of the mirror's random perturbation (1 - reflectClearness)",
            differentiable=True, pathwise=True, kinds=("seed",)),
-    Column("ior", SCALAR, 1.0, MIN_IOR, MAX_IOR, "index of refraction (Kn, Ni)"),
+    Column("ior", SCALAR, 1.0, MIN_IOR, MAX_IOR, "index of refraction (Kn, Ni)", differentiable=True,
+           pathwise=True),
     Column("refractable", FLAG, False, None, None, "the specular lobe may refract: glass", kinds=("seed",)),
     Column("kind", INDEX, 0, 0, len(MATERIAL_KINDS) - 1, "the material model: an index into MATERIAL_KINDS"),
     # The pbr kind's own columns (glTF 2.0 metallic-roughness and KHR_materials_*; docs/materials.md).

@@ -6,9 +6,12 @@ rays pass them, so a leaf is seen through a leaf and casts a leaf-shaped shadow.
 material kinds declare ``"cutout"`` (``Features.needs``) compile this; the others get the plain
 queries of ``core.geometry`` unchanged.
 
-A ray crosses at most ``MAX_LAYERS`` holes (unrolled, so the tape differentiates it too); the
-(MAX_LAYERS + 1)-th hole counts as a surface. A hole continues the ray from just behind the surface,
-along the same direction, and the hit it reports keeps its distance from the original origin.
+A ray crosses at most ``MAX_LAYERS`` holes; the (MAX_LAYERS + 1)-th hole counts as a surface. A hole
+continues the ray from just behind the surface, along the same direction, and the hit it reports keeps
+its distance from the original origin. The first hit is the plain query's (on the tape, with its
+derivatives); the layers behind a hole are one dynamic loop, so the kernel holds the traversal's code
+twice, not once per layer (unrolled over 8 layers, the general kernel's CUDA compile ran past 40
+CPU-minutes), and derivatives through a hit seen through a hole are not taken (docs/materials.md).
 """
 
 from __future__ import annotations
@@ -43,13 +46,17 @@ def _visibility(features: Features, closest_hit, occluded) -> SimpleNamespace:
     """The two queries over ``core.geometry``'s (the materials and surface only where cut-outs are)."""
     if not features.needs("cutout"):
         return make_visibility(features, closest_hit, occluded, None, None)
-    return make_visibility(features, closest_hit, occluded, make_surface(features), make_materials(features))
+    return make_visibility(features, closest_hit, occluded, make_surface(features), make_materials(features),
+                           make_closest_hit(features))
 
 
-def make_visibility(features: Features, closest_hit, occluded, surface_at, mat) -> SimpleNamespace:
+def make_visibility(features: Features, closest_hit, occluded, surface_at, mat, plain_hit=None) -> SimpleNamespace:
     """``hit(geo, mats, tex, o, d) -> Hit`` and ``blocked(geo, mats, tex, o, d, t_max) -> bool``: the
     closest surface that is there and whether any is, over ``closest_hit``/``occluded`` (from
-    ``core.geometry``); ``surface_at`` and ``mat`` (``make_materials``) read the opacity."""
+    ``core.geometry``); ``surface_at`` and ``mat`` (``make_materials``) read the opacity; ``plain_hit``
+    (default ``closest_hit``) traces past holes: the tape's re-intersecting query only for the first hit."""
+    if plain_hit is None:
+        plain_hit = closest_hit
     if not features.needs("cutout"):
 
         @wp.func
@@ -69,37 +76,48 @@ def make_visibility(features: Features, closest_hit, occluded, surface_at, mat) 
         return a >= mats.alpha_cutoff[k]
 
     @wp.func
-    def hit(geo: Geometry, mats: Materials, tex: Textures, o: wp.vec3, d: wp.vec3) -> Hit:
-        h = closest_hit(geo, o, d, NO_HIT)
+    def beyond(geo: Geometry, mats: Materials, tex: Textures, o: wp.vec3, d: wp.vec3, first: Surface) -> Hit:
+        """The first solid surface behind the hole ``first`` (a dynamic loop: one traversal's code)."""
+        sf = first
         start = o
         travelled = float(0.0)
-        done = int(0)
-        for _layer in range(wp.static(MAX_LAYERS)):
-            if done == 0:
-                if h.kind == KIND_MISS:
-                    done = 1
-                else:
-                    sf = surface_at(geo, h, start, d)
-                    if solid(mats, tex, sf):
-                        done = 1
-                    else:
-                        nxt = offset_origin(sf.p, sf.ng, 1, geo.extent)
-                        travelled = travelled + wp.dot(nxt - start, d)
-                        start = nxt
-                        h = closest_hit(geo, start, d, NO_HIT)
-        out = h
-        if h.kind != KIND_MISS:
-            out.t = h.t + travelled
-        return out
+        h = Hit()
+        h.kind = KIND_MISS
+        h.t = NO_HIT
+        layer = int(0)
+        while layer < MAX_LAYERS:
+            nxt = offset_origin(sf.p, sf.ng, 1, geo.extent)
+            travelled = travelled + wp.dot(nxt - start, d)
+            start = nxt
+            h = plain_hit(geo, start, d, NO_HIT)
+            if h.kind == KIND_MISS:
+                return h
+            sf = surface_at(geo, h, start, d)
+            if solid(mats, tex, sf):
+                break
+            layer += 1
+        h.t = h.t + travelled
+        return h
+
+    @wp.func
+    def hit(geo: Geometry, mats: Materials, tex: Textures, o: wp.vec3, d: wp.vec3) -> Hit:
+        h = closest_hit(geo, o, d, NO_HIT)
+        if h.kind == KIND_MISS:
+            return h
+        sf = surface_at(geo, h, o, d)
+        if solid(mats, tex, sf):
+            return h
+        return beyond(geo, mats, tex, o, d, sf)
 
     @wp.func
     def blocked(geo: Geometry, mats: Materials, tex: Textures, o: wp.vec3, d: wp.vec3, t_max: float) -> bool:
         start = o
         left = t_max
-        for _layer in range(wp.static(MAX_LAYERS + 1)):
+        layer = int(0)
+        while layer <= MAX_LAYERS:
             if left <= 0.0:
                 return False
-            h = closest_hit(geo, start, d, left)
+            h = plain_hit(geo, start, d, left)
             if h.kind == KIND_MISS:
                 return False
             sf = surface_at(geo, h, start, d)
@@ -108,6 +126,7 @@ def make_visibility(features: Features, closest_hit, occluded, surface_at, mat) 
             nxt = offset_origin(sf.p, sf.ng, 1, geo.extent)
             left = left - wp.dot(nxt - start, d)
             start = nxt
+            layer += 1
         return True
 
     return SimpleNamespace(hit=hit, blocked=blocked)

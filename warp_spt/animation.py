@@ -206,10 +206,12 @@ class ObjSequence:
     ``loads`` counts OBJ files parsed (tests check that static files are parsed once).
     """
 
-    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker") -> None:
+    def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker",
+                 smooth_angle: float | str | None = None) -> None:
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
         self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
+        self.smooth_angle = smooth_angle             # as load_scene's
         self.loads = 0
         self._parsed: dict[str, ObjData] = {}
         self._last_scene: tuple[tuple[str, ...], Scene] | None = None
@@ -238,7 +240,7 @@ class ObjSequence:
                 self._parsed[p] = load_obj(p)
                 self.loads += 1
         scene = load_scene([self._parsed[p] for p in paths], self.mtls, warn=lambda message: None,
-                           default_material=self.default_material)
+                           default_material=self.default_material, smooth_angle=self.smooth_angle)
         self._last_scene = (paths, scene)
         return scene
 

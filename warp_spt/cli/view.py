@@ -23,6 +23,7 @@ from warp_spt.cli.common import (
 )
 from warp_spt.cli.options import UP_AXES, _camera, _join_up_operand
 from warp_spt.runtime.signals import exit_status
+from warp_spt.runtime.extras import install_hint
 
 PROG = "warp-spt view"
 DEFAULT_VIEW = (384, 288)
@@ -31,7 +32,7 @@ DEFAULT_VIEW = (384, 288)
 def build_parser() -> Parser:
     p = Parser(prog=PROG, allow_abbrev=False,
                description="Explore a scene in the browser: orbit, pan, zoom, refine, copy the warp-spt command "
-                           "that renders the view. Needs the view extra: pip install \"warp-spt[view]\".")
+                           "that renders the view. Needs the view extra: " + install_hint("view") + ".")
     p.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable; default: the demo)")
     p.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable)")
     p.add_argument("-cam", nargs=9, type=finite_float,
@@ -64,8 +65,7 @@ def main(argv: Sequence[str]) -> int:
         return fail(f"{err} (see {PROG} --help)", EXIT_USAGE, sys.stderr)
     missing = [m for m in ("aiohttp",) if importlib.util.find_spec(m) is None]
     if missing:
-        return fail(f"the viewer needs {', '.join(missing)}: pip install \"warp-spt[view]\" (from a clone: "
-                    f"pip install \".[view]\")", 1, sys.stderr)
+        return fail(f"the viewer needs {', '.join(missing)}: {install_hint('view')}", 1, sys.stderr)
     from warp_spt.viewer.server import serve
     width, height = ns.res or DEFAULT_VIEW
     try:

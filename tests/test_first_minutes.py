@@ -214,6 +214,37 @@ def test_smooth_normals_keep_creases_sharper_than_the_angle_and_weld_seams():
     assert err.max() < 0.5, err.max()                       # one-sided at the seam: 3.75 degrees
 
 
+@pytest.mark.parametrize("chunk", [4_000_000, 7])
+def test_smooth_normals_equal_a_plain_loop_over_the_corners(monkeypatch, chunk):
+    """The vectorised paths (a smooth vertex's whole sum; pairs, in chunks, at creases) against the
+    definition written as loops, on a model with creases where its parts meet."""
+    from tests.models import teapot
+    from warp_spt.scene import normals
+
+    monkeypatch.setattr(normals, "PAIR_CHUNK", chunk)
+    parts = teapot()
+    p = np.concatenate([q for q, _ in parts])
+    f = np.concatenate([faces + sum(len(q) for q, _ in parts[:k]) for k, (_, faces) in enumerate(parts)])
+    got = normals.smooth_normals(p, f, 30.0)
+    tri = p[f]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    e = lambda a, b: tri[:, b] - tri[:, a]
+    angle = np.stack([np.arccos(np.clip(np.einsum("ij,ij->i", e(k, (k + 1) % 3), e(k, (k + 2) % 3))
+                                        / np.linalg.norm(e(k, (k + 1) % 3), axis=1)
+                                        / np.linalg.norm(e(k, (k + 2) % 3), axis=1), -1, 1)) for k in range(3)], 1)
+    key = {tuple(v): i for i, v in enumerate(map(tuple, p))}
+    at: dict = {}
+    for face in range(len(f)):
+        for k in range(3):
+            at.setdefault(key[tuple(p[f[face, k]])], []).append((face, k))
+    limit = np.cos(np.radians(30.0))
+    for face in range(len(f)):
+        for k in range(3):
+            s = sum(n[g] * angle[g, kg] for g, kg in at[key[tuple(p[f[face, k]])]] if n[face] @ n[g] >= limit - 1e-12)
+            assert np.allclose(got[face, k], s / np.linalg.norm(s), atol=1e-6)
+
+
 def test_the_loader_smooths_standard_files_without_normals_only(tmp_path):
     from warp_spt.io.loader import load_scene
 

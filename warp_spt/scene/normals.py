@@ -41,31 +41,62 @@ def smooth_normals(positions: np.ndarray, faces: np.ndarray, angle: float = DEFA
     f = np.asarray(faces, dtype=np.int64)
     if not len(f):
         return np.zeros((0, 3, 3), np.float32)
-    _, weld = np.unique(p, axis=0, return_inverse=True)
-    vert = weld.reshape(-1)[f]                                    # (F, 3) welded vertex of each corner
     tri = p[f]                                                     # (F, 3, 3)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1)
     n = n / np.where(length > 0, length, 1.0)[:, None]             # zero-area faces: a zero normal
     weight = _corner_angles(tri)                                   # (F, 3)
-    out = np.repeat(n[:, None, :], 3, axis=1)                      # the face's own normal by default
+    vert = _weld(p)[f].reshape(-1)                                 # corner c = 3 * face + k: its vertex
+    corner_n = np.repeat(n, 3, axis=0)                             # each corner's face normal
+    # Most vertices are smooth: all their faces lie within a cone of half the angle around their
+    # mean normal, so every two of them are within the angle and each corner takes the vertex's
+    # whole sum. Only the others (creases, corners of a box) pair their faces one by one.
+    wn = corner_n * weight.reshape(-1, 1)
+    count = int(vert.max()) + 1
+    total = np.stack([np.bincount(vert, weights=wn[:, k], minlength=count) for k in range(3)], axis=1)
+    size = np.linalg.norm(total, axis=1)
+    mean = total / np.where(size > 1e-300, size, 1.0)[:, None]
+    cone = np.full(count, np.inf)
+    np.minimum.at(cone, vert, np.einsum("ij,ij->i", corner_n, mean[vert]))
+    smooth = (size > 1e-12) & (cone >= np.cos(min(np.radians(angle) / 2.0, np.pi / 2)) + 1e-12)
+    out = np.where(smooth[vert][:, None], mean[vert], corner_n)
+    rough = np.flatnonzero(~smooth[vert])
+    if len(rough):
+        acc = np.zeros((len(vert), 3))
+        _pair_up(acc, rough[np.argsort(vert[rough], kind="stable")], vert, n, weight,
+                 np.cos(np.radians(angle)) - 1e-12)
+        norm = np.linalg.norm(acc[rough], axis=1)
+        ok = norm > 1e-12
+        out[rough[ok]] = acc[rough[ok]] / norm[ok, None]
+    return out.reshape(-1, 3, 3).astype(np.float32)
 
-    corner_vert = vert.reshape(-1)                                 # corner c = 3 * face + k
-    order = np.argsort(corner_vert, kind="stable")
-    sorted_vert = corner_vert[order]
-    starts = np.flatnonzero(np.r_[True, sorted_vert[1:] != sorted_vert[:-1]])
+
+def _weld(p: np.ndarray) -> np.ndarray:
+    """Per point, the index of its position among the distinct positions (exact equality)."""
+    order = np.lexsort(p.T[::-1])
+    sp = p[order]
+    new = np.r_[True, np.any(sp[1:] != sp[:-1], axis=1)]
+    ids = np.empty(len(p), dtype=np.int64)
+    ids[order] = np.cumsum(new) - 1
+    return ids
+
+
+def _pair_up(acc: np.ndarray, order: np.ndarray, vert: np.ndarray, n: np.ndarray, weight: np.ndarray,
+             cos_limit: float) -> None:
+    """For the corners ``order`` (sorted by vertex), add to each the weighted normals of the faces of
+    its vertex within the angle of its own face; vertex groups in chunks of PAIR_CHUNK pairs."""
+    v = vert[order]
+    starts = np.flatnonzero(np.r_[True, v[1:] != v[:-1]])
     counts = np.diff(np.r_[starts, len(order)])
-    cos_limit = np.cos(np.radians(angle)) - 1e-12
-    acc = np.zeros((len(corner_vert), 3))
     pairs = np.cumsum(counts.astype(np.int64) ** 2)               # each corner pairs with its group's
     g0 = 0
     while g0 < len(counts):
         if counts[g0] ** 2 > PAIR_CHUNK:                            # one huge fan: its corners in slices
-            group = order[starts[g0]:starts[g0] + counts[g0]]
-            step = max(1, PAIR_CHUNK // len(group))
-            for i in range(0, len(group), step):
-                a = group[i:i + step]
-                _add(acc, np.repeat(a, len(group)), np.tile(group, len(a)), n, weight, cos_limit)
+            fan = order[starts[g0]:starts[g0] + counts[g0]]
+            step = max(1, PAIR_CHUNK // len(fan))
+            for i in range(0, len(fan), step):
+                a = fan[i:i + step]
+                _add(acc, np.repeat(a, len(fan)), np.tile(fan, len(a)), n, weight, cos_limit)
             g0 += 1
             continue
         done = pairs[g0 - 1] if g0 else 0
@@ -74,16 +105,11 @@ def smooth_normals(positions: np.ndarray, faces: np.ndarray, angle: float = DEFA
             g1 -= 1
         c, first = counts[g0:g1], starts[g0:g1]
         reps = np.repeat(c, c)                                       # per corner: its group's size
-        mine = np.repeat(first, c) + np.arange(len(reps)) - np.repeat(np.cumsum(c) - c, c)
+        at = np.repeat(first, c) + np.arange(len(reps)) - np.repeat(np.cumsum(c) - c, c)
         within = np.arange(int(reps.sum())) - np.repeat(np.cumsum(reps) - reps, reps)
-        _add(acc, np.repeat(order[mine], reps), order[np.repeat(np.repeat(first, c), reps) + within],
+        _add(acc, np.repeat(order[at], reps), order[np.repeat(np.repeat(first, c), reps) + within],
              n, weight, cos_limit)
         g0 = g1
-    norm = np.linalg.norm(acc, axis=1)
-    ok = norm > 1e-12
-    flat = out.reshape(-1, 3)
-    flat[ok] = acc[ok] / norm[ok, None]
-    return flat.reshape(-1, 3, 3).astype(np.float32)
 
 
 def _add(acc: np.ndarray, a: np.ndarray, b: np.ndarray, n: np.ndarray, weight: np.ndarray,

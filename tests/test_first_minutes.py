@@ -365,3 +365,41 @@ def test_every_install_hint_works_from_a_clone():
     hint = install_hint("view")
     assert 'pip install ".[view]"' in hint and "clone" in hint
     assert named <= extras, named - extras
+
+
+def test_smooth_normals_of_random_meshes_are_the_definition():
+    """Hypothesis: random small meshes on a coarse grid of points (so faces share vertices, some
+    written twice, and some are sharp creases) give unit normals equal to the definition's loop."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from warp_spt.scene.normals import _corner_angles, smooth_normals
+
+    point = st.tuples(*[st.integers(0, 3)] * 3)
+
+    @settings(max_examples=60, deadline=None)
+    @given(points=st.lists(point, min_size=3, max_size=12), data=st.data(), angle=st.sampled_from([10.0, 30.0, 89.0, 180.0]))
+    def check(points, data, angle):
+        p = np.asarray(points, dtype=np.float64)
+        idx = st.integers(0, len(p) - 1)
+        faces = np.asarray(data.draw(st.lists(st.tuples(idx, idx, idx), min_size=1, max_size=16)))
+        tri = p[faces]
+        area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        faces, tri = faces[area > 0], tri[area > 0]          # the reader drops zero-area faces
+        if not len(faces):
+            return
+        got = smooth_normals(p, faces, angle).astype(np.float64)
+        assert np.all(np.isfinite(got)) and np.allclose(np.linalg.norm(got, axis=2), 1.0, atol=1e-6)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        w = _corner_angles(tri)
+        limit = np.cos(np.radians(angle)) - 1e-12
+        for fi in range(len(faces)):
+            for k in range(3):
+                here = tuple(p[faces[fi, k]])
+                s = sum((n[g] * w[g, kg] for g in range(len(faces)) for kg in range(3)
+                         if tuple(p[faces[g, kg]]) == here and n[fi] @ n[g] >= limit), np.zeros(3))
+                want = s / np.linalg.norm(s) if np.linalg.norm(s) > 1e-12 else n[fi]
+                assert np.allclose(got[fi, k], want, atol=1e-5), (fi, k, got[fi, k], want)
+
+    check()

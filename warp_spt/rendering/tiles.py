@@ -34,6 +34,10 @@ def render(scene: Scene | DeviceScene, camera: Camera | None = None, *,
     Keyword arguments are the fields of :class:`RenderSettings`. ``progress`` is True for a tqdm bar
     or a callable ``(done, total)`` in samples x pixels, called on the calling thread. Ctrl-C stops the
     workers and re-raises KeyboardInterrupt. :func:`render_scene` returns the film and stats too.
+
+    Given a host :class:`Scene`, it warns (``UserWarning``) when the camera sees no geometry at all,
+    as the command line does: a 64-pixel-wide probe through the camera (a ``wp.Mesh`` per mesh, about
+    the cost of the upload a host scene pays anyway); a :class:`DeviceScene` is not probed.
     """
     rs = settings_from(settings)
     image = render_scene(scene, camera, rs, progress=progress).image       # checks every argument

@@ -47,6 +47,7 @@ MODELS: dict[str, tuple] = {
     "bust, Y up, flat base": ("bust", "y", 1.0, (0, 0, 0), []),
     "relief plaque, Y up, flat back": ("plaque", "y", 1.0, (0, 0, 0), []),
     "8 egg-shaped balls on a 24-unit floor, Y up": ("spheres_on_floor", "y", 1.0, (0, 0, 0), ["base"]),
+    "8 egg-shaped balls on a 24-unit floor, Z up, no flags": ("spheres_on_floor", "z", 1.0, (0, 0, 0), ["base"]),
     # issue 32: a small model far from the origin
     "bunny, Y up, 1.6 units at 1e9": ("bunny", "y", 1.0, (1e9, 2e9, -3e9), []),
 }

@@ -285,7 +285,9 @@ def test_framing_leaves_out_a_wide_ground(tmp_path):
 
 
 @pytest.mark.parametrize("name, up", [("bust scan, Z up, flat base, no flags", "z"), ("bust, Y up, flat base", "y"),
-                                      ("relief plaque, Y up, flat back", "y")])
+                                      ("relief plaque, Y up, flat back", "y"),
+                                      ("8 egg-shaped balls on a 24-unit floor, Z up, no flags", "z"),
+                                      ("8 egg-shaped balls on a 24-unit floor, Y up", "y")])
 def test_a_z_up_scan_on_a_flat_base_stands_up(tmp_path, name, up):
     v = run_case(tmp_path, name, cli)
     assert v.up == up and v.upright, v.row()

@@ -330,14 +330,14 @@ def base_share(scene: Scene, up: str | Sequence[float]) -> float:
 
 
 def looks_z_up(scene: Scene) -> bool:
-    """A scan written Z up: it stands on a flat base in the XY plane (its lowest faces along Z cover
-    SCAN_BASE_SHARE of its XY rectangle), has none in XZ (lowest along Y), and is at least
-    SCAN_MIN_HEIGHT times as tall (Z) as it is wide, so a flat relief seen from +Z is not taken for one."""
-    b = scene.bounds
-    ext = b[1] - b[0]
-    if len(scene.spheres) or not ext[2] >= SCAN_MIN_HEIGHT * max(ext[0], ext[1]):
+    """A model written Z up: it stands on a flat base in the XY plane (its lowest faces along Z cover
+    SCAN_BASE_SHARE of its XY rectangle), has none in XZ (lowest along Y), and is either at least
+    SCAN_MIN_HEIGHT times as tall (Z) as it is wide (a scanned bust on its cut base) or the base is a
+    ground much wider than what stands on it; so a flat relief whose back faces -Z is not taken for one."""
+    if len(scene.spheres) or not (base_share(scene, "z") >= SCAN_BASE_SHARE > base_share(scene, "y")):
         return False
-    return base_share(scene, "z") >= SCAN_BASE_SHARE and base_share(scene, "y") < SCAN_BASE_SHARE
+    ext = np.ptp(scene.bounds, axis=0)
+    return bool(ext[2] >= SCAN_MIN_HEIGHT * max(ext[0], ext[1])) or subject_bounds(scene, "z") is not None
 
 
 def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None:

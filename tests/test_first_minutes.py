@@ -405,3 +405,11 @@ def test_smooth_normals_of_random_meshes_are_the_definition():
                 assert np.allclose(got[fi, k], want, atol=1e-5), (fi, k, got[fi, k], want)
 
     check()
+
+
+def test_the_probe_of_a_tall_view_stays_small():
+    from warp_spt.rendering.first_view import PROBE_SIZE, probe_shape
+
+    assert probe_shape(500, 500) == (PROBE_SIZE, PROBE_SIZE)
+    assert probe_shape(640, 480) == (64, 48)
+    assert probe_shape(1, 4096) == (1, PROBE_SIZE)          # before: 64 x 262144 rays for a 1 x 4096 render

@@ -45,6 +45,14 @@ BLUR_PIXELS, BLUR_SHARE = 3.0, 0.5
 PROBE_SIZE = 64
 
 
+def probe_shape(width: int, height: int) -> tuple[int, int]:
+    """The probe image of a ``width`` x ``height`` view: the same aspect, its longer side PROBE_SIZE
+    (a tall view too, whose probe would otherwise grow with its height)."""
+    if height <= width:
+        return PROBE_SIZE, max(1, round(PROBE_SIZE * height / width))
+    return max(1, round(PROBE_SIZE * width / height)), PROBE_SIZE
+
+
 def should_frame(scene: Scene, camera: Camera, coverage: float) -> bool:
     """The CLI's rule when a user gives ``-obj`` without ``-cam``: frame the scene automatically when
     the (default) camera stands inside the scene's bounding box, sees almost none of it (``coverage``
@@ -209,7 +217,7 @@ def view_warnings(scene: Scene, camera: Camera, width: int, height: int, pr: Pro
     if inside:
         out.append(f"the camera is inside a closed object ({inside}); it will see only its inside "
                    "(use --frame, or -cam/--look-at to place it outside)")
-    pr = pr or probe(scene, camera, PROBE_SIZE, max(1, round(PROBE_SIZE * height / width)))
+    pr = pr or probe(scene, camera, *probe_shape(width, height))
     if pr.coverage == 0.0:
         out.append(_nothing_seen(scene, pr, offset))
     share = lens_blur_share(pr, camera, width)
@@ -294,7 +302,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     if not demo and not (fixed or (keep and scene.seed_dialect)):
         why = _why_frame(frame, view, scene, choice.axis)
         if not why:      # a scene in the seed's dialect: frame only if the camera would not show it
-            pr = probe(scene, cam, PROBE_SIZE, max(1, round(PROBE_SIZE * height / width)))
+            pr = probe(scene, cam, *probe_shape(width, height))
             if should_frame(scene, cam, pr.coverage):
                 why = "the default camera would not show it whole; -cam or --look-at to choose"
         if why:
@@ -382,7 +390,7 @@ def sees_nothing(scene: Scene, camera: Camera, width: int, height: int) -> str |
     """The "camera sees no geometry" warning of a render of a host scene (recentred first, as the
     render does), or None."""
     local, cam, offset = recentre(scene, camera)
-    pr = probe(local, cam, PROBE_SIZE, max(1, round(PROBE_SIZE * height / width)))
+    pr = probe(local, cam, *probe_shape(width, height))
     return None if pr.coverage else _nothing_seen(local, pr, offset)
 
 

@@ -192,7 +192,8 @@ def _without_base(scene, up: str):
     meshes = []
     for m in scene.meshes:
         keep = ~np.all(m.positions.astype(np.float64)[m.indices] @ u <= low + 1e-6, axis=1)
-        meshes.append(replace(m, indices=m.indices[keep], corner_uv=m.corner_uv[keep], face_material=m.face_material[keep],
+        meshes.append(replace(m, indices=m.indices[keep], corner_uv=m.corner_uv[keep],
+                              face_material=m.face_material[keep],
                               corner_normal=None if m.corner_normal is None else m.corner_normal[keep]))
     return replace(scene, meshes=meshes)
 

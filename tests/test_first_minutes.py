@@ -380,7 +380,8 @@ def test_smooth_normals_of_random_meshes_are_the_definition():
     point = st.tuples(*[st.integers(0, 3)] * 3)
 
     @settings(max_examples=60, deadline=None)
-    @given(points=st.lists(point, min_size=3, max_size=12), data=st.data(), angle=st.sampled_from([10.0, 30.0, 89.0, 180.0]))
+    @given(points=st.lists(point, min_size=3, max_size=12), data=st.data(),
+           angle=st.sampled_from([10.0, 30.0, 89.0, 180.0]))
     def check(points, data, angle):
         p = np.asarray(points, dtype=np.float64)
         idx = st.integers(0, len(p) - 1)

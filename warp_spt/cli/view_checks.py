@@ -69,7 +69,8 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
     try:
         fv = first_view(scene, opts.camera, width=opts.width, height=opts.height, up=opts.up, studio=opts.studio,
                         sky=opts.sky if opts.sky_given else None, frame=opts.frame, view=opts.view,
-                        look_at=opts.look_at, frame_all=opts.frame_all, demo=opts.uses_demo_scene, keep_camera=opts.cam_given,
+                        look_at=opts.look_at, frame_all=opts.frame_all, demo=opts.uses_demo_scene,
+                        keep_camera=opts.cam_given,
                         seed_camera=opts.cam_explicit, fixed=opts.cam_explicit or bool(opts.camera_path),
                         quiet_demo=opts.quiet, say=say)
     except ValueError as err:

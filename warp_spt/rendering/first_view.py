@@ -23,8 +23,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from warp_spt.runtime import kernel_cache
-from warp_spt.scene.camera import Camera, frame_camera
-from warp_spt.scene.conventions import UpChoice
+from warp_spt.scene.camera import AXES, Camera, frame_camera, looks_z_up
+from warp_spt.scene.conventions import UpChoice, has_own_light, up_axis, wants_studio
 from warp_spt.scene.model import Scene
 from warp_spt.scene.recentre import describe_extent, format_point, recentre
 from warp_spt.scene.sky import Sky
@@ -258,26 +258,24 @@ class FirstView:
 def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, height: int = 288,
                up: str | None = None, studio: bool | None = None, sky: Sky | None = None,
                frame: bool = False, view: tuple[float, float] | None = None,
-               look_at: Sequence[float] | None = None, frame_all: bool = False, demo: bool = False, keep_camera: bool | None = None,
-               seed_camera: bool | None = None, fixed: bool | None = None, quiet_demo: bool = False,
-               say: Callable[[str], None] | None = None) -> FirstView:
+               look_at: Sequence[float] | None = None, frame_all: bool = False, demo: bool = False,
+               keep_camera: bool | None = None, seed_camera: bool | None = None, fixed: bool | None = None,
+               quiet_demo: bool = False, say: Callable[[str], None] | None = None) -> FirstView:
     """The first view of ``scene`` (see the module's docs): recentre, choose the up axis, keep or
     frame the camera, warn, add the studio look.
 
     ``camera``: a camera to keep (as ``-cam``: never replaced by framing, Z up unless ``up``); None
     frames the scene. ``keep_camera``/``seed_camera``/``fixed`` refine that for the command line: a
     camera placed by ``--look-at`` is kept for a scene in the seed's dialect and re-framed towards its
-    target otherwise; a camera path is never re-framed (``fixed``); neither is ``-cam``, so the up
-    axis follows the model for them (``seed_camera=False``: Y up for a standard OBJ). ``sky``: a sky the user chose (turns the studio's sky off, and
-    the studio itself unless ``studio=True``). ``frame``/``view``/``look_at``/``frame_all``: the command line's
-    ``--frame``/``--view``/``--look-at``/``--frame-all`` (a base much wider than what stands on it,
-    such as a ground, is left out of the framing unless ``frame_all``). ``demo``: the built-in demo (the seed's look, no checks).
-    ``say`` gets each line the command line prints (they are also in ``FirstView.notes``).
+    target otherwise; a camera path, like ``-cam``, is never re-framed (``fixed``), but unlike ``-cam``
+    its up axis follows the model (``seed_camera=False``: Y up for a standard OBJ). ``sky``: a sky
+    the user chose (turns the studio's sky off, and the studio itself unless ``studio=True``).
+    ``frame``/``view``/``look_at``/``frame_all``: the command line's ``--frame``/``--view``/
+    ``--look-at``/``--frame-all`` (a base much wider than what stands on it, such as a ground, is
+    left out of the framing unless ``frame_all``). ``demo``: the built-in demo (the seed's look, no
+    checks). ``say`` gets each line the command line prints (they are also in ``FirstView.notes``).
     Raises ValueError when the scene cannot be framed (e.g. a field of view too narrow).
     """
-    from warp_spt.scene.camera import AXES
-    from warp_spt.scene.conventions import has_own_light, up_axis, wants_studio
-
     notes: list[str] = []
 
     def note(line: str) -> None:
@@ -291,8 +289,6 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     scene, cam, offset = recentre(scene, camera)
     if offset.any():
         note(f"recentred the scene by {format_point(-offset)} for precision (far from the origin)")
-    from warp_spt.scene.camera import looks_z_up
-
     z_scan = not (up or demo or scene.seed_dialect or explicit) and looks_z_up(scene)
     choice = up_axis(up, demo=demo, seed_dialect=scene.seed_dialect, cam_given=explicit, z_scan=z_scan)
     cam = cam.with_(up=AXES[choice.axis])

@@ -56,7 +56,8 @@ def quick_view(scene, *, width: int = 384, height: int = 288, spp: int = 16, cam
     """The command line's first image of a scene, in one call: a float32 (height, width, 3) linear image.
 
     ``scene`` is a :class:`Scene` or OBJ file names (loaded as ``warp-spt -obj`` loads them: a bare
-    model gets clay, a mesh without normals smooth ones by angle). The view is :func:`warp_spt.first_view`'s: recentred, Y up for a standard OBJ, framed,
+    model gets clay, a mesh without normals smooth ones by angle). The view is
+    :func:`warp_spt.first_view`'s: recentred, Y up for a standard OBJ, framed,
     and the studio look for a scene with no light of its own; its notes are Python warnings
     (``UserWarning``) when they warn. ``save_image(path, image)`` writes it with the same tone map
     as the command line. Other keywords are :class:`RenderSettings` fields."""

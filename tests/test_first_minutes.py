@@ -414,3 +414,20 @@ def test_the_probe_of_a_tall_view_stays_small():
     assert probe_shape(500, 500) == (PROBE_SIZE, PROBE_SIZE)
     assert probe_shape(640, 480) == (64, 48)
     assert probe_shape(1, 4096) == (1, PROBE_SIZE)          # before: 64 x 262144 rays for a 1 x 4096 render
+
+
+def test_the_viewer_says_what_its_first_view_assumed(tmp_path):
+    from warp_spt.viewer.session import open_session
+
+    obj, _ = write_case(tmp_path, "teapot, Y up")
+    said = []
+    session = open_session(objs=[obj], width=16, height=12, max_spp=1, start=False)
+    session.add_listener(lambda message, buffers: said.append(message))
+    session.start()
+    try:
+        session.wait_for(1, timeout=300)
+    finally:
+        session.close()
+    notices = [m["text"] for m in said if m.get("type") == "notice"]
+    assert any("framed the scene" in t and "Y up (a standard OBJ model; --up z to change)" in t
+               and "studio look" in t for t in notices), notices

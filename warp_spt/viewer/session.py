@@ -740,6 +740,9 @@ class Session:
                 self._home = (self._rig, self._up)
             self._changed()
         self._broadcast(self.state(), [])
+        if first and fv.notes:      # what the first view assumed, in the command line's words
+            self._broadcast({"type": "notice", "level": "warning" if fv.warnings else "info",
+                             "text": "\n".join(fv.notes)}, [])
 
     def _fail(self, text: str, scene_lost: bool = False) -> None:
         with self._cond:

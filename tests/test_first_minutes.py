@@ -431,3 +431,20 @@ def test_the_viewer_says_what_its_first_view_assumed(tmp_path):
     notices = [m["text"] for m in said if m.get("type") == "notice"]
     assert any("framed the scene" in t and "Y up (a standard OBJ model; --up z to change)" in t
                and "studio look" in t for t in notices), notices
+
+
+def test_the_viewer_takes_the_first_view_flags_and_copies_them(tmp_path):
+    from warp_spt.cli.view import build_parser
+    from warp_spt.viewer.session import open_session
+
+    ns = build_parser().parse_args(["-obj", "m.obj", "--no-studio", "--smooth-angle", "0"])
+    assert ns.studio is False and ns.smooth_angle == 0.0
+    obj, _ = write_case(tmp_path, "teapot, Y up")
+    session = open_session(objs=[obj], width=16, height=12, max_spp=1, studio=False, smooth_angle=0.0)
+    try:
+        session.wait_for(1, timeout=300)
+        assert session.settings.sky == "blue"                    # no studio: the seed's sky
+        command = session.command_line()
+    finally:
+        session.close()
+    assert "--no-studio" in command and "--smooth-angle 0" in command and "--studio " not in command

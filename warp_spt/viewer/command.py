@@ -39,6 +39,8 @@ class CommandSpec:
     out: str = "view.png"
     exposure: float = 0.0       # stops, for a tone-mapped output
     studio: bool = False
+    studio_off: bool = False    # --no-studio was asked for
+    smooth_angle: float | None = None   # --smooth-angle, when not the default
 
 
 def number(v: float) -> str:
@@ -64,7 +66,8 @@ def command_args(camera, spec: CommandSpec) -> list[str]:
     if spec.up != "z":
         args += [f"--up={spec.up}"] if spec.up.startswith("-") else ["--up", spec.up]
     args += ["-res", str(spec.width), str(spec.height), "-sr", str(spec.spp), "-depth", str(spec.max_depth)]
-    args += ["--studio"] if spec.studio else []
+    args += ["--studio"] if spec.studio else ["--no-studio"] if spec.studio_off else []
+    args += ["--smooth-angle", number(spec.smooth_angle)] if spec.smooth_angle is not None else []
     if spec.sky != "studio":
         args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
     args += ["--integrator", spec.integrator, "--sampler", spec.sampler]

@@ -209,7 +209,9 @@ class Session:
     on "reload": a :class:`warp_spt.SceneError` is then shown on the page. ``camera`` defaults to
     the seed's camera for the built-in demo (``objs`` empty) and to ``Camera.frame`` otherwise.
     ``objs``/``mtls`` are the file names the copied command line names; ``up`` the world's up
-    axis ("z" or "y"...). ``settings`` are :class:`ViewSettings` fields.
+    axis ("z" or "y"...). ``studio`` True/False forces the studio look on or off (None: the rule);
+    ``smooth_angle`` is what the file loader was given (for the copied command line). ``settings``
+    are :class:`ViewSettings` fields.
 
     The first view is the command line's (:func:`warp_spt.rendering.first_view.first_view`): the
     scene recentred if far off, Y up for a standard OBJ, framed, and, for a scene with no light of
@@ -218,13 +220,16 @@ class Session:
     """
 
     def __init__(self, scene=None, camera=None, *, loader: Callable | None = None, objs: Sequence[str] = (),
-                 mtls: Sequence[str] = (), up: str | None = None, start: bool = True, **settings):
+                 mtls: Sequence[str] = (), up: str | None = None, studio: bool | None = None,
+                 smooth_angle: float | str = "auto", start: bool = True, **settings):
         if scene is None and loader is None:
             raise ValueError("give a scene or a loader")
         self.objs, self.mtls = tuple(map(str, objs)), tuple(map(str, mtls))
         self._cond = threading.Condition()
         self._settings = ViewSettings(**settings)
         self._sky_given = "sky" in settings or "sky_color" in settings
+        self._studio_given = studio      # --studio / --no-studio; None: the rule
+        self._smooth_angle = smooth_angle
         self._studio = False             # the first view added the studio look
         self._offset = np.zeros(3)       # world = the session's coordinates + offset (recentring)
         self._given_camera = camera
@@ -345,7 +350,8 @@ class Session:
         sky, colour = sky_command(s, self._studio)
         spec = CommandSpec(self.objs, self.mtls, self._up, int(width or s.width), int(height or s.height),
                            int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out, s.exposure,
-                           studio=self._studio)
+                           studio=self._studio, studio_off=self._studio_given is False,
+                           smooth_angle=None if self._smooth_angle == "auto" else self._smooth_angle)
         camera = self.camera
         if camera is None:
             raise ValueError("the scene is not loaded yet")
@@ -544,7 +550,7 @@ class Session:
         if cam is None and demo:
             from warp_spt import Camera
             cam = Camera()                  # the built-in demo keeps the seed's camera, as the CLI does
-        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo,
+        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=self._studio_given,
                           sky=make_sky(s) if self._sky_given else None)
 
     def _initial_rig(self, cam):
@@ -787,22 +793,26 @@ class Session:
             listener(msg, buffers)
 
 
-def open_session(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[str] = (), **kw):
+def open_session(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[str] = (),
+                 smooth_angle: float | str = "auto", **kw):
     """A :class:`Session` of ``scene``, or of the files (the built-in demo when ``objs`` is empty),
-    loaded on the render thread so that a bad file is reported on the page."""
+    loaded on the render thread so that a bad file is reported on the page; ``smooth_angle`` as
+    ``warp-spt --smooth-angle`` ("auto": its default)."""
     if scene is not None:
         return Session(scene, camera, objs=objs, mtls=mtls, **kw)
-    return Session(camera=camera, loader=file_loader(objs, mtls), objs=objs, mtls=mtls, **kw)
+    return Session(camera=camera, loader=file_loader(objs, mtls, smooth_angle), objs=objs, mtls=mtls,
+                   smooth_angle=smooth_angle, **kw)
 
 
-def file_loader(objs: Sequence[str], mtls: Sequence[str]):
-    """A function loading the files as the command line does (``default_material="auto"``)."""
+def file_loader(objs: Sequence[str], mtls: Sequence[str], smooth_angle: float | str = "auto"):
+    """A function loading the files as the command line does (``default_material="auto"``, smooth
+    normals by angle)."""
     def load():
         import warp_spt
         from warp_spt.demo import demo_files
 
         files = (list(objs), list(mtls)) if objs else demo_files()
-        return warp_spt.load_scene(*files, default_material="auto", smooth_angle="auto")
+        return warp_spt.load_scene(*files, default_material="auto", smooth_angle=smooth_angle)
     return load
 
 

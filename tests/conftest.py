@@ -14,6 +14,17 @@ SEED_DEMO = SHARED / "seed" / "demo"
 os.environ.setdefault("WARP_SPT_QUIET", "1")
 
 
+def pytest_configure(config):
+    """A run started in the background (``nohup pytest &``, a script's ``&``) inherits an ignored
+    SIGINT, and so would every process it starts: the tests of Ctrl-C need the disposition a terminal
+    gives. A Python handler here also means SIG_DFL in every child the tests start (exec resets
+    handled signals, not ignored ones)."""
+    import signal
+
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 @pytest.fixture(scope="session")
 def seed_demo() -> Path:
     """The seed's demo folder; the test is skipped where ../shared is not beside the repo."""

@@ -41,12 +41,36 @@ MODELS: dict[str, tuple] = {
     "flat cut-out, Y up": ("cutout", "y", 1.0, (0, 0, 0), []),
     "cow, Z up, seed's MTL dialect": ("cow", "z", 1.0, (0, 0, 0), ["seed-mtl"]),
     "bunny, Z up, --up z": ("bunny", "z", 1.0, (0, 0, 0), ["--up", "z"]),
+    # issue 31: what exporters and scanners write
+    "teapot, Y up, Blender MTL": ("teapot", "y", 1.0, (0, 0, 0), ["blender-mtl"]),
+    "bust scan, Z up, flat base, no flags": ("bust", "z", 1.0, (0, 0, 0), []),
+    "bust, Y up, flat base": ("bust", "y", 1.0, (0, 0, 0), []),
+    "relief plaque, Y up, flat back": ("plaque", "y", 1.0, (0, 0, 0), []),
+    "8 egg-shaped balls on a 24-unit floor, Y up": ("spheres_on_floor", "y", 1.0, (0, 0, 0), ["base"]),
+    "8 egg-shaped balls on a 24-unit floor, Z up, no flags": ("spheres_on_floor", "z", 1.0, (0, 0, 0), ["base"]),
+    # issue 32: a small model far from the origin
+    "bunny, Y up, 1.6 units at 1e9": ("bunny", "y", 1.0, (1e9, 2e9, -3e9), []),
 }
 SEED_LOOK = {"cow, Z up, seed's MTL dialect"}     # not bare: the seed's look (no studio) is kept
 DEFAULT_CAM = [4.0, -55.0, 16.0, 0.0, 1.0, 0.0, 38.0, 27.0, 0.001]
 SIZE = (96, 72)
 LUMA = np.array([0.2126, 0.7152, 0.0722])        # Rec. 709 luminance weights
 SEED_MTL = "newmtl hide\nKd 0.7 0.6 0.5\nRoughness 1\n"
+# What Blender's OBJ exporter writes for its default material (a colour, no light)
+BLENDER_MTL = """# Blender MTL File: 'None'
+# Material Count: 1
+
+newmtl Material
+Ns 250.000000
+Ka 1.000000 1.000000 1.000000
+Kd 0.800000 0.300000 0.200000
+Ks 0.500000 0.500000 0.500000
+Ke 0.000000 0.000000 0.000000
+Ni 1.450000
+d 1.000000
+illum 2
+"""
+MARKERS = ("seed-mtl", "blender-mtl", "base")     # case notes, not flags of the command
 
 
 def cutout(path: Path, up: str, scale: float, offset) -> Path:
@@ -74,8 +98,11 @@ def write_case(folder: Path, name: str) -> tuple[str, list[str]]:
     if "seed-mtl" in flags:
         (folder / "hide.mtl").write_text(SEED_MTL)
         path.write_text("mtllib hide.mtl\nusemtl hide\n" + path.read_text())
-        flags = [f for f in flags if f != "seed-mtl"]
-    return str(path), list(flags)
+    if "blender-mtl" in flags:
+        (folder / "untitled.mtl").write_text(BLENDER_MTL)
+        path.write_text("# Blender v2.93 OBJ File: ''\nmtllib untitled.mtl\no Teapot\nusemtl Material\ns off\n"
+                        + path.read_text())
+    return str(path), [f for f in flags if f not in MARKERS]
 
 
 @dataclass
@@ -125,15 +152,20 @@ def printed_camera(said: str, up_default: str):
     return cam, up, bool(m)
 
 
-def judge(obj: str, true_up: str, image: np.ndarray, said: str, up_default: str) -> Verdict:
-    """The checks of the module docs for the image a command made of ``obj`` and what it printed."""
+def judge(obj: str, true_up: str, image: np.ndarray, said: str, up_default: str, base: bool = False) -> Verdict:
+    """The checks of the module docs for the image a command made of ``obj`` and what it printed;
+    ``base``: the model stands on a ground, which is not judged (only what stands on it)."""
     from warp_spt.cli.view_checks import probe
     from warp_spt.io.loader import load_scene
     from warp_spt.scene.camera import up_vector
+    from warp_spt.scene.recentre import recentre
 
     camera, up, framed = printed_camera(said, up_default)
     h, w = image.shape[:2]
     scene = load_scene([obj], warn=lambda m: None)
+    if base:
+        scene = _without_base(scene, true_up)
+    scene, camera, _ = recentre(scene, camera)           # as the render: far-off models in float64
     pr = probe(scene, camera, w, h)
     hits = pr.hits
     points = np.asarray(camera.position) + pr.t[..., None] * pr.directions
@@ -147,6 +179,23 @@ def judge(obj: str, true_up: str, image: np.ndarray, said: str, up_default: str)
     alignment = float(np.dot(up_vector(true_up), camera.axes()[2]))
     return Verdict(framed, up, float(hits.mean()), border, alignment, order, cv,
                    float(model.mean() / top) if hits.any() else 0.0)
+
+
+def _without_base(scene, up: str):
+    """The scene without its faces in the lowest plane along ``up`` (the ground a model stands on)."""
+    from dataclasses import replace
+
+    from warp_spt.scene.camera import up_vector
+
+    u = up_vector(up)
+    low = float(np.min(scene.bounds @ u))
+    meshes = []
+    for m in scene.meshes:
+        keep = ~np.all(m.positions.astype(np.float64)[m.indices] @ u <= low + 1e-6, axis=1)
+        meshes.append(replace(m, indices=m.indices[keep], corner_uv=m.corner_uv[keep],
+                              face_material=m.face_material[keep],
+                              corner_normal=None if m.corner_normal is None else m.corner_normal[keep]))
+    return replace(scene, meshes=meshes)
 
 
 def _rank_correlation(a: np.ndarray, b: np.ndarray) -> float:
@@ -163,4 +212,4 @@ def run_case(folder: Path, name: str, render: Callable[[list[str], Path], tuple[
     obj, flags = write_case(folder, name)
     argv = ["-obj", obj, *flags, *extra, "-res", str(SIZE[0]), str(SIZE[1]), "-sr", "16"]
     image, said = render(argv, folder / "first.npy")
-    return judge(obj, MODELS[name][1], image, said, up_default)
+    return judge(obj, MODELS[name][1], image, said, up_default, base="base" in MODELS[name][4])

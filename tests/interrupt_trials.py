@@ -58,6 +58,12 @@ def command(entry: str, workdir: Path, out: str, res: int, spp: int) -> list[str
             "-sr", str(spp), "-depth", "2", "--quiet", "-out", out]
 
 
+def default_signals() -> None:
+    """In a child before it runs: SIGINT and SIGTERM as a foreground job in a terminal has them."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def environment() -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
@@ -72,10 +78,12 @@ def run_trial(workdir: Path, trial: Trial, res: int, spp: int) -> Trial:
     (workdir / "q.obj").write_text(SCENE)
     out = workdir / f"out{trial.suffix}"
     start = time.monotonic()
-    # start_new_session: the child does not inherit an ignored SIGINT from a non-interactive shell,
-    # and a hang can be killed with its whole group.
+    # start_new_session: a hang can be killed with its whole group; an ignored SIGINT (a soak run
+    # started in the background) would be inherited all the same, so the child resets it, as a
+    # terminal's foreground job has it.
     proc = subprocess.Popen(command(trial.entry, workdir, str(out), res, spp), cwd=workdir, env=environment(),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True,
+                            preexec_fn=default_signals)
     time.sleep(trial.delay)
     if proc.poll() is None:
         proc.send_signal(trial.signum)

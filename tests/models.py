@@ -70,7 +70,54 @@ def cow():
     return [(p - [0, 0, low], q) for p, q in parts]
 
 
-SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow}
+def bust():
+    """A scanned bust as scans come (issue 31): a head on a neck on a round plinth whose bottom is
+    cut flat (a disc of faces in the lowest plane); about 1.2 x 1.2 x 2.2 (Z up)."""
+    head, f = _sphere_grid(32, 16)
+    parts = [(head * [0.45, 0.5, 0.6] + [0, 0, 1.55], f), (head * [0.2, 0.2, 0.35] + [0, 0, 0.95], f),
+             (head * [0.6, 0.45, 0.35] + [0, 0, 0.75], f)]
+    n = 40
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([0.6 * np.cos(a), 0.6 * np.sin(a), np.zeros(n)], -1)
+    top = ring + [0, 0, 0.5]
+    pts = np.concatenate([[[0, 0, 0]], ring, top])
+    faces = [(0, 1 + (k + 1) % n, 1 + k) for k in range(n)]                     # the flat bottom, facing down
+    faces += [(1 + k, 1 + (k + 1) % n, 1 + n + k) for k in range(n)]
+    faces += [(1 + (k + 1) % n, 1 + n + (k + 1) % n, 1 + n + k) for k in range(n)]
+    parts.append((pts, np.array(faces)))
+    return parts
+
+
+def plaque():
+    """A relief plaque standing upright, its flat back towards +Y: thin (2 x 0.15 x 1.4, Z up)."""
+    n_u, n_v = 24, 16
+    u, v = np.meshgrid(np.linspace(-1, 1, n_u), np.linspace(0, 1.4, n_v), indexing="ij")
+    bump = 0.12 * np.exp(-(u ** 2 + (v - 0.7) ** 2) * 3)
+    front = np.stack([u, -bump - 0.03, v], -1).reshape(-1, 3)
+    back = np.stack([u, np.zeros_like(u), v], -1).reshape(-1, 3)
+    idx = lambda i, j: i * n_v + j
+    faces = []
+    for i in range(n_u - 1):
+        for j in range(n_v - 1):
+            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i, j + 1), idx(i + 1, j + 1)
+            faces += [(a, b, d), (a, d, c)]
+    f = np.array(faces)
+    return [(front, f), (back, f[:, ::-1])]
+
+
+def spheres_on_floor():
+    """Eight balls in a ring of radius 1.5 on a 24 x 24 floor (issue 31: a ground that framing took
+    for the subject), Z up; egg-shaped (0.35 wide, 1.6 tall) so that upright means something."""
+    s, f = _sphere_grid(24, 12)
+    parts = [(np.array([[-12.0, -12, 0], [12, -12, 0], [12, 12, 0], [-12, 12, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))]
+    for k in range(8):
+        a = 2 * np.pi * k / 8
+        parts.append((s * [0.35, 0.35, 0.8] + [1.5 * np.cos(a), 1.5 * np.sin(a), 0.8], f))
+    return parts
+
+
+SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow, "bust": bust, "plaque": plaque,
+          "spheres_on_floor": spheres_on_floor}
 
 
 def write_model(path: Path, shape: str, *, up: str = "z", scale: float = 1.0, offset=(0.0, 0.0, 0.0),
@@ -84,7 +131,8 @@ def write_model(path: Path, shape: str, *, up: str = "z", scale: float = 1.0, of
         if up == "y":
             q = np.stack([q[:, 0], q[:, 2], -q[:, 1]], -1)
         q = q + np.asarray(offset, dtype=np.float64)
-        lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in q]
+        digits = 17 if float(np.max(np.abs(offset))) > 1e5 else 9     # far off: every digit of the model
+        lines += [f"v {x:.{digits}g} {y:.{digits}g} {z:.{digits}g}" for x, y, z in q]
         height = pts[faces].mean(1)[:, 2]
         groups = [("top", height > top / 2), ("bottom", height <= top / 2)] if marker else [(None, np.ones(len(faces), bool))]
         for name, sel in groups:

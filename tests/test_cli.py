@@ -263,7 +263,7 @@ def test_view_without_its_extra_says_how_to_install_it(monkeypatch, capsys):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "aiohttp" else real(name, *a))
     assert cli_main(["view", "--no-browser"]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and 'pip install "warp-spt[view]"' in err and "internal error" not in err
+    assert err.count("\n") == 1 and 'pip install ".[view]" in the warp_spt clone' in err and "internal error" not in err
 
 
 # ---------------------------------------------------------------- --workers on a small machine

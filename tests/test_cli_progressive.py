@@ -223,7 +223,7 @@ def test_denoise_is_explicit_and_says_so(tmp_path, lit_files, capsys, monkeypatc
     assert main(args) == 1
     err = capsys.readouterr().err        # one line, before loading: it was "internal error: RuntimeError"
     assert err.count("\n") == 1 and err.startswith("warp-spt: error: --denoise needs Intel Open Image Denoise")
-    assert 'pip install ".[denoise]"' in err and 'pip install "warp-spt[denoise]"' in err
+    assert 'pip install ".[denoise]"' in err and '"warp-spt[denoise]"' in err
 
 
 def fake_denoiser(monkeypatch, seconds_per_pixel: float) -> list:

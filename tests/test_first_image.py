@@ -41,7 +41,7 @@ def test_the_framed_line_says_which_way_is_up_and_its_cam_reproduces_the_image(t
     first, said = cli(["-obj", obj, *size], tmp_path / "a.npy")
     line = next(s for s in said.splitlines() if "framed the scene" in s)
     assert "Y up (a standard OBJ model; --up z to change)" in line
-    assert "studio look for a bare model" in said and "--no-studio" in said
+    assert "studio look: the scene has no light of its own" in said and "--no-studio" in said
     again = re.search(r"-cam (.*)$", line).group(1).split()
     second, said2 = cli(["-obj", obj, "-cam", *again, *size], tmp_path / "b.npy")
     assert "framed the scene" not in said2

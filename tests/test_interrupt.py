@@ -204,3 +204,20 @@ def test_an_interruption_swallowed_by_a_callback_is_raised_again(tmp_path, monke
     assert reached == []                                  # the load itself was interrupted
     from warp_spt.runtime.signals import _cli_unraisable
     assert sys.unraisablehook is not _cli_unraisable      # the caller's hook is back
+
+
+def test_the_signal_tests_pass_in_a_run_started_with_sigint_ignored():
+    """``nohup python -m pytest tests &`` (issue 31): a background job inherits an ignored SIGINT.
+    The suite's conftest gives the run, and so every process it starts, a terminal's disposition;
+    a run of signal tests started that way passes."""
+    import subprocess
+    import sys
+
+    tests = ["tests/test_progressive.py::test_a_signal_stops_a_pass_between_its_launches",
+             "tests/test_interrupt.py::test_a_signal_stops_the_jobs_then_raises_like_the_previous_handler",
+             "tests/test_interrupt.py::test_real_processes_interrupted_at_random_moments"]
+    env = dict(os.environ, PYTHONPATH=str(T.REPO))
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests], cwd=T.REPO,
+                          env=env, capture_output=True, text=True, timeout=600,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert done.returncode == 0, done.stdout[-3000:]          # 1: a test failed, 5: none ran

@@ -53,3 +53,24 @@ def test_the_readme_gradients_example_runs_as_written(tmp_path, monkeypatch, cap
 def test_help_says_which_axis_is_up_and_how_to_change_it():
     text = " ".join(build_parser().format_help().split())
     assert "keep the seed's Z up" in text and "any other model is Y up" in text and "--up wins" in text
+
+
+def test_the_readme_cluster_example_runs_as_a_script(tmp_path):
+    """Issue 31: the cluster block ran only pasted into an interpreter; as a script, the local
+    workers (which import the script) started clusters of their own. Run as written, smaller."""
+    import os
+    import subprocess
+    import sys
+
+    import pytest
+
+    pytest.importorskip("dask.distributed")
+    code = readme_block("cluster").replace("width=512, height=512, spp=256", "width=16, height=12, spp=2")
+    assert "width=16" in code
+    script = tmp_path / "render_on_a_cluster.py"
+    script.write_text(code)
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert (tmp_path / "cluster.png").stat().st_size > 0

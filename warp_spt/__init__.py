@@ -6,7 +6,9 @@ The public surface, in the order data flows::
     image = warp_spt.render(scene, warp_spt.Camera(), width=512, height=512, spp=16)  # linear float32
     warp_spt.save_image("out.png", image)                                  # tone-mapped PNG, .npy or .pfm
 
-:meth:`Camera.frame` fits a camera to a scene (``Camera.frame(scene, up="y")`` for a Y-up model) and
+:func:`quick_view` renders the command line's first image of a scene in one call (framed, Y up
+for a standard OBJ, the studio look for a scene with no light of its own); :func:`first_view` returns
+that view's scene, camera and sky. :meth:`Camera.frame` fits a camera to a scene (``Camera.frame(scene, up="y")`` for a Y-up model) and
 :meth:`Camera.look_at` aims one at a point. :func:`render` recentres scenes far from the origin
 (:func:`warp_spt.scene.recentre.recentre`) before rendering. :func:`load_obj` and :func:`load_mtl` read
 single files; :class:`SceneError` is the one exception for bad scene input (it names the file and
@@ -68,6 +70,9 @@ _EXPORTS = {
     "render_gradients": "diff.gradients",
     "render_progressive": "rendering.progressive",
     "render_scene": "rendering.tiles",
+    "quick_view": "rendering.tiles",
+    "first_view": "rendering.first_view",
+    "FirstView": "rendering.first_view",
     "save_image": "io.images",
     "texture": "core.proctex",
     "tonemap_seed": "io.images",
@@ -106,7 +111,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
         relative_error,
     )
     from warp_spt.rendering.settings import RenderSettings
-    from warp_spt.rendering.tiles import render, render_film, render_scene
+    from warp_spt.rendering.first_view import FirstView, first_view
+    from warp_spt.rendering.tiles import quick_view, render, render_film, render_scene
     from warp_spt.samplers import SAMPLERS
     from warp_spt.scene.camera import Camera
     from warp_spt.scene.conventions import up_axis

@@ -207,11 +207,12 @@ class ObjSequence:
     """
 
     def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker",
-                 fps: float = 24.0) -> None:
+                 fps: float = 24.0, smooth_angle: float | str | None = None) -> None:
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
         self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
         self.fps = float(fps)                         # an animated glTF's frame k is posed at k / fps seconds
+        self.smooth_angle = smooth_angle             # as load_scene's
         self.loads = 0
         self._parsed: dict[str, ObjData] = {}
         self._last_scene: tuple[tuple, Scene] | None = None     # ((paths, frame or None), scene)
@@ -259,7 +260,8 @@ class ObjSequence:
         if self._last_scene is not None and self._last_scene[0] == key:
             return self._last_scene[1]
         data = [self._posed(p, frame) if p in posed else self._parsed[p] for p in paths]
-        scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material)
+        scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material,
+                           smooth_angle=self.smooth_angle)
         self._last_scene = (key, scene)
         return scene
 

@@ -35,7 +35,9 @@ from __future__ import annotations
 import hashlib
 import logging
 import math
+import os
 import pickle
+import signal
 import threading
 import time
 import uuid
@@ -55,12 +57,13 @@ from warp_spt.rendering.schedule import (
     unit_passes,
 )
 from warp_spt.rendering.settings import RenderSettings
+from warp_spt.runtime.extras import install_hint
 from warp_spt.runtime.progress import ProgressFn, progress_reporter
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
 from warp_spt.scene.sky import Sky
 
-INSTALL_HINT = 'distributed rendering needs dask.distributed: pip install "warp-spt[cluster]"'
+INSTALL_HINT = 'distributed rendering needs dask.distributed: ' + install_hint("cluster")
 
 try:
     import distributed
@@ -604,8 +607,58 @@ def local_client(n_workers: int = 2, *, threads_per_worker: int = 1, **cluster_k
     options = dict(n_workers=n_workers, threads_per_worker=threads_per_worker, processes=True,
                    host="127.0.0.1", dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     options.update(cluster_kwargs)
-    with distributed.LocalCluster(**options) as cluster, distributed.Client(cluster) as client:
+    cluster = distributed.LocalCluster(**options)
+    try:
+        client = distributed.Client(cluster)
+    except BaseException:
+        _abandon(cluster)
+        raise
+    try:
         yield client
+    except BaseException:          # Ctrl-C, SIGTERM or an error: nothing the workers do is wanted
+        _abandon(cluster, client)
+        raise
+    client.close()
+    cluster.close()
+
+
+ABANDON_SECONDS = 2.0     # what closing a cluster whose workers were killed may take, at most
+
+
+def _abandon(cluster, client=None) -> None:
+    """Close a local cluster whose work is no longer wanted, at once and quietly.
+
+    A graceful close waits for every worker's running task, and a Warp kernel launch cannot be cut
+    short: seconds. Here the worker processes are killed first (they hold nothing that is not in
+    this process), then the client and the cluster close; the scheduler's and nannies' reports of
+    the workers and scattered data lost that way are the interruption's doing, not news, and are
+    silenced while it closes."""
+    import gc
+
+    loggers = [logging.getLogger(n) for n in ("distributed", "distributed.scheduler", "distributed.nanny",
+                                             "distributed.client", "distributed.core", "distributed.worker",
+                                             "asyncio")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        for nanny in list(getattr(cluster, "workers", {}).values()):
+            pid = getattr(getattr(nanny, "process", None), "pid", None)
+            if pid:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except OSError:             # already gone
+                    pass
+        for closing in (client, cluster):
+            if closing is not None:
+                try:
+                    closing.close(timeout=ABANDON_SECONDS)
+                except Exception:           # closing what is half gone may fail: the interruption counts
+                    pass
+        gc.collect()        # the closed connections' futures report their errors when collected: now
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
 
 
 @contextmanager

@@ -108,6 +108,18 @@ def quiet_local_workers():
         yield
 
 
+def written_files(out: str | None, frames, gif: str | None) -> str:
+    """The files a run wrote, for its done line: the first and last of a sequence (never the
+    {frame} template), or the one file, and the GIF."""
+    parts = []
+    if out:
+        names = [frame_path(out, k) for k in frames]
+        parts.append(names[0] if len(set(names)) == 1 else f"{names[0]} .. {names[-1]} ({len(names)} files)")
+    if gif:
+        parts.append(gif)
+    return ", ".join(parts)
+
+
 def run_cli(opts, err, started: float | None = None) -> int:
     """``warp-spt`` with --frames / --camera-path / --gif / --cluster / --workers: render and write the frames."""
     from warp_spt.cli.common import (
@@ -123,7 +135,8 @@ def run_cli(opts, err, started: float | None = None) -> int:
     say = say_for(opts, err)
     objs, mtls = scene_files(opts)
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
-    seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps)
+    seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps,
+                      smooth_angle=opts.smooth_angle)
     frames = opts.frames or (path.frames if path is not None else seq.default_frames() or range(0, 1))
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out, k) if opts.out else None)
@@ -178,6 +191,5 @@ def run_cli(opts, err, started: float | None = None) -> int:
     if opts.gif:
         save_gif(opts.gif, [previews[k] for k in sorted(previews)])
     seconds = time.perf_counter() - start
-    written = ", ".join(x for x in (opts.out, opts.gif) if x)
-    say(f"wrote {written} ({len(frames)} frame(s), {seconds:.1f} s)")
+    say(f"wrote {written_files(opts.out, frames, opts.gif)} ({len(frames)} frame(s), {seconds:.1f} s)")
     return EXIT_OK

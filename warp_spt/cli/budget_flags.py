@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Callable
 
 from warp_spt.scene.numbers import plain_float
+from warp_spt.runtime.extras import install_hint
 
 MAP_SUFFIXES = (".npy", ".pfm", ".exr", ".png")
 
@@ -123,7 +124,7 @@ def options(ns: argparse.Namespace, usage_error: Callable[[str], Exception],
             import importlib.util
             if importlib.util.find_spec("OpenEXR") is None:
                 raise usage_error(f"{flag} {path!r}: writing .exr needs the optional openexr package "
-                                  "(pip install 'warp-spt[exr]')")
+                                  f"({install_hint('exr')})")
     if ns.adaptive_metric is not None and not ns.adaptive:
         raise usage_error("--adaptive-metric needs --adaptive")
     return BudgetOptions(ns.time_budget, ns.target_error, ns.adaptive, ns.min_spp, ns.save_partial, ns.progressive,

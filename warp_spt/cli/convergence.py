@@ -23,7 +23,9 @@ from warp_spt.rendering.convergence import (
 PROG = "warp-spt convergence"
 
 
-def _parser() -> argparse.ArgumentParser:
+def _parser(defaults: Sequence[str] = (), left_out: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The parser; ``defaults`` (the default configurations) and ``left_out`` (the integrators that
+    train over passes of their own, which the report cannot pace) from the registries, for --help."""
     from warp_spt.cli.common import Parser, int_at_least
 
     p = Parser(prog=PROG, add_help=False, allow_abbrev=False,
@@ -36,8 +38,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--reference-spp", type=int_at_least(2, 1 << 20), metavar="N",
                    help="samples per pixel of the rendered reference (default 16 x --max-spp)")
     p.add_argument("--configs", metavar="LIST",
-                   help="comma-separated INTEGRATOR/SAMPLER[+adaptive|+denoised] (default: every integrator "
-                        "with every sampler, and the default pair +adaptive)")
+                   help="comma-separated INTEGRATOR/SAMPLER[+adaptive|+denoised] (default: "
+                        + (", ".join(defaults) if defaults else "every integrator that renders in plain passes "
+                           "with every sampler, and the default pair +adaptive")
+                        + (f"; not {', '.join(left_out)}, which train over passes of their own" if left_out else "")
+                        + ")")
     p.add_argument("--denoise", action="store_true", help="add the default pair +denoised (needs pyoidn)")
     p.add_argument("--prefix", default="convergence", metavar="PATH",
                    help="writes PATH.csv, PATH.json and PATH.png (default ./convergence)")
@@ -61,7 +66,9 @@ def main(argv: Sequence[str]) -> int:
     try:
         ns, rest = _parser().parse_known_args(list(argv))
         if ns.help:
-            print(_parser().format_help(), end="")
+            from warp_spt.integrators import INTEGRATORS
+            left_out = sorted(n for n, r in INTEGRATORS.items() if r.render_passes is not None)
+            print(_parser(default_configs(), left_out).format_help(), end="")
             return 0
         configs = [c.strip() for c in ns.configs.split(",") if c.strip()] if ns.configs else default_configs()
         configs = list(dict.fromkeys(configs + ["denoised"] * ns.denoise))
@@ -97,7 +104,8 @@ def _run(ns, opts, configs: list[str], err) -> int:
         try:
             import matplotlib  # noqa: F401
         except ImportError:
-            raise RuntimeError('the PNG plot needs matplotlib: pip install "warp-spt[plot]", or pass --no-plot') from None
+            from warp_spt.runtime.extras import install_hint
+            raise RuntimeError(f"the PNG plot needs matplotlib: {install_hint('plot')}, or pass --no-plot") from None
     init_warp(opts)
     objs, mtls = scene_files(opts)
     scene = load_scene(objs, mtls, warn=lambda message: None)

@@ -19,6 +19,7 @@ from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_l
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
 from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP, MAX_THREADS  # the API's caps (settings.check_args)
+from warp_spt.runtime.extras import install_hint
 from warp_spt.scene.sky import Sky
 
 if TYPE_CHECKING:
@@ -44,7 +45,7 @@ MEMORY_FRACTION = 0.5
 
 EXAMPLES = """\
 commands:
-  warp-spt view [scene flags]       explore a scene in the browser (pip install "warp-spt[view]")
+  warp-spt view [scene flags]       explore a scene in the browser (pip install ".[view]" in the clone)
   warp-spt convergence [flags]      error against samples and seconds: CSV, JSON, PNG
 
 examples:
@@ -74,9 +75,10 @@ top|bottom|AZ,EL (or --orbit AZ EL, degrees) chooses the side, --look-at the poi
 seed's default camera unless it would stand inside the scene, see almost none of it or be too
 close to see it whole; --frame always frames.
 
-A bare model (no material library, no sky flag) gets the studio look: grey clay, a ground, a key
-light placed from the camera (above, to the left, in front), a soft grey sky. --no-studio or a
-sky flag turns it off; --studio turns it on for any model. --exposure EV brightens (or, negative,
+A model with no light of its own (no emitting material; an exporter's MTL has none) and no sky
+flag gets the studio look: its own materials (grey clay for a bare model), a ground, a key light
+placed from the camera (above, to the left, in front), a soft grey sky; the seed's scenes keep
+their look. --no-studio or a sky flag turns it off; --studio turns it on for any model. --exposure EV brightens (or, negative,
 darkens) the tone-mapped .png/.jpg by 2^EV; linear .npy/.pfm/.exr keep the scene's radiance.
 """
 
@@ -112,11 +114,13 @@ class Options:
     look_at: tuple[float, float, float] | None = None
     view: tuple[float, float] | None = None   # --view / --orbit: (azimuth, elevation) in degrees
     frame: bool = False              # --frame: always frame
+    frame_all: bool = False          # --frame-all: frame a wide base (a ground) too
     studio: bool | None = None       # --studio / --no-studio; None: wants_studio's rule
     sky_given: bool = False          # -sky, --sky-color or a --demo preset chose the sky
     exposure: float = 0.0            # --exposure, in stops, for tone-mapped outputs
     default_material: str = "auto"
     file_camera: str | None = None   # --camera: a camera of the model files (glTF), by name or index
+    smooth_angle: float | str = "auto"   # --smooth-angle; "auto": 30 degrees unless the seed's dialect
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
@@ -299,8 +303,10 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         integrator_options=_unique_options(ns.integrator_option),
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
+        frame_all=ns.frame_all,
         studio=ns.studio, sky_given=ns.sky is not None or ns.sky_color is not None or preset is not None,
         exposure=ns.exposure, default_material=ns.default_material, file_camera=ns.file_camera,
+        smooth_angle="auto" if ns.smooth_angle is None else ns.smooth_angle,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
     )
     return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
@@ -379,14 +385,29 @@ def _add_model_flags(g) -> None:
     g.add_argument("--aperture", type=finite_float, metavar="R", help="lens radius, overriding -cam's (0: pinhole)")
     g.add_argument("--frame", action="store_true",
                    help="frame the scene: three-quarter view from the front, all of it in view, pinhole")
+    g.add_argument("--frame-all", action="store_true",
+                   help="when framing, include a base much wider than what stands on it (a ground); "
+                        "by default the objects on it are framed")
     g.add_argument("--studio", action=argparse.BooleanOptionalAction, default=None,
                    help="neutral sky, a ground plane under the model and a key light (adds geometry, "
-                        "never edits your files); default: on for a bare model with no sky flag")
+                        "never edits your files); default: on for a model with no light of its own and no sky flag")
     g.add_argument("--exposure", type=finite_float, default=0.0, metavar="EV",
                    help="scale the tone-mapped image by 2^EV (default 0)")
+    g.add_argument("--smooth-angle", type=_smooth_angle, default=None, metavar="DEG",
+                   help="smooth normals by angle for OBJ files without vn: faces within DEG degrees of "
+                        "each other shade smooth (0: off, flat); default 30, off for the seed's dialect")
     g.add_argument("--default-material", choices=("auto", "clay", "checker"), default="auto",
                    help="material of faces with no usemtl: clay (grey) or checker (the seed's); "
                         "auto (default): checker if any MTL is given or any OBJ names a material, else clay")
+
+
+def _smooth_angle(text: str) -> float:
+    from warp_spt.scene.normals import MAX_SMOOTH_ANGLE
+
+    value = finite_float(text)
+    if not 0.0 <= value <= MAX_SMOOTH_ANGLE:
+        raise argparse.ArgumentTypeError(f"must lie in [0, {MAX_SMOOTH_ANGLE:g}] degrees (0: off), got {text}")
+    return value
 
 
 def _join_up_operand(argv: Sequence[str]) -> list[str]:
@@ -460,7 +481,7 @@ def _check_exr(out: str) -> None:
 
     if Path(out).suffix.lower() == ".exr" and importlib.util.find_spec("OpenEXR") is None:
         raise UsageError(f"-out {out!r}: writing .exr needs the optional openexr package "
-                         "(pip install 'warp-spt[exr]')")
+                         f"({install_hint('exr')})")
 
 
 def available_memory() -> int:

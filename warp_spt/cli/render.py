@@ -48,14 +48,15 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     start = time.perf_counter()
     try:
         scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below
-                           default_material=opts.default_material)
+                           default_material=opts.default_material, smooth_angle=opts.smooth_angle)
     except MemoryError:
         raise RunError("out of memory while loading the scene: its files or textures are too large for "
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} model file(s)"
-    say(f"loaded {what}: {scene.num_triangles:,} triangles, {len(scene.spheres)} spheres, "
+    dropped = f" ({scene.dropped_degenerate:,} of zero area dropped)" if scene.dropped_degenerate else ""
+    say(f"loaded {what}: {scene.num_triangles:,} triangles{dropped}, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")
     notice = CompileNotice(say)

@@ -7,6 +7,7 @@ command that renders the current view.
 
 from __future__ import annotations
 
+import argparse
 import errno
 import importlib.util
 import sys
@@ -22,7 +23,8 @@ from warp_spt.cli.common import (
     finite_float,
     int_at_least,
 )
-from warp_spt.cli.options import UP_AXES, _camera, _join_up_operand
+from warp_spt.cli.options import UP_AXES, _camera, _join_up_operand, _smooth_angle
+from warp_spt.runtime.extras import install_hint
 from warp_spt.runtime.signals import exit_status
 from warp_spt.scene.limits import MAX_VIEW_PIXELS
 
@@ -33,7 +35,7 @@ DEFAULT_VIEW = (384, 288)
 def build_parser() -> Parser:
     p = Parser(prog=PROG, allow_abbrev=False,
                description="Explore a scene in the browser: orbit, pan, zoom, refine, copy the warp-spt command "
-                           "that renders the view. Needs the view extra: pip install \"warp-spt[view]\".")
+                           "that renders the view. Needs the view extra: " + install_hint("view") + ".")
     p.add_argument("-obj", action="append", default=[], metavar="PATH", help="OBJ file (repeatable; default: the demo)")
     p.add_argument("-mtl", action="append", default=[], metavar="PATH", help="MTL file (repeatable)")
     p.add_argument("-cam", nargs=9, type=finite_float,
@@ -43,6 +45,10 @@ def build_parser() -> Parser:
                    help=f"view size in pixels (default {DEFAULT_VIEW[0]} {DEFAULT_VIEW[1]})")
     p.add_argument("--up", choices=UP_AXES, metavar="AXIS",
                    help="the world's up axis (default: z for the seed's scenes and with -cam, y for other models)")
+    p.add_argument("--studio", action=argparse.BooleanOptionalAction, default=None,
+                   help="the studio look on or off (default: as warp-spt, on for a scene with no light of its own)")
+    p.add_argument("--smooth-angle", type=_smooth_angle, default=None, metavar="DEG",
+                   help="smooth normals by angle for OBJ files without vn, as warp-spt (default 30; 0: flat)")
     p.add_argument("--port", type=int_at_least(0, 65535), default=0, help="port on 127.0.0.1 (default: a free one)")
     p.add_argument("--no-browser", action="store_true", help="only print the URL")
     return p
@@ -69,12 +75,12 @@ def main(argv: Sequence[str]) -> int:
         return fail(f"{err} (see {PROG} --help)", EXIT_USAGE, sys.stderr)
     missing = [m for m in ("aiohttp",) if importlib.util.find_spec(m) is None]
     if missing:
-        return fail(f"the viewer needs {', '.join(missing)}: pip install \"warp-spt[view]\" (from a clone: "
-                    f"pip install \".[view]\")", 1, sys.stderr)
+        return fail(f"the viewer needs {', '.join(missing)}: {install_hint('view')}", 1, sys.stderr)
     from warp_spt.viewer.server import serve
     width, height = ns.res or DEFAULT_VIEW
     try:
-        status = serve(camera=camera, objs=ns.obj, mtls=ns.mtl, up=ns.up, port=ns.port or None,
+        status = serve(camera=camera, objs=ns.obj, mtls=ns.mtl, up=ns.up, port=ns.port or None, studio=ns.studio,
+                       smooth_angle="auto" if ns.smooth_angle is None else ns.smooth_angle,
                        open_browser=not ns.no_browser, width=width, height=height)
     except KeyboardInterrupt as err:          # a signal before the server's loop took over
         status = exit_status(err)

@@ -172,7 +172,8 @@ def _write_exr(f: BinaryIO, img: np.ndarray) -> None:
     try:
         import OpenEXR
     except ImportError:
-        raise ValueError("writing .exr needs the optional 'openexr' package: pip install 'warp-spt[exr]'") from None
+        from warp_spt.runtime.extras import install_hint
+        raise ValueError(f"writing .exr needs the optional 'openexr' package: {install_hint('exr')}") from None
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with tempfile.TemporaryDirectory() as tmp:
         name = os.path.join(tmp, "image.exr")

@@ -27,6 +27,9 @@ The scene records where it came from (:attr:`Scene.seed_dialect`: an OBJ has the
 an MTL file read uses the seed's own tags; :attr:`Scene.bare`: no material library was read), for
 the command line's conventions (:mod:`warp_spt.scene.conventions`).
 
+Zero-area triangles (every UV sphere's poles have them) are dropped and counted in
+:attr:`Scene.dropped_degenerate`, without a warning.
+
 Warnings go to ``Scene.warnings`` and to the ``warn`` callback (by default
 ``warnings.warn(message, UserWarning)``; pass ``warn=lambda message: None`` to only collect them).
 """
@@ -44,6 +47,7 @@ from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
 from warp_spt.io.tokens import file_problem
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.normals import DEFAULT_SMOOTH_ANGLE, check_smooth_angle, smooth_normals
 from warp_spt.scene.model import (
     CHECKER_NAME,
     TEX_PROC_BASE,
@@ -73,10 +77,14 @@ DEFAULT_MATERIALS = ("checker", "clay", "auto")
 
 
 def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None,
-               default_material: str = "checker") -> Scene:
+               default_material: str = "checker", smooth_angle: float | str | None = None) -> Scene:
     """Read OBJ files (one object each) and MTL files into a validated :class:`Scene`.
 
     An item of ``objs`` may also be an already parsed :class:`ObjData` (animations re-use static files).
+
+    ``smooth_angle`` (degrees, :mod:`warp_spt.scene.normals`) gives an OBJ without any ``vn``
+    smooth normals by angle; ``"auto"`` (the command line's default) is 30 degrees unless the scene
+    is in the seed's dialect; None or 0: flat, as the seed.
 
     Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
     including a scene with no triangles and no spheres. See the module docs for the rules.
@@ -92,6 +100,8 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
 
     if default_material not in DEFAULT_MATERIALS:
         raise ValueError(f"default_material must be one of {DEFAULT_MATERIALS}, got {default_material!r}")
+    auto_smooth = isinstance(smooth_angle, str) and smooth_angle == "auto"
+    angle = DEFAULT_SMOOTH_ANGLE if auto_smooth else check_smooth_angle(smooth_angle)
     mtls = [str(p) for p in mtls]
     data = [p if isinstance(p, ObjData) else read_model(p) for p in objs]   # parsed ones: OBJ sequences
     _require_geometry(data)
@@ -99,11 +109,14 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         for message in d.warnings:
             note(message)
     library, libraries_read = _read_materials(data, mtls, note)
+    seed_dialect = any(len(d.spheres) for d in data) or any(m.seed_dialect for m in library.values())
+    if auto_smooth and seed_dialect:
+        angle = None
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
     textures = _TextureCache(note)
     scene = Scene(
-        meshes=[_mesh(d, rows, note) for d, rows in zip(data, obj_rows) if len(d.faces)],
+        meshes=[_mesh(d, rows, note, angle) for d, rows in zip(data, obj_rows) if len(d.faces)],
         spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float64),
         sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
@@ -112,15 +125,12 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         procedural=textures.procedural,
         warnings=notes,
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
-        seed_dialect=any(len(d.spheres) for d in data) or any(m.seed_dialect for m in library.values()),
+        seed_dialect=seed_dialect,
         bare=not libraries_read,
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
         lights=[c for d in data for c in getattr(d.extras, "lights", ())],
     )
-    for d in data:
-        if d.dropped_degenerate:
-            note(f"{d.path}: dropped {d.dropped_degenerate} zero-area triangles")
-    validate_scene(scene)
+    validate_scene(scene)       # zero-area triangles dropped: counted, not news (a UV sphere's poles)
     return scene
 
 
@@ -232,8 +242,8 @@ def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
     return rows, obj_rows
 
 
-def _mesh(d: ObjData, rows: np.ndarray, note: WarnFn) -> MeshData:
-    """One OBJ's triangles with per-corner uv and normals."""
+def _mesh(d: ObjData, rows: np.ndarray, note: WarnFn, smooth_angle: float | None = None) -> MeshData:
+    """One OBJ's triangles with per-corner uv and normals (smooth by angle when it has none)."""
     f = len(d.faces)
     uv = np.zeros((f, 3, 2), np.float32)
     has_t = d.face_texcoords >= 0
@@ -243,7 +253,8 @@ def _mesh(d: ObjData, rows: np.ndarray, note: WarnFn) -> MeshData:
         positions=d.positions,
         indices=d.faces,
         corner_uv=uv,
-        corner_normal=_corner_normals(d, note),
+        corner_normal=(smooth_normals(d.positions, d.faces, smooth_angle)
+                       if smooth_angle and not (d.face_normals >= 0).any() else _corner_normals(d, note)),
         face_material=rows[d.face_material].astype(np.int32),
     )
 

@@ -55,8 +55,9 @@ Every other file is **standard**: its materials are of the physically based kind
 * ``Ps``/``Pc``/``Pcr`` (sheen, clearcoat) and ``map_Ks`` are not modelled: reported once per file.
 
 * Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); ``-bm`` is read for bump
-  and normal maps, the others are skipped. Every other tag (``Ka``...) is ignored, as are lines before
-  the first ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
+  and normal maps, the others are skipped. ``Ka`` (ambient: a path tracer computes the ambient light)
+  is ignored silently; every other tag is ignored and reported, as are lines before the first
+  ``newmtl``. :func:`load_mtl` reports once per file, through ``warn``, the tags and texture
   options it read but does not support.
 
 ``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
@@ -307,6 +308,8 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     elif tag == "tr":
         d.opacity = 1.0 - _number(args, path, lineno, name, lo=0.0, hi=1.0)
         d.pbr["d"] = True
+    elif tag == "ka":
+        pass            # ambient colour: a path tracer computes the ambient light; silently ignored
     elif tag == "illum":
         if len(args) != 1:
             raise SceneError(path, lineno, f"expected 1 integer after 'illum', got {len(args)}")

@@ -5,7 +5,7 @@ configuration and reports, per row: RMSE and the relative error of the image (do
 against the reference, the estimated relative error, seconds, and efficiency ``1 / (RMSE^2 x s)``;
 per configuration: the fitted log-log slope of RMSE against spp, with a warning when it is far from
 -0.5 (bias or a bug). It writes CSV and JSON, and a PNG plot when matplotlib is installed
-(``pip install "warp-spt[plot]"``).
+(``pip install ".[plot]"`` in the clone).
 
 Configurations are named ``INTEGRATOR/SAMPLER`` (``nee/sobol``; every pixel the same spp), with
 ``+adaptive`` (the same total number of samples, spent by adaptive sampling after a quarter of them
@@ -254,7 +254,8 @@ def write_plot(path: str | Path, rows: Sequence[Row], fits: dict[str, Fit], titl
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise RuntimeError('the PNG plot needs matplotlib: pip install "warp-spt[plot]" '
+        from warp_spt.runtime.extras import install_hint
+        raise RuntimeError(f"the PNG plot needs matplotlib: {install_hint('plot')} "
                            "(or use --no-plot; the CSV and JSON are written anyway)") from None
     from warp_spt.io.images import atomic_write
 

@@ -15,10 +15,11 @@ import time
 
 import numpy as np
 
+from warp_spt.runtime.extras import install_hint
+
 # the extra is named in pyproject.toml ([project.optional-dependencies] denoise); from a clone the
 # package is not on PyPI under that name yet, so both forms are given
-INSTALL_HINT = ('--denoise needs Intel Open Image Denoise (the pyoidn package): pip install ".[denoise]" in a clone '
-                'of warp-spt, or pip install "warp-spt[denoise]"')
+INSTALL_HINT = '--denoise needs Intel Open Image Denoise (the pyoidn package): ' + install_hint("denoise")
 
 
 def available() -> bool:

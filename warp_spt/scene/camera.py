@@ -262,11 +262,130 @@ def flat_normal(scene: Scene, towards: np.ndarray) -> np.ndarray | None:
     return n if side >= 0.0 else -n
 
 
-def _box(scene_or_bounds: Scene | np.ndarray) -> np.ndarray:
-    b = scene_or_bounds.bounds if isinstance(scene_or_bounds, Scene) else np.asarray(scene_or_bounds, np.float64)
+# A scene whose centre lies farther from the origin than this many times its size is recentred
+# before rendering (warp_spt.scene.recentre) and framed in that frame.
+RECENTRE_RATIO = 4.0
+
+
+def exact_bounds(scene: Scene) -> np.ndarray:
+    """(2, 3) float64 bounds of the positions as parsed (``Scene.bounds`` gives them rounded to
+    float32, where a 2-unit model 1e9 from the origin is a point)."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for m in scene.meshes:
+        if len(m.indices):
+            mask = np.zeros(len(m.positions), dtype=bool)
+            mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
+            used = m.positions[mask].astype(np.float64)
+            lo, hi = np.minimum(lo, used.min(0)), np.maximum(hi, used.max(0))
+    if len(scene.spheres):
+        s = scene.spheres.astype(np.float64)
+        lo, hi = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(0)), np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(0))
+    return np.stack([lo, hi])
+
+
+def far_centre(scene: Scene, ratio: float = RECENTRE_RATIO) -> np.ndarray | None:
+    """The centre of a scene that lies far from the origin (farther than ``ratio`` times its size,
+    in float64), or None for a scene near the origin."""
+    b = exact_bounds(scene)
+    size = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 0.0
+    centre = 0.5 * (b[0] + b[1])
+    return centre if size > 0.0 and float(np.max(np.abs(centre))) > ratio * size else None
+
+
+# A base (a ground or plinth: faces lying in the scene's lowest plane along the up axis) is left out
+# of the framing when it is this many times wider than everything else.
+BASE_RATIO = 3.0
+# Up-axis cue of a scan: its faces in the lowest XY plane cover at least this share of the bounds'
+# XY rectangle (a bust's cut base), it has no such base in XZ, and it is at least this tall for its width.
+SCAN_BASE_SHARE, SCAN_MIN_HEIGHT = 0.05, 0.5
+
+
+def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[np.ndarray]:
+    """Per mesh, a mask of the triangles that lie (all three corners, within ``tol`` of the scene's
+    size) in the scene's lowest plane along ``axis``."""
+    b = scene.bounds
+    low = float(np.min(b @ axis)) if len(scene.meshes) else 0.0
+    eps = tol * max(float(np.max(b[1] - b[0])), 1e-30)
+    out = []
+    for m in scene.meshes:
+        h = m.positions.astype(np.float64) @ axis
+        out.append(np.all(h[m.indices] <= low + eps, axis=1) if len(m.indices) else np.zeros(0, bool))
+    return out
+
+
+def base_share(scene: Scene, up: str | Sequence[float]) -> float:
+    """The area of the faces lying in the scene's lowest plane along ``up`` over the area of the
+    bounds' rectangle across ``up`` (0: no flat base; a ground under everything: about 1)."""
+    u = up_vector(up)
+    b = scene.bounds
+    across = [k for k in range(3) if abs(u[k]) < 0.5]
+    rect = float(np.prod((b[1] - b[0])[across])) if len(across) == 2 else 0.0
+    if not rect > 0.0:
+        return 0.0
+    area = 0.0
+    for m, mask in zip(scene.meshes, _bottom_faces(scene, u)):
+        if mask.any():
+            t = m.positions.astype(np.float64)[m.indices[mask]]
+            area += 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+    return area / rect
+
+
+def looks_z_up(scene: Scene) -> bool:
+    """A model written Z up: it stands on a flat base in the XY plane (its lowest faces along Z cover
+    SCAN_BASE_SHARE of its XY rectangle), has none in XZ (lowest along Y), and is either at least
+    SCAN_MIN_HEIGHT times as tall (Z) as it is wide (a scanned bust on its cut base) or the base is a
+    ground much wider than what stands on it; so a flat relief whose back faces -Z is not taken for one."""
+    if len(scene.spheres) or not (base_share(scene, "z") >= SCAN_BASE_SHARE > base_share(scene, "y")):
+        return False
+    ext = np.ptp(scene.bounds, axis=0)
+    return bool(ext[2] >= SCAN_MIN_HEIGHT * max(ext[0], ext[1])) or subject_bounds(scene, "z") is not None
+
+
+def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None:
+    """The bounds of what stands on a base (see BASE_RATIO), to frame instead of the whole scene, or
+    None when the scene has no base that much wider than the rest."""
+    u = up_vector(up)
+    masks = _bottom_faces(scene, u)
+    if not any(m.any() for m in masks):
+        return None
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    blo, bhi = np.full(3, np.inf), np.full(3, -np.inf)
+    for m, mask in zip(scene.meshes, masks):
+        if not len(m.indices):
+            continue
+        p = m.positions.astype(np.float32).astype(np.float64)
+        for sel, (a, z) in ((~mask, (lo, hi)), (mask, (blo, bhi))):
+            if sel.any():
+                q = p[m.indices[sel].reshape(-1)]
+                a[:] = np.minimum(a, q.min(0))
+                z[:] = np.maximum(z, q.max(0))
+    if len(scene.spheres):
+        sp = scene.spheres.astype(np.float32).astype(np.float64)
+        lo, hi = np.minimum(lo, (sp[:, :3] - sp[:, 3:4]).min(0)), np.maximum(hi, (sp[:, :3] + sp[:, 3:4]).max(0))
+    if not np.all(np.isfinite(lo)):
+        return None                                   # nothing but the base
+    rest, base = float(np.max(hi - lo)), float(np.max(bhi - blo))
+    if not base > BASE_RATIO * rest:
+        return None
+    return np.stack([lo, hi])
+
+
+def _box(scene_or_bounds: Scene | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(bounds, origin): a far scene's float64 bounds relative to its centre (the frame a render
+    recentres it to) and that centre; otherwise the bounds as the engine sees them and 0."""
+    origin = np.zeros(3)
+    if isinstance(scene_or_bounds, Scene):
+        far = far_centre(scene_or_bounds)
+        if far is not None:
+            origin = far
+            b = exact_bounds(scene_or_bounds) - far
+        else:
+            b = scene_or_bounds.bounds
+    else:
+        b = np.asarray(scene_or_bounds, np.float64)
     if b.shape != (2, 3) or not np.all(np.isfinite(b)):
         raise ValueError("framing needs a scene with geometry (finite bounds)")
-    return b
+    return b, origin
 
 
 def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = None, *, fov: float | None = None,
@@ -286,7 +405,7 @@ def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = N
             or not 0.0 < aspect < 1e300:       # an int such as 10**400 compares before float() overflows
         raise ValueError(f"aspect must be a positive finite number (width / height), got {aspect!r:.40}")
     aspect = float(aspect)
-    b = _box(scene)
+    b, origin = _box(scene)
     base = template or Camera()
     u = up_vector(up if up is not None else base.up)
     fov = float(fov if fov is not None else base.fov)
@@ -295,7 +414,7 @@ def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = N
     else:
         towards_camera = np.asarray(towards, dtype=np.float64)
         towards_camera = towards_camera / np.linalg.norm(towards_camera)
-    centre = 0.5 * (b[0] + b[1]) if target is None else np.asarray(target, dtype=np.float64)
+    centre = 0.5 * (b[0] + b[1]) if target is None else np.asarray(target, dtype=np.float64) - origin
     probe_cam = Camera(position=tuple(centre), direction=tuple(-towards_camera), fov=fov, focus=1.0,
                        aperture=0.0, up=tuple(u))
     d, right, img_up = probe_cam.axes()
@@ -307,5 +426,5 @@ def frame_camera(scene: Scene | np.ndarray, up: str | Sequence[float] | None = N
     size = float(np.linalg.norm(b[1] - b[0]))
     # at least MIN_FOCUS away (a scene smaller than that is framed as a dot, not refused)
     dist = max(dist, float(np.max(-z)) + 1e-3 * size, 1e-6 * max(size, float(np.max(np.abs(centre)))), 2 * MIN_FOCUS)
-    return Camera(position=tuple(float(v) for v in centre - d * dist), direction=tuple(float(v) for v in d),
+    return Camera(position=tuple(float(v) for v in origin + (centre - d * dist)), direction=tuple(float(v) for v in d),
                   fov=fov, aperture=0.0, focus=dist, up=tuple(float(v) for v in u))

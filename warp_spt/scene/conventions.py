@@ -3,14 +3,17 @@
 Two kinds of scene reach ``warp-spt``: the seed's own (its demo, its OBJ spheres ``b`` and MTL tags,
 usually with an explicit ``-cam``), which must render exactly as the seed renders them, and users'
 models exported by other tools, which are Y-up (the convention of OBJ exporters and glTF) and
-usually come without materials. :func:`up_axis` and :func:`wants_studio` are the rules, written
+usually come without lights (an exporter's MTL has colours only). :func:`up_axis` and
+:func:`wants_studio` are the rules, written
 once; ``warp-spt``, its animations and ``warp-spt view`` all apply them. Pure functions of what the
-loader recorded (:attr:`Scene.seed_dialect`, :attr:`Scene.bare`) and of the flags given.
+loader recorded (:attr:`Scene.seed_dialect`), of the scene's lights and of the flags given.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import numpy as np
 
 SEED_UP, MODEL_UP = "z", "y"
 
@@ -31,10 +34,11 @@ class UpChoice:
         return f"{self.axis.upper()} up ({self.reason}; --up {other} to change)"
 
 
-def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: bool) -> UpChoice:
+def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: bool, z_scan: bool = False) -> UpChoice:
     """The world's up axis: ``--up`` always wins; the built-in demo, a scene in the seed's dialect
-    or an explicit ``-cam`` (the seed's camera convention) keep the seed's Z; any other model (a
-    standard OBJ) is Y up, as OBJ exporters and glTF write them."""
+    or an explicit ``-cam`` (the seed's camera convention) keep the seed's Z; so does a scan that
+    stands on a flat base in the XY plane (``z_scan``: :func:`warp_spt.scene.camera.looks_z_up`);
+    any other model (a standard OBJ) is Y up, as OBJ exporters and glTF write them."""
     if given:
         return UpChoice(given, "")
     if demo:
@@ -43,12 +47,29 @@ def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: boo
         return UpChoice(SEED_UP, "the seed's OBJ/MTL dialect")
     if cam_given:
         return UpChoice(SEED_UP, "-cam uses the seed's Z-up convention")
+    if z_scan:
+        return UpChoice(SEED_UP, "a scan standing on a flat base in the XY plane")
     return UpChoice(MODEL_UP, "a standard OBJ model")
 
 
-def wants_studio(given: bool | None, *, bare: bool, sky_given: bool) -> bool:
-    """The studio look (clay, ground, key light, soft sky): ``--studio``/``--no-studio`` win; else on
-    for a bare model (no material library read) with no sky flag."""
+def wants_studio(given: bool | None, *, lit: bool, seed_dialect: bool, sky_given: bool) -> bool:
+    """The studio look (a ground, a key light, a soft grey sky, the scene's own materials):
+    ``--studio``/``--no-studio`` win; else on for a scene with no light of its own (``lit``: no
+    emitting material on any face or sphere) and no sky flag, unless it is written in the seed's
+    dialect (the seed's scenes are lit by the seed's sky). Whether an MTL file was read, and what
+    kind its materials are, does not matter: an exporter's MTL has colours, not lights."""
     if given is not None:
         return given
-    return bare and not sky_given
+    return not lit and not seed_dialect and not sky_given
+
+
+def has_own_light(scene) -> bool:
+    """Whether some face or sphere of ``scene`` has an emitting material: an emission colour above
+    zero or a texture in the emission slot (what makes the device scene compile its emitters)."""
+    from warp_spt.scene.model import SLOT_EMISSION, TEX_PROC_BASE
+
+    used = np.unique(np.concatenate([m.face_material for m in scene.meshes if len(m.indices)]
+                                    + [scene.sphere_material]).astype(np.int64))
+    mt = scene.materials
+    tex = mt.tex[used][:, SLOT_EMISSION]
+    return bool((mt.emission[used] > 0).any() or (tex >= 0).any() or (tex <= TEX_PROC_BASE).any())

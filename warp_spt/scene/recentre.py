@@ -7,16 +7,14 @@ scene 1e5 away renders like the same scene at the origin; :func:`describe_bounds
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
 
-from warp_spt.scene.camera import Camera
+from warp_spt.scene.camera import RECENTRE_RATIO, Camera, exact_bounds, far_centre
 from warp_spt.scene.model import Scene
-
-# recentre: scenes whose centre lies farther from the origin than this many times their size.
-RECENTRE_RATIO = 4.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -37,9 +35,20 @@ def format_point(v: Sequence[float]) -> str:
 
 
 def describe_bounds(scene: Scene) -> str:
-    """The scene's bounds for the CLI's 'loaded' line."""
-    b = scene.bounds
-    return f"bounds {format_point(b[0])}..{format_point(b[1])}"
+    """The scene's bounds for the CLI's 'loaded' line, with its extent: corners printed with the
+    digits that tell them apart (a 2-unit model 1e9 from the origin shows both), and the size."""
+    b = exact_bounds(scene)
+    span = float(np.max(b[1] - b[0]))
+    far = float(np.max(np.abs(b)))
+    digits = 6 if not span > 0.0 else min(17, 6 + max(0, math.ceil(math.log10(max(far / span, 1.0)))))
+    point = lambda v: "(" + ", ".join(f"{x:.{digits}g}" for x in v) + ")"
+    return f"bounds {point(b[0])}..{point(b[1])}, {describe_extent(scene)}"
+
+
+def describe_extent(scene: Scene) -> str:
+    """The scene's size along x, y and z, e.g. ``size 2 x 1.6 x 1.1``, from the exact bounds."""
+    b = exact_bounds(scene)
+    return "size " + " x ".join(f"{x:.3g}" for x in b[1] - b[0])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -57,10 +66,8 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
     size of the origin are returned unchanged (offset 0), so ordinary scenes render bit for bit as before.
     """
     camera = camera or Camera()
-    b = scene.bounds
-    size = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 0.0
-    centre = 0.5 * (b[0] + b[1])
-    if not size > 0.0 or float(np.max(np.abs(centre))) <= ratio * size:
+    centre = far_centre(scene, ratio)
+    if centre is None:
         return scene, camera, np.zeros(3)
     meshes = [replace(m, positions=(m.positions.astype(np.float64) - centre).astype(np.float32))
               for m in scene.meshes]

@@ -20,7 +20,8 @@ SKY_FLAGS = {"blue": ["-sky", "0"], "gradient": ["-sky", "1"], "pink": ["-sky", 
 class CommandSpec:
     """What the command renders besides the camera: scene files, size, samples and light transport.
 
-    ``sky`` is a key of SKY_FLAGS or None for a constant ``sky_color``.
+    ``sky`` is a key of SKY_FLAGS, "studio" (the studio look's own sky: no flag) or None for a
+    constant ``sky_color``; ``studio``: the view has the studio look (``--studio``).
     """
 
     objs: tuple[str, ...] = ()
@@ -37,6 +38,9 @@ class CommandSpec:
     tonemap: str = "seed"
     out: str = "view.png"
     exposure: float = 0.0       # stops, for a tone-mapped output
+    studio: bool = False
+    studio_off: bool = False    # --no-studio was asked for
+    smooth_angle: float | None = None   # --smooth-angle, when not the default
 
 
 def number(v: float) -> str:
@@ -62,7 +66,10 @@ def command_args(camera, spec: CommandSpec) -> list[str]:
     if spec.up != "z":
         args += [f"--up={spec.up}"] if spec.up.startswith("-") else ["--up", spec.up]
     args += ["-res", str(spec.width), str(spec.height), "-sr", str(spec.spp), "-depth", str(spec.max_depth)]
-    args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
+    args += ["--studio"] if spec.studio else ["--no-studio"] if spec.studio_off else []
+    args += ["--smooth-angle", number(spec.smooth_angle)] if spec.smooth_angle is not None else []
+    if spec.sky != "studio":
+        args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
     args += ["--integrator", spec.integrator, "--sampler", spec.sampler]
     if spec.out.lower().endswith((".png", ".jpg", ".jpeg")):
         args += ["--tonemap", spec.tonemap] if spec.tonemap != "seed" else []

@@ -17,7 +17,7 @@ ERROR_MAP_RANGE = (1e-2, 1.0)     # relative errors mapped to black .. white (lo
 ERROR_FLOOR_FRACTION = 0.1        # as warp_spt.relative_error: divide by max(value, 0.1 x image mean)
 
 
-def tonemapped(image: np.ndarray, exposure: float = 0.0, tonemap: str = "srgb") -> np.ndarray:
+def tonemapped(image: np.ndarray, exposure: float = 0.0, tonemap: str = "seed") -> np.ndarray:
     """uint8 (H, W, 3): the image after exposure (stops) and warp_spt's tone map ``"srgb"`` or ``"seed"``
     (:func:`warp_spt.io.images.to_display`, the CLI's --exposure too)."""
     import warp_spt

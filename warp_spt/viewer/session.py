@@ -48,7 +48,6 @@ PREVIEW_SECONDS = 0.05       # a preview renders in this long at most (20 fps), 
 MAX_PREVIEW_SHRINK = 2.0     # ...but to no less than half the preview_scale size per side
 MAX_PASS_SPP = 256
 SLOW_CALL_SECONDS = 1.0      # a render call this slow is compiling a kernel: say so on the page
-STUDIO_GREY = (0.35, 0.35, 0.35)   # the CLI's --studio sky, without its added geometry
 SKY_NAMES = ("blue", "gradient", "pink", "studio", "black", "color")
 DISPLAY_KEYS = ("exposure", "tonemap", "error_map")   # change the picture, not the render
 
@@ -58,7 +57,8 @@ Listener = Callable[[dict, list], None]
 @dataclass(frozen=True)
 class ViewSettings:
     """Everything the page can set besides the camera. ``sky`` is one of SKY_NAMES ("blue" is
-    the seed's BlackSky, ``-sky 0``); ``sky_color`` is the "color" sky's radiance; ``exposure``
+    the seed's BlackSky, ``-sky 0``; "studio" the studio look's grey); ``sky_color`` is the "color"
+    sky's radiance; ``exposure``
     is in stops; ``preview_scale`` divides the view size while the camera moves."""
 
     width: int = 384
@@ -71,22 +71,24 @@ class ViewSettings:
     max_spp: int = 1024
     preview_scale: int = 4
     exposure: float = 0.0
-    tonemap: str = "srgb"
+    tonemap: str = "seed"           # the command line's PNG curve (rendering.first_view.TONEMAP)
     error_map: bool = False
 
 
 def make_sky(settings: ViewSettings):
     """The :class:`warp_spt.Sky` the settings name."""
     from warp_spt import Sky
+    from warp_spt.scene.studio import studio_sky
 
     return {"blue": Sky.black, "gradient": Sky.gradient, "pink": Sky.pink,
-            "studio": lambda: Sky.constant(*STUDIO_GREY), "black": lambda: Sky.constant(0.0, 0.0, 0.0),
+            "studio": studio_sky, "black": lambda: Sky.constant(0.0, 0.0, 0.0),
             "color": lambda: Sky.constant(*settings.sky_color)}[settings.sky]()
 
 
-def sky_command(settings: ViewSettings) -> tuple[str | None, tuple]:
-    """(-sky name or None, --sky-color value) for :class:`.command.CommandSpec`."""
-    if settings.sky in ("blue", "gradient", "pink"):
+def sky_command(settings: ViewSettings, studio: bool = False) -> tuple[str | None, tuple]:
+    """(-sky name, "studio" or None, --sky-color value) for :class:`.command.CommandSpec`; "studio"
+    (no sky flag) when the studio look is on and its sky shown."""
+    if settings.sky in ("blue", "gradient", "pink") or (studio and settings.sky == "studio"):
         return settings.sky, (0.0, 0.0, 0.0)
     return None, make_sky(settings).color
 
@@ -216,11 +218,19 @@ class Session:
     on "reload": a :class:`warp_spt.SceneError` is then shown on the page. ``camera`` defaults to
     the seed's camera for the built-in demo (``objs`` empty) and to ``Camera.frame`` otherwise.
     ``objs``/``mtls`` are the file names the copied command line names; ``up`` the world's up
-    axis ("z" or "y"...). ``settings`` are :class:`ViewSettings` fields.
+    axis ("z" or "y"...). ``studio`` True/False forces the studio look on or off (None: the rule);
+    ``smooth_angle`` is what the file loader was given (for the copied command line). ``settings``
+    are :class:`ViewSettings` fields.
+
+    The first view is the command line's (:func:`warp_spt.rendering.first_view.first_view`): the
+    scene recentred if far off, Y up for a standard OBJ, framed, and, for a scene with no light of
+    its own and no ``sky`` setting, the studio look (its ground and key light placed from the first
+    camera, the "studio" sky); the display's tone map is the command line's.
     """
 
     def __init__(self, scene=None, camera=None, *, loader: Callable | None = None, objs: Sequence[str] = (),
-                 mtls: Sequence[str] = (), up: str | None = None, start: bool = True, **settings):
+                 mtls: Sequence[str] = (), up: str | None = None, studio: bool | None = None,
+                 smooth_angle: float | str = "auto", start: bool = True, **settings):
         if scene is None and loader is None:
             raise ValueError("give a scene or a loader")
         self.objs, self.mtls = tuple(map(str, objs)), tuple(map(str, mtls))
@@ -228,6 +238,11 @@ class Session:
         self._settings = ViewSettings()
         for key, value in settings.items():      # the page's bounds hold for the first view too
             self._settings = checked_settings(self._settings, key, value)
+        self._sky_given = "sky" in settings or "sky_color" in settings
+        self._studio_given = studio      # --studio / --no-studio; None: the rule
+        self._smooth_angle = smooth_angle
+        self._studio = False             # the first view added the studio look
+        self._offset = np.zeros(3)       # world = the session's coordinates + offset (recentring)
         self._given_camera = camera
         self._up = up or _axis_name(camera.up if camera is not None else (0.0, 0.0, 1.0))
         self._up_given = up is not None or camera is not None    # else warp_spt.up_axis's rule, on load
@@ -236,6 +251,7 @@ class Session:
         self._loader = loader or (lambda: copy.deepcopy(scene))
         self._can_reload = loader is not None
         self._scene = self._params = None
+        self._subject = None             # the scene without the studio's ground and light: what is framed
         self._rig = self._home = None
         self._version = self._preview_version = 0
         self._last_change, self._interacting = time.monotonic(), False
@@ -350,13 +366,16 @@ class Session:
             height = max(1, round(width * s.height / s.width))
         elif height and not width:
             width = max(1, round(height * s.width / s.height))
-        sky, colour = sky_command(s)
+        sky, colour = sky_command(s, self._studio)
         spec = CommandSpec(self.objs, self.mtls, self._up, int(width or s.width), int(height or s.height),
-                           int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out, s.exposure)
+                           int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out, s.exposure,
+                           studio=self._studio, studio_off=self._studio_given is False,
+                           smooth_angle=None if self._smooth_angle == "auto" else self._smooth_angle)
         camera = self.camera
         if camera is None:
             raise ValueError("the scene is not loaded yet")
-        return command_line(camera, spec)
+        world = tuple(float(p + o) for p, o in zip(camera.position, self._offset))
+        return command_line(replace(camera, position=world), spec)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the refined image: .png/.jpg tone mapped as shown (exposure included), .npy, .pfm
@@ -529,27 +548,40 @@ class Session:
         s = self._settings
         # called on a camera, frame() takes it as the template: the current fov is kept
         template = Camera if self._rig is None else rig_camera(self._rig)
-        cam = template.frame(self._scene, up=up, aspect=s.width / s.height)
+        cam = template.frame(self._subject, up=up, aspect=s.width / s.height)
         return navigation.rig_from_view(cam.position, cam.direction, cam.up, cam.focus, fov=cam.fov,
                                         aperture=cam.aperture)
 
-    def _initial_rig(self):
-        """The given camera with its pivot at the scene centre's depth, or the default view."""
-        from warp_spt import Camera
+    def _first_view(self, scene):
+        """The command line's first view of a loaded scene; on a reload, of the current camera."""
+        from warp_spt.rendering.first_view import first_view
 
+        s = self._settings
+        demo = self._can_reload and not self.objs          # the file loader's built-in demo
+        up = self._up if self._up_given or self._rig is not None else None
+        if self._rig is not None:                           # a reload keeps the view, in world coordinates
+            cam = rig_camera(self._rig)
+            cam = replace(cam, position=tuple(float(p + o) for p, o in zip(cam.position, self._offset)))
+            return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, fixed=True,
+                              sky=make_sky(s) if self._sky_given else None,
+                              studio=self._studio if not demo else False)
         cam = self._given_camera
-        if cam is None and not self.objs and self._up == "z":
+        if cam is None and demo:
+            from warp_spt import Camera
             cam = Camera()                  # the built-in demo keeps the seed's camera, as the CLI does
-        if cam is None:
-            return self._framed(self._up)
-        centre = self._scene.bounds.mean(axis=0)
+        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=self._studio_given,
+                          sky=make_sky(s) if self._sky_given else None)
+
+    def _initial_rig(self, cam):
+        """The first view's camera with its pivot at the scene centre's depth."""
+        centre = self._subject.bounds.mean(axis=0)
         d = np.asarray(cam.direction, dtype=np.float64) / np.linalg.norm(cam.direction)
         depth = float(np.dot(centre - np.asarray(cam.position), d))
         return navigation.rig_from_view(cam.position, d, cam.up, depth if depth > 0 else cam.focus,
                                         fov=cam.fov, aperture=cam.aperture, focus=cam.focus)
 
     def _scene_size(self) -> float:
-        scene = self._scene
+        scene = self._subject
         return 1.0 if scene is None else float(np.linalg.norm(np.ptp(scene.bounds, axis=0))) or 1.0
 
     def _changed(self) -> None:
@@ -718,18 +750,24 @@ class Session:
         except Exception as err:
             self._fail(str(err) if _is_scene_error(err) else f"{type(err).__name__}: {err}", scene_lost=True)
             return
-        params = warp_spt.parameters(scene)        # uploads the scene once; edits go through it
+        first = self._rig is None
+        fv = self._first_view(scene)
+        params = warp_spt.parameters(fv.scene)     # uploads the scene once; edits go through it
         with self._cond:
-            self._scene, self._params, self._error, self._edits = scene, params, None, set()
+            self._scene, self._params, self._error, self._edits = fv.scene, params, None, set()
             self._pending.clear()
-            if self._rig is None:
-                if not self._up_given:     # the command line's rule: Z for the seed's scenes, Y for models
-                    self._up = warp_spt.up_axis(None, demo=not self.objs, seed_dialect=scene.seed_dialect,
-                                                cam_given=False).axis
-                self._rig = self._initial_rig()
+            self._offset, self._studio, self._subject = fv.offset, fv.studio, fv.subject
+            if first:
+                self._up = fv.up.axis
+                if fv.studio and not self._sky_given:
+                    self._settings = replace(self._settings, sky="studio")
+                self._rig = self._initial_rig(fv.camera)
                 self._home = (self._rig, self._up)
             self._changed()
         self._broadcast(self.state(), [])
+        if first and fv.notes:      # what the first view assumed, in the command line's words
+            self._broadcast({"type": "notice", "level": "warning" if fv.warnings else "info",
+                             "text": "\n".join(fv.notes)}, [])
 
     def _fail(self, text: str, scene_lost: bool = False) -> None:
         with self._cond:
@@ -774,22 +812,26 @@ class Session:
             listener(msg, buffers)
 
 
-def open_session(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[str] = (), **kw):
+def open_session(scene=None, camera=None, *, objs: Sequence[str] = (), mtls: Sequence[str] = (),
+                 smooth_angle: float | str = "auto", **kw):
     """A :class:`Session` of ``scene``, or of the files (the built-in demo when ``objs`` is empty),
-    loaded on the render thread so that a bad file is reported on the page."""
+    loaded on the render thread so that a bad file is reported on the page; ``smooth_angle`` as
+    ``warp-spt --smooth-angle`` ("auto": its default)."""
     if scene is not None:
         return Session(scene, camera, objs=objs, mtls=mtls, **kw)
-    return Session(camera=camera, loader=file_loader(objs, mtls), objs=objs, mtls=mtls, **kw)
+    return Session(camera=camera, loader=file_loader(objs, mtls, smooth_angle), objs=objs, mtls=mtls,
+                   smooth_angle=smooth_angle, **kw)
 
 
-def file_loader(objs: Sequence[str], mtls: Sequence[str]):
-    """A function loading the files as the command line does (``default_material="auto"``)."""
+def file_loader(objs: Sequence[str], mtls: Sequence[str], smooth_angle: float | str = "auto"):
+    """A function loading the files as the command line does (``default_material="auto"``, smooth
+    normals by angle)."""
     def load():
         import warp_spt
         from warp_spt.demo import demo_files
 
         files = (list(objs), list(mtls)) if objs else demo_files()
-        return warp_spt.load_scene(*files, default_material="auto")
+        return warp_spt.load_scene(*files, default_material="auto", smooth_angle=smooth_angle)
     return load
 
 

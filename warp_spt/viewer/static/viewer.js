@@ -17,7 +17,7 @@ const STYLE = `
 .wspt-error { display: none; background: #5a1d1d; border: 1px solid #c44; color: #fdd; padding: 6px 8px;
   margin-bottom: 6px; white-space: pre-wrap; max-width: 640px; }
 .wspt-notice { position: absolute; left: 8px; top: 8px; right: 8px; background: rgba(0,0,0,.75); padding: 4px 6px;
-  display: none; pointer-events: none; }
+  display: none; pointer-events: none; white-space: pre-line; }
 .wspt-panel { flex: 0 1 290px; min-width: 240px; }
 .wspt details { border-top: 1px solid #333; padding: 3px 0; }
 .wspt summary { cursor: pointer; font-weight: 600; padding: 2px 0; }

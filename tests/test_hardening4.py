@@ -510,3 +510,26 @@ def test_sigterm_stops_the_viewer_promptly_while_a_page_is_connected(tmp_path):
             proc.kill()
     assert proc.returncode == 143 and err == "warp-spt view: terminated\n", err
     assert seconds < 10, f"SIGTERM took {seconds:.1f} s with a page connected"
+
+
+def test_the_studio_ground_of_a_huge_bare_model_stays_within_the_triangle_bound():
+    """A bare model 1e8 across: its studio ground (57 x its size) used to exceed MAX_TRIANGLE_EDGE,
+    which validate_scene refuses; the ground is capped to the bound and the scene validates."""
+    import numpy as np
+
+    from warp_spt.scene.limits import MAX_TRIANGLE_EDGE
+    from warp_spt.scene.model import MaterialTable, MeshData, Scene
+    from warp_spt.scene.studio import add_studio
+    from warp_spt.scene.validate import validate_scene
+    from warp_spt.io.mtl import builtin_clay
+
+    s = 5e7
+    mesh = MeshData(name="big", positions=np.array([[-s, -s, 0], [s, -s, 0], [0, s, s]], np.float64),
+                    indices=np.array([[0, 1, 2]], np.int32), corner_uv=np.zeros((1, 3, 2), np.float32),
+                    corner_normal=None, face_material=np.zeros(1, np.int32))
+    scene = Scene(meshes=[mesh], spheres=np.zeros((0, 4)), sphere_material=np.zeros(0, np.int32),
+                  materials=MaterialTable.from_rows([builtin_clay()]), textures=[], bare=True, seed_dialect=False)
+    studio = add_studio(scene, up="z")
+    ground = studio.meshes[-1].positions
+    assert np.linalg.norm(ground[2] - ground[0]) <= MAX_TRIANGLE_EDGE
+    validate_scene(studio.rounded())

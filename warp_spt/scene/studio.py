@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from warp_spt.scene.camera import AZIMUTH, ELEVATION, Camera, front_vector, orbit_vector, up_vector
+from warp_spt.scene.limits import MAX_TRIANGLE_EDGE
 from warp_spt.scene.model import Material, MaterialTable, MeshData, Scene
 from warp_spt.scene.sky import Sky
 
@@ -48,7 +49,10 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | N
     side = np.cross(u, front)
     low = float(np.min((b - centre) @ u))        # the bounds' lowest point along up, relative to centre
     floor = centre + u * (low - 1e-3 * radius)    # just under the model: no coplanar faces
-    e1, e2 = front * GROUND_HALF_SIZE * radius, side * GROUND_HALF_SIZE * radius
+    # the quad's triangles' longest edge (its diagonal, 2 sqrt(2) half) within the triangle bound: a model
+    # over about 1.7e7 across had a ground the loader's own bound refuses
+    half = min(GROUND_HALF_SIZE * radius, 0.99 * MAX_TRIANGLE_EDGE / (2.0 * np.sqrt(2.0)))
+    e1, e2 = front * half, side * half
     quad = np.array([floor - e1 - e2, floor + e1 - e2, floor + e1 + e2, floor - e1 + e2], dtype=np.float64)
     # wind the quad to face up
     faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32)

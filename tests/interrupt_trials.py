@@ -125,7 +125,9 @@ _ENTRY_MODULES = ("warp_spt/__init__.py", "warp_spt/__main__.py", "warp_spt/sign
 
 def _ran_our_code(stderr: str) -> bool:
     frames = re.findall(r'File "([^"]*)", line \d+, in (\S+)', stderr)
-    ours = [(f.replace("\\", "/"), fn) for f, fn in frames if "warp_spt" in f]
+    # setuptools' editable-install finder (site-packages/__editable___warp_spt_..._finder.py) runs while
+    # the interpreter imports its site module, before any code of ours: not ours
+    ours = [(f.replace("\\", "/"), fn) for f, fn in frames if "warp_spt" in f and "__editable__" not in f]
     return any(not (fn == "<module>" and f.endswith(_ENTRY_MODULES)) for f, fn in ours)
 
 

@@ -463,7 +463,7 @@ def test_materials_map_onto_the_pbr_kind():
     assert (m.ior, m.transmission, m.thin, m.specular, m.specular_color) == (1.33, 0.5, True, 0.4, (1, 0.5, 0.5))
     assert (m.anisotropy, m.anisotropy_rotation) == (0.6, 1.0)
     assert [texture_decode(m, c) for c in ("base_color", "opacity", "metallic", "normal")] == \
-        ["srgb", "alpha", "linear", "linear"]
+        ["srgb", "alpha", "linear", "normal"]                     # a normal map: linear, checked to be one
     scene = load_scene([d])
     # base colour (sRGB), its alpha, the packed metallic-roughness (read once for both maps), the normal map
     assert len(scene.textures) == 4

@@ -305,7 +305,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
             try:
                 cam, side = _framed(scene, cam, choice.axis, offset, width / height, view, look_at, frame_all)
             except ValueError as err:      # e.g. a --fov so narrow that the camera would stand too far
-                raise ValueError(f"cannot frame the scene ({why}): {err}") from None
+                raise ValueError(f"cannot frame the scene ({why}): {err}; a wider --fov stands closer") from None
             note(_framed_line(why, choice, side, cam, offset))
             pr, framed = None, True
     elif fixed and not explicit and choice.reason:

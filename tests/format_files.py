@@ -152,14 +152,19 @@ CUBE_TRIANGLES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5]
 TEXTURE_2X2 = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)
 
 
-def png_2x2() -> bytes:
+def png_2x2(pixels=None) -> bytes:
+    """A 2x2 PNG of ``pixels`` (default TEXTURE_2X2)."""
     import io
 
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(TEXTURE_2X2).save(buf, format="PNG")
+    Image.fromarray(TEXTURE_2X2 if pixels is None else pixels).save(buf, format="PNG")
     return buf.getvalue()
+
+
+# A flat tangent-space normal map (0, 0, 1) -> (128, 128, 255): what a normal texture must look like
+NORMAL_2X2 = np.full((2, 2, 3), (128, 128, 255), dtype=np.uint8)
 
 
 def gltf_box() -> GltfBuilder:

@@ -441,7 +441,8 @@ def test_materials_map_onto_the_pbr_kind():
 
     g = gltf_textured_box()
     png = "data:image/png;base64," + base64.b64encode(format_files.png_2x2()).decode()
-    g.doc["images"] += [{"uri": png}, {"uri": png}]
+    flat = "data:image/png;base64," + base64.b64encode(format_files.png_2x2(format_files.NORMAL_2X2)).decode()
+    g.doc["images"] += [{"uri": png}, {"uri": flat}]
     g.doc["textures"] += [{"source": 1}, {"source": 2}]
     g.doc["materials"] = [{
         "name": "full", "alphaMode": "MASK", "alphaCutoff": 0.3, "emissiveFactor": [0.5, 0.25, 0],

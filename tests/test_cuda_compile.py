@@ -5,46 +5,48 @@ Warp compiles CUDA kernels to PTX through its bundled NVRTC with no GPU and no d
 CPU-only intrinsic, a type NVRTC refuses, an atomic on a type without one) fails here, on the CPU
 machines, instead of on the first GPU that runs it.
 
-What is compiled, for each architecture in ``ARCHS`` (sm_75, the oldest CUDA 13 supports, and
-sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides), every list built from the registries at collection
-time, so an integrator, sampler, kernel kind, material kind or procedural texture registered later
-is compiled too:
+Two sets of kernels, both built from the registries at collection time, so an integrator, sampler,
+kernel kind, material kind or procedural texture registered later is compiled too:
 
-* the fast kernel (``KERNEL_KINDS["fast"]``) of every integrator x every sampler (``INTEGRATORS`` x
-  ``SAMPLERS``, ``guided`` and ``ears`` with their own kernels and training records) for
-  ``Features.general()`` (every feature, every material kind of ``MATERIAL_KINDS``, both BVHs);
-* every other registered kernel kind (``tape``, ``replay``, ``aov``, and any added later) for
-  ``Features.general()``, each integrator once, with the samplers taken in turn from the default
-  (seed with sobol, nee with independent, guided with sobol, ...), so that every integrator and every
-  sampler is compiled into each kind (a sampler's functions do not depend on the integrator that
-  calls them; ``test_every_kind_compiles_every_sampler`` checks the cover). A kind that refuses an
-  integrator (``replay`` and ``tape`` for ``guided`` and ``ears``: a ValueError when built) is
-  reported as skipped; the tape kernel is unrolled to depth 2 (the same functions as any depth,
-  unrolled fewer times);
+**The representative set** (the default, what CI runs): every ``wp.func`` and every ``wp.static``
+branch compiled at least once, for sm_75 (the oldest architecture CUDA 13 supports), and the
+default kernel and the small kernels also for sm_90:
+
+* the fast kernel (``KERNEL_KINDS["fast"]``) of every integrator for ``Features.general()`` (every
+  feature, every material kind of ``MATERIAL_KINDS``, both BVHs), the samplers taken in turn (seed
+  with sobol, nee with independent, guided with sobol, ...: a sampler's functions do not depend on
+  the integrator that calls them), ``guided`` and ``ears`` with their own kernels and training
+  records;
+* every other registered kernel kind (``tape``, ``replay``, ``aov``, and any added later) once, with
+  the default integrator and the samplers in turn across the kinds, for the meshes-only feature set
+  below (the kinds' own machinery; the functions they differentiate are compiled for every feature in
+  the fast kernels); the tape kernel unrolled to depth 2 (the same functions as any depth, unrolled
+  fewer times);
 * the default integrator and sampler's fast kernel for three more feature sets that together with
-  the general one cover every ``wp.func`` and every ``wp.static`` branch: every registered procedural
-  texture compiled in (``general()`` compiles none); meshes only, traced by Warp's BVH alone (the
-  default on CUDA), diffuse, lit by emitters, one material kind (no dispatch); spheres only,
-  specular, lit by the sky, the last material kind (no diffuse lobe, so no light sampling);
+  the general one switch every feature on and off: every registered procedural texture compiled in
+  (``general()`` compiles none); meshes only, traced by Warp's BVH alone (the default on CUDA),
+  diffuse, lit by emitters, one material kind (no dispatch); spheres only, specular, lit by the
+  sky, the last material kind (no diffuse lobe, so no light sampling);
 * the small kernels outside the renderers: the procedural-texture probe (every registered texture)
   and the first view's probes (``rendering/first_view``: the CLI's, the viewer's, the API's). The
   viewer has no kernels of its own: it renders through the same set-up (``rendering/setup.bind``).
+
+**The full matrix** (``WARP_SPT_CUDA_FULL=1``): the fast kernel of every integrator x every sampler,
+every other kind with every integrator (the kinds that refuse ``guided`` and ``ears``, ``replay``
+and ``tape``, reported as skipped), every variant for every architecture in ``ARCHS`` (sm_75 and
+sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides). Run it before a release and on a GPU machine
+(``benchmarks/gpu_check.py`` runs the kernels themselves there).
 
 The kernels are built as the renderers build them (``KernelKind.build`` of a set-up stub, the one
 kernel cache) with ``kernel_cache.load`` made a no-op (nothing is loaded on the CPU), and compiled
 in a thread pool (one thread per core: NVRTC compiles run outside Warp's code-generation lock).
 Warp's kernel cache keeps each PTX file by the module's hash, so a second run compiles nothing.
 
-The adjoint kinds (tape, replay, aov) are compiled for the first architecture only
-(``ALL_ARCH_KINDS``): the functions they differentiate are compiled for every architecture in the
-fast kernels.
-
-Cost, measured on the 2-core development machine (shared with other jobs, load 3-10), before the
-adjoint kinds were limited to one architecture: 38 compiles (19 modules x 2 architectures), about
-30 CPU-minutes with Warp's cache cold: a fast kernel takes 15-25 s per architecture, the replay and
-tape kernels (NVRTC optimising their adjoints) 2-3 CPU-minutes each, two thirds of the total. With
-Warp's cache warm (the modules unchanged since the last run): 5 s. ``WARP_SPT_CUDA_ARCHS=90``
-compiles for one architecture.
+Cost, measured on the 2-core development machine: a general fast kernel takes 30-80 s of NVRTC per
+architecture with the pbr kind compiled in, the adjoint kernels (NVRTC optimising replay's and the
+tape's adjoints) several CPU-minutes each. The full matrix (about 40 compiles) ran past an hour of CI's
+2 cores with Warp's cache cold, which is why CI compiles the representative set (15 compiles).
+With Warp's cache warm (the modules unchanged since the last run): seconds.
 """
 
 from __future__ import annotations
@@ -74,6 +76,11 @@ from warp_spt.scene.material_schema import MATERIAL_KINDS
 from warp_spt.scene.sky import Sky
 
 ARCHS = tuple(int(a) for a in os.environ.get("WARP_SPT_CUDA_ARCHS", "75,90").split(","))
+FULL = os.environ.get("WARP_SPT_CUDA_FULL", "") not in ("", "0")
+# The representative set compiles the adjoint kinds for the small feature set: their own machinery
+# (the tape, path replay, the AOV pass) in full, the functions they differentiate in the fast kernels.
+# For Features.general() an adjoint kernel took over 20 minutes of NVRTC at load 9 (replay and tape).
+ADJOINT_FEATURES = "meshes-warp-bvh"
 TAPE_DEPTH = 2
 
 FEATURE_SETS = {
@@ -87,10 +94,6 @@ FEATURE_SETS = {
                                 lobes=LOBE_SPECULAR | LOBE_REFLECTION | LOBE_TRANSMISSION,
                                 material_flags=("dims.fresnel", "dims.lobe", "frame", "pbr.thin", "pbr.transmission")),
 }
-# The adjoint kernels (every kind but "fast") are compiled for the first architecture only: they are two
-# thirds of a cold run's cost (NVRTC optimising the adjoints, 2-3 CPU-minutes each), and the forward
-# functions they differentiate are compiled for every architecture in the fast kernels.
-ALL_ARCH_KINDS = ("fast",)
 
 
 @dataclass(frozen=True)
@@ -105,20 +108,34 @@ class Variant:
         return f"{self.kind}-{self.integrator}-{self.sampler}-{self.features}"
 
 
-def variants() -> list[Variant]:
+def variants(full: bool = FULL) -> list[Variant]:
     """The kernels compiled (see the module docs), from the registries."""
-    out = [Variant("fast", i, s, "general") for i in INTEGRATORS for s in SAMPLERS]
-    integrators = list(INTEGRATORS)
     samplers = [DEFAULT_SAMPLER] + [s for s in SAMPLERS if s != DEFAULT_SAMPLER]
-    pairs = [(i, samplers[k % len(samplers)]) for k, i in enumerate(integrators)]
-    pairs += [(DEFAULT_INTEGRATOR, s) for s in samplers[len(integrators):]]
-    out += [Variant(k, i, s, "general") for k in KERNEL_KINDS if k != "fast" for i, s in pairs]
+    integrators = [DEFAULT_INTEGRATOR] + [i for i in INTEGRATORS if i != DEFAULT_INTEGRATOR]
+    if full:
+        out = [Variant("fast", i, s, "general") for i in INTEGRATORS for s in SAMPLERS]
+        pairs = [(i, samplers[k % len(samplers)]) for k, i in enumerate(integrators)]
+        pairs += [(DEFAULT_INTEGRATOR, s) for s in samplers[len(integrators):]]
+        out += [Variant(k, i, s, "general") for k in KERNEL_KINDS if k != "fast" for i, s in pairs]
+    else:
+        out = [Variant("fast", i, samplers[k % len(samplers)], "general") for k, i in enumerate(integrators)]
+        out += [Variant("fast", DEFAULT_INTEGRATOR, s, "general") for s in samplers[len(integrators):]]
+        others = [k for k in KERNEL_KINDS if k != "fast"]
+        out += [Variant(k, DEFAULT_INTEGRATOR, samplers[n % len(samplers)], ADJOINT_FEATURES)
+                for n, k in enumerate(others)]
     out += [Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, f) for f in FEATURE_SETS if f != "general"]
     return out
 
 
 VARIANTS = variants()
 HELPERS = ("proctex-probe", "view-checks")
+DEFAULT_ID = Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, "general").id
+
+
+def archs_of(name: str) -> tuple[int, ...]:
+    """Every architecture for the full matrix; otherwise the first, and every one for the default
+    kernel and the small kernels (an architecture's own intrinsics show in any kernel that uses them)."""
+    return ARCHS if FULL or name in HELPERS or name == DEFAULT_ID else ARCHS[:1]
 
 
 def build(v: Variant) -> wp.Kernel:
@@ -161,8 +178,8 @@ def compiled():
     except Exception as err:    # Warp raises plain RuntimeErrors/Exceptions here
         pytest.skip(f"this Warp cannot compile CUDA kernels (no NVRTC): {err}")
     distinct = {id(m): m for m in modules.values()}
-    every_arch = {id(m) for name, m in modules.items() if name in HELPERS or name.split("-")[0] in ALL_ARCH_KINDS}
-    jobs = [(key, a) for key in distinct for a in (ARCHS if key in every_arch else ARCHS[:1])]
+    wanted = {(id(m), a) for name, m in modules.items() for a in archs_of(name)}
+    jobs = sorted(wanted, key=lambda job: (ARCHS.index(job[1]), list(distinct).index(job[0])))
 
     def compile_one(job):
         key, a = job
@@ -175,11 +192,12 @@ def compiled():
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
         done = dict(pool.map(compile_one, jobs))
-    print(f"\n{len(jobs)} CUDA compiles ({len(distinct)} modules x {len(ARCHS)} archs): "
+    print(f"\n{len(jobs)} CUDA compiles ({len(distinct)} modules, {'full matrix' if FULL else 'representative set'}): "
           f"{time.perf_counter() - t0:.1f} s")
     for name, m in modules.items():
         for a in ARCHS:
-            results[(name, a)] = done.get((id(m), a), ("skip", f"an adjoint kernel: sm_{ARCHS[0]} only (cost)"))
+            results[(name, a)] = done.get((id(m), a), ("skip", f"representative set: sm_{ARCHS[0]} only "
+                                                                f"(WARP_SPT_CUDA_FULL=1 compiles every architecture)"))
     return results
 
 
@@ -189,11 +207,17 @@ def _probe_nvrtc(x: wp.array(dtype=wp.int64)):
 
 
 def test_the_variants_come_from_the_registries():
-    """Every integrator x sampler has a fast kernel here, every registered kind is compiled, and the
-    feature sets together switch every feature on and off and use every material kind."""
-    fast = {(v.integrator, v.sampler) for v in VARIANTS if v.kind == "fast" and v.features == "general"}
-    assert fast == {(i, s) for i in INTEGRATORS for s in SAMPLERS}
-    assert {v.kind for v in VARIANTS} == set(KERNEL_KINDS)
+    """Both sets: every integrator and every sampler in a fast kernel (the full matrix: every pair),
+    every registered kind compiled; the feature sets together switch every feature on and off and use
+    every material kind."""
+    for full in (False, True):
+        chosen = variants(full)
+        fast = {(v.integrator, v.sampler) for v in chosen if v.kind == "fast" and v.features == "general"}
+        if full:
+            assert fast == {(i, s) for i in INTEGRATORS for s in SAMPLERS}
+        else:
+            assert {i for i, _ in fast} == set(INTEGRATORS) and {s for _, s in fast} == set(SAMPLERS)
+        assert {v.kind for v in chosen} == set(KERNEL_KINDS)
     assert {"tape", "replay", "aov"} <= set(KERNEL_KINDS)
     sets = FEATURE_SETS.values()
     for name in ("meshes", "spheres", "textures", "checker", "emitters", "smooth", "sky", "warp_meshes", "scatters"):
@@ -209,10 +233,14 @@ def test_the_variants_come_from_the_registries():
 
 
 def test_every_kind_compiles_every_sampler(compiled):
-    """The cover of the other kinds: among the variants each kind accepted, every sampler."""
-    for kind in KERNEL_KINDS:
-        built = {v.sampler for v in VARIANTS if v.kind == kind and not isinstance(compiled[(v.id, ARCHS[0])], tuple)}
-        assert built == set(SAMPLERS), (kind, built)
+    """The cover of the other kinds: among the variants each kind accepted, every sampler (the full
+    matrix); the representative set compiles every sampler into the adjoint kinds taken together."""
+    others = [k for k in KERNEL_KINDS if k != "fast"]
+    groups = [[k] for k in KERNEL_KINDS] if FULL else [["fast"], others]
+    for kinds in groups:
+        built = {v.sampler for v in VARIANTS
+                 if v.kind in kinds and not isinstance(compiled[(v.id, ARCHS[0])], tuple)}
+        assert built == set(SAMPLERS), (kinds, built)
 
 
 @pytest.mark.parametrize("arch", ARCHS)

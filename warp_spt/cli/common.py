@@ -98,11 +98,12 @@ COMPILE_MESSAGE = "compiling kernels for this scene... (first run only)"
 class CompileNotice:
     """Says COMPILE_MESSAGE once if a step inside ``with notice:`` takes longer than ``after`` seconds.
 
-    Loading a kernel from Warp's cache takes about 0.02 s, compiling it seconds, so a slow kernel load
-    means a cold cache; the line appears while the compiler runs, before the progress bar.
+    Loading a kernel from Warp's cache takes about 0.02 s, compiling it 5 s or more, so a slow kernel
+    load means a cold cache; the line appears while the compiler runs, before the progress bar. The
+    threshold is 2 s, not less: on a 2-core machine at load 9 a cached load took over 0.5 s.
     """
 
-    def __init__(self, say, after: float = 0.5) -> None:
+    def __init__(self, say, after: float = 2.0) -> None:
         self.say, self.after, self.said = say, after, False
         self._timer = None
 

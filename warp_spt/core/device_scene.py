@@ -32,16 +32,17 @@ from warp_spt.core.structs import (  # noqa: F401 (re-exported: the structs' old
 )
 from warp_spt.core.tangents import corner_tangents
 from warp_spt.core.textures import pack_atlas
+from warp_spt.core.wide_bvh import MAX_TRIANGLES as WIDE_MAX_TRIANGLES
 from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
 # Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
-# Warp builds its BVH in C++ (0.02 s for 51k triangles), ours costs about 7 us per triangle in numpy
-# (0.34 s for 51k, 10 s for 1M; benchmarks/bench_wide_build.py) and saves about a fifth of a render's
-# time, so a model this large would pay more in start-up than a default render gains.
-WIDE_BVH_MAX_TRIANGLES = 100_000
+# every mesh the wide BVH can encode (its int32 leaf code). Its build is one compiled kernel plus a
+# numpy collapse, about 1-2 us per triangle (benchmarks/bench_wide_build.py), and its traversal runs
+# 1.7-1.9x Warp's query rate, so it pays for itself at every size.
+WIDE_BVH_MAX_TRIANGLES = WIDE_MAX_TRIANGLES
 
 
 

@@ -11,8 +11,8 @@ two-sided diffuse of 0.6).
 
 Every render is a fresh Python process, as a user's command runs: imports, parsing the files,
 building the acceleration structures, the render, the image as a numpy array. Printed per size and
-renderer: wall seconds (of the whole child process, measured by this script) and the child's peak
-resident memory (``ru_maxrss``, its own report at exit), then the ratios warp_spt / Mitsuba. A first
+renderer: wall seconds (of the whole child process, measured by this script), its CPU seconds (all
+threads: steadier than wall time on a shared machine) and the child's peak resident memory (``ru_maxrss``, its own report at exit), then the ratios warp_spt / Mitsuba. A first
 round at the smallest size fills both renderers' kernel caches and is not counted. warp_spt renders
 with its defaults (``nee`` + ``sobol``), Mitsuba with ``path`` and its default ``independent``
 sampler, both on ``--threads`` threads.
@@ -135,12 +135,13 @@ else:
     import numpy as np
     image = np.array(mi.render(mi.load_dict(d), spp={spp}, seed=1))[..., :3]
 r = resource.getrusage(resource.RUSAGE_SELF)
-print("RESULT", r.ru_maxrss * 1024, float(image.mean()))
+print("RESULT", r.ru_maxrss * 1024, float(image.mean()), r.ru_utime + r.ru_stime)
 """
 
 
-def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, variant: str) -> tuple[float, int, float]:
-    """(wall seconds, peak RSS bytes, image mean) of one render in a fresh process."""
+def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, variant: str
+              ) -> tuple[float, int, float, float]:
+    """(wall seconds, peak RSS bytes, image mean, CPU seconds of all threads) of one render in a fresh process."""
     code = _CHILD.format(folder=str(folder), mesh=str(mesh), threads=threads, camera=CAMERA, ours=ours, size=SIZE,
                          spp=SPP, depth=DEPTH, sky=SKY, variant=variant, extent=EXTENT, fmt=fmt, light=LIGHT)
     t = time.perf_counter()
@@ -149,8 +150,8 @@ def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, vari
     line = [x for x in out.stdout.splitlines() if x.startswith("RESULT")]
     if out.returncode != 0 or not line:
         raise RuntimeError(f"{'warp_spt' if ours else 'Mitsuba'} failed (exit {out.returncode}): {out.stderr[-3000:]}")
-    _, rss, mean = line[-1].split()
-    return wall, int(rss), float(mean)
+    _, rss, mean, cpu = line[-1].split()
+    return wall, int(rss), float(mean), float(cpu)
 
 
 def cpu_name() -> str:
@@ -238,18 +239,21 @@ def main() -> int:
             for w in who:
                 runs = [run_child(w == "warp_spt", folder, mesh, args.format, args.threads, variant)
                         for _ in range(args.repeat)]
-                row[w] = dict(wall=statistics.median(r[0] for r in runs), rss=max(r[1] for r in runs), mean=runs[0][2])
-                print(f"  {w:8s} {row[w]['wall']:7.2f} s  peak RSS {row[w]['rss'] / 2**20:7.0f} MB "
+                row[w] = dict(wall=statistics.median(r[0] for r in runs), rss=max(r[1] for r in runs), mean=runs[0][2],
+                              cpu=statistics.median(r[3] for r in runs))
+                print(f"  {w:8s} {row[w]['wall']:7.2f} s (CPU {row[w]['cpu']:6.2f} s)  peak RSS {row[w]['rss'] / 2**20:7.0f} MB "
                       f"({row[w]['rss'] / tris:5.0f} B/triangle)  image mean {row[w]['mean']:.4f}", flush=True)
             rows.append(row)
-    print(f"\n| triangles | " + " | ".join(f"{w} s | {w} peak MB" for w in who)
-          + (" | time ratio | memory ratio |" if len(who) == 2 else " |"))
+    print(f"\nload average at the end {os.getloadavg()[0]:.1f}")
+    print(f"\n| triangles | " + " | ".join(f"{w} s (CPU s) | {w} peak MB" for w in who)
+          + (" | time ratio (CPU) | memory ratio |" if len(who) == 2 else " |"))
     print("|---" * (1 + 2 * len(who) + (2 if len(who) == 2 else 0)) + "|")
     for r in rows:
-        cells = [f"{r[w]['wall']:.2f} | {r[w]['rss'] / 2**20:.0f}" for w in who]
+        cells = [f"{r[w]['wall']:.2f} ({r[w]['cpu']:.2f}) | {r[w]['rss'] / 2**20:.0f}" for w in who]
         ratios = ""
         if len(who) == 2:
-            ratios = (f" | **{r['warp_spt']['wall'] / r['Mitsuba']['wall']:.2f}** | "
+            ratios = (f" | **{r['warp_spt']['wall'] / r['Mitsuba']['wall']:.2f}** "
+                      f"({r['warp_spt']['cpu'] / r['Mitsuba']['cpu']:.2f}) | "
                       f"**{r['warp_spt']['rss'] / r['Mitsuba']['rss']:.2f}**")
         print(f"| {r['triangles']:,} | " + " | ".join(cells) + ratios + " |")
     if args.json:

@@ -2,6 +2,7 @@
 
     python benchmarks/bench_scaling.py                          # 100k, 1M, 3M triangles (binary PLY)
     python benchmarks/bench_scaling.py --sizes 100k,1M,3M,10M --format obj --plot docs/scaling.png
+    python benchmarks/bench_scaling.py --before ../old-checkout      # also another checkout's warp_spt
 
 Each size is a heightfield generated here (a grid of smooth hills, two triangles per cell, written
 once as binary PLY or OBJ into a temporary folder), lit by a one-sided area light above it (a quad
@@ -17,7 +18,8 @@ round at the smallest size fills both renderers' kernel caches and is not counte
 with its defaults (``nee`` + ``sobol``), Mitsuba with ``path`` and its default ``independent``
 sampler, both on ``--threads`` threads.
 
-``--plot FILE`` draws time and memory against triangles for both renderers (matplotlib, optional).
+``--parse`` only times reading each size's file, binary PLY and OBJ (MB/s), and says whether the
+OBJ went through the vectorised scanner. ``--plot FILE`` draws time and memory against triangles for both renderers (matplotlib, optional).
 """
 
 from __future__ import annotations
@@ -139,13 +141,17 @@ print("RESULT", r.ru_maxrss * 1024, float(image.mean()), r.ru_utime + r.ru_stime
 """
 
 
-def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, variant: str
+def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, variant: str, pythonpath: str | None = None
               ) -> tuple[float, int, float, float]:
-    """(wall seconds, peak RSS bytes, image mean, CPU seconds of all threads) of one render in a fresh process."""
+    """(wall seconds, peak RSS bytes, image mean, CPU seconds of all threads) of one render in a fresh process
+    (``pythonpath``: where that process imports warp_spt from)."""
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = pythonpath
     code = _CHILD.format(folder=str(folder), mesh=str(mesh), threads=threads, camera=CAMERA, ours=ours, size=SIZE,
                          spp=SPP, depth=DEPTH, sky=SKY, variant=variant, extent=EXTENT, fmt=fmt, light=LIGHT)
     t = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=folder)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=folder, env=env)
     wall = time.perf_counter() - t
     line = [x for x in out.stdout.splitlines() if x.startswith("RESULT")]
     if out.returncode != 0 or not line:
@@ -173,6 +179,32 @@ def pick_variant() -> str:
     return "llvm_ad_rgb" if ok else "scalar_rgb"
 
 
+def parse_speed(sizes: list[int]) -> None:
+    """MB/s of reading each size's heightfield as binary PLY and as OBJ (``read_model``, in this
+    process, best of 2), and whether the OBJ went through the vectorised scanner (io/obj_bulk.py)."""
+    sys.path.insert(0, str(ROOT))
+    from warp_spt.io.loader import read_model
+    from warp_spt.io.obj_bulk import scan_bulk
+    print("| triangles | format | MB | seconds | MB/s | triangles/s | vectorised OBJ scanner |")
+    print("|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in sizes:
+            for fmt in ("ply", "obj"):
+                mesh, tris = write_scene(Path(tmp), k, fmt)
+                mb = mesh.stat().st_size / 2**20
+                best = min(_timed(lambda: read_model(str(mesh))) for _ in range(2))
+                bulk = "" if fmt == "ply" else ("yes" if scan_bulk(mesh.read_bytes(), str(mesh)) is not None else "NO")
+                print(f"| {tris:,} | {fmt} | {mb:.0f} | {best:.2f} | {mb / best:.0f} | {tris / best / 1e6:.2f} M | {bulk} |",
+                      flush=True)
+                mesh.unlink()
+
+
+def _timed(fn) -> float:
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t
+
+
 def plot(rows: list[dict], path: str) -> None:
     try:
         import matplotlib
@@ -183,9 +215,11 @@ def plot(rows: list[dict], path: str) -> None:
         return
     k = [r["triangles"] for r in rows]
     fig, (a, b) = plt.subplots(1, 2, figsize=(8, 3.2), dpi=80)
-    for who, style in (("warp_spt", "o-"), ("Mitsuba", "s--")):
-        a.plot(k, [r[who]["wall"] for r in rows], style, label=who)
-        b.plot(k, [r[who]["rss"] / 2**30 for r in rows], style, label=who)
+    for who, style in (("before", "^:"), ("warp_spt", "o-"), ("Mitsuba", "s--")):
+        if who in rows[0]:
+            label = "warp_spt before" if who == "before" else who
+            a.plot(k, [r[who]["wall"] for r in rows], style, label=label)
+            b.plot(k, [r[who]["rss"] / 2**30 for r in rows], style, label=label)
     for ax, label in ((a, "whole process, s"), (b, "peak RSS, GiB")):
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -206,10 +240,17 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=1, help="runs of each renderer per size (median)")
     ap.add_argument("--only", choices=("warp_spt", "Mitsuba"), default=None, help="run one renderer only")
+    ap.add_argument("--before", default=None, metavar="DIR",
+                    help="also render with the warp_spt of another checkout (its root), as 'before', in turn with the others")
     ap.add_argument("--plot", default=None, metavar="FILE", help="draw the curve into FILE (matplotlib)")
+    ap.add_argument("--parse", action="store_true", help="only the reading speed of each size, PLY and OBJ (MB/s)")
     ap.add_argument("--json", default=None, metavar="FILE", help="also write the figures as JSON")
     args = ap.parse_args()
     sizes = [parse_size(s) for s in args.sizes.split(",")]
+    paths = {"warp_spt": None, "Mitsuba": None, "before": args.before}
+    if args.parse:
+        parse_speed(sizes)
+        return 0
     who = [args.only] if args.only else ["warp_spt", "Mitsuba"]
     variant = ""
     if "Mitsuba" in who:
@@ -220,6 +261,8 @@ def main() -> int:
             who = ["warp_spt"]
         else:
             variant = pick_variant()
+    if args.before:
+        who.insert(0, "before")
     print(f"CPU: {cpu_name()}, {os.cpu_count()} cores; threads {args.threads}; "
           f"Mitsuba variant {variant or '-'}; format {args.format}; load average {os.getloadavg()[0]:.1f}")
     rows = []
@@ -234,31 +277,32 @@ def main() -> int:
             print(f"\n{tris:,} triangles: {mesh.name} {mb:.0f} MB written in {time.perf_counter() - t:.1f} s", flush=True)
             if i == 0:              # fills both kernel caches
                 for w in who:
-                    run_child(w == "warp_spt", folder, mesh, args.format, args.threads, variant)
+                    run_child(w != "Mitsuba", folder, mesh, args.format, args.threads, variant, paths[w])
             row = {"triangles": tris, "file_mb": mb}
             for w in who:
-                runs = [run_child(w == "warp_spt", folder, mesh, args.format, args.threads, variant)
+                runs = [run_child(w != "Mitsuba", folder, mesh, args.format, args.threads, variant, paths[w])
                         for _ in range(args.repeat)]
                 row[w] = dict(wall=statistics.median(r[0] for r in runs), rss=max(r[1] for r in runs), mean=runs[0][2],
                               cpu=statistics.median(r[3] for r in runs))
                 print(f"  {w:8s} {row[w]['wall']:7.2f} s (CPU {row[w]['cpu']:6.2f} s)  peak RSS {row[w]['rss'] / 2**20:7.0f} MB "
                       f"({row[w]['rss'] / tris:5.0f} B/triangle)  image mean {row[w]['mean']:.4f}", flush=True)
             rows.append(row)
+    both = "warp_spt" in who and "Mitsuba" in who
     print(f"\nload average at the end {os.getloadavg()[0]:.1f}")
     print(f"\n| triangles | " + " | ".join(f"{w} s (CPU s) | {w} peak MB" for w in who)
-          + (" | time ratio (CPU) | memory ratio |" if len(who) == 2 else " |"))
-    print("|---" * (1 + 2 * len(who) + (2 if len(who) == 2 else 0)) + "|")
+          + (" | time ratio (CPU) | memory ratio |" if both else " |"))
+    print("|---" * (1 + 2 * len(who) + (2 if both else 0)) + "|")
     for r in rows:
         cells = [f"{r[w]['wall']:.2f} ({r[w]['cpu']:.2f}) | {r[w]['rss'] / 2**20:.0f}" for w in who]
         ratios = ""
-        if len(who) == 2:
+        if "warp_spt" in who and "Mitsuba" in who:
             ratios = (f" | **{r['warp_spt']['wall'] / r['Mitsuba']['wall']:.2f}** "
                       f"({r['warp_spt']['cpu'] / r['Mitsuba']['cpu']:.2f}) | "
                       f"**{r['warp_spt']['rss'] / r['Mitsuba']['rss']:.2f}**")
         print(f"| {r['triangles']:,} | " + " | ".join(cells) + ratios + " |")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
-    if args.plot and len(who) == 2:
+    if args.plot and both:
         plot(rows, args.plot)
     return 0
 

@@ -51,9 +51,10 @@ WIDE_BVH_MAX_TRIANGLES = WIDE_MAX_TRIANGLES
 # test, same order of visits for ties) 11-24% faster on the demo and bench_vs_mitsuba's rooms; 1 and 4
 # are slower, 3 is no better (docs/performance.md, Where the time goes).
 MESH_LEAF_SIZE = 2
-# ... and of a mesh traced by our wide BVH, whose wp.Mesh only serves vertex look-ups (mesh_get_point):
-# 8 per leaf keeps Warp's tree at 38 instead of 64 MB for a million triangles.
-WIDE_MESH_LEAF_SIZE = 8
+# ... and of a mesh traced by our wide BVH, whose wp.Mesh only serves vertex look-ups (mesh_get_point)
+# and is never queried: one leaf, Warp's tree is its root box (at 1M triangles 0.02 instead of 0.3-0.9
+# CPU s, 14 instead of 64 MB).
+WIDE_MESH_LEAF_SIZE = 1 << 30
 
 
 @dataclass
@@ -83,7 +84,7 @@ class UploadedMesh:
         used[m.indices.reshape(-1)] = True        # the used vertices' bounds without a per-corner copy
         p = m.positions[used] if not used.all() else m.positions
         leaf = MESH_LEAF_SIZE if not wide else WIDE_MESH_LEAF_SIZE
-        mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah", bvh_leaf_size=leaf)
+        mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah" if not wide else "median", bvh_leaf_size=leaf)
         return cls(mesh, _wide_tree(m) if wide else None, p.min(0).astype(np.float64), p.max(0).astype(np.float64),
                    leaf)
 
@@ -222,8 +223,7 @@ class DeviceScene:
             boxes.append(wide.box.reshape(-1, WIDTH))
             children.append(wide.child_shifted(nodes, tris))
             roots.append(nodes)
-            p = np.asarray(m.positions, dtype=np.float32)[np.asarray(m.indices)[wide.order]]
-            corners.append(p)
+            corners.append((m, wide.order, tris))
             faces.append(wide.order)
             nodes += len(wide.child)
             tris += len(wide.order)
@@ -233,7 +233,11 @@ class DeviceScene:
             raise ValueError(f"a mesh's BVH is too deep: its traversal needs {bound} stack entries, more than "
                              f"{BVH_STACKS[-1]}")
         self.features = replace(self.features, bvh_stack=stack, warp_meshes=any(w is None for w in self._wide))
-        v = _cat(corners, (0, 3, 3), np.float32)
+        # every mesh's leaf-ordered corners gathered straight into one array (no per-mesh copies to join)
+        v = np.empty((max(tris, 1), 3, 3), dtype=np.float32) if tris else np.zeros((0, 3, 3), np.float32)
+        for m, order, first in corners:
+            np.take(np.asarray(m.positions, dtype=np.float32), np.asarray(m.indices)[order], axis=0,
+                    out=v[first:first + len(order)])
         # On the CPU these device arrays are the host arrays themselves (nothing else writes them): the
         # trees' own arrays, fresh corner copies and concatenations are not copied a second time.
         _set_arrays(s, device, alias=True, bvh_box=(_cat(boxes, (0, WIDTH), np.float32), vec_wide_f),

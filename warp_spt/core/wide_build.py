@@ -11,7 +11,8 @@ dependent splits, and Warp's CPU launches are single-threaded anyway.
 
 Rules (the same kind of tree as the numpy build, not the same tree):
 
-- ``NUM_BINS`` bins per axis over the node's centroid bounds, all three axes, the cut of least
+- ``NUM_BINS`` bins per axis over the node's centroid bounds, all three axes (the longest only for
+  ranges of at most ``ALL_AXES_ABOVE`` triangles), the cut of least
   ``area(left) * n_left + area(right) * n_right``; ties go to the more balanced cut, then to the
   first axis and bin.
 - A node of more than ``max_leaf`` triangles is always split (the traversal's leaf loop is
@@ -27,6 +28,7 @@ import numpy as np
 import warp as wp
 
 NUM_BINS = 16
+ALL_AXES_ABOVE = 64  # ranges of more triangles bin all three axes, smaller ones their longest
 STACK = 512          # pending nodes; a depth-first build holds at most depth + 1
 
 
@@ -110,9 +112,16 @@ def _build(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3), c: wp.array
         best_bin = int(0)
         best_imb = int(count)
         if level + _levels(count, max_leaf) < depth_budget:
+            # small ranges bin their longest centroid axis only (all three cost 3x for little gain)
+            longest = int(0)
+            if ext[1] > ext[longest]:
+                longest = 1
+            if ext[2] > ext[longest]:
+                longest = 2
             scale = wp.vec3(0.0)
             for a in range(3):
-                if ext[a] > 0.0:
+                # (an extent so small that the scale overflows cannot be binned: such centroids are equal)
+                if ext[a] > 0.0 and (count > ALL_AXES_ABOVE or a == longest) and float(NUM_BINS) / ext[a] < 1.0e30:
                     scale[a] = float(NUM_BINS) / ext[a]
             for j in range(3 * NUM_BINS):
                 b_n[j] = 0
@@ -123,13 +132,13 @@ def _build(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3), c: wp.array
                 tl = lo[i]
                 th = hi[i]
                 for a in range(3):
-                    if ext[a] > 0.0:
+                    if scale[a] > 0.0:
                         j = a * NUM_BINS + _bin(ci[a], clo[a], scale[a])
                         b_n[j] += 1
                         b_lo[j] = wp.min(b_lo[j], tl)
                         b_hi[j] = wp.max(b_hi[j], th)
             for a in range(3):
-                if ext[a] > 0.0:
+                if scale[a] > 0.0:
                     rl = _up()
                     rh = _down()
                     for t in range(NUM_BINS - 1):

@@ -31,6 +31,9 @@ print(rss_mb() - base)
 def test_a_freed_large_array_is_returned_to_the_system():
     kept = {flag: float(subprocess.run([sys.executable, "-c", CHILD, flag], capture_output=True, text=True,
                                        check=True).stdout) for flag in ("0", "1")}
-    # without the fixed threshold the freed 16 MiB stay resident (the check that the test can fail)
-    assert kept["0"] > 12, kept
+    # Without the fixed threshold the freed 16 MiB usually stay resident: that is what makes this test
+    # able to fail. Where the allocator returns them anyway (seen in some runs: where the heap could not
+    # grow in place, glibc maps it elsewhere), there is nothing to tell apart.
+    if kept["0"] <= 12:
+        pytest.skip(f"this allocator returned the freed block without the fix too ({kept})")
     assert kept["1"] < 4, kept

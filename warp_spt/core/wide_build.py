@@ -249,7 +249,8 @@ def _build(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3), c: wp.array
 
 
 def build_binary(lo: np.ndarray, hi: np.ndarray, max_leaf: int, depth_budget: int):
-    """The binary tree over triangle boxes ``lo``, ``hi`` (K, 3) float32.
+    """The binary tree over triangle boxes ``lo``, ``hi`` (K, 3) float32 (C-contiguous float32 arrays
+    are permuted in place: they are the kernel's working arrays).
 
     Returns (start, count, left, right, nlo, nhi, order): per node (root 0; children of a node are
     consecutive ids, left = right - 1; a leaf has left = right = -1 and owns order[start:start +
@@ -258,11 +259,16 @@ def build_binary(lo: np.ndarray, hi: np.ndarray, max_leaf: int, depth_budget: in
     init_warp()
     k = len(lo)
     dev = "cpu"
-    lo_w = wp.array(np.ascontiguousarray(lo, dtype=np.float32), dtype=wp.vec3, device=dev)
-    hi_w = wp.array(np.ascontiguousarray(hi, dtype=np.float32), dtype=wp.vec3, device=dev)
-    c = (0.5 * lo.astype(np.float32) + 0.5 * hi.astype(np.float32)).astype(np.float32)
-    c_w = wp.array(c, dtype=wp.vec3, device=dev)
-    del c
+    # the kernel permutes the boxes in place: work on copies unless they are float32 arrays the caller
+    # hands over (build_wide's own), which become the kernel's arrays themselves
+    own = lo.dtype == np.float32 and hi.dtype == np.float32 and lo.flags.c_contiguous and hi.flags.c_contiguous
+    lo = np.array(lo, dtype=np.float32, copy=not own)
+    hi = np.array(hi, dtype=np.float32, copy=not own)
+    c = 0.5 * lo
+    c += 0.5 * hi
+    lo_w = wp.array(lo, dtype=wp.vec3, device=dev, copy=False)
+    hi_w = wp.array(hi, dtype=wp.vec3, device=dev, copy=False)
+    c_w = wp.array(c, dtype=wp.vec3, device=dev, copy=False)
     idx = wp.array(np.arange(k, dtype=np.int32), dtype=wp.int32, device=dev)
     m = max(2 * k - 1, 1)
     n_lo = wp.empty(m, dtype=wp.vec3, device=dev)
@@ -280,11 +286,12 @@ def build_binary(lo: np.ndarray, hi: np.ndarray, max_leaf: int, depth_budget: in
     num, overflow = (int(x) for x in out.numpy())
     if overflow:        # cannot happen while depth_budget keeps the tree shallow; say so if it does
         raise RuntimeError(f"wide BVH build: more than {STACK} pending nodes")
-    del lo_w, hi_w, c_w
-    left = n_left.numpy()[:num].astype(np.int64)
-    right = np.where(left >= 0, left + 1, -1)
-    return (n_start.numpy()[:num].astype(np.int64), n_count.numpy()[:num].astype(np.int64), left, right,
-            n_lo.numpy()[:num].copy(), n_hi.numpy()[:num].copy(), idx.numpy().copy())
+    del lo_w, hi_w, c_w, c
+    # views of the kernel's arrays (each keeps its Warp array alive), not copies
+    left = n_left.numpy()[:num]
+    right = np.where(left >= 0, left + 1, -1).astype(np.int32)
+    return (n_start.numpy()[:num], n_count.numpy()[:num], left, right, n_lo.numpy()[:num], n_hi.numpy()[:num],
+            idx.numpy())
 
 
 @wp.func
@@ -375,4 +382,5 @@ def collapse(start, count, left, nlo, nhi, width: int):
     wp.launch(_collapse, dim=1, device=dev, inputs=[i32(left), i32(start), i32(count), v3(nlo), v3(nhi), int(width),
                                                      box, child, queue, acc, level, slots, out])
     n, depth, bound = (int(x) for x in out.numpy())
-    return box.numpy()[:n].copy(), child.numpy()[:n].copy(), depth, bound
+    del queue, acc, level
+    return box.numpy()[:n], child.numpy()[:n], depth, bound       # views: rows past n were never touched

@@ -496,7 +496,8 @@ def build_wide(points: np.ndarray, tris: np.ndarray, width: int = WIDTH, max_lea
         start, count, left, right, nlo, nhi, order = build_binary(lo, hi, max_leaf, DEPTH_BUDGET)
         del lo, hi
         box, child, depth, stack_bound = collapse(start, count, left, nlo, nhi, width)
-        return WideBvh(box=box, child=child, order=order.astype(np.int32), depth=depth, stack_bound=stack_bound)
+        return WideBvh(box=box, child=child, order=order.astype(np.int32, copy=False), depth=depth,
+                       stack_bound=stack_bound)
     start, count, left, right, level, order = _build_binary(lo, hi, max_leaf)
     nlo, nhi = _binary_boxes(lo[order], hi[order], start, left, right, level)
     box, child, depth, stack_bound = _collapse(start, count, left, right, nlo, nhi, width)

@@ -1,4 +1,8 @@
-"""Wide (8-ary) BVH over triangles, built on the host in numpy, for the kernels' own traversal (core.wide_traversal).
+"""Wide (8-ary) BVH over triangles, built on the host, for the kernels' own traversal (core.wide_traversal).
+
+The default build is ``core/wide_build.py``'s two compiled Warp kernels; this module holds the
+tree's type, the input checks, the triangle boxes, and the numpy build described below, kept as
+``build_wide(..., builder="numpy")``: the second opinion the tests compare the kernels against.
 
 Why not ``warp_spt.core.bvh.build_tlas`` + a collapse loop (the prototype): build_tlas
 re-partitions every item on every level (a lexsort and an argsort per level), and collapsing its
@@ -482,9 +486,9 @@ def build_wide(points: np.ndarray, tris: np.ndarray, width: int = WIDTH, max_lea
     triangles. Raises ValueError for empty or malformed inputs, out-of-range indices, vertices
     that are not finite or beyond float32 range, width outside [2, 64], max_leaf outside [1, 7].
 
-    ``builder``: "warp" (the default) builds the binary tree in one compiled Warp kernel
-    (``core/wide_build.py``, about 0.3 us per triangle); "numpy", level by level in numpy (this
-    module, about 7 us per triangle), kept as the second opinion the tests compare against.
+    ``builder``: "warp" (the default) builds the binary tree and collapses it in compiled Warp
+    kernels (``core/wide_build.py``, about 1 us per triangle); "numpy", level by level in numpy
+    (this module, 6-10 us per triangle), kept as the second opinion the tests compare against.
     """
     if builder not in BUILDERS:
         raise ValueError(f"build_wide: builder must be one of {BUILDERS}, got {builder!r}")

@@ -71,6 +71,7 @@ def main() -> None:
     ap.add_argument("--sizes", default="10000,30000,100000,300000,1000000")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-demo", action="store_true")
+    ap.add_argument("--builders", default="warp,numpy", help="build_wide's builders to compare (warp, numpy)")
     args = ap.parse_args()
     meshes = [(f"random soup {int(k):,}", *soup(int(k))) for k in args.sizes.split(",")]
     if not args.no_demo:
@@ -79,17 +80,23 @@ def main() -> None:
         p, t = subdivide(p, t)
         meshes.append(("demo subdivided x4", p, t))
         meshes.append(("demo subdivided x16", *subdivide(p, t)))
-    print("| mesh | triangles | build CPU s | wide nodes | depth | stack_bound | slots filled | SAH cost |")
-    print("|---|---|---|---|---|---|---|---|")
+    builders = args.builders.split(",")
+    if "warp" in builders:           # the build kernel's compile (or cache load) is not a build's time
+        build_wide(*soup(100), builder="warp")
+    print("| mesh | builder | triangles | build CPU s | us per triangle | wide nodes | depth | stack_bound | "
+          "slots filled | SAH cost |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for name, p, t in meshes:
-        times = []
-        for _ in range(args.repeat):
-            t0 = time.process_time()
-            bvh = build_wide(p, t)
-            times.append(time.process_time() - t0)
-        filled = float(np.isfinite(bvh.box[:, 0]).sum(axis=1).mean())
-        print(f"| {name} | {len(t):,} | {np.median(times):.3f} | {bvh.num_nodes:,} | {bvh.depth} | {bvh.stack_bound} | "
-              f"{filled:.2f} | {sah_cost(bvh):.2f} |", flush=True)
+        for builder in builders:
+            times = []
+            for _ in range(args.repeat):
+                t0 = time.process_time()
+                bvh = build_wide(p, t, builder=builder)
+                times.append(time.process_time() - t0)
+            filled = float(np.isfinite(bvh.box[:, 0]).sum(axis=1).mean())
+            sec = float(np.median(times))
+            print(f"| {name} | {builder} | {len(t):,} | {sec:.3f} | {sec / len(t) * 1e6:.2f} | {bvh.num_nodes:,} | "
+                  f"{bvh.depth} | {bvh.stack_bound} | {filled:.2f} | {sah_cost(bvh):.2f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -192,8 +192,8 @@ def test_small_scene_loop_equals_the_tlas_traversal(scene_dir, mixed, which):
     # Small scenes skip the TLAS; every hit, and every shadow-ray answer, must be what the TLAS
     # traversal gives, bit for bit, for rays from inside and outside the scene.
     rng = np.random.default_rng(21)
-    if which == "one mesh":
-        objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000))
+    if which != "mesh and spheres":     # a large mesh: above the 100k triangles once traced by Warp's BVH only
+        objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000 if which == "one mesh" else 150_000))
         scene = DeviceScene(load_scene(objs, [], warn=lambda message: None))
         assert len(scene.scene.meshes) == 1 and len(scene.scene.spheres) == 0
     else:
@@ -216,14 +216,14 @@ def test_small_scene_loop_equals_the_tlas_traversal(scene_dir, mixed, which):
 # --- our wide BVHs against Warp's BVH (wp.mesh_query_ray) ---------------------------------------
 
 
-@pytest.mark.parametrize("which", ["one mesh", "mesh and spheres"])
+@pytest.mark.parametrize("which", ["one mesh", "mesh and spheres", "a large mesh"])
 def test_wide_bvh_answers_as_warps_bvh(scene_dir, mixed, which):
     # Meshes are traced through our wide BVHs (core.wide_traversal), or through Warp's when larger than
     # the scene's limit (0 here: all of them). Same triangle test, so every hit, normal and shadow-ray
     # answer must agree bit for bit; only exact ties in t between two triangles may pick another face.
     rng = np.random.default_rng(5)
-    if which == "one mesh":
-        objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000))
+    if which != "mesh and spheres":     # a large mesh: above the 100k triangles once traced by Warp's BVH only
+        objs, _ = write_scene_files(scene_dir, "soup", _soup_obj(rng, 3000 if which == "one mesh" else 150_000))
         host = load_scene(objs, [], warn=lambda message: None)
     else:
         host = mixed.scene

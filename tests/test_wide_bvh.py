@@ -249,3 +249,51 @@ def test_sah_beats_a_median_split_on_clusters():
 def test_validation(points, tris, kwargs, match):
     with pytest.raises(ValueError, match=match):
         build_wide(points, tris, **kwargs)
+
+
+# ---------------------------------------------------------------------------------------------
+# The compiled builder (core/wide_build.py) against the numpy one
+
+
+@pytest.mark.parametrize("width", [8, 4, 3])
+def test_kernel_collapse_equals_the_numpy_collapse(width):
+    """The same binary tree collapsed by the kernel and by wide_bvh._collapse: the same wide tree,
+    array for array (the kernel replaces the numpy collapse, whose rules are the reference)."""
+    from warp_spt.core.wide_build import build_binary, collapse
+    from warp_spt.core.wide_bvh import _collapse, _triangle_boxes
+    p, t = soup(np.random.default_rng(5), 3000)
+    p = np.concatenate([p, np.repeat(p[:3], 20, axis=0)])          # a pile of coincident triangles
+    t = np.concatenate([t, np.arange(3 * 3000, 3 * 3000 + 60).reshape(-1, 3)])
+    lo, hi = _triangle_boxes(p, t)
+    start, count, left, right, nlo, nhi, order = build_binary(lo, hi, 2, 48)
+    a = collapse(start, count, left, nlo, nhi, width)
+    b = _collapse(start, count, left, right, nlo, nhi, width)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]) and a[2:] == b[2:]
+
+
+@pytest.mark.parametrize("builder", ["warp", "numpy"])
+def test_both_builders_hold_every_invariant(builder):
+    rng = np.random.default_rng(11)
+    p, t = soup(rng, 2000)
+    check(build_wide(p, t, builder=builder), p, t, 8, 2)
+    p, t = grid_mesh(30)
+    check(build_wide(p, t, builder=builder), p, t, 8, 2)
+
+
+def test_the_kernel_build_is_no_worse_than_numpy_by_sah():
+    """SAH cost (node areas over the root's, as benchmarks/bench_wide_build.py) of the kernel's tree
+    within 5% of the numpy build's on a soup and a wavy grid: the faster build does not buy a worse tree."""
+    def cost(bvh):
+        lo, hi = bvh.box[:, 0:3].astype(np.float64), bvh.box[:, 3:6].astype(np.float64)
+        filled = np.isfinite(lo).all(axis=1)
+        d = np.where(filled[:, None, :], hi - lo, 0.0)
+        area = d[:, 0] * d[:, 1] + d[:, 1] * d[:, 2] + d[:, 2] * d[:, 0]
+        n = np.where(bvh.child < 0, (-bvh.child.astype(np.int64) - 1) & 7, 1)
+        return float((area * np.where(filled, n, 0)).sum())
+    for p, t in (soup(np.random.default_rng(2), 20000), grid_mesh(100)):
+        assert cost(build_wide(p, t, builder="warp")) <= 1.05 * cost(build_wide(p, t, builder="numpy"))
+
+
+def test_unknown_builder_is_refused():
+    with pytest.raises(ValueError, match="builder"):
+        build_wide(np.eye(3), np.array([[0, 1, 2]]), builder="fast")

@@ -32,16 +32,18 @@ from warp_spt.core.structs import (  # noqa: F401 (re-exported: the structs' old
 )
 from warp_spt.core.tangents import corner_tangents
 from warp_spt.core.textures import pack_atlas
+from warp_spt.core.wide_bvh import MAX_TRIANGLES as WIDE_MAX_TRIANGLES
 from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
+from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
 # Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
-# Warp builds its BVH in C++ (0.02 s for 51k triangles), ours costs about 7 us per triangle in numpy
-# (0.34 s for 51k, 10 s for 1M; benchmarks/bench_wide_build.py) and saves about a fifth of a render's
-# time, so a model this large would pay more in start-up than a default render gains.
-WIDE_BVH_MAX_TRIANGLES = 100_000
+# every mesh the wide BVH can encode (its int32 leaf code). Its build is one compiled kernel plus a
+# numpy collapse, about 1-2 us per triangle (benchmarks/bench_wide_build.py), and its traversal runs
+# 1.7-1.9x Warp's query rate, so it pays for itself at every size.
+WIDE_BVH_MAX_TRIANGLES = WIDE_MAX_TRIANGLES
 
 
 
@@ -49,6 +51,17 @@ WIDE_BVH_MAX_TRIANGLES = 100_000
 # test, same order of visits for ties) 11-24% faster on the demo and bench_vs_mitsuba's rooms; 1 and 4
 # are slower, 3 is no better (docs/performance.md, Where the time goes).
 MESH_LEAF_SIZE = 2
+# ... and of a mesh traced by our wide BVH, whose wp.Mesh only serves vertex look-ups (mesh_get_point)
+# and is never queried: one leaf, Warp's tree is its root box (at 1M triangles 0.02 instead of 0.3-0.9
+# CPU s, 14 instead of 64 MB).
+WIDE_MESH_LEAF_SIZE = 1 << 30
+
+
+@dataclass
+class _Uploaded:
+    """What a scene keeps of a wide BVH once its arrays are on the device."""
+
+    stack_bound: int
 
 
 @dataclass
@@ -60,15 +73,20 @@ class UploadedMesh:
     wide: WideBvh | None
     lower: np.ndarray
     upper: np.ndarray
+    leaf_size: int = 0          # of the wp.Mesh's own BVH
 
     @classmethod
     def of(cls, m, device: str, wide: bool = True) -> "UploadedMesh":
         """``m`` uploaded, with its wide BVH built if ``wide``."""
         points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
         idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
-        p = m.positions[m.indices.reshape(-1)].astype(np.float64)
-        mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah", bvh_leaf_size=MESH_LEAF_SIZE)
-        return cls(mesh, _wide_tree(m) if wide else None, p.min(0), p.max(0))
+        used = np.zeros(len(m.positions), dtype=bool)
+        used[m.indices.reshape(-1)] = True        # the used vertices' bounds without a per-corner copy
+        p = m.positions[used] if not used.all() else m.positions
+        leaf = MESH_LEAF_SIZE if not wide else WIDE_MESH_LEAF_SIZE
+        mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah" if not wide else "median", bvh_leaf_size=leaf)
+        return cls(mesh, _wide_tree(m) if wide else None, p.min(0).astype(np.float64), p.max(0).astype(np.float64),
+                   leaf)
 
 
 class DeviceScene:
@@ -88,6 +106,7 @@ class DeviceScene:
                  wide_bvh_max_triangles: int | None = None):
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a warp_spt.Scene (from warp_spt.load_scene), got {type(scene).__name__}")
+        map_large_allocations()       # a large mesh's freed temporaries go back to the system
         scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
         validate_scene(scene)
         init_warp()            # quietly, once, before the first Warp array (not at import time)
@@ -155,6 +174,8 @@ class DeviceScene:
             key = mesh_key(m, device) if cache is not None else ""
             wide = len(m.indices) <= self._wide_limit
             uploaded = cache.get(key) if cache is not None else None
+            if uploaded is not None and not wide and uploaded.leaf_size != MESH_LEAF_SIZE:
+                uploaded = None             # built for the wide BVH: Warp's tree is too coarse to trace
             if uploaded is None:
                 uploaded = UploadedMesh.of(m, device, wide)
                 if cache is not None:
@@ -167,8 +188,8 @@ class DeviceScene:
             self.mesh_keys.append(key)
             offsets.append(start)
             start += len(m.indices)
-            mats.append(m.face_material.astype(np.int32))
-            uvs.append(m.corner_uv.reshape(-1, 2).astype(np.float32))
+            mats.append(m.face_material.astype(np.int32, copy=False))
+            uvs.append(m.corner_uv.reshape(-1, 2).astype(np.float32, copy=False))
             if self.features.smooth:
                 normals.append(_corner_normals(m).reshape(-1, 3))
             if self.features.needs("frame.uv"):
@@ -176,9 +197,14 @@ class DeviceScene:
         s.num_meshes = len(self._meshes)
         s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
         self._upload_wide(s, scene, device)
+        if cache is None:
+            # the device arrays hold the trees now; without a cache nothing reads the host copies again
+            self._wide = [None if w is None else _Uploaded(w.stack_bound) for w in self._wide]
         s.face_offset = _arr(offsets, wp.int32, device, np.int32)
-        s.face_material = _arr(_cat(mats, (0,), np.int32), wp.int32, device, np.int32)
-        s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32)
+        # several meshes' arrays are concatenated into fresh arrays: those become the device arrays
+        fresh = len(scene.meshes) > 1
+        s.face_material = _arr(_cat(mats, (0,), np.int32), wp.int32, device, np.int32, alias=fresh)
+        s.corner_uv = _arr(_cat(uvs, (0, 2), np.float32), wp.vec2, device, np.float32, alias=fresh)
         s.corner_normal = _arr(_cat(normals, (0, 3), np.float32), wp.vec3, device, np.float32)
         s.has_corner_normals = int(self.features.smooth)
         s.corner_tangent = _arr(_cat(tangents, (0, 4), np.float32), wp.vec4, device, np.float32)
@@ -197,8 +223,7 @@ class DeviceScene:
             boxes.append(wide.box.reshape(-1, WIDTH))
             children.append(wide.child_shifted(nodes, tris))
             roots.append(nodes)
-            p = np.asarray(m.positions, dtype=np.float32)[np.asarray(m.indices, dtype=np.int64)[wide.order]]
-            corners.append(p)
+            corners.append((m, wide.order, tris))
             faces.append(wide.order)
             nodes += len(wide.child)
             tris += len(wide.order)
@@ -208,8 +233,14 @@ class DeviceScene:
             raise ValueError(f"a mesh's BVH is too deep: its traversal needs {bound} stack entries, more than "
                              f"{BVH_STACKS[-1]}")
         self.features = replace(self.features, bvh_stack=stack, warp_meshes=any(w is None for w in self._wide))
-        v = _cat(corners, (0, 3, 3), np.float32)
-        _set_arrays(s, device, bvh_box=(_cat(boxes, (0, WIDTH), np.float32), vec_wide_f),
+        # every mesh's leaf-ordered corners gathered straight into one array (no per-mesh copies to join)
+        v = np.empty((max(tris, 1), 3, 3), dtype=np.float32) if tris else np.zeros((0, 3, 3), np.float32)
+        for m, order, first in corners:
+            np.take(np.asarray(m.positions, dtype=np.float32), np.asarray(m.indices)[order], axis=0,
+                    out=v[first:first + len(order)])
+        # On the CPU these device arrays are the host arrays themselves (nothing else writes them): the
+        # trees' own arrays, fresh corner copies and concatenations are not copied a second time.
+        _set_arrays(s, device, alias=True, bvh_box=(_cat(boxes, (0, WIDTH), np.float32), vec_wide_f),
                     bvh_child=(_cat(children, (0, WIDTH), np.int32), vec_wide_i),
                     mesh_root=(np.asarray(roots, dtype=np.int32), wp.int32),
                     tri_v0=(v[:, 0], wp.vec3), tri_v1=(v[:, 1], wp.vec3), tri_v2=(v[:, 2], wp.vec3),
@@ -292,19 +323,28 @@ def _corner_normals(m) -> np.ndarray:
 
 
 def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.ndarray:
-    return np.concatenate(parts).astype(dtype) if parts else np.zeros(empty_shape, dtype)
+    """The parts end to end (a single part as it is: no copy of a large mesh's array)."""
+    if len(parts) == 1:
+        return parts[0].astype(dtype, copy=False)
+    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(empty_shape, dtype)
 
 
-def _set_arrays(s, device: str, **fields: tuple) -> None:
-    """Upload each ``name=(data, warp dtype)`` into the struct field of that name."""
+def _set_arrays(s, device: str, alias: bool = False, **fields: tuple) -> None:
+    """Upload each ``name=(data, warp dtype)`` into the struct field of that name (``alias``: see _arr)."""
     for name, (data, dtype) in fields.items():
         np_dtype = np.int32 if getattr(dtype, "_wp_scalar_type_", dtype) is wp.int32 else np.float32
-        setattr(s, name, _arr(data, dtype, device, np_dtype))
+        setattr(s, name, _arr(data, dtype, device, np_dtype, alias))
 
 
-def _arr(data, dtype, device: str, np_dtype) -> wp.array:
-    """A device array; empty inputs become one zero element so no kernel sees a null pointer."""
-    a = np.ascontiguousarray(np.asarray(data, dtype=np_dtype))
+def _arr(data, dtype, device: str, np_dtype, alias: bool = False) -> wp.array:
+    """A device array; empty inputs become one zero element so no kernel sees a null pointer.
+
+    ``alias``: on the CPU the Warp array is ``data`` itself (it keeps a reference), not a copy, for
+    host arrays that nothing writes afterwards; Warp arrays carry strides, so a column of an (N, 3, 3)
+    array needs no contiguous copy either."""
+    a = np.asarray(data, dtype=np_dtype)
     if a.shape[0] == 0:
         a = np.zeros((1, *a.shape[1:]), dtype=np_dtype)
-    return wp.array(a, dtype=dtype, device=device)
+    if alias and wp.get_device(device).is_cpu and a.strides[-1] == a.itemsize:
+        return wp.array(a, dtype=dtype, device=device, copy=False)
+    return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)

@@ -1,4 +1,8 @@
-"""Wide (8-ary) BVH over triangles, built on the host in numpy, for the kernels' own traversal (core.wide_traversal).
+"""Wide (8-ary) BVH over triangles, built on the host, for the kernels' own traversal (core.wide_traversal).
+
+The default build is ``core/wide_build.py``'s two compiled Warp kernels; this module holds the
+tree's type, the input checks, the triangle boxes, and the numpy build described below, kept as
+``build_wide(..., builder="numpy")``: the second opinion the tests compare the kernels against.
 
 Why not ``warp_spt.core.bvh.build_tlas`` + a collapse loop (the prototype): build_tlas
 re-partitions every item on every level (a lexsort and an argsort per level), and collapsing its
@@ -122,12 +126,15 @@ def _validate(points, tris, width: int, max_leaf: int) -> tuple[np.ndarray, np.n
         raise ValueError(f"build_wide: {len(t)} triangles; at most {MAX_TRIANGLES} fit the int32 leaf code")
     if t.min() < 0 or t.max() >= len(p):
         raise ValueError(f"build_wide: triangle indices must be in [0, {len(p)}), got [{t.min()}, {t.max()}]")
-    p = p.astype(np.float64, copy=False)
-    used = p[np.unique(t)] if len(p) > 3 * len(t) else p[t.reshape(-1)]
+    if p.dtype != np.float32:         # float32 is exact as it is: no float64 copy of a large mesh
+        p = p.astype(np.float64, copy=False)
+    used = np.zeros(len(p), dtype=bool)
+    used[t.reshape(-1)] = True
+    u = p if used.all() else p[used]
     limit = float(np.finfo(np.float32).max)
-    if not np.isfinite(used).all() or np.abs(used).max() > limit:
+    if not np.isfinite(u).all() or np.abs(u).max() > limit:
         raise ValueError(f"build_wide: the triangles' vertices must be finite and within float32 range (|x| <= {limit:.4g})")
-    return p, t.astype(np.int64, copy=False)
+    return p, t
 
 
 def _round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,10 +151,13 @@ def _round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def _triangle_boxes(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(K, 3) float32 lower/upper of each triangle, exact (outward-rounded) bounds of its float64 vertices."""
+    """(K, 3) float32 lower/upper of each triangle, exact (outward-rounded) bounds of its float64 vertices
+    (float32 vertices need no rounding)."""
     a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
-    lo = np.minimum(np.minimum(a, b), c)
-    hi = np.maximum(np.maximum(a, b), c)
+    lo = np.minimum(np.minimum(a, b, out=a), c, out=a)
+    hi = np.maximum(np.maximum(b, c, out=b), p[t[:, 0]], out=b)
+    if p.dtype == np.float32:         # float32 vertices: their bounds are exact already
+        return lo, hi
     return _round_outward(lo, hi)
 
 
@@ -465,15 +475,33 @@ def _collapse(start, count, left, right, nlo, nhi, width):
     return box, child, len(slots_by_level), stack_bound
 
 
-def build_wide(points: np.ndarray, tris: np.ndarray, width: int = WIDTH, max_leaf: int = 2) -> WideBvh:
+BUILDERS = ("warp", "numpy")
+
+
+def build_wide(points: np.ndarray, tris: np.ndarray, width: int = WIDTH, max_leaf: int = 2,
+               builder: str = "warp") -> WideBvh:
     """Build a ``width``-wide BVH over the triangles ``tris`` (K, 3) of ``points`` (N, 3).
 
     Every triangle is kept, degenerate (zero-area) ones included, in a leaf of 1..max_leaf
     triangles. Raises ValueError for empty or malformed inputs, out-of-range indices, vertices
     that are not finite or beyond float32 range, width outside [2, 64], max_leaf outside [1, 7].
+
+    ``builder``: "warp" (the default) builds the binary tree and collapses it in compiled Warp
+    kernels (``core/wide_build.py``, about 1 us per triangle); "numpy", level by level in numpy
+    (this module, 6-10 us per triangle), kept as the second opinion the tests compare against.
     """
+    if builder not in BUILDERS:
+        raise ValueError(f"build_wide: builder must be one of {BUILDERS}, got {builder!r}")
     p, t = _validate(points, tris, width, max_leaf)
     lo, hi = _triangle_boxes(p, t)
+    if builder == "warp":
+        from warp_spt.core.wide_build import build_binary, collapse
+        del p, t
+        start, count, left, right, nlo, nhi, order = build_binary(lo, hi, max_leaf, DEPTH_BUDGET)
+        del lo, hi
+        box, child, depth, stack_bound = collapse(start, count, left, nlo, nhi, width)
+        return WideBvh(box=box, child=child, order=order.astype(np.int32, copy=False), depth=depth,
+                       stack_bound=stack_bound)
     start, count, left, right, level, order = _build_binary(lo, hi, max_leaf)
     nlo, nhi = _binary_boxes(lo[order], hi[order], start, left, right, level)
     box, child, depth, stack_bound = _collapse(start, count, left, right, nlo, nhi, width)

@@ -45,6 +45,7 @@ import numpy as np
 
 from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
 from warp_spt.io.tokens import file_problem
+from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.normals import DEFAULT_SMOOTH_ANGLE, check_smooth_angle, smooth_normals
@@ -103,6 +104,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     auto_smooth = isinstance(smooth_angle, str) and smooth_angle == "auto"
     angle = DEFAULT_SMOOTH_ANGLE if auto_smooth else check_smooth_angle(smooth_angle)
     mtls = [str(p) for p in mtls]
+    map_large_allocations()        # a large model's freed temporaries go back to the system
     data = [p if isinstance(p, ObjData) else read_model(p) for p in objs]   # parsed ones: OBJ sequences
     _require_geometry(data)
     for d in data:

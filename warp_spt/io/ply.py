@@ -567,19 +567,26 @@ def _strips(values: dict, e: _Element, nv: int, path: str) -> tuple[np.ndarray, 
     return tri[~join].astype(np.int32), int(np.count_nonzero(join))
 
 
+_AREA_BLOCK = 1 << 16        # triangles per block of nonzero_area
+
+
 def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Mask of triangles whose area is not exactly zero, in float64 (as OBJ's reader decides), with
     the cross product's components formed one at a time (np.cross is 3x slower on large arrays)."""
-    if len(faces) == 0:
-        return np.ones(0, dtype=bool)
     p = np.asarray(positions, np.float64)
-    p0 = p[faces[:, 0]]
-    e1 = p[faces[:, 1]] - p0
-    e2 = p[faces[:, 2]] - p0
-    x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
-    x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
-    x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]
-    return x
+    out = np.ones(len(faces), dtype=bool)
+    # in blocks: the float64 edges of a whole large mesh would be its largest temporaries (120 B per triangle)
+    for k in range(0, len(faces), _AREA_BLOCK):
+        f = faces[k:k + _AREA_BLOCK]
+        p0 = p[f[:, 0]]
+        e1 = p[f[:, 1]] - p0
+        e2 = p[f[:, 2]] - p0
+        x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
+        x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
+        x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]
+        out[k:k + len(f)] = x
+    return out
+
 
 
 # --------------------------------------------------------------------------------------- vertex colours

@@ -62,13 +62,20 @@ def _check_index(a: np.ndarray, name: str, n: int) -> None:
         _fail(f"{name} holds indices outside [0, {n})")
 
 
+_EDGE_BLOCK = 1 << 16         # triangles per block of longest_edges
+
+
 def longest_edges(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Each triangle's longest edge, in float64 (``faces``: (F, 3) indices into ``positions``)."""
-    if len(faces) == 0:
-        return np.zeros(0)
-    p = positions.astype(np.float64)
-    corners = [p[faces[:, j]] for j in range(3)]
-    return np.max([np.linalg.norm(corners[(j + 1) % 3] - corners[j], axis=1) for j in range(3)], axis=0)
+    p = positions.astype(np.float64, copy=False)
+    out = np.zeros(len(faces))
+    # in blocks: a whole large mesh's float64 corners and edges would be its largest temporaries
+    for k in range(0, len(faces), _EDGE_BLOCK):
+        f = faces[k:k + _EDGE_BLOCK]
+        corners = [p[f[:, j]] for j in range(3)]
+        out[k:k + len(f)] = np.max([np.linalg.norm(corners[(j + 1) % 3] - corners[j], axis=1) for j in range(3)],
+                                   axis=0)
+    return out
 
 
 def edge_problem(edge: float) -> str:

@@ -320,6 +320,23 @@ def conductor_eval(wo: wp.vec3, wi: wp.vec3, f0: wp.vec3, ax: float, ay: float,
 
 
 @wp.func
+def _reflection_density(o: wp.vec3, r: wp.vec3, ax: float, ay: float) -> wp.vec2:
+    """(D_vis(m) / (4 o.m), o.m) for the half vector m of ``o`` and ``r``, both above the surface
+    (the density of reflecting ``o`` into ``r`` by a visible-normal sample); zeros where m is
+    undefined or faces away from ``o``. Shared by the conductor and the thin sheet's two branches."""
+    h = o + r
+    if wp.dot(h, h) <= 0.0:
+        return wp.vec2(0.0, 0.0)
+    m = wp.normalize(h)
+    c = wp.dot(o, m)
+    if c <= 0.0:
+        return wp.vec2(0.0, 0.0)
+    bx = wp.max(ax, _MIN_ALPHA)
+    by = wp.max(ay, _MIN_ALPHA)
+    return wp.vec2(ggx_pdf_vn(o, m, bx, by) / (4.0 * c), c)
+
+
+@wp.func
 def conductor_pdf(wo: wp.vec3, wi: wp.vec3, ax: float, ay: float) -> float:
     """Density of :func:`conductor_sample`: D_vis(m) / (4 wo.m)."""
     if is_smooth(ax, ay):
@@ -329,16 +346,7 @@ def conductor_pdf(wo: wp.vec3, wi: wp.vec3, ax: float, ay: float) -> float:
     i = wi * flip
     if o[2] <= 0.0 or i[2] <= 0.0:
         return 0.0
-    h = o + i
-    if wp.dot(h, h) <= 0.0:
-        return 0.0
-    m = wp.normalize(h)
-    c = wp.dot(o, m)
-    if c <= 0.0:
-        return 0.0
-    bx = wp.max(ax, _MIN_ALPHA)
-    by = wp.max(ay, _MIN_ALPHA)
-    return ggx_pdf_vn(o, m, bx, by) / (4.0 * c)
+    return _reflection_density(o, i, ax, ay)[0]
 
 
 @wp.func
@@ -566,17 +574,11 @@ def thin_dielectric_pdf(wo: wp.vec3, wi: wp.vec3, eta: float, ax: float, ay: flo
     r = i
     if i[2] < 0.0:
         r = _flip_z(i)
-    h = o + r
-    if wp.dot(h, h) <= 0.0:
+    pc = _reflection_density(o, r, ax, ay)
+    if pc[1] <= 0.0:
         return 0.0
-    m = wp.normalize(h)
-    c = wp.dot(o, m)
-    if c <= 0.0:
-        return 0.0
-    bx = wp.max(ax, _MIN_ALPHA)
-    by = wp.max(ay, _MIN_ALPHA)
-    f = thin_reflectance(c, eta)
-    p = ggx_pdf_vn(o, m, bx, by) / (4.0 * c)
+    f = thin_reflectance(pc[1], eta)
+    p = pc[0]
     if i[2] > 0.0:
         return p * f
     return p * (1.0 - f)

@@ -155,7 +155,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
-                     replay: bool = False):
+                     replay: bool = False, media=None):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
@@ -164,7 +164,10 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)
     ``inline``: wp.func's inline hint (the fast kernel's step inlines it). ``replay``: for path
     replay, which differentiates the vertex alone: its helpers (``direct``, ``mis_bsdf``) take the
-    vertex's hint too, and the surface's adjoint is zero (``surface.detach_surface``)."""
+    vertex's hint too, and the surface's adjoint is zero (``surface.detach_surface``). ``media``: the
+    hooks of an integrator that tracks participating media (``integrators.volpath``): its
+    ``shadow(geo, path, sf, x, ls) -> T`` weighs a visible light sample by the transmittance of the
+    medium its shadow ray crosses; None (every other integrator) compiles none of it."""
     surface_at = make_surface(features)
     if replay:
         detach_surface(surface_at)
@@ -223,6 +226,8 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                     if seen == VIS_VISIBLE:
                         w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
+                        if wp.static(media is not None):
+                            contrib = wp.cw_mul(contrib, media.shadow(geo, p, sf, x, ls))
         return contrib, st, seen
 
     @wp.func(inline=inline)

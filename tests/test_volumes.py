@@ -38,7 +38,7 @@ from warp_spt.scene.sky import Sky
 from .scenes import box_obj, write_scene_files
 
 UNIFORM = Sky.constant(1.0, 1.0, 1.0)
-FEATURES = Features(media=("homogeneous",))
+FEATURES = Features(media=("grid", "homogeneous"))       # both kinds: the dispatch between them too
 
 
 class _Host:
@@ -100,11 +100,9 @@ def _tracker_kernel():
     md = make_media(FEATURES)
 
     @wp.kernel
-    def run(media: Media, d_len: float, ratio: int, seed: int, out: wp.array(dtype=wp.vec3)):
+    def run(media: Media, o: wp.vec3, d: wp.vec3, d_len: float, ratio: int, seed: int, out: wp.array(dtype=wp.vec3)):
         i = wp.tid()
         rng = wp.uint32(wp.rand_init(seed, i))
-        o = wp.vec3(0.0, 0.0, 0.0)
-        d = wp.vec3(0.0, 0.0, 1.0)
         if ratio != 0:
             T, r = md.transmittance(media, 0, o, d, d_len, rng)
             out[i] = T
@@ -120,12 +118,15 @@ def _tracker_kernel():
 _TRACKER = None
 
 
-def _tracked(medium: Medium, d: float, ratio: bool, n: int = 200_000, seed: int = 3):
+def _tracked(medium: Medium, d: float, ratio: bool, n: int = 200_000, seed: int = 3, o=(0.0, 0.0, 0.0),
+             direction=(0.0, 0.0, 1.0)):
     global _TRACKER
     if _TRACKER is None:
         _TRACKER = _tracker_kernel()
     out = wp.zeros(n, dtype=wp.vec3, device="cpu")
-    wp.launch(_TRACKER, dim=n, inputs=[upload_media(_Host(medium), "cpu"), d, int(ratio), seed, out], device="cpu")
+    media, volumes = upload_media(_Host(medium), "cpu")      # volumes: kept alive for the launch
+    wp.launch(_TRACKER, dim=n, inputs=[media, wp.vec3(*o), wp.vec3(*direction), d, int(ratio), seed, out],
+              device="cpu")
     v = out.numpy().astype(np.float64)
     return v.mean(0), v.std(0, ddof=1) / math.sqrt(n)
 
@@ -244,6 +245,94 @@ def test_majorant_invariance(scene_dir):
     (a, sa), (b, sb) = means
     t = (a - b) / np.sqrt(sa ** 2 + sb ** 2 + 1e-30)
     assert np.abs(t).max() < T_BLOCK, np.abs(t).max()
+
+
+# -- grids -------------------------------------------------------------------------------------------
+
+def _ramp(nx=24, seed=0):
+    """A density varying along x only (random in [0, 3]), constant across y and z."""
+    rho = np.random.default_rng(seed).uniform(0.0, 3.0, nx).astype(np.float32)
+    return np.ascontiguousarray(np.broadcast_to(rho[:, None, None], (nx, 6, 6))), rho
+
+
+@pytest.mark.parametrize("ratio", [False, True], ids=["delta", "ratio"])
+@pytest.mark.parametrize("cells", [1, 4, 16])
+def test_grid_optical_depth(ratio, cells):
+    """Along x through the middle of the ramp, trilinear interpolation is piecewise linear between
+    voxel centres and falls to 0 one voxel beyond the ends: the optical depth is the sum of the
+    densities times the voxel size, whatever the majorant grid's cells. The grid is turned by 90
+    degrees about z and moved (to_world), so the ray runs along the scene's y."""
+    a, rho = _ramp()
+    vs = 0.05
+    turn = np.array([[0, -1, 0, 0.3], [1, 0, 0, -0.2], [0, 0, 1, 0.1], [0, 0, 0, 1]], float)
+    sigma = np.array([1.0, 0.5, 2.0])
+    m = Medium(sigma_a=tuple(sigma * 0.7), sigma_s=tuple(sigma * 0.3), density=a, voxel_size=vs, to_world=turn,
+               majorant_cells=cells, density_scale=2.0) if ratio else \
+        Medium(sigma_a=tuple(sigma), density=a, voxel_size=vs, to_world=turn, majorant_cells=cells, density_scale=2.0)
+    # the grid's own point (x, 2.7 vs, 2.7 vs) is the scene's (0.3 - 2.7 vs, x - 0.2, 0.1 + 2.7 vs)
+    o = (0.3 - 2.7 * vs, -0.2 - 2.0, 0.1 + 2.7 * vs)
+    mean, se = _tracked(m, 4.0, ratio, n=100_000, o=o, direction=(0.0, 1.0, 0.0))
+    expected = np.exp(-sigma * 2.0 * vs * rho.sum())
+    assert np.all(np.abs(mean - expected) < 4.5 * se + 1e-7), (mean, expected, se)
+
+
+def test_nvdb_file_equals_array(tmp_path):
+    a, _ = _ramp(nx=16, seed=1)
+    path = tmp_path / "ramp.nvdb"
+    wp.Volume.load_from_numpy(a, voxel_size=0.1, bg_value=0.0, device="cpu").save_to_nvdb(str(path))
+    common = dict(sigma_a=(1.0, 0.4, 2.0), majorant=1.5)
+    kw = dict(n=20_000, o=(-1.0, 0.27, 0.27), direction=(1.0, 0.0, 0.0))
+    from_file = _tracked(Medium(density=str(path), **common), 4.0, False, **kw)
+    from_array = _tracked(Medium(density=a, voxel_size=0.1, **common), 4.0, False, **kw)
+    assert np.array_equal(from_file[0], from_array[0])
+
+
+def test_bad_grids(tmp_path):
+    a, _ = _ramp(nx=8)
+    path = tmp_path / "ok.nvdb"
+    wp.Volume.load_from_numpy(a, bg_value=0.0, device="cpu").save_to_nvdb(str(path))
+    data = path.read_bytes()
+    short = tmp_path / "short.nvdb"
+    short.write_bytes(data[: len(data) // 2])
+    junk = tmp_path / "junk.nvdb"
+    junk.write_bytes(b"not a grid at all" * 10)
+    for bad in (short, junk):
+        with pytest.raises(ValueError, match=rf"{bad.name}: not a valid NanoVDB grid") as info:
+            upload_media(_Host(Medium(sigma_s=1.0, density=str(bad))), "cpu")
+        assert "\n" not in str(info.value)
+    with pytest.raises(ValueError, match="cannot read"):
+        upload_media(_Host(Medium(sigma_s=1.0, density=str(tmp_path / "missing.nvdb"))), "cpu")
+    for value in (-1.0, np.nan, np.inf):
+        b = a.copy()
+        b[3, 2, 1] = value
+        with pytest.raises(ValueError, match=r"finite and >= 0; voxel \(3, 2, 1\)"):
+            Medium(sigma_s=1.0, density=b).check()
+    with pytest.raises(ValueError, match="3-D array"):
+        Medium(sigma_s=1.0, density=np.ones((4, 4))).check()
+
+
+def test_constant_grid_matches_homogeneous(scene_dir):
+    """The scattering, absorbing ball filled by a constant grid (larger than the ball) and by the
+    homogeneous medium of the same coefficients: the same image within its error, per block."""
+    homog = _ball(scene_dir, "ball_h", (1.5, 2.0, 0.5), sigma_a=(0.3, 0.1, 0.6), g=0.3)
+    objs, mtls = write_scene_files(scene_dir, "ball_grid", "usemtl m\nb 0 0 0 1\n", "newmtl m\nindex_matched\n")
+    scene = load_scene(objs, mtls)
+    scene.interiors = {"m": Medium(sigma_s=(1.5, 2.0, 0.5), sigma_a=(0.3, 0.1, 0.6), g=0.3, density_scale=0.5,
+                                   density=np.full((12, 12, 12), 2.0, np.float32), origin=(-1.5, -1.5, -1.5),
+                                   voxel_size=0.25)}
+    grid = DeviceScene(scene)
+    assert grid.features.media == ("grid",)
+    (a, sa), (b, sb) = _seeded_blocks(homog, BALL_CAM), _seeded_blocks(grid, BALL_CAM)
+    t = (a - b) / np.sqrt(sa ** 2 + sb ** 2 + 1e-30)
+    assert np.abs(t).max() < T_BLOCK, np.abs(t).max()
+
+
+def test_open_mesh_with_a_medium_warns(scene_dir):
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl m\nf 1 2 3\nf 1 3 4\n"
+    objs, mtls = write_scene_files(scene_dir, "open", quad, "newmtl m\nindex_matched\nmedium_sigma_s 1\n")
+    assert any("not closed" in w for w in load_scene(objs, mtls).warnings)
+    objs, mtls = write_scene_files(scene_dir, "closed", box_obj(material="m"), "newmtl m\nindex_matched\nmedium_sigma_s 1\n")
+    assert not any("not closed" in w for w in load_scene(objs, mtls).warnings)
 
 
 # -- no media, and the wrong integrator -------------------------------------------------------------

@@ -47,6 +47,7 @@ from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
 from warp_spt.io.tokens import file_problem
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.media import open_boundary_warnings
 from warp_spt.scene.normals import DEFAULT_SMOOTH_ANGLE, check_smooth_angle, smooth_normals
 from warp_spt.scene.model import (
     CHECKER_NAME,
@@ -132,6 +133,8 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         interiors={m.name: m.interior for m in table_rows if m.interior is not None},
     )
     validate_scene(scene)       # zero-area triangles dropped: counted, not news (a UV sphere's poles)
+    for message in open_boundary_warnings(scene):
+        note(message)
     return scene
 
 

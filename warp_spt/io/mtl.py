@@ -323,6 +323,12 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     elif tag == "tr":
         d.opacity = 1.0 - _number(args, path, lineno, name, lo=0.0, hi=1.0)
         d.pbr["d"] = True
+    elif tag == "medium_density":           # a density grid: a .nvdb file, relative to this file
+        if len(args) != 1:
+            raise SceneError(path, lineno, f"expected one .nvdb file name after '{name}'")
+        d.medium["density"] = os.path.join(os.path.dirname(path), decode_name(args))
+    elif tag == "medium_density_scale":
+        d.medium["density_scale"] = _number(args, path, lineno, name, lo=0.0, hi=MAX_SIGMA, open_lo=True)
     elif tag.startswith("medium_") and tag[7:] in MEDIUM_KEYS:
         key = tag[7:]
         if key == "g":

@@ -30,7 +30,9 @@ import warp as wp
 
 from warp_spt.core.media.phase import hg, hg_eval, hg_sample  # noqa: F401 (re-exported)
 from warp_spt.core.media.registry import KINDS
-from warp_spt.core.media.table import Media, media_features, upload_media  # noqa: F401 (re-exported)
+from warp_spt.core.media.table import Media, media_features  # noqa: F401 (re-exported)
+from warp_spt.core.media.upload import upload_media  # noqa: F401 (re-exported)
+from warp_spt.scene.media import MEDIUM_KINDS
 from warp_spt.core.sampling import hash_u32
 
 EVENT_SURFACE = wp.constant(0)
@@ -77,36 +79,62 @@ def hero_step(maj: wp.vec3, rng: wp.uint32):
     return dt, r2
 
 
+_MAX_STEPS = wp.constant(1 << 20)       # a flight's steps: only a broken majorant grid comes near
+
+
 def make_media(features) -> SimpleNamespace:
-    """The trackers (module docs) for ``features.media``'s kinds (one kind: called directly)."""
-    kinds = [k for k in features.media if k in KINDS]
-    assert len(kinds) == 1, "one medium kind per scene for now (homogeneous)"
-    kind = KINDS[kinds[0]].make(features)
+    """The trackers (module docs) for ``features.media``'s kinds (one kind: called directly; two: a
+    test of the medium's kind)."""
+    kinds = [k for k in MEDIUM_KINDS if k in features.media]
+    made = [KINDS[k].make(features) for k in kinds]
     emits = "emission" in features.media
+    if len(kinds) == 1:
+        coefficients, segment = made[0].coefficients, made[0].segment
+    else:
+        first, second = made
+        which = MEDIUM_KINDS.index(kinds[1])
+
+        @wp.func
+        def coefficients(media: Media, m: int, x: wp.vec3):
+            if media.kind[m] == wp.static(which):
+                return second.coefficients(media, m, x)
+            return first.coefficients(media, m, x)
+
+        @wp.func
+        def segment(media: Media, m: int, o: wp.vec3, d: wp.vec3, t: float, t_max: float):
+            if media.kind[m] == wp.static(which):
+                return second.segment(media, m, o, d, t, t_max)
+            return first.segment(media, m, o, d, t, t_max)
 
     @wp.func
     def free_flight(media: Media, m: int, o: wp.vec3, d: wp.vec3, t_max: float, hero: int, beta: wp.vec3,
                     w: wp.vec3, rng: wp.uint32):
-        maj = kind.majorant(media, m)
         t = float(0.0)
         b = beta
         mis = w
         emitted = wp.vec3(0.0, 0.0, 0.0)
         r = rng
-        while True:
+        t_end, maj = segment(media, m, o, d, t, t_max)
+        for step in range(_MAX_STEPS):
             u, r = next_u(r)
             dt = float(_INF)
             if maj[hero] > 0.0:
                 dt = -wp.log(1.0 - u) / maj[hero]
-            if t + dt >= t_max:
-                g = exp3(maj, t_max - t)             # no collision: its probability, per channel
+            if t + dt >= t_end:
+                g = exp3(maj, t_end - t)             # no collision in this segment: its probability
                 s = avg3(wp.cw_mul(mis, g))
                 if s <= 0.0:
-                    return EVENT_ABSORB, t_max, wp.vec3(0.0, 0.0, 0.0), mis, emitted, r
-                return EVENT_SURFACE, t_max, wp.cw_mul(b, g) / s, wp.cw_mul(mis, g) / s, emitted, r
+                    return EVENT_ABSORB, t_end, wp.vec3(0.0, 0.0, 0.0), mis, emitted, r
+                b = wp.cw_mul(b, g) / s
+                mis = wp.cw_mul(mis, g) / s
+                t = t_end
+                if t >= t_max:
+                    return EVENT_SURFACE, t_max, b, mis, emitted, r
+                t_end, maj = segment(media, m, o, d, t, t_max)
+                continue
             t += dt
             tm = exp3(maj, dt)
-            sa, ss = kind.coefficients(media, m, o + d * t)
+            sa, ss = coefficients(media, m, o + d * t)
             sn = wp.max(maj - sa - ss, wp.vec3(0.0, 0.0, 0.0))
             if wp.static(emits):
                 emitted += wp.cw_mul(b, wp.cw_mul(wp.cw_mul(tm, sa), media.emission[m])) / avg3(
@@ -127,23 +155,28 @@ def make_media(features) -> SimpleNamespace:
             mis = wp.cw_mul(mis, g) / s
             if event == EVENT_SCATTER:
                 return EVENT_SCATTER, t, b, mis, emitted, r
-        return EVENT_ABSORB, t, b, mis, emitted, r
+        return EVENT_ABSORB, t, wp.vec3(0.0, 0.0, 0.0), mis, emitted, r
 
     @wp.func
     def transmittance(media: Media, m: int, o: wp.vec3, d: wp.vec3, t_max: float, rng: wp.uint32):
-        maj = kind.majorant(media, m)
         t = float(0.0)
         T = wp.vec3(1.0, 1.0, 1.0)
         r = rng
-        while True:
+        t_end, maj = segment(media, m, o, d, t, t_max)
+        for step in range(_MAX_STEPS):
             dt, r = hero_step(maj, r)
-            if t + dt >= t_max:
-                tm = exp3(maj, t_max - t)
-                return wp.cw_mul(T, tm) / avg3(tm), r
+            if t + dt >= t_end:
+                tm = exp3(maj, t_end - t)
+                T = wp.cw_mul(T, tm) / avg3(tm)
+                t = t_end
+                if t >= t_max:
+                    return T, r
+                t_end, maj = segment(media, m, o, d, t, t_max)
+                continue
             t += dt
             tm = exp3(maj, dt)
             pdf = avg3(wp.cw_mul(maj, tm))
-            sa, ss = kind.coefficients(media, m, o + d * t)
+            sa, ss = coefficients(media, m, o + d * t)
             T = wp.cw_mul(T, wp.cw_mul(tm, wp.max(maj - sa - ss, wp.vec3(0.0, 0.0, 0.0)))) / pdf
             big = wp.max(wp.max(T[0], T[1]), T[2])
             if big <= 0.0:
@@ -153,13 +186,9 @@ def make_media(features) -> SimpleNamespace:
                 if u < 0.5:
                     return wp.vec3(0.0, 0.0, 0.0), r
                 T = T * 2.0
-        return T, r
+        return wp.vec3(0.0, 0.0, 0.0), r
 
-    @wp.func
-    def phase(media: Media, m: int) -> float:
-        return media.g[m]
-
-    return SimpleNamespace(free_flight=free_flight, transmittance=transmittance, phase=phase)
+    return SimpleNamespace(free_flight=free_flight, transmittance=transmittance)
 
 
 __all__ = ["Media", "make_media", "media_features", "upload_media", "hg", "hg_eval", "hg_sample", "next_u",

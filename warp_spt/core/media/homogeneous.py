@@ -13,14 +13,15 @@ NAME = "homogeneous"
 
 def make(features) -> SimpleNamespace:
     """``coefficients(media, m, x) -> (sigma_a, sigma_s)`` at point ``x`` of medium row ``m``, and
-    ``majorant(media, m) -> sigma_bar`` (per channel) over the whole medium."""
+    ``segment(media, m, o, d, t, t_max) -> (t_end, sigma_bar)``: the majorant (per channel) that
+    holds from ``t`` to ``t_end`` along the ray: the medium's own, up to ``t_max``."""
 
     @wp.func
     def coefficients(media: Media, m: int, x: wp.vec3):
         return media.sigma_a[m], media.sigma_s[m]
 
     @wp.func
-    def majorant(media: Media, m: int) -> wp.vec3:
-        return media.majorant[m]
+    def segment(media: Media, m: int, o: wp.vec3, d: wp.vec3, t: float, t_max: float):
+        return t_max, media.majorant[m]
 
-    return SimpleNamespace(coefficients=coefficients, majorant=majorant)
+    return SimpleNamespace(coefficients=coefficients, segment=segment)

@@ -5,7 +5,7 @@ interior medium. ``mat_medium[row]`` is the interior medium of material row ``ro
 surface is no medium boundary: crossing it keeps the ray's medium), ``outer`` the medium outside
 every closed mesh (the fog, or -1), which is also where camera rays start. A scene without media
 uploads one-element dummies and ``count`` 0: its kernels compile no media code
-(``Features.media`` is empty) and never read them.
+(``Features.media`` is empty) and never read them. The upload is ``core.media.upload``.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_spt.scene.media import MEDIUM_KINDS, Medium
+from warp_spt.scene.media import Medium
 
 
 @wp.struct
@@ -27,6 +27,15 @@ class Media:
     mat_medium: wp.array(dtype=wp.int32)
     outer: int
     count: int
+    # grids (core.media.grid; dummies elsewhere): the wp.Volume, scene points to its index space,
+    # and the majorant grid: its lower corner and cell size (index space), resolution, first value
+    volume: wp.array(dtype=wp.uint64)
+    to_grid: wp.array(dtype=wp.mat44)
+    mg_lo: wp.array(dtype=wp.vec3)
+    mg_cell: wp.array(dtype=wp.vec3)
+    mg_res: wp.array(dtype=wp.vec3i)
+    mg_offset: wp.array(dtype=wp.int32)
+    mg_values: wp.array(dtype=wp.float32)      # the largest density per cell, x fastest
 
 
 def media_of(scene) -> tuple[list[Medium], int, np.ndarray]:
@@ -43,9 +52,12 @@ def media_of(scene) -> tuple[list[Medium], int, np.ndarray]:
         if name not in names:
             raise ValueError(f"interior medium of material {name!r}: the scene has no such material")
         medium.check(f"interior medium of material {name!r}")
-        if medium not in media:
+        # grids by identity (their data is no part of equality), homogeneous media by value
+        same = [i for i, x in enumerate(media) if x is medium or (medium.density is None and x == medium)]
+        if not same:
             media.append(medium)
-        rows[names[name]] = media.index(medium)
+            same = [len(media) - 1]
+        rows[names[name]] = same[0]
     return media, outer, rows
 
 
@@ -59,28 +71,3 @@ def media_features(scene) -> tuple[str, ...]:
     if any(max(m.emission) > 0 and max(m.sigma_a) > 0 for m in media):
         kinds.append("emission")
     return tuple(kinds)
-
-
-def upload_media(scene, device: str) -> Media:
-    """The scene's media as a :class:`Media` struct on ``device``."""
-    media, outer, rows = media_of(scene)
-    s = Media()
-    n = max(len(media), 1)
-
-    def col(fn, width):
-        out = np.zeros((n, width) if width else n, np.float32)
-        for i, m in enumerate(media):
-            out[i] = fn(m)
-        return out
-
-    s.kind = wp.array(np.asarray([MEDIUM_KINDS.index(m.kind) for m in media] or [0], np.int32), dtype=wp.int32,
-                      device=device)
-    s.sigma_a = wp.array(col(lambda m: m.sigma_a, 3), dtype=wp.vec3, device=device)
-    s.sigma_s = wp.array(col(lambda m: m.sigma_s, 3), dtype=wp.vec3, device=device)
-    s.g = wp.array(col(lambda m: m.g, 0), dtype=wp.float32, device=device)
-    s.emission = wp.array(col(lambda m: m.emission, 3), dtype=wp.vec3, device=device)
-    s.majorant = wp.array(col(lambda m: np.asarray(m.sigma_t) * m.majorant, 3), dtype=wp.vec3, device=device)
-    s.mat_medium = wp.array(rows if len(rows) else np.full(1, -1, np.int32), dtype=wp.int32, device=device)
-    s.outer = outer
-    s.count = len(media)
-    return s

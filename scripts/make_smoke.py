@@ -8,7 +8,7 @@ OUT_DIR receives (Z up, the seed's convention, so ``-cam`` places the camera):
   ``res`` voxels a side over [-1, 1] x [-1, 1] x [0, 2] (voxel size 2/res), float densities in [0, 1];
 * ``smoke.obj``/``smoke.mtl``: the plume's box (an index-matched boundary whose interior is the
   grid, ``medium_density smoke.nvdb``), a floor and an area light;
-* ``shafts.obj``/``shafts.mtl``: a floor, a slatted roof and a bright panel above it, for ``--fog``;
+* ``shafts.obj``/``shafts.mtl``: a floor, a slatted roof and a smaller bright panel above it, for ``--fog``;
 * ``liquid.obj``/``liquid.mtl``: a glass cylinder whose interior absorbs green and blue (a red
   drink: ``medium_sigma_a``), on a floor under a light.
 
@@ -107,19 +107,16 @@ def write_scenes(out: Path, res: int) -> None:
     (out / "smoke.mtl").write_text(
         "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 12 11 10\n"
         "newmtl smoke\nindex_matched\nmedium_density smoke.nvdb\nmedium_density_scale 12\n"
-        "medium_sigma_s 1 1 1\nmedium_sigma_a 0.15 0.15 0.15\nmedium_g 0.4\n")
-    roof = []
-    n = 9
-    for k in range(0, n, 2):                 # slats with gaps between them
-        y0, y1 = -3 + 6 * k / n, -3 + 6 * (k + 1) / n
-        roof.append((y0, y1))
-    lines = floor + ["v -3 -3 6", "v -3 3 6", "v 3 3 6", "v 3 -3 6", "usemtl light", "f 5 6 7 8"]
+        "medium_sigma_s 1 1 1\nmedium_sigma_a 0.15 0.15 0.15\nmedium_g 0.4\nmedium_majorant 2\n")
+    n = 11
+    lines = floor + ["v -2 -2 5", "v -2 2 5", "v 2 2 5", "v 2 -2 5", "usemtl light", "f 5 6 7 8"]
     start = 9
-    for y0, y1 in roof:
-        b, start = box((-3.0, y0, 3.0), (3.0, y1, 3.1), "slat", start)
+    for k in range(0, n, 2):                 # slats across x with gaps between them: sheets of light
+        x0, x1 = -4 + 8 * k / n, -4 + 8 * (k + 1) / n
+        b, start = box((x0, -4.0, 3.0), (x1, 4.0, 3.1), "slat", start)
         lines += b
     (out / "shafts.obj").write_text("\n".join(lines) + "\n")
-    (out / "shafts.mtl").write_text("newmtl floor\nKd 0.6 0.6 0.6\nnewmtl light\nKd 0 0 0\nKe 30 28 25\n"
+    (out / "shafts.mtl").write_text("newmtl floor\nKd 0.6 0.6 0.6\nnewmtl light\nKd 0 0 0\nKe 10 9.5 8.5\n"
                                     "newmtl slat\nKd 0.2 0.2 0.2\n")
     cyl, _ = cylinder(0.6, 1.6, "glass", 9)
     (out / "liquid.obj").write_text("\n".join(floor + light + cyl) + "\n")

@@ -321,7 +321,7 @@ def test_constant_grid_matches_homogeneous(scene_dir):
                                    density=np.full((12, 12, 12), 2.0, np.float32), origin=(-1.5, -1.5, -1.5),
                                    voxel_size=0.25)}
     grid = DeviceScene(scene)
-    assert grid.features.media == ("grid",)
+    assert grid.features.media == ("grid", "interface")
     (a, sa), (b, sb) = _seeded_blocks(homog, BALL_CAM), _seeded_blocks(grid, BALL_CAM)
     t = (a - b) / np.sqrt(sa ** 2 + sb ** 2 + 1e-30)
     assert np.abs(t).max() < T_BLOCK, np.abs(t).max()
@@ -377,3 +377,26 @@ def test_mtl_medium_errors_name_file_and_line(tmp_path):
         load_mtl(p)
     p.write_text("newmtl a\nmedium_sigma_a 0.5 0.25 1\nmedium_g 0.3\n")
     assert load_mtl(p)["a"].interior == Medium(sigma_a=(0.5, 0.25, 1.0), g=0.3)
+
+
+def test_cli_fog_and_a_corrupt_grid(scene_dir, capsys):
+    """--fog renders through volpath (said in one line); a corrupt .nvdb named in an MTL is one error
+    line naming the file, exit status 1, no traceback."""
+    from warp_spt.cli.main import main
+
+    objs, mtls = write_scene_files(scene_dir, "cli_fog", box_obj(lo=(-1, -1, -1), hi=(1, 1, 1), material="m"),
+                                   "newmtl m\nKd 0.5 0.5 0.5\n")
+    out = scene_dir / "fog.npy"
+    assert main(["-obj", objs[0], "-mtl", mtls[0], "--fog", "sigma_s=0.1", "--fog", "g=0.3", "-res", "8", "8",
+                 "-sr", "2", "-cam", "0", "-6", "0", "0", "1", "0", "40", "6", "0", "-out", str(out)]) == 0
+    assert "integrator volpath" in capsys.readouterr().err
+    assert np.isfinite(np.load(out)).all()
+    (scene_dir / "bad.nvdb").write_bytes(b"\x00" * 100)
+    objs, mtls = write_scene_files(scene_dir, "cli_grid", box_obj(material="m"),
+                                   "newmtl m\nindex_matched\nmedium_sigma_s 1\nmedium_density bad.nvdb\n")
+    status = main(["-obj", objs[0], "-mtl", mtls[0], "-res", "8", "8", "-sr", "1", "-out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1
+    assert "bad.nvdb: not a valid NanoVDB grid" in err[-1] and "Traceback" not in "\n".join(err)
+    assert main(["-obj", objs[0], "--fog", "g=2", "-out", str(out)]) == 2
+    assert "(-1, 1)" in capsys.readouterr().err

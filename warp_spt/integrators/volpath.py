@@ -13,8 +13,9 @@ the ray was in it; a surface without one keeps the ray's medium. Media do not ne
 another closed medium mesh is left for the scene's medium, not the enclosing one.
 
 A scene without media compiles exactly ``nee``'s step (``Features.media`` empty): the same image.
-Shadow rays stop at any surface, an index-matched boundary included: light reaches a medium inside a
-closed mesh by phase sampling alone (unbiased; NEE there is spent on blocked rays).
+Shadow rays (from medium and surface vertices alike, ``shadow_path``) cross pass-through medium
+boundaries (MTL ``index_matched``), tracking the medium of each segment, and stop at any other
+surface: light reaches a medium inside glass by phase sampling alone (unbiased).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from warp_spt.core.materials import make_materials
 from warp_spt.core.media import EVENT_ABSORB, EVENT_SCATTER, hg_eval, hg_sample, make_media
 from warp_spt.core.sampling import hash_u32, stream_state
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.surface import Surface, make_surface
+from warp_spt.core.surface import Surface, make_surface, offset_origin
 from warp_spt.integrators.common import DIM_BOUNCE, OFF_DIR, OFF_ROULETTE, Integrator, PathState, RenderParams
 from warp_spt.integrators.nee import (
     STRIDE,
@@ -40,7 +41,6 @@ from warp_spt.integrators.nee import (
     make_path_step,
     make_path_vertex,
     power_heuristic,
-    shadow_ray,
 )
 from warp_spt.samplers import Sampler
 
@@ -50,6 +50,7 @@ _SALT_FLIGHT = wp.constant(0)
 _SALT_MEDIUM_SHADOW = wp.constant(1)
 _SALT_SURFACE_SHADOW = wp.constant(2)
 _GOLDEN = wp.constant(wp.uint32(0x9E3779B9))
+_MAX_CROSSINGS = wp.constant(16)      # pass-through boundaries one shadow ray may cross (then: blocked)
 
 
 @wp.func
@@ -89,20 +90,62 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     if not features.media:
         return make_path_step(features, sampler, light_sampling=True)
     md = make_media(features)
+    hit = make_hit(features)
+    blocked = make_blocked(features)
+    material_of = make_material_of(features)
+    crosses = "interface" in features.media
 
     @wp.func
-    def shadow(geo: Geometry, p: PathState, sf: Surface, x: wp.vec3, ls: LightSample) -> wp.vec3:
-        """Transmittance of a surface vertex's shadow ray: through the medium on the side it leaves."""
-        so, sd, t_max = shadow_ray(sf, x, ls, geo.extent)
+    def shadow_path(geo: Geometry, mats: Materials, tex: Textures, medium: int, o: wp.vec3, d: wp.vec3,
+                    t_max: float, rng: wp.uint32) -> wp.vec3:
+        """Transmittance from ``o`` (in ``medium``) to ``t_max`` along ``d``, 0 when a surface blocks
+        it; with pass-through boundaries in the scene (``"interface"``), the ray crosses them, each
+        segment's medium tracked as a path's (up to _MAX_CROSSINGS of them)."""
+        if wp.static(not crosses):
+            if blocked(geo, mats, tex, o, d, t_max):
+                return wp.vec3(0.0, 0.0, 0.0)
+            if medium < 0:
+                return wp.vec3(1.0, 1.0, 1.0)
+            T, r = md.transmittance(geo.media, medium, o, d, t_max, rng)
+            return T
+        T = wp.vec3(1.0, 1.0, 1.0)
+        m = medium
+        x = o
+        left = t_max
+        r = rng
+        for k in range(_MAX_CROSSINGS):
+            h = hit(geo, mats, tex, x, d)
+            if h.kind == KIND_MISS or h.t >= left:
+                if m >= 0:
+                    Tm, r = md.transmittance(geo.media, m, x, d, left, r)
+                    T = wp.cw_mul(T, Tm)
+                return T
+            row = material_of(geo, h)
+            if geo.media.mat_interface[row] == 0:
+                return wp.vec3(0.0, 0.0, 0.0)
+            if m >= 0:
+                Tm, r = md.transmittance(geo.media, m, x, d, h.t, r)
+                T = wp.cw_mul(T, Tm)
+                if wp.max(wp.max(T[0], T[1]), T[2]) <= 0.0:
+                    return T
+            inner = geo.media.mat_medium[row]
+            m = wp.where(m == inner, geo.media.outer, inner)
+            n = wp.where(wp.dot(h.normal, d) > 0.0, -h.normal, h.normal)      # towards where the ray came from
+            y = offset_origin(x + d * h.t, n, 1, geo.extent)
+            left = left - wp.dot(y - x, d)
+            x = y
+        return wp.vec3(0.0, 0.0, 0.0)
+
+    @wp.func
+    def shadow(geo: Geometry, mats: Materials, tex: Textures, p: PathState, sf: Surface, so: wp.vec3,
+               sd: wp.vec3, t_max: float) -> wp.vec3:
+        """A surface vertex's shadow ray (nee's hook): from the medium on the side it leaves."""
         m = p.medium
-        if wp.dot(ls.dir, sf.ng) < 0.0:          # across the surface (a transmitting lobe)
+        if wp.dot(sd, sf.ng) < 0.0:          # across the surface (a transmitting lobe)
             inner = geo.media.mat_medium[sf.mat]
             if inner >= 0:
                 m = wp.where(p.medium == inner, geo.media.outer, inner)
-        if m < 0:
-            return wp.vec3(1.0, 1.0, 1.0)
-        T, r = md.transmittance(geo.media, m, so, sd, t_max, tracking_stream(p, _SALT_SURFACE_SHADOW))
-        return T
+        return shadow_path(geo, mats, tex, m, so, sd, t_max, tracking_stream(p, _SALT_SURFACE_SHADOW))
 
     hit = make_hit(features)
     vertex = make_path_vertex(features, sampler, light_sampling=True, inline=True,
@@ -111,8 +154,6 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     mat = make_materials(features)
     light = make_lights(features, surface_at, mat.emission)
     light_sample = make_light_sample(sampler, light, inline=True)
-    blocked = make_blocked(features)
-    material_of = make_material_of(features)
     sample_lights = bool(features.emitters or features.sky)
 
     @wp.func(inline=True)
@@ -137,11 +178,10 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
                 ph = hg_eval(p.d, ls.dir, g)
                 le = light.le(geo, mats, tex, lights, ls, xo) * ph
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
-                    if not blocked(geo, mats, tex, xo, ls.dir, ls.t_max):
-                        T, r = md.transmittance(geo.media, p.medium, xo, ls.dir, ls.t_max,
-                                                tracking_stream(p, _SALT_MEDIUM_SHADOW))
-                        w = power_heuristic(ls.pdf, ph)
-                        p.radiance += wp.cw_mul(p.throughput, wp.cw_mul(le, T)) * (w / ls.pdf)
+                    T = shadow_path(geo, mats, tex, p.medium, xo, ls.dir, ls.t_max,
+                                    tracking_stream(p, _SALT_MEDIUM_SHADOW))
+                    w = power_heuristic(ls.pdf, ph)
+                    p.radiance += wp.cw_mul(p.throughput, wp.cw_mul(le, T)) * (w / ls.pdf)
         d_new = hg_sample(p.d, g, u_dir)
         p.pdf = hg_eval(p.d, d_new, g)       # the phase function is sampled exactly: the weight is 1
         p.o = x
@@ -180,6 +220,18 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
                 return p
             if ev == EVENT_SCATTER:
                 return scatter(geo, mats, tex, lights, rp, p, p.o + p.d * t)
+        if wp.static(crosses):
+            if h.kind != KIND_MISS:
+                row = material_of(geo, h)
+                if geo.media.mat_interface[row] != 0:
+                    # a pass-through boundary is no vertex (pbrt's interface): the ray goes on with its
+                    # depth and MIS state (the direction's density, from the last real vertex), so
+                    # that an emitter met beyond it is weighed against the light sample that crossed it
+                    inner = geo.media.mat_medium[row]
+                    p.medium = wp.where(p.medium == inner, geo.media.outer, inner)
+                    n = wp.where(wp.dot(h.normal, p.d) > 0.0, -h.normal, h.normal)
+                    p.o = offset_origin(p.o + p.d * h.t, n, 1, geo.extent)
+                    return p
         d_in = p.d
         p = vertex(geo, mats, tex, lights, rp, p, h, VIS_TRACE)
         if h.kind != KIND_MISS and p.alive != 0:

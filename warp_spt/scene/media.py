@@ -135,6 +135,19 @@ def open_boundary_warnings(scene) -> list[str]:
     return out
 
 
+def interface_rows(table) -> np.ndarray:
+    """Per material row: it is a pass-through interface (MTL ``index_matched``: a smooth, white pbr
+    dielectric of IOR 1 without a specular layer, no maps), which shadow rays may cross."""
+    from warp_spt.scene.material_schema import KIND_PBR
+
+    return ((np.asarray(table.kind) == KIND_PBR) & (np.asarray(table.transmission) == 1.0)
+            & (np.asarray(table.ior) == 1.0) & (np.asarray(table.roughness) == 0.0)
+            & (np.asarray(table.specular) == 0.0) & (np.asarray(table.metallic) == 0.0)
+            & (np.asarray(table.base_color) == 1.0).all(axis=1) & ~np.asarray(table.thin, dtype=bool)
+            & (np.asarray(table.emission) == 0.0).all(axis=1) & (np.asarray(table.opacity) == 1.0)
+            & (np.asarray(table.tex) == -1).all(axis=1))
+
+
 def _rgb(value, name: str) -> tuple[float, float, float]:
     if isinstance(value, (int, float)):
         return (float(value),) * 3
@@ -178,4 +191,4 @@ def parse_medium(pairs: list[str], where: str = "--fog") -> Medium:
     return Medium(**fields).check(where)
 
 
-__all__ = ["Medium", "MEDIUM_KINDS", "parse_medium", "KEYS", "check_densities", "open_boundary_warnings"]
+__all__ = ["Medium", "MEDIUM_KINDS", "parse_medium", "KEYS", "check_densities", "open_boundary_warnings", "interface_rows"]

@@ -19,6 +19,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.media.table import Media
+from warp_spt.scene.errors import SceneError
 from warp_spt.scene.media import MAX_GRID_VOXELS, Medium, check_densities
 
 NAME = "grid"
@@ -93,8 +94,8 @@ def _lookup(volume: wp.uint64, ijk: wp.array(dtype=wp.vec3i), out: wp.array(dtyp
 
 def load_grid(medium: Medium, device: str, where: str):
     """(wp.Volume, active voxels' (N, 3) int ijk, their densities): from the medium's array or file.
-    ValueError naming the file for one Warp cannot read as a float NanoVDB grid, and for negative
-    or non-finite densities."""
+    SceneError naming the file (the command line's one line) for one Warp cannot read as a float
+    NanoVDB grid, too large, or with negative or non-finite densities (ValueError for an array's)."""
     src = medium.density
     if isinstance(src, (str, bytes)) or hasattr(src, "__fspath__"):
         path = os.fsdecode(src)
@@ -102,24 +103,27 @@ def load_grid(medium: Medium, device: str, where: str):
             with open(path, "rb") as f:
                 data = f.read()
         except OSError as err:
-            raise ValueError(f"{path}: cannot read the density grid ({err.strerror or err})") from None
+            raise SceneError(path, 0, f"cannot read the density grid ({err.strerror or err})") from None
         try:
             vol = wp.Volume.load_from_nvdb(data, device=device)
             kind = vol.get_grid_info().type_str
         except Exception as err:            # Warp validates the tree: its message, on one line
             text = " ".join(str(err).split()) or type(err).__name__
-            raise ValueError(f"{path}: not a valid NanoVDB grid ({text})") from None
+            raise SceneError(path, 0, f"not a valid NanoVDB grid ({text})") from None
         if kind != "float":
-            raise ValueError(f"{path}: the density grid holds {kind!r} values; a float grid was expected")
+            raise SceneError(path, 0, f"the density grid holds {kind!r} values; a float grid was expected")
         ijk = vol.get_voxels().numpy().astype(np.int32)
         if len(ijk) > MAX_GRID_VOXELS:
-            raise ValueError(f"{path}: {len(ijk):,} active voxels are over the budget of {MAX_GRID_VOXELS:,}")
+            raise SceneError(path, 0, f"{len(ijk):,} active voxels are over the budget of {MAX_GRID_VOXELS:,}")
         vals = wp.zeros(len(ijk), dtype=float, device=device)
         if len(ijk):
             wp.launch(_lookup, dim=len(ijk), inputs=[vol.id, wp.array(ijk, dtype=wp.vec3i, device=device), vals],
                       device=device)
         vals = vals.numpy()
-        check_densities(vals, path)
+        try:
+            check_densities(vals, "densities")
+        except ValueError as err:
+            raise SceneError(path, 0, str(err)) from None
         return vol, ijk, vals
     a = np.ascontiguousarray(np.asarray(src, dtype=np.float32))
     check_densities(a, where)

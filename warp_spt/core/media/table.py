@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_spt.scene.media import Medium
+from warp_spt.scene.media import Medium, interface_rows
 
 
 @wp.struct
@@ -25,6 +25,7 @@ class Media:
     emission: wp.array(dtype=wp.vec3)
     majorant: wp.array(dtype=wp.vec3)     # per channel, >= sigma_a + sigma_s
     mat_medium: wp.array(dtype=wp.int32)
+    mat_interface: wp.array(dtype=wp.int32)    # 1: a pass-through boundary (scene.media.interface_rows)
     outer: int
     count: int
     # grids (core.media.grid; dummies elsewhere): the wp.Volume, scene points to its index space,
@@ -70,4 +71,7 @@ def media_features(scene) -> tuple[str, ...]:
     kinds = sorted({m.kind for m in media})
     if any(max(m.emission) > 0 and max(m.sigma_a) > 0 for m in media):
         kinds.append("emission")
+    _, _, rows = media_of(scene)
+    if (interface_rows(scene.materials) & (rows >= 0)).any():
+        kinds.append("interface")          # shadow rays cross pass-through medium boundaries
     return tuple(kinds)

@@ -7,7 +7,7 @@ import warp as wp
 
 from warp_spt.core.media.grid import grid_index_transform, load_grid, majorant_grid
 from warp_spt.core.media.table import Media, media_of
-from warp_spt.scene.media import MEDIUM_KINDS
+from warp_spt.scene.media import MEDIUM_KINDS, interface_rows
 
 
 def upload_media(scene, device: str) -> tuple[Media, list]:
@@ -48,6 +48,8 @@ def upload_media(scene, device: str) -> tuple[Media, list]:
         setattr(s, name, wp.array(cols[name], dtype=wp.vec3, device=device))
     s.g = wp.array(g, dtype=wp.float32, device=device)
     s.mat_medium = wp.array(rows if len(rows) else np.full(1, -1, np.int32), dtype=wp.int32, device=device)
+    passes = (interface_rows(scene.materials) & (rows >= 0)).astype(np.int32)
+    s.mat_interface = wp.array(passes if len(passes) else np.zeros(1, np.int32), dtype=wp.int32, device=device)
     s.outer = outer
     s.count = len(media)
     s.volume = wp.array(ids, dtype=wp.uint64, device=device)

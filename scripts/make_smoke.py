@@ -8,7 +8,8 @@ OUT_DIR receives (Z up, the seed's convention, so ``-cam`` places the camera):
   ``res`` voxels a side over [-1, 1] x [-1, 1] x [0, 2] (voxel size 2/res), float densities in [0, 1];
 * ``smoke.obj``/``smoke.mtl``: the plume's box (an index-matched boundary whose interior is the
   grid, ``medium_density smoke.nvdb``), a floor and an area light;
-* ``shafts.obj``/``shafts.mtl``: a floor, a slatted roof and a smaller bright panel above it, for ``--fog``;
+* ``shafts.obj``/``shafts.mtl``: a floor and a slatted roof under a closed attic with a bright panel
+  inside, whose light leaves through the gaps alone, for ``--fog``;
 * ``liquid.obj``/``liquid.mtl``: a glass cylinder whose interior absorbs green and blue (a red
   drink: ``medium_sigma_a``), on a floor under a light.
 
@@ -115,8 +116,14 @@ def write_scenes(out: Path, res: int) -> None:
         x0, x1 = -4 + 8 * k / n, -4 + 8 * (k + 1) / n
         b, start = box((x0, -4.0, 3.0), (x1, 4.0, 3.1), "slat", start)
         lines += b
+    # the attic: walls and a lid around the panel, so that its light leaves through the gaps alone
+    lines += [f"v {x:g} {y:g} {z:g}" for z in (3.05, 5.5) for x, y in ((-4, -4), (4, -4), (4, 4), (-4, 4))]
+    a = start
+    lines += ["usemtl slat"] + [f"f {a + i} {a + (i + 1) % 4} {a + 4 + (i + 1) % 4} {a + 4 + i}" for i in range(4)]
+    lines.append(f"f {a + 4} {a + 5} {a + 6} {a + 7}")
+    start += 8
     (out / "shafts.obj").write_text("\n".join(lines) + "\n")
-    (out / "shafts.mtl").write_text("newmtl floor\nKd 0.6 0.6 0.6\nnewmtl light\nKd 0 0 0\nKe 10 9.5 8.5\n"
+    (out / "shafts.mtl").write_text("newmtl floor\nKd 0.6 0.6 0.6\nnewmtl light\nKd 0 0 0\nKe 25 24 21\n"
                                     "newmtl slat\nKd 0.2 0.2 0.2\n")
     cyl, _ = cylinder(0.6, 1.6, "glass", 9)
     (out / "liquid.obj").write_text("\n".join(floor + light + cyl) + "\n")

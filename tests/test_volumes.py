@@ -400,3 +400,45 @@ def test_cli_fog_and_a_corrupt_grid(scene_dir, capsys):
     assert "bad.nvdb: not a valid NanoVDB grid" in err[-1] and "Traceback" not in "\n".join(err)
     assert main(["-obj", objs[0], "--fog", "g=2", "-out", str(out)]) == 2
     assert "(-1, 1)" in capsys.readouterr().err
+
+
+def test_far_off_grid_moves_with_the_scene(scene_dir):
+    """A scene 2e5 from the origin is recentred before upload: its grid moves with the geometry
+    (to_world shifted), so the far-off constant-grid ball renders as the one at the origin."""
+    from dataclasses import replace as dc_replace
+
+    far = np.array([2.0e5, 0.0, 0.0])
+    images = []
+    for shift in (np.zeros(3), far):
+        obj = f"usemtl m\nb {shift[0]:.9g} {shift[1]:.9g} {shift[2]:.9g} 1\n"
+        objs, mtls = write_scene_files(scene_dir, f"ball_far_{int(shift[0])}", obj, "newmtl m\nindex_matched\n")
+        scene = load_scene(objs, mtls)
+        place = np.eye(4)
+        place[:3, 3] = shift
+        scene.interiors = {"m": Medium(sigma_s=(1.5, 2.0, 0.5), sigma_a=(0.3, 0.1, 0.6), g=0.3,
+                                       density=np.full((12, 12, 12), 1.0, np.float32), origin=(-1.5, -1.5, -1.5),
+                                       voxel_size=0.25, to_world=place)}
+        cam = dc_replace(BALL_CAM, position=tuple(np.asarray(BALL_CAM.position) + shift))
+        images.append(_seeded_blocks(scene, cam, seeds=8))
+    (a, sa), (b, sb) = images
+    t = (a - b) / np.sqrt(sa ** 2 + sb ** 2 + 1e-30)
+    assert np.abs(t).max() < T_BLOCK, np.abs(t).max()
+    assert a[1:3, 1:3].mean() < 0.9          # the medium is there: it absorbs
+
+
+def test_viewer_picks_volpath_for_a_scene_with_media(scene_dir):
+    import time
+
+    from warp_spt.viewer.session import Session
+
+    objs, mtls = write_scene_files(scene_dir, "view_fog", box_obj(material="m"), "newmtl m\nKd 0.5 0.5 0.5\n")
+    scene = load_scene(objs, mtls)
+    scene.fog = Medium(sigma_s=0.1)
+    s = Session(scene, width=16, height=16, max_spp=2)
+    try:
+        deadline = time.monotonic() + 120
+        while s.settings.integrator != "volpath" and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert s.settings.integrator == "volpath"
+    finally:
+        s.close()

@@ -31,7 +31,7 @@ def box(scene_dir):
 
 
 def test_the_public_registries_keep_their_names():
-    assert sorted(warp_spt.INTEGRATORS) == ["ears", "guided", "nee", "seed"]
+    assert sorted(warp_spt.INTEGRATORS) == ["ears", "guided", "nee", "seed", "volpath"]
     assert sorted(warp_spt.SAMPLERS) == ["independent", "sobol"]
     assert warp_spt.INTEGRATORS["seed"].replayable and warp_spt.INTEGRATORS["nee"].stride == 8
 
@@ -169,8 +169,8 @@ def test_a_render_imports_only_the_integrator_it_uses():
     # start-up time (docs/performance.md, Start-up): the registry imports a module on first look-up
     code = ("import sys, warp_spt.rendering.setup, warp_spt.io.loader\n"
             "from warp_spt.integrators import INTEGRATORS, get_integrator\n"
-            "lazy = ['warp_spt.integrators.ears', 'warp_spt.integrators.guided', 'PIL']\n"
-            "assert sorted(INTEGRATORS) == ['ears', 'guided', 'nee', 'seed'] and 'ears' in INTEGRATORS\n"
+            "lazy = ['warp_spt.integrators.ears', 'warp_spt.integrators.guided', 'warp_spt.integrators.volpath', 'PIL']\n"
+            "assert sorted(INTEGRATORS) == ['ears', 'guided', 'nee', 'seed', 'volpath'] and 'ears' in INTEGRATORS\n"
             "assert not [m for m in lazy if m in sys.modules], [m for m in lazy if m in sys.modules]\n"
             "assert get_integrator('ears').name == 'ears' and 'warp_spt.integrators.ears' in sys.modules\n")
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -133,6 +133,11 @@ def run_cli(opts, err, started: float | None = None) -> int:
     from warp_spt.runtime.progress import ProgressBar
 
     say = say_for(opts, err)
+    if getattr(opts, "fog", None) is not None:
+        from warp_spt.cli.common import UsageError
+
+        raise UsageError("--fog renders single images on this machine for now: not with --frames, --camera-path, "
+                         "--gif, --workers or --cluster (docs/volumes.md)")
     objs, mtls = scene_files(opts)
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
     seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps,

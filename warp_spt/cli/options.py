@@ -108,6 +108,7 @@ class Options:
     integrator: str | None = None     # None: the renderer's default
     sampler: str | None = None
     integrator_options: tuple[tuple[str, str], ...] = ()   # --integrator-option NAME=VALUE, as typed
+    fog: object = None               # --fog: a warp_spt.scene.media.Medium filling the scene
     up: str | None = None            # --up; None: the rule of warp_spt.scene.conventions.up_axis
     cam_given: bool = False          # -cam or --look-at placed the camera: never frame automatically
     cam_explicit: bool = False       # -cam itself (the seed's Z-up convention)
@@ -244,6 +245,9 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     new.add_argument("--integrator-option", action="append", default=[], type=integrator_option,
                      metavar="NAME=VALUE", dest="integrator_option",
                      help=plugins.get("--integrator-option", "a parameter of the integrator, by name (repeatable)"))
+    new.add_argument("--fog", action="append", default=[], metavar="KEY=VALUE",
+                     help="fill the scene with a homogeneous medium (repeatable): sigma_a=R[,G,B], "
+                          "sigma_s=..., g=G (-1..1), emission=..., majorant=M; docs/volumes.md")
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     add_flags(p, int_at_least)
@@ -300,7 +304,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         out=out, threads=ns.threads, device=ns.device, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
-        integrator_options=_unique_options(ns.integrator_option),
+        integrator_options=_unique_options(ns.integrator_option), fog=_fog(ns.fog),
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
         frame_all=ns.frame_all,
@@ -499,6 +503,18 @@ def check_image_size(width: int, height: int, memory_bytes: int | None = None) -
     if need > budget:
         raise UsageError(f"-res {width} {height} needs about {need / 2**30:.1f} GiB for the image buffers, "
                          f"more than the {budget / 2**30:.1f} GiB this machine can spare")
+
+
+def _fog(words: list[str]):
+    """The --fog medium, or None (UsageError naming the bad word)."""
+    if not words:
+        return None
+    from warp_spt.scene.media import parse_medium
+
+    try:
+        return parse_medium(words, "--fog")
+    except ValueError as err:
+        raise UsageError(str(err)) from None
 
 
 def settings_of(opts, **overrides):

@@ -21,6 +21,8 @@ from warp_spt.core.bvh import build_tlas
 from warp_spt.core.material_table import upload_materials
 from warp_spt.core.materials import declare
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
+from warp_spt.core.media.table import media_features
+from warp_spt.core.media.upload import upload_media
 from warp_spt.core.structs import (  # noqa: F401 (re-exported: the structs' old home)
     BVH_STACKS,
     Features,
@@ -126,6 +128,7 @@ class DeviceScene:
         self._upload_spheres_and_tlas(self.geometry, scene, device)
         b = scene.bounds
         self.geometry.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
+        self.geometry.media, self._volumes = upload_media(scene, device)    # the grids' wp.Volumes, kept alive
         self.materials = upload_materials(scene.materials, device)
         self._atlas = _upload_atlas(scene, device)
         self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
@@ -309,6 +312,7 @@ def _features(scene: Scene) -> Features:
         material_kinds=kinds,
         lobes=lobes,
         material_flags=flags,
+        media=media_features(scene),
     )
 
 

@@ -14,6 +14,7 @@ import warp as wp
 
 from warp_spt.core.lobes import LOBE_ALL, LOBE_SMOOTH
 from warp_spt.core.material_table import Materials  # noqa: F401 (kernels import Materials from here)
+from warp_spt.core.media.table import Media
 from warp_spt.core.proctex import ProcParams
 from warp_spt.core.wide_bvh import WIDTH
 from warp_spt.scene.material_schema import MATERIAL_KINDS
@@ -69,6 +70,8 @@ class Geometry:
     items: wp.array(dtype=wp.int32)
     # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
     extent: float
+    # participating media (core.media): read only by kernels compiled with Features.media
+    media: Media
 
 
 @wp.struct
@@ -113,6 +116,9 @@ class Features:
     # mesh has a wide BVH), and whether some mesh keeps Warp's BVH (WIDE_BVH_MAX_TRIANGLES)
     bvh_stack: int = BVH_STACKS[-1]
     warp_meshes: bool = True
+    # participating media (core.media.media_features): the medium kinds used, "emission" where one
+    # emits; () compiles no media code (every scene without a medium)
+    media: tuple[str, ...] = ()
 
     @staticmethod
     def general() -> "Features":

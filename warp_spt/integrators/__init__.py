@@ -74,6 +74,7 @@ INTEGRATORS = Registry({
     "nee": "nee",
     "guided": "guided",
     "ears": "ears",
+    "volpath": "volpath",
 })
 DEFAULT_INTEGRATOR = "nee"      # see docs/performance.md, Light transport: several times the seed's efficiency
 

@@ -167,6 +167,7 @@ class Integrator:
     render_passes: Callable | None = None
     summary: str = ""            # one line for --help and the docs
     params: tuple[Param, ...] = ()
+    media: bool = False          # it tracks participating media (Features.media): volpath
 
     def param(self, name: str) -> Param:
         """The parameter ``name`` (ValueError naming the integrator's parameters otherwise)."""
@@ -233,6 +234,10 @@ class PathState:
     singular: int          # 1: d came from the camera or a singular lobe (emitters hit count in full)
     vis: int               # the last vertex's shadow ray: 1 visible, 0 occluded, -1 none (nee.VIS_*)
     sampler: SamplerState
+    # participating media (integrators.volpath alone sets and reads these): the medium row the ray
+    # travels in (-1: none), and the path's densities per channel over their mean (spectral MIS)
+    medium: int
+    spectral: wp.vec3
 
 
 def make_start_path(sampler: Sampler):

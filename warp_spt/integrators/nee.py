@@ -155,7 +155,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
-                     replay: bool = False):
+                     replay: bool = False, media=None):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
@@ -164,7 +164,11 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     a ray. (One result, not a tuple: Warp 1.19 ignores the custom replay of a function with two.)
     ``inline``: wp.func's inline hint (the fast kernel's step inlines it). ``replay``: for path
     replay, which differentiates the vertex alone: its helpers (``direct``, ``mis_bsdf``) take the
-    vertex's hint too, and the surface's adjoint is zero (``surface.detach_surface``)."""
+    vertex's hint too, and the surface's adjoint is zero (``surface.detach_surface``). ``media``: the
+    hooks of an integrator that tracks participating media (``integrators.volpath``): its
+    ``shadow(geo, mats, tex, path, sf, o, d, t_max) -> T`` traces the shadow ray in place of
+    ``blocked`` and returns the transmittance of the media it crosses (0: occluded), which weighs the
+    light sample; None (every other integrator) compiles none of it."""
     surface_at = make_surface(features)
     if replay:
         detach_surface(surface_at)
@@ -215,14 +219,22 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                 le = wp.cw_mul(f, light.le(geo, mats, tex, lights, ls, x))
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
                     seen = vis
+                    tr = wp.vec3(1.0, 1.0, 1.0)
                     if seen == VIS_TRACE:
                         seen = VIS_VISIBLE
                         so, sd, st_max = shadow_ray(sf, x, ls, geo.extent)
-                        if blocked(geo, mats, tex, so, sd, st_max):
-                            seen = VIS_OCCLUDED
+                        if wp.static(media is None):
+                            if blocked(geo, mats, tex, so, sd, st_max):
+                                seen = VIS_OCCLUDED
+                        else:
+                            tr = media.shadow(geo, mats, tex, p, sf, so, sd, st_max)
+                            if wp.max(wp.max(tr[0], tr[1]), tr[2]) <= 0.0:
+                                seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
                         w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
+                        if wp.static(media is not None):
+                            contrib = wp.cw_mul(contrib, tr)
         return contrib, st, seen
 
     @wp.func(inline=inline)

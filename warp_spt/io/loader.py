@@ -48,6 +48,7 @@ from warp_spt.io.tokens import file_problem
 from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.media import open_boundary_warnings
 from warp_spt.scene.normals import DEFAULT_SMOOTH_ANGLE, check_smooth_angle, smooth_normals
 from warp_spt.scene.model import (
     CHECKER_NAME,
@@ -131,8 +132,11 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         bare=not libraries_read,
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
         lights=[c for d in data for c in getattr(d.extras, "lights", ())],
+        interiors={m.name: m.interior for m in table_rows if m.interior is not None},
     )
     validate_scene(scene)       # zero-area triangles dropped: counted, not news (a UV sphere's poles)
+    for message in open_boundary_warnings(scene):
+        note(message)
     return scene
 
 

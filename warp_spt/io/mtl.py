@@ -88,6 +88,7 @@ from warp_spt.io.tokens import (
     read_file,
 )
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.media import KEYS as MEDIUM_KEYS, MAX_MAJORANT, MAX_SIGMA, Medium
 from warp_spt.scene.material_schema import COLUMN
 from warp_spt.scene.model import CHECKER_NAME, PBR_DEFAULTS, Material, TextureRef
 from warp_spt.scene.proctex_registry import parse_proc_map
@@ -135,6 +136,8 @@ class _Draft:
     ks: tuple[float, float, float] | None = None           # the Ks colour as read
     tf: tuple[float, float, float] | None = None           # the Tf colour as read
     pbr: dict[str, object] = field(default_factory=dict)   # pbr-only values and maps (standard files)
+    medium: dict[str, object] = field(default_factory=dict)  # the interior medium's medium_* values
+    index_matched: bool = False                             # ``index_matched``: a pass-through surface
 
     def finish(self, seed_dialect: bool) -> Material:
         """The material as read; ``seed_dialect``: its file uses the seed's own tags (module docs)."""
@@ -240,7 +243,19 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
         ignored["map_Ks"] = None
     if warn is not None:
         _report(path, list(ignored), warn)
-    return {name: d.finish(seed_dialect) for name, d in drafts.items()}
+    return {name: _with_medium(d, d.finish(seed_dialect)) for name, d in drafts.items()}
+
+
+def _with_medium(d: _Draft, m: Material) -> Material:
+    """``m`` with its interior medium (``medium_*`` lines) and, for ``index_matched``, as the
+    pass-through interface: a smooth pbr dielectric of IOR 1, white, no specular layer (every ray
+    crosses it unbent and unweighted; docs/volumes.md)."""
+    if d.index_matched:
+        m = Material.pbr(m.name, source=m.source, line=m.line, base_color=(1.0, 1.0, 1.0), transmission=1.0,
+                         ior=1.0, roughness=0.0, specular=0.0, metallic=0.0)
+    if d.medium:
+        m = replace(m, interior=Medium(**d.medium))
+    return m
 
 
 def _report(path: str, ignored: list[str], warn: Callable[[str], None]) -> None:
@@ -308,6 +323,31 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     elif tag == "tr":
         d.opacity = 1.0 - _number(args, path, lineno, name, lo=0.0, hi=1.0)
         d.pbr["d"] = True
+    elif tag == "medium_density":           # a density grid: a .nvdb file, relative to this file
+        if len(args) != 1:
+            raise SceneError(path, lineno, f"expected one .nvdb file name after '{name}'")
+        d.medium["density"] = os.path.join(os.path.dirname(path), decode_name(args))
+    elif tag == "medium_density_scale":
+        d.medium["density_scale"] = _number(args, path, lineno, name, lo=0.0, hi=MAX_SIGMA, open_lo=True)
+    elif tag.startswith("medium_") and tag[7:] in MEDIUM_KEYS:
+        key = tag[7:]
+        if key == "g":
+            g = parse_floats(args, (1,), path, lineno, name)[0]
+            if not -1.0 < g < 1.0:
+                raise SceneError(path, lineno, f"expected a value in (-1, 1) after '{name}', got {g:g}")
+            d.medium[key] = g
+        elif key == "majorant":
+            d.medium[key] = _number(args, path, lineno, name, lo=1.0, hi=MAX_MAJORANT)
+        else:
+            rgb = parse_floats(args, (1, 3), path, lineno, name)
+            if any(not 0.0 <= v <= MAX_SIGMA for v in rgb):
+                raise SceneError(path, lineno, f"expected values in [0, {MAX_SIGMA:g}] after '{name}', got "
+                                               + " ".join(f"{v:g}" for v in rgb))
+            d.medium[key] = tuple(rgb) * (3 // len(rgb))
+    elif tag == "index_matched":
+        if args:
+            raise SceneError(path, lineno, f"expected nothing after 'index_matched', got {len(args)} values")
+        d.index_matched = True
     elif tag == "ka":
         pass            # ambient colour: a path tracer computes the ambient light; silently ignored
     elif tag == "illum":

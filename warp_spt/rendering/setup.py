@@ -179,6 +179,9 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     sky = rs.sky or Sky.black()
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)
     b.options = b.integrator.options(rs.integrator_options)
+    if b.features.media and mode == "fast" and not b.integrator.media:
+        raise ValueError(f"the scene has participating media (a fog or an interior medium): integrator "
+                         f"{b.integrator.name!r} ignores them; render it with integrator 'volpath'")
     b.kernel = kind.build(b)
     b.cam = camera_params(camera, rs.width, rs.height)
     b.lights = light_table(dev, sky, camera.up) if kind.lights else None

@@ -64,7 +64,8 @@ def _material_fields() -> list[tuple]:
             + [("checker", "bool", field(default=False)),      # the checker pattern fills the Column.checker slots
                ("source", "str", field(default="<builtin>")),  # file that defined it
                ("seed_dialect", "bool", field(default=True)),  # its file uses the seed's own MTL tags
-               ("line", "int", field(default=0))])             # line of its ``newmtl``
+               ("line", "int", field(default=0)),              # line of its ``newmtl``
+               ("interior", "object", field(default=None))])   # its interior Medium (load_scene: Scene.interiors)
 
 
 # The pbr kind's defaults for Material.pbr: a grey dielectric of medium roughness, glass's IOR. (glTF's
@@ -229,6 +230,10 @@ class Scene:
     # cameras and lights the model files define (glTF: io.gltf.GltfCamera, GltfLight), in file order
     cameras: list = field(default_factory=list)
     lights: list = field(default_factory=list)
+    # participating media (warp_spt.scene.media.Medium, docs/volumes.md): the scene-wide medium the
+    # camera starts in, and the interior medium of the closed meshes of a material, by material name
+    fog: object = None
+    interiors: dict = field(default_factory=dict)
 
     @property
     def num_triangles(self) -> int:

@@ -74,6 +74,18 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
     spheres = scene.spheres.astype(np.float32)
     if len(spheres):
         spheres[:, :3] = (scene.spheres[:, :3].astype(np.float64) - centre).astype(np.float32)
-    moved = replace(scene, meshes=meshes, spheres=spheres)
+    moved = replace(scene, meshes=meshes, spheres=spheres, fog=_moved_medium(scene.fog, centre),
+                    interiors={k: _moved_medium(v, centre) for k, v in scene.interiors.items()})
     cam = replace(camera, position=tuple(float(v) for v in np.asarray(camera.position, np.float64) - centre))
     return moved, cam, centre
+
+
+def _moved_medium(medium, centre: np.ndarray):
+    """A density grid placed ``centre`` further from the origin's side: it moves with the geometry
+    (a homogeneous medium has no place)."""
+    if medium is None or getattr(medium, "density", None) is None:
+        return medium
+    shift = np.eye(4)
+    shift[:3, 3] = -centre
+    to_world = np.eye(4) if medium.to_world is None else np.asarray(medium.to_world, np.float64)
+    return replace(medium, to_world=shift @ to_world)

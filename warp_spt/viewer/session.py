@@ -239,6 +239,7 @@ class Session:
         for key, value in settings.items():      # the page's bounds hold for the first view too
             self._settings = checked_settings(self._settings, key, value)
         self._sky_given = "sky" in settings or "sky_color" in settings
+        self._integrator_given = "integrator" in settings
         self._studio_given = studio      # --studio / --no-studio; None: the rule
         self._smooth_angle = smooth_angle
         self._studio = False             # the first view added the studio look
@@ -761,6 +762,9 @@ class Session:
                 self._up = fv.up.axis
                 if fv.studio and not self._sky_given:
                     self._settings = replace(self._settings, sky="studio")
+                media = getattr(fv.scene, "fog", None) is not None or getattr(fv.scene, "interiors", None)
+                if media and not self._integrator_given:       # a fog or an interior medium: volpath
+                    self._settings = replace(self._settings, integrator="volpath")
                 self._rig = self._initial_rig(fv.camera)
                 self._home = (self._rig, self._up)
             self._changed()

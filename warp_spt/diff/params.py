@@ -86,7 +86,7 @@ class SceneParameters:
             raise TypeError(f"sky must be a warp_spt.Sky or None, got {sky!r}")
         self.scene = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
         self.camera = camera or Camera()
-        self.sky = sky or Sky.black()
+        self.sky = sky or getattr(self.scene.scene, "sky", None) or Sky.black()
         self._info = _describe(self.scene.scene, self.sky)
 
     # --- the mapping -------------------------------------------------------------------------

@@ -21,7 +21,7 @@ import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_params
 from warp_spt.core.device_scene import DeviceScene, Features, Textures
-from warp_spt.core.lights import Lights, light_table, sky_emits
+from warp_spt.core.lights import Lights, light_table, sky_features
 from warp_spt.integrators import Integrator, RenderParams, get_integrator, get_kernel
 from warp_spt.rendering.settings import RenderSettings, check_args, check_rows
 from warp_spt.scene.camera import Camera
@@ -48,7 +48,7 @@ class KernelKind:
 def render_features(scene_features: Features, rs: RenderSettings, sky: Sky) -> Features:
     """The features a path-tracing kernel is compiled for: the settings' override, else the scene's
     own with the sky's (whether it emits)."""
-    return rs.features.covering(scene_features) if rs.features else replace(scene_features, sky=sky_emits(sky))
+    return rs.features.covering(scene_features) if rs.features else replace(scene_features, **sky_features(sky))
 
 
 KERNEL_KINDS: dict[str, KernelKind] = {}
@@ -163,6 +163,12 @@ def kernel_kind(mode: str) -> KernelKind:
     return KERNEL_KINDS[mode]
 
 
+def scene_sky(dev: DeviceScene, rs: RenderSettings) -> Sky:
+    """The sky a render sees: the settings' (an override), else the scene's own, else the seed's
+    BlackSky."""
+    return rs.sky or getattr(dev.scene, "sky", None) or Sky.black()
+
+
 def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: RenderSettings | None = None, *,
          mode: str = "fast", rows: tuple[int, int] | None = None) -> Bound:
     """Check, upload and pick the kernel of ``mode`` (a ``KERNEL_KINDS`` name): the one set-up of
@@ -176,7 +182,7 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
         # a CUDA launch runs all its threads at once: each pass is one launch over the whole image,
         # from one host thread (CPU tiles and worker threads would only serialise on the stream)
         rs = replace(rs, tile_pixels=max(rs.tile_pixels, rs.width * rs.height), threads=1)
-    sky = rs.sky or Sky.black()
+    sky = scene_sky(dev, rs)
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)
     b.options = b.integrator.options(rs.integrator_options)
     b.kernel = kind.build(b)
@@ -192,7 +198,7 @@ def device_kernel(dev: DeviceScene, rs: RenderSettings, mode: str = "fast") -> w
     """Only the kernel :func:`bind` would pick for ``dev`` and ``rs`` (compiled and loaded): what a
     cluster worker prepares under its lock when it uploads a scene."""
     kind = kernel_kind(mode)
-    sky = rs.sky or Sky.black()
+    sky = scene_sky(dev, rs)
     return kind.build(Bound(dev, Camera(), rs, sky, kind.features(dev.features, rs, sky),
                             get_integrator(rs.integrator), kind))
 

@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from warp_spt.scene.sky import Sky
 from warp_spt.scene.material_schema import (
     COLOR,
     COLUMN,
@@ -229,6 +230,10 @@ class Scene:
     # cameras and lights the model files define (glTF: io.gltf.GltfCamera, GltfLight), in file order
     cameras: list = field(default_factory=list)
     lights: list = field(default_factory=list)
+    # the scene's infinite light (warp_spt.scene.sky.Sky: a constant, the gradient, an environment
+    # map), uploaded and shipped to cluster workers with the scene; None: the seed's blue BlackSky.
+    # RenderSettings.sky, when given, overrides it.
+    sky: Sky | None = None
 
     @property
     def num_triangles(self) -> int:

@@ -77,10 +77,10 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
 
 
 def load_environment(path: str | os.PathLike, rotate: float = 0.0, strength: float = 1.0, background=None,
-                     up=None, warn: Callable[[str], None] | None = None) -> Sky:
+                     up=None, warn: Callable[[str], None] | None = None, sampling: str = "importance") -> Sky:
     """An environment sky from an equirectangular map file (see :meth:`warp_spt.Sky.environment` for
     ``rotate`` (degrees about the up axis), ``strength``, ``background`` and ``up``); ``warn`` is
-    called with a warning (an 8-bit map)."""
+    called with a warning (an 8-bit map); ``sampling``: ``scene.environment.SAMPLINGS``."""
     img = read_environment_image(path, warn)
-    env = EnvironmentMap(img, str(path))
+    env = EnvironmentMap(img, str(path), sampling)
     return Sky.environment(env, rotate=rotate, strength=strength, background=background, up=up)

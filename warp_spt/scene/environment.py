@@ -21,16 +21,26 @@ from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.limits import MAX_RADIANCE
 
 
+# how light sampling draws directions from a map (``sampling_weights``): "importance" (luminance x
+# sin theta, the default), "compensated" (pbrt-v4's MIS compensation) or "uniform" (over the sphere:
+# for comparisons, benchmarks/bench_envmap.py)
+SAMPLINGS = ("importance", "compensated", "uniform")
+
+
 @dataclass(frozen=True, eq=False)
 class EnvironmentMap:
     """``image`` (H, W, 3) float32 radiance, row 0 the zenith; ``name`` says where it came from (the
-    file, in every error). Compared and hashed by identity: a light table is cached per map."""
+    file, in every error); ``sampling`` one of SAMPLINGS. Compared and hashed by identity: a light
+    table is cached per map."""
 
     image: np.ndarray
     name: str = "environment map"
+    sampling: str = "importance"
 
     def __post_init__(self) -> None:
         problem = environment_problem(self.image, self.name)
+        if not problem and self.sampling not in SAMPLINGS:
+            problem = f"{self.name}: sampling must be one of {', '.join(SAMPLINGS)}, got {self.sampling!r}"
         if problem:
             raise ValueError(problem)
         img = np.ascontiguousarray(self.image, dtype=np.float32)
@@ -97,16 +107,19 @@ def mean_radiance(image: np.ndarray) -> np.ndarray:
     return np.einsum("hwc,h->c", img, w) / (4.0 * np.pi)
 
 
-def sampling_weights(image: np.ndarray, compensate: bool = False) -> np.ndarray:
+def sampling_weights(image: np.ndarray, sampling: str = "importance") -> np.ndarray:
     """(H, W) float64 weights of the piecewise-constant distribution: luminance x sin(theta) at each
-    row's centre (the lat-long map's area distortion), or with ``compensate`` pbrt-v4's MIS
+    row's centre (the lat-long map's area distortion); "uniform": sin theta alone (uniform over the
+    sphere); "compensated": pbrt-v4's MIS
     compensation, max(0, luminance - its mean): the dim part is left to BSDF sampling, which MIS
     weighs in full where light sampling cannot reach (falls back to the plain weights when that
     leaves nothing, a constant map)."""
     lum = texel_luminance(image)
+    if sampling == "uniform":
+        lum = np.ones_like(lum)
     h = lum.shape[0]
     sin_theta = np.sin(np.pi * (np.arange(h) + 0.5) / h)
-    if compensate:
+    if sampling == "compensated":
         sa = row_solid_angles(h, lum.shape[1])
         mean = float((lum * sa[:, None]).sum() / (4.0 * np.pi))
         comp = np.maximum(lum - mean, 0.0)

@@ -34,10 +34,6 @@ from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 PI = wp.constant(3.141592653589793)
 INV_TWO_PI_SQ = wp.constant(0.05066059182116889)     # 1 / (2 pi^2)
 
-# pbrt-v4's MIS compensation (sample max(0, L - mean)): off, as measured by benchmarks/bench_envmap.py
-# (docs/lights.md, "Sampling")
-COMPENSATE = False
-
 
 @wp.struct
 class EnvLight:
@@ -189,7 +185,7 @@ def weigh(scene: Scene, sky: Sky) -> Weighed:
     a = float(mean_radiance(sky.env.image).sum()) * sky.strength
     img = sky.env.image
     return Weighed(np.array([4 * np.pi * max(radius, 1e-6) ** 2 * a / 3.0]),
-                   distribution(sampling_weights(img, COMPENSATE)))
+                   distribution(sampling_weights(img, sky.env.sampling)))
 
 
 def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -> EnvLight:

@@ -1,0 +1,346 @@
+"""Environment maps (issue 34): the sky as a light of the scene, the .hdr reader, the map's checks,
+its sampling distribution (the pdf integrates to 1 and matches its samples), a furnace under a
+constant map for every integrator and sampler, one bright texel against its analytic irradiance,
+importance against uniform sampling, and the command line's flags.
+
+Expected values are independent of the code under test: closed-form integrals, chi-square
+statistics, Student-t bounds from the renders' own spread, Mitsuba 3's .hdr reader.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import warp as wp
+
+import warp_spt as ws
+from warp_spt.core.device_scene import DeviceScene
+from warp_spt.core.lights import Lights, env_pdf, light_table, sample_env
+from warp_spt.integrators import INTEGRATORS
+from warp_spt.io.environment import load_environment, read_environment_image
+from warp_spt.io.hdr import HdrError, read_hdr, write_hdr
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.samplers import SAMPLERS
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.environment import EnvironmentMap, row_solid_angles
+from warp_spt.scene.sky import Sky
+
+from .scenes import material, write_scene_files
+from .stability_scenes import t_quantile
+
+ROOT = Path(__file__).resolve().parents[1]
+Z = (0.0, 0.0, 1.0)
+
+
+def synthetic_envmap(*args, **kw) -> np.ndarray:
+    spec = importlib.util.spec_from_file_location("make_test_envmap", ROOT / "scripts" / "make_test_envmap.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.synthetic_envmap(*args, **kw)
+
+
+@pytest.fixture(scope="module")
+def ball(tmp_path_factory):
+    """A host scene: one sphere of radius 1 at the origin, diffuse albedo 1 (the seed's Kd 1)."""
+    d = tmp_path_factory.mktemp("envball")
+    objs, mtls = write_scene_files(d, "ball", "usemtl white\nb 0 0 0 1\n", material("white", Kd=(1, 1, 1)))
+    return ws.load_scene(objs, mtls)
+
+
+FACING = Camera(position=(0.0, -4.0, 0.0), direction=(0.0, 1.0, 0.0), fov=20.0, up=Z)
+
+
+# --------------------------------------------------------------------------------------------
+# The sky belongs to the scene
+
+
+def test_the_scenes_sky_renders_as_the_settings_sky_and_the_settings_override_it(ball):
+    rs = RenderSettings(width=8, height=8, spp=2, max_depth=3)
+    pink_in_scene = ws.render_scene(replace(ball, sky=Sky.pink()), FACING, rs).image
+    pink_setting = ws.render_scene(ball, FACING, replace(rs, sky=Sky.pink())).image
+    assert np.array_equal(pink_in_scene, pink_setting)
+    overridden = ws.render_scene(replace(ball, sky=Sky.pink()), FACING, replace(rs, sky=Sky.black())).image
+    assert np.array_equal(overridden, ws.render_scene(ball, FACING, rs).image)
+    assert not np.array_equal(overridden, pink_in_scene)
+
+
+# --------------------------------------------------------------------------------------------
+# Files and checks
+
+
+def test_hdr_round_trip_rle_and_flat(tmp_path):
+    img = synthetic_envmap(64)
+    write_hdr(tmp_path / "a.hdr", img)
+    write_hdr(tmp_path / "b.hdr", img, rle=False)
+    a, b = read_hdr(tmp_path / "a.hdr"), read_hdr(tmp_path / "b.hdr")
+    assert np.array_equal(a, b)
+    assert (tmp_path / "a.hdr").stat().st_size < (tmp_path / "b.hdr").stat().st_size / 4
+    # RGBE keeps 8 bits of mantissa for the largest channel: the others within 2^-8 of it
+    assert np.all(np.abs(a - img) <= img.max(axis=2, keepdims=True) * 2.0**-8)
+
+
+def test_our_hdr_reader_agrees_with_mitsubas(tmp_path):
+    mi = pytest.importorskip("mitsuba")
+    mi.set_variant("scalar_rgb")
+    write_hdr(tmp_path / "m.hdr", synthetic_envmap(64))
+    theirs = np.array(mi.Bitmap(str(tmp_path / "m.hdr")), dtype=np.float32)[..., :3]
+    ours = read_hdr(tmp_path / "m.hdr")
+    # Radiance's decoding takes a mantissa's middle (c + 0.5); stb (Mitsuba) takes its bottom (c)
+    assert ours.shape == theirs.shape
+    assert np.all(np.abs(ours - theirs) <= ours.max(axis=2, keepdims=True) * 2.0**-8 + 1e-12)
+
+
+@pytest.mark.parametrize("data, what", [
+    (b"P6\n2 1\n255\n", "not a Radiance .hdr"),
+    (b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n", "header never ends"),
+    (b"#?RADIANCE\n\n+X 4 -Y 2\n", "resolution line"),
+    (b"#?RADIANCE\nFORMAT=32-bit_rle_xyze\n\n-Y 1 +X 2\n", "XYZE"),
+    (b"#?RADIANCE\n\n-Y 2 +X 4\n" + bytes(20), "truncated at scanline 1"),
+])
+def test_malformed_hdr_is_refused_naming_the_file(tmp_path, data, what):
+    p = tmp_path / "bad.hdr"
+    p.write_bytes(data)
+    with pytest.raises(HdrError, match=what) as e:
+        read_hdr(p)
+    assert str(p) in str(e.value)
+
+
+@pytest.mark.parametrize("change, what", [
+    (lambda a: a.__setitem__((1, 2, 0), np.nan), "not finite"),
+    (lambda a: a.__setitem__((0, 0, 1), -1.0), "negative"),
+])
+def test_bad_texels_are_refused_naming_the_file(tmp_path, change, what):
+    img = np.ones((4, 8, 3), np.float32)
+    change(img)
+    np.save(tmp_path / "e.npy", img)
+    with pytest.raises(ValueError, match=what) as e:
+        load_environment(tmp_path / "e.npy")
+    assert "e.npy" in str(e.value)
+
+
+def test_a_map_that_is_not_2_to_1_is_refused():
+    with pytest.raises(ValueError, match="equirectangular.*8x8"):
+        Sky.environment(np.ones((8, 8, 3), np.float32), name="cube.hdr")
+
+
+def test_an_8bit_png_is_an_ldr_map_with_a_warning(tmp_path):
+    from PIL import Image
+
+    Image.fromarray(np.full((4, 8, 3), 255, np.uint8)).save(tmp_path / "ldr.png")
+    said = []
+    img = read_environment_image(tmp_path / "ldr.png", warn=said.append)
+    assert said and "low-dynamic-range" in said[0]
+    assert np.allclose(img, 1.0)
+
+
+# --------------------------------------------------------------------------------------------
+# The distribution
+
+
+@wp.kernel
+def _pdf_kernel(lights: Lights, dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = env_pdf(lights, dirs[i])
+
+
+@wp.kernel
+def _sample_kernel(lights: Lights, us: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec4),
+                   back: wp.array(dtype=float)):
+    i = wp.tid()
+    s = sample_env(lights, us[i])
+    out[i] = s
+    back[i] = env_pdf(lights, wp.vec3(s[0], s[1], s[2]))
+
+
+def _table(ball, img, rotate=0.0):
+    sky = Sky.environment(img, rotate=rotate, up=Z)
+    dev = DeviceScene(replace(ball, sky=sky))
+    return light_table(dev, sky, Z)
+
+
+def _grid(nt, nphi):
+    """Midpoints of an (nt x nphi) grid in (theta, phi), their directions (Z up, phi from +X) and
+    solid angles."""
+    th = np.pi * (np.arange(nt) + 0.5) / nt
+    ph = 2 * np.pi * (np.arange(nphi) + 0.5) / nphi
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    d = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+    dw = (np.sin(T) * (np.pi / nt) * (2 * np.pi / nphi)).ravel()
+    return d.astype(np.float32), dw
+
+
+def _pdfs(lights, d):
+    out = wp.zeros(len(d), dtype=float)
+    wp.launch(_pdf_kernel, dim=len(d), inputs=[lights, wp.array(d, dtype=wp.vec3), out])
+    return out.numpy().astype(np.float64)
+
+
+@pytest.mark.parametrize("rotate", [0.0, 37.0])
+def test_the_pdf_integrates_to_one_over_the_sphere(ball, rotate):
+    lights = _table(ball, synthetic_envmap(32, sun_radius=12.0), rotate)
+    d, dw = _grid(512, 1024)
+    total = float((_pdfs(lights, d) * dw).sum())
+    assert abs(total - 1.0) < 2e-3, total
+
+
+def test_sampling_matches_the_pdf_chi_square(ball):
+    lights = _table(ball, synthetic_envmap(32, sun_radius=12.0, sun_radiance=50.0), 20.0)
+    n = 200_000
+    us = np.random.default_rng(1).random((n, 2)).astype(np.float32)
+    out = wp.zeros(n, dtype=wp.vec4)
+    back = wp.zeros(n, dtype=float)
+    wp.launch(_sample_kernel, dim=n, inputs=[lights, wp.array(us, dtype=wp.vec2), out, back])
+    s = out.numpy()
+    # the density returned with a sample is the one the pdf gives its direction (MIS needs both alike)
+    inside = np.isclose(s[:, 3], back.numpy(), rtol=1e-4)
+    assert inside.mean() > 0.995
+    # counts over a coarse grid of directions (not aligned with the texels) against the pdf's integral
+    nt, nphi, sub = 9, 14, 24
+    theta = np.arccos(np.clip(s[:, 2], -1, 1))
+    phi = np.mod(np.arctan2(s[:, 1], s[:, 0]), 2 * np.pi)
+    counts = np.histogram2d(theta, phi, bins=[nt, nphi], range=[[0, np.pi], [0, 2 * np.pi]])[0].ravel()
+    d, dw = _grid(nt * sub, nphi * sub)
+    p = (_pdfs(lights, d) * dw).reshape(nt, sub, nphi, sub).sum(axis=(1, 3)).ravel()
+    expected = n * p / p.sum()
+    keep = expected >= 5
+    chi2 = float(((counts[keep] - expected[keep]) ** 2 / expected[keep]).sum())
+    # Wilson-Hilferty: (chi2 / k)^(1/3) is nearly normal; z > 3.7 has probability about 1e-4
+    k = keep.sum() - 1
+    z = ((chi2 / k) ** (1 / 3) - (1 - 2 / (9 * k))) / math.sqrt(2 / (9 * k))
+    assert z < 3.7, (chi2, k, z)
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering
+
+
+def _batches(scene, camera, k, **kw):
+    rs = RenderSettings(**kw)
+    return np.stack([ws.render_scene(scene, camera, replace(rs, seed=s)).image for s in range(k)])
+
+
+def _assert_mean(batches, expected, alpha=1e-4):
+    k = batches.shape[0]
+    mean = batches.mean(axis=0)
+    se = batches.std(axis=0, ddof=1) / math.sqrt(k)
+    bound = t_quantile(alpha / (2 * mean.size), k - 1)
+    err = np.abs(mean - expected)
+    assert np.all(err <= bound * se + 1e-6 * np.abs(expected)), \
+        f"worst |err| / se = {np.max(err / np.maximum(se, 1e-12)):.2f} (bound {bound:.2f})"
+
+
+@pytest.mark.parametrize("sampler", sorted(SAMPLERS))
+@pytest.mark.parametrize("integrator", sorted(INTEGRATORS))
+def test_furnace_constant_map_every_integrator_and_sampler(ball, integrator, sampler):
+    # a convex albedo-1 sphere in a constant environment L: every path sees L (one bounce, then out)
+    L = np.array([0.5, 1.0, 2.0], np.float32)
+    scene = replace(ball, sky=Sky.environment(np.ones((16, 32, 3), np.float32) * L, up=Z))
+    b = _batches(scene, FACING, 6, width=6, height=6, spp=4, max_depth=3, integrator=integrator, sampler=sampler)
+    if integrator == "seed":
+        assert np.allclose(b, L, rtol=1e-5)
+    else:
+        _assert_mean(b, np.broadcast_to(L, b.shape[1:]))
+
+
+PLANE = """v -50 -50 0
+v 50 -50 0
+v 50 50 0
+v -50 50 0
+usemtl grey
+f 1 2 3
+f 1 3 4
+"""
+
+
+@pytest.fixture(scope="module")
+def plane(tmp_path_factory):
+    d = tmp_path_factory.mktemp("envplane")
+    # albedo 1: the seed's reflectance is Kd as read only for 0 and 1 (0.5 reflects 0.506)
+    objs, mtls = write_scene_files(d, "plane", PLANE, material("grey", Kd=(1, 1, 1)))
+    return ws.load_scene(objs, mtls)
+
+
+DOWN = Camera(position=(0.0, 0.0, 5.0), direction=(0.0, 0.0, -1.0), fov=10.0, up=(0.0, 1.0, 0.0))
+
+
+def test_one_bright_texel_gives_its_analytic_irradiance(plane):
+    # a black map but one texel of radiance L at row r: a diffuse plane (albedo 1, normal up) under it
+    # reflects 1 / pi x L x the texel's cos-weighted solid angle, dphi (sin^2 theta_b - sin^2 theta_a) / 2
+    h, w, r, c, L = 16, 32, 5, 9, 40.0
+    img = np.zeros((h, w, 3), np.float32)
+    img[r, c] = L
+    th_a, th_b = np.pi * r / h, np.pi * (r + 1) / h
+    expected = 1.0 / np.pi * L * (2 * np.pi / w) * (np.sin(th_b) ** 2 - np.sin(th_a) ** 2) / 2
+    scene = replace(plane, sky=Sky.environment(img, up=Z))
+    b = _batches(scene, DOWN, 8, width=4, height=4, spp=16, max_depth=2)
+    _assert_mean(b, np.full(b.shape[1:], expected))
+    assert abs(b.mean() / expected - 1) < 0.02
+
+
+def test_importance_sampling_beats_uniform_at_equal_spp(plane):
+    # a sun-like blob holding most of the light: at equal spp, the squared error against a long
+    # importance-sampled render is far lower with importance sampling (uniform sampling finds the blob
+    # by chance: most of its 8-spp estimates miss it, a few are huge)
+    img = synthetic_envmap(64, sun_radius=4.0, sun_radiance=3000.0)
+    scenes = {s: replace(plane, sky=Sky.environment(EnvironmentMap(img, "blob", s), up=Z))
+              for s in ("importance", "uniform")}
+    ref = ws.render_scene(scenes["importance"], DOWN, RenderSettings(width=4, height=4, spp=512, max_depth=2,
+                                                                       seed=99)).image
+    mse = {s: float(((_batches(sc, DOWN, 6, width=4, height=4, spp=8, max_depth=2) - ref) ** 2).mean())
+           for s, sc in scenes.items()}
+    assert mse["importance"] * 10 < mse["uniform"], mse
+
+
+def test_background_is_seen_by_camera_rays_only(ball):
+    L = np.array([0.5, 1.0, 2.0], np.float32)
+    img = np.ones((8, 16, 3), np.float32) * L
+    rs = RenderSettings(width=12, height=12, spp=2, max_depth=3, integrator="seed")
+    wide = Camera(position=(0.0, -4.0, 0.0), direction=(0.0, 1.0, 0.0), fov=60.0, up=Z)
+    plain = ws.render_scene(replace(ball, sky=Sky.environment(img, up=Z)), wide, rs).image
+    bg = ws.render_scene(replace(ball, sky=Sky.environment(img, up=Z, background=(0.1, 0.2, 0.3))), wide, rs).image
+    corner, centre = (0, 0), (6, 6)
+    assert np.allclose(bg[corner], (0.1, 0.2, 0.3)) and np.allclose(plain[corner], L)
+    assert np.allclose(bg[centre], plain[centre])     # the sphere is lit by the map either way
+
+
+def test_strength_scales_and_rotation_turns(ball):
+    img = synthetic_envmap(32, sun_radius=15.0, sun_radiance=20.0)
+    rs = RenderSettings(width=8, height=8, spp=4, max_depth=3, integrator="seed")
+    a = ws.render_scene(replace(ball, sky=Sky.environment(img, up=Z)), FACING, rs).image
+    b = ws.render_scene(replace(ball, sky=Sky.environment(img, strength=2.0, up=Z)), FACING, rs).image
+    assert np.allclose(b, 2 * a, rtol=1e-5)
+    # turning the map a whole number of texel columns is the map with its columns rolled
+    turned = ws.render_scene(replace(ball, sky=Sky.environment(img, rotate=90.0, up=Z)), FACING, rs).image
+    rolled = ws.render_scene(replace(ball, sky=Sky.environment(np.roll(img, 8, axis=1), up=Z)), FACING, rs).image
+    assert np.allclose(turned, rolled, rtol=1e-4, atol=1e-6)
+
+
+# --------------------------------------------------------------------------------------------
+# Command line
+
+
+def _cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "warp_spt", *args], cwd=cwd, capture_output=True, text=True)
+
+
+def test_cli_env_flags(tmp_path):
+    write_hdr(tmp_path / "sky.hdr", synthetic_envmap(32, sun_radius=15.0, sun_radiance=20.0))
+    (tmp_path / "ball.obj").write_text("b 0 0 0 1\n")
+    r = _cli("-obj", "ball.obj", "--env", "sky.hdr", "--env-rotate", "30", "--env-strength", "2",
+             "--env-background", "1", "1", "1", "-res", "8", "8", "-sr", "2", "--quiet", "-out", "e.npy", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    img = np.load(tmp_path / "e.npy")
+    assert np.allclose(img[0, 0], 1.0)
+    for args, what in [(["--env", "missing.hdr"], "missing.hdr: no such environment map file"),
+                       (["--env-strength", "2"], "--env-strength needs --env"),
+                       (["--env", "sky.hdr", "-sky", "1"], "either --env or -sky")]:
+        r = _cli("-obj", "ball.obj", *args, "-res", "4", "4", "-out", "x.npy", cwd=tmp_path)
+        assert r.returncode != 0 and what in r.stderr, r.stderr
+        assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) >= 1

@@ -9,6 +9,9 @@ nearest texel. MIS with BSDF sampling is the integrators' (``pdf_li`` is what a 
 that escapes is weighed with). Its choice weight in the light table is the sky's: a sphere of the
 scene's radius seen from inside, radiating the map's mean radiance.
 
+Its differentiable parameters are ``EnvLight.params``, (strength, rotation in degrees), named
+``environment.strength`` and ``environment.rotate`` by ``diff.params``.
+
 The functions take the whole light table (generic, ``Any``), reading ``lights.environment`` in
 place, for the reason ``sky`` gives.
 
@@ -44,11 +47,10 @@ class EnvLight:
     width: int
     height: int
     texels: wp.array(dtype=wp.vec3)             # H x W, row by row
-    strength: float
+    params: wp.array(dtype=float)               # (strength, rotation in degrees): differentiable
     marginal: wp.array(dtype=float)             # H: cumulative row probabilities, last = 1
     conditional: wp.array(dtype=float)          # H x W: cumulative column probabilities per row
     density: wp.array(dtype=float)              # H x W: p(u, v) of each texel (mean 1)
-    turn: float                                 # the rotation about up, in turns
     t: wp.vec3                                  # (t, b_axis, up): the sky's frame (sky.sky_frame)
     b_axis: wp.vec3
     up: wp.vec3
@@ -62,7 +64,7 @@ def env_texel(lights: Any, d: wp.vec3) -> int:
     e = lights.environment
     z = wp.clamp(wp.dot(d, e.up), -1.0, 1.0)
     phi = wp.atan2(wp.dot(d, e.b_axis), wp.dot(d, e.t))
-    u = phi / TWO_PI - e.turn
+    u = phi / TWO_PI - e.params[1] / 360.0
     u = u - wp.floor(u)
     v = wp.acos(z) / PI
     col = wp.min(int(u * float(e.width)), e.width - 1)
@@ -72,8 +74,28 @@ def env_texel(lights: Any, d: wp.vec3) -> int:
 
 @wp.func
 def env_radiance(lights: Any, d: wp.vec3) -> wp.vec3:
-    """The map's radiance along ``d`` (unit), times its strength."""
-    return lights.environment.texels[env_texel(lights, d)] * lights.environment.strength
+    """The map's radiance along ``d`` (unit), times its strength: linear between texel centres in
+    azimuth, nearest in elevation. Linear in azimuth gives the rotation a derivative (a nearest
+    lookup is a step function of it) and keeps each texel's integral over the sphere what it is
+    with a nearest lookup (a tent spanning two columns holds as much as a box one column wide; cos
+    theta depends on the row alone), so the sampling density's texels still match the radiance's."""
+    e = lights.environment
+    z = wp.clamp(wp.dot(d, e.up), -1.0, 1.0)
+    phi = wp.atan2(wp.dot(d, e.b_axis), wp.dot(d, e.t))
+    u = phi / TWO_PI - e.params[1] / 360.0
+    u = u - wp.floor(u)
+    x = u * float(e.width) - 0.5                # in column-centre units: column c's centre at c
+    c0f = wp.floor(x)
+    f = x - c0f
+    c0 = int(c0f)
+    c1 = c0 + 1
+    if c0 < 0:
+        c0 = e.width - 1
+    if c1 >= e.width:
+        c1 = 0
+    row = wp.min(int(wp.acos(z) / PI * float(e.height)), e.height - 1)
+    base = row * e.width
+    return (e.texels[base + c0] * (1.0 - f) + e.texels[base + c1] * f) * e.params[0]
 
 
 @wp.func
@@ -123,7 +145,7 @@ def sample_env(lights: Any, u: wp.vec2) -> wp.vec4:
     col = _search(e.conditional, row * e.width, e.width, u[1])
     fu = _within(e.conditional, row * e.width, col, u[1])
     theta = PI * (float(row) + fv) / float(e.height)
-    phi = TWO_PI * ((float(col) + fu) / float(e.width) + e.turn)
+    phi = TWO_PI * ((float(col) + fu) / float(e.width) + e.params[1] / 360.0)
     st = wp.sin(theta)
     d = e.t * (st * wp.cos(phi)) + e.b_axis * (st * wp.sin(phi)) + e.up * wp.cos(theta)
     pdf = float(0.0)
@@ -196,11 +218,9 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
         e.width = e.height = 1
         texels = np.zeros((1, 3), np.float32)
         marginal = cond = density = np.ones(1)
-        e.strength = 0.0
     else:
         e.width, e.height = env.width, env.height
         texels = env.image.reshape(-1, 3)
-        e.strength = float(sky.strength)
         if payload is None:     # a black map: never sampled, still seen
             payload = (np.ones(env.height), np.ones((env.height, env.width)), np.zeros((env.height, env.width)))
         marginal, cond, density = payload
@@ -208,7 +228,8 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     e.marginal = device_array(np.ravel(marginal), float, np.float32, device)
     e.conditional = device_array(np.ravel(cond), float, np.float32, device)
     e.density = device_array(np.ravel(density), float, np.float32, device)
-    e.turn = float((sky.rotate / 360.0) % 1.0)
+    strength = float(sky.strength) if env is not None else 0.0
+    e.params = wp.array(np.array([strength, sky.rotate % 360.0], dtype=np.float32), dtype=float, device=device)
     e.t, e.b_axis, e.up = (wp.vec3(*v.astype(np.float32).tolist()) for v in sky_frame(up))
     bg = sky.background
     e.has_background = int(bg is not None)
@@ -217,4 +238,5 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
 
 
 KIND = LightKind("environment", EnvLight, KIND_MISS, area=False, sampled=lambda f: f.sky and f.environment,
-                 weigh=weigh, upload=upload, make=make, cache=False, present=lambda f: f.environment)
+                 weigh=weigh, upload=upload, make=make, cache=False, params="params",
+                 present=lambda f: f.environment)

@@ -411,3 +411,17 @@ def test_rotation_gradient_matches_finite_differences(ball):
     assert abs(grads.mean()) > 3 * se, "the test scene's rotation derivative is lost in its noise"
     assert abs(grads.mean() - fds.mean()) < t_quantile(1e-3, k - 1) * se + 0.03 * abs(fds.mean()), \
         (grads.mean(), fds.mean(), se)
+
+
+def test_frames_and_workers_render_what_a_single_render_renders(tmp_path):
+    # the map is the scene's sky, prepared once for every front end (a cluster's workers get it with
+    # the scene): frame 0 of --frames, a --workers render and a single render are the same image
+    write_hdr(tmp_path / "sky.hdr", synthetic_envmap(32, sun_radius=15.0, sun_radiance=20.0))
+    (tmp_path / "ball.obj").write_text("b 0 0 0 1\n")
+    common = ["-obj", "ball.obj", "--env", "sky.hdr", "--env-rotate", "40", "-res", "8", "8", "-sr", "2", "--quiet"]
+    for extra, out in [([], "single.npy"), (["--frames", "0:1"], "f_{frame}.npy"), (["--workers", "2"], "w.npy")]:
+        r = _cli(*common, *extra, "-out", out, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+    single = np.load(tmp_path / "single.npy")
+    assert np.array_equal(single, np.load(tmp_path / "f_0.npy"))
+    assert np.array_equal(single, np.load(tmp_path / "w.npy"))

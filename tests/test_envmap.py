@@ -425,3 +425,33 @@ def test_frames_and_workers_render_what_a_single_render_renders(tmp_path):
     single = np.load(tmp_path / "single.npy")
     assert np.array_equal(single, np.load(tmp_path / "f_0.npy"))
     assert np.array_equal(single, np.load(tmp_path / "w.npy"))
+
+
+def test_the_viewer_takes_an_environment_file(ball, tmp_path):
+    from warp_spt.scene.sky import SKY_ENVIRONMENT
+    from warp_spt.viewer.session import Session
+
+    class Replies:          # not a list: an empty one would be falsy, and the session broadcast instead
+        def __init__(self):
+            self.messages = []
+
+        def __call__(self, message, buffers=()):
+            self.messages.append(message)
+
+        def __iter__(self):
+            return iter(self.messages)
+
+    write_hdr(tmp_path / "sky.hdr", synthetic_envmap(32, sun_radius=15.0, sun_radiance=20.0))
+    s = Session(ball, FACING, width=16, height=16, max_spp=4)
+    try:
+        replies = Replies()
+        s.handle({"type": "set", "key": "env_path", "value": str(tmp_path / "missing.hdr")}, reply=replies)
+        assert any("missing.hdr" in m.get("text", "") for m in replies) and s.settings.env_path == ""
+        for key, value in [("env_path", str(tmp_path / "sky.hdr")), ("env_rotate", 30.0), ("sky", "environment")]:
+            s.handle({"type": "set", "key": key, "value": value})
+        res = s.wait_for(2, timeout=120)
+        assert res.settings.sky.kind == SKY_ENVIRONMENT and res.settings.sky.rotate == 30.0
+        line = s.command_line(spp=4)
+        assert f"--env {tmp_path / 'sky.hdr'}" in line and "--env-rotate 30" in line
+    finally:
+        s.close()

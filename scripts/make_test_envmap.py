@@ -15,9 +15,11 @@ import numpy as np
 
 def synthetic_envmap(width: int = 256, sun_elevation: float = 35.0, sun_azimuth: float = 60.0,
                      sun_radius: float = 3.0, sun_radiance: float = 2000.0) -> np.ndarray:
-    """(width / 2, width, 3) float32 radiance: row 0 the zenith, column c at azimuth 2 pi (c + 0.5) / width
-    (warp_spt.scene.environment's convention); the sun a disc of ``sun_radius`` degrees whose radiance
-    falls off smoothly to its edge."""
+    """(width / 2, width, 3) float32 radiance, Z up: row 0 the zenith, column c at the map's azimuth
+    psi = 2 pi (c + 0.5) / width, the direction (-sin theta sin psi, -sin theta cos psi, cos theta)
+    (warp_spt.scene.environment's convention, Mitsuba's); the sun at elevation ``sun_elevation`` and
+    map azimuth ``sun_azimuth`` (degrees: 0 along -Y, 90 along -X), a disc of ``sun_radius``
+    degrees whose radiance falls off smoothly to its edge."""
     h = width // 2
     theta = np.pi * (np.arange(h) + 0.5) / h
     phi = 2 * np.pi * (np.arange(width) + 0.5) / width
@@ -26,9 +28,9 @@ def synthetic_envmap(width: int = 256, sun_elevation: float = 35.0, sun_azimuth:
     up = np.clip(z, 0.0, 1.0)[..., None]
     zenith, horizon, ground = np.array([0.25, 0.45, 1.0]), np.array([0.9, 0.95, 1.0]), np.array([0.15, 0.12, 0.1])
     img = np.where(z[..., None] >= 0, horizon + (zenith - horizon) * up ** 0.5, ground)
-    d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), z], axis=-1)
+    d = np.stack([-np.sin(th) * np.sin(ph), -np.sin(th) * np.cos(ph), z], axis=-1)
     el, az = np.radians(sun_elevation), np.radians(sun_azimuth)
-    s = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    s = np.array([-np.cos(el) * np.sin(az), -np.cos(el) * np.cos(az), np.sin(el)])
     angle = np.degrees(np.arccos(np.clip(d @ s, -1.0, 1.0)))
     blob = np.clip(1.0 - (angle / sun_radius) ** 2, 0.0, 1.0)
     img = img + sun_radiance * blob[..., None] * np.array([1.0, 0.9, 0.75])

@@ -22,7 +22,7 @@ import warp as wp
 
 import warp_spt as ws
 from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.lights import Lights, env_pdf, light_table, sample_env
+from warp_spt.core.lights import Lights, env_pdf, env_radiance, light_table, sample_env
 from warp_spt.integrators import INTEGRATORS
 from warp_spt.io.environment import load_environment, read_environment_image
 from warp_spt.io.hdr import HdrError, read_hdr, write_hdr
@@ -321,9 +321,10 @@ def test_strength_scales_and_rotation_turns(ball):
     a = ws.render_scene(replace(ball, sky=Sky.environment(img, up=Z)), FACING, rs).image
     b = ws.render_scene(replace(ball, sky=Sky.environment(img, strength=2.0, up=Z)), FACING, rs).image
     assert np.allclose(b, 2 * a, rtol=1e-5)
-    # turning the map a whole number of texel columns is the map with its columns rolled
+    # turning the map a whole number of texel columns is the map with its columns rolled (a direction
+    # then shows the column a quarter turn further on)
     turned = ws.render_scene(replace(ball, sky=Sky.environment(img, rotate=90.0, up=Z)), FACING, rs).image
-    rolled = ws.render_scene(replace(ball, sky=Sky.environment(np.roll(img, 8, axis=1), up=Z)), FACING, rs).image
+    rolled = ws.render_scene(replace(ball, sky=Sky.environment(np.roll(img, -8, axis=1), up=Z)), FACING, rs).image
     assert np.allclose(turned, rolled, rtol=1e-4, atol=1e-6)
 
 
@@ -368,9 +369,9 @@ def test_environment_parameters_are_named_read_and_set(ball):
 
 
 def _lit_ball(ball, **kw):
-    # a broad sun beside the ball (azimuth 0, the camera looks from azimuth -90): turning the map moves
-    # the lit side across the view, a derivative well above the noise
-    img = synthetic_envmap(64, sun_elevation=20.0, sun_azimuth=0.0, sun_radius=30.0, sun_radiance=10.0)
+    # a broad sun beside the ball (map azimuth 90: along -X; the camera looks along +Y): turning the map
+    # moves the lit side across the view, a derivative well above the noise
+    img = synthetic_envmap(64, sun_elevation=20.0, sun_azimuth=90.0, sun_radius=30.0, sun_radiance=10.0)
     return replace(ball, sky=Sky.environment(img, up=Z, **kw))
 
 
@@ -455,3 +456,47 @@ def test_the_viewer_takes_an_environment_file(ball, tmp_path):
         assert f"--env {tmp_path / 'sky.hdr'}" in line and "--env-rotate 30" in line
     finally:
         s.close()
+
+
+@wp.kernel
+def _radiance_kernel(lights: Lights, dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = env_radiance(lights, dirs[i])
+
+
+@pytest.mark.parametrize("rotate", [0.0, 30.0])
+def test_the_maps_orientation_is_mitsubas(ball, rotate):
+    # Mitsuba 3's envmap emitter (Y up) and ours with up Y show the same column in every direction,
+    # and both the first row straight up and the last straight down; Mitsuba's map turned by its
+    # to_world rotation about Y, ours by ``rotate``. (Their latitudes differ by design: Mitsuba puts row
+    # r's centre at v = r / (h - 1), poles included, we at (r + 0.5) / h as pbrt and Blender do, so the
+    # map's rows hold one value each here and only the poles are compared across rows.)
+    mi = pytest.importorskip("mitsuba")
+    mi.set_variant("scalar_rgb")
+    h, w = 8, 16
+    columns = np.random.default_rng(4).random((w, 3)).astype(np.float32) + 0.1
+    img = np.repeat(columns[None], h, axis=0)
+    img[0], img[-1] = (5.0, 6.0, 7.0), (0.5, 0.25, 0.125)
+    env = mi.load_dict({"type": "envmap", "bitmap": mi.Bitmap(img),
+                        "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], rotate)})
+    sky = Sky.environment(img, rotate=rotate, up=(0.0, 1.0, 0.0))
+    lights = light_table(DeviceScene(replace(ball, sky=sky)), sky, (0.0, 1.0, 0.0))
+    # directions at column centres on three latitudes away from the pole rows, in Mitsuba's own frame
+    # (u = atan2(x, -z) / 2 pi, v = acos(y) / pi), turned into the world by the rotation; then the poles
+    th = np.radians([60.0, 90.0, 120.0])[:, None]
+    ps = (2 * np.pi * (np.arange(w) + 0.5) / w)[None, :]
+    local = np.stack(np.broadcast_arrays(np.sin(th) * np.sin(ps), np.cos(th), -np.sin(th) * np.cos(ps)), -1)
+    a = np.radians(rotate)
+    rot = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    dirs = np.concatenate([(local.reshape(-1, 3) @ rot.T), [[0, 1, 0], [0, -1, 0]]]).astype(np.float32)
+    expected = np.concatenate([np.tile(columns, (3, 1)), img[[0, -1], 0]])
+    theirs = []
+    for d in dirs:
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*(-d.astype(np.float64)))
+        theirs.append(np.array(env.eval(si), dtype=np.float64))
+    out = wp.zeros(len(dirs), dtype=wp.vec3)
+    wp.launch(_radiance_kernel, dim=len(dirs), inputs=[lights, wp.array(dirs, dtype=wp.vec3), out])
+    ours = out.numpy()
+    assert np.allclose(np.array(theirs), expected, rtol=1e-3)     # the directions are Mitsuba's texel centres
+    assert np.allclose(ours, expected, rtol=1e-3), np.abs(ours - expected).max()

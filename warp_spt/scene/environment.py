@@ -1,10 +1,13 @@
 """An environment map on the host: an equirectangular (latitude-longitude) float32 radiance image,
 checked once when it is made (no Warp, no files: ``warp_spt.io.environment`` reads them).
 
-Orientation: row 0 is the zenith of the sky's up axis and the last row its nadir (polar angle
-theta = pi (row + 0.5) / height at a row's centre); column ``c`` lies at azimuth
-phi = 2 pi (c + 0.5) / width, measured from the sky frame's first axis towards its second
-(``core.lights.sky.sky_frame``: for Z up, from +X towards +Y), before the map's rotation.
+Orientation, Mitsuba 3's (its ``envmap`` emitter, Y up): row 0 is the zenith of the sky's up axis
+and the last row its nadir (polar angle theta = pi (row + 0.5) / height at a row's centre); the map's
+u = (c + 0.5) / width is psi / 2 pi with psi = atan2(-d.t, -d.b) in the sky frame (t, b, up)
+(``core.lights.sky.sky_frame``): for Y up, t = -X and b = +Z, so psi = atan2(x, -z) as Mitsuba's;
+for Z up, psi = atan2(-x, -y) (u = 1/2 straight along +Y). Seen from inside, u grows to the right,
+so the picture is not mirrored. A rotation of a degrees turns the map right-handedly about up (as
+Mitsuba's ``to_world`` rotation about its up axis): the direction at psi shows u = psi / 2 pi + a / 360.
 
 Only 2:1 maps are accepted: a lat-long map covers 360 x 180 degrees, so any other shape is another
 projection (a cube cross is 4:3 or 3:4, a mirror ball 1:1) that would render as nonsense; refusing it

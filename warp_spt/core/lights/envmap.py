@@ -63,8 +63,8 @@ def env_texel(lights: Any, d: wp.vec3) -> int:
     """The index of the texel that direction ``d`` (unit) falls in (nearest: no filtering)."""
     e = lights.environment
     z = wp.clamp(wp.dot(d, e.up), -1.0, 1.0)
-    phi = wp.atan2(wp.dot(d, e.b_axis), wp.dot(d, e.t))
-    u = phi / TWO_PI - e.params[1] / 360.0
+    psi = wp.atan2(-wp.dot(d, e.t), -wp.dot(d, e.b_axis))      # azimuth as the map's u counts it
+    u = psi / TWO_PI + e.params[1] / 360.0
     u = u - wp.floor(u)
     v = wp.acos(z) / PI
     col = wp.min(int(u * float(e.width)), e.width - 1)
@@ -81,8 +81,8 @@ def env_radiance(lights: Any, d: wp.vec3) -> wp.vec3:
     theta depends on the row alone), so the sampling density's texels still match the radiance's."""
     e = lights.environment
     z = wp.clamp(wp.dot(d, e.up), -1.0, 1.0)
-    phi = wp.atan2(wp.dot(d, e.b_axis), wp.dot(d, e.t))
-    u = phi / TWO_PI - e.params[1] / 360.0
+    psi = wp.atan2(-wp.dot(d, e.t), -wp.dot(d, e.b_axis))      # azimuth as the map's u counts it
+    u = psi / TWO_PI + e.params[1] / 360.0
     u = u - wp.floor(u)
     x = u * float(e.width) - 0.5                # in column-centre units: column c's centre at c
     c0f = wp.floor(x)
@@ -145,9 +145,9 @@ def sample_env(lights: Any, u: wp.vec2) -> wp.vec4:
     col = _search(e.conditional, row * e.width, e.width, u[1])
     fu = _within(e.conditional, row * e.width, col, u[1])
     theta = PI * (float(row) + fv) / float(e.height)
-    phi = TWO_PI * ((float(col) + fu) / float(e.width) + e.params[1] / 360.0)
+    psi = TWO_PI * ((float(col) + fu) / float(e.width) - e.params[1] / 360.0)
     st = wp.sin(theta)
-    d = e.t * (st * wp.cos(phi)) + e.b_axis * (st * wp.sin(phi)) + e.up * wp.cos(theta)
+    d = e.t * (-st * wp.sin(psi)) - e.b_axis * (st * wp.cos(psi)) + e.up * wp.cos(theta)
     pdf = float(0.0)
     if st > 0.0:
         pdf = e.density[row * e.width + col] * INV_TWO_PI_SQ / st

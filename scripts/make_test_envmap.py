@@ -14,14 +14,16 @@ import numpy as np
 
 
 def synthetic_envmap(width: int = 256, sun_elevation: float = 35.0, sun_azimuth: float = 60.0,
-                     sun_radius: float = 3.0, sun_radiance: float = 2000.0) -> np.ndarray:
+                     sun_radius: float = 3.0, sun_radiance: float = 2000.0, pole_rows: bool = False) -> np.ndarray:
     """(width / 2, width, 3) float32 radiance, Z up: row 0 the zenith, column c at the map's azimuth
     psi = 2 pi (c + 0.5) / width, the direction (-sin theta sin psi, -sin theta cos psi, cos theta)
     (warp_spt.scene.environment's convention, Mitsuba's); the sun at elevation ``sun_elevation`` and
     map azimuth ``sun_azimuth`` (degrees: 0 along -Y, 90 along -X), a disc of ``sun_radius``
-    degrees whose radiance falls off smoothly to its edge."""
+    degrees whose radiance falls off smoothly to its edge. ``pole_rows``: rows at Mitsuba's latitudes
+    (row r at pi r / (H - 1), the first and last at the poles) instead of ours (pi (r + 0.5) / H), so
+    that each renderer gets the same sky sampled where it reads it."""
     h = width // 2
-    theta = np.pi * (np.arange(h) + 0.5) / h
+    theta = np.pi * np.arange(h) / (h - 1) if pole_rows else np.pi * (np.arange(h) + 0.5) / h
     phi = 2 * np.pi * (np.arange(width) + 0.5) / width
     th, ph = np.meshgrid(theta, phi, indexing="ij")
     z = np.cos(th)

@@ -47,8 +47,12 @@ class KernelKind:
 
 def render_features(scene_features: Features, rs: RenderSettings, sky: Sky) -> Features:
     """The features a path-tracing kernel is compiled for: the settings' override, else the scene's
-    own with the sky's (whether it emits)."""
-    return rs.features.covering(scene_features) if rs.features else replace(scene_features, **sky_features(sky))
+    own with the sky's (whether it emits, whether it is an environment map: an override without the
+    environment's code would show a black sky, so it gets it)."""
+    if not rs.features:
+        return replace(scene_features, **sky_features(sky))
+    f = rs.features.covering(scene_features)
+    return f if f.environment or not sky_features(sky)["environment"] else replace(f, environment=True)
 
 
 KERNEL_KINDS: dict[str, KernelKind] = {}

@@ -71,6 +71,11 @@ def test_the_scenes_sky_renders_as_the_settings_sky_and_the_settings_override_it
     assert not np.array_equal(overridden, pink_in_scene)
 
 
+def test_a_scene_sky_that_is_not_a_sky_is_refused(ball):
+    with pytest.raises(TypeError, match="scene.sky must be a warp_spt.Sky"):
+        ws.render_scene(replace(ball, sky="sky.hdr"), FACING, RenderSettings(width=4, height=4, spp=1))
+
+
 # --------------------------------------------------------------------------------------------
 # Files and checks
 

@@ -169,8 +169,12 @@ def kernel_kind(mode: str) -> KernelKind:
 
 def scene_sky(dev: DeviceScene, rs: RenderSettings) -> Sky:
     """The sky a render sees: the settings' (an override), else the scene's own, else the seed's
-    BlackSky."""
-    return rs.sky or getattr(dev.scene, "sky", None) or Sky.black()
+    BlackSky (TypeError for a scene sky that is not a :class:`Sky`)."""
+    own = getattr(dev.scene, "sky", None)
+    if own is not None and not isinstance(own, Sky):
+        raise TypeError(f"scene.sky must be a warp_spt.Sky (e.g. warp_spt.load_environment('sky.hdr')) or None, "
+                        f"got {type(own).__name__}")
+    return rs.sky or own or Sky.black()
 
 
 def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: RenderSettings | None = None, *,

@@ -56,6 +56,7 @@ _EXPORTS = {
     "SceneParameters": "diff.params",
     "SceneError": "scene.errors",
     "Sky": "scene.sky",
+    "load_environment": "io.environment",
     "load_gltf": "io.gltf",
     "load_mtl": "io.mtl",
     "load_obj": "io.obj",
@@ -97,6 +98,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.diff.params import SceneParameters, parameters
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.io.images import save_image, to_display, tonemap_seed, tonemap_srgb
+    from warp_spt.io.environment import load_environment
     from warp_spt.io.gltf import load_gltf
     from warp_spt.io.loader import load_scene
     from warp_spt.io.mtl import load_mtl

@@ -61,7 +61,6 @@ from warp_spt.runtime.extras import install_hint
 from warp_spt.runtime.progress import ProgressFn, progress_reporter
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import Scene
-from warp_spt.scene.sky import Sky
 
 INSTALL_HINT = 'distributed rendering needs dask.distributed: ' + install_hint("cluster")
 
@@ -433,8 +432,9 @@ def settings_for(kw: dict) -> tuple[RenderSettings, ClusterOptions]:
 
 
 def cluster_settings(rs: RenderSettings) -> RenderSettings:
-    """``rs`` as tasks run it: one render thread per task unless ``threads`` says otherwise, the sky filled in."""
-    return replace(rs, threads=rs.threads or 1, sky=rs.sky or Sky.black())
+    """``rs`` as tasks run it: one render thread per task unless ``threads`` says otherwise (the sky, when
+    the settings name none, is the scene's own, shipped with the scene)."""
+    return replace(rs, threads=rs.threads or 1)
 
 
 def render_scene(client, scene: Scene, camera: Camera | None = None, settings: RenderSettings | None = None,

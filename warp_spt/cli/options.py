@@ -84,6 +84,36 @@ darkens) the tone-mapped .png/.jpg by 2^EV; linear .npy/.pfm/.exr keep the scene
 
 
 @dataclass(frozen=True)
+class EnvOptions:
+    """--env FILE, --env-rotate DEG, --env-strength X, --env-background R G B."""
+
+    path: str
+    rotate: float = 0.0
+    strength: float = 1.0
+    background: tuple[float, float, float] | None = None
+
+
+def _env_options(ns) -> EnvOptions | None:
+    """The environment flags, checked: the others need --env, and --env excludes -sky/--sky-color."""
+    extra = [f for f, v in (("--env-rotate", ns.env_rotate), ("--env-strength", ns.env_strength),
+                            ("--env-background", ns.env_background)) if v is not None]
+    if ns.env is None:
+        if extra:
+            raise UsageError(f"{extra[0]} needs --env FILE")
+        return None
+    if ns.sky is not None or ns.sky_color is not None:
+        raise UsageError("give either --env or -sky/--sky-color, not both")
+    if not ns.env.strip():
+        raise UsageError("--env needs a file name, got an empty one")
+    if ns.env_strength is not None and ns.env_strength < 0:
+        raise UsageError(f"--env-strength must be >= 0, got {ns.env_strength:g}")
+    if ns.env_background is not None and min(ns.env_background) < 0:
+        raise UsageError("--env-background colour values must be >= 0")
+    return EnvOptions(ns.env, ns.env_rotate or 0.0, 1.0 if ns.env_strength is None else ns.env_strength,
+                      None if ns.env_background is None else tuple(ns.env_background))
+
+
+@dataclass(frozen=True)
 class Options:
     """A validated command line. ``action`` is "render", "help" or "version"."""
 
@@ -95,7 +125,7 @@ class Options:
     height: int = DEFAULT_RES[1]
     spp: int = DEFAULT_SPP
     depth: int = DEFAULT_DEPTH
-    sky: Sky = field(default_factory=Sky.black)
+    sky: Sky | None = field(default_factory=Sky.black)   # None with --env: the scene's environment
     out: str = DEFAULT_OUT
     threads: int | None = None
     device: str = "cpu"
@@ -124,6 +154,7 @@ class Options:
     smooth_angle: float | str = "auto"   # --smooth-angle; "auto": 30 degrees unless the seed's dialect
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
+    env: EnvOptions | None = None    # --env and its flags: the scene's environment map (cli/view_checks.py)
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
     cluster: str | None = None
     workers: int | None = None
@@ -231,6 +262,13 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                      help="random seed (default 0): the same seed gives the same image")
     new.add_argument("--sky-color", nargs=3, type=finite_float, metavar=("R", "G", "B"),
                      help="a constant sky instead of -sky; 0 0 0 for none")
+    new.add_argument("--env", metavar="FILE",
+                     help="an environment map lights the scene: an equirectangular (2:1) .hdr, .exr or .pfm "
+                          "(an 8-bit .png with a warning)")
+    new.add_argument("--env-rotate", type=finite_float, metavar="DEG", help="turn the --env map about the up axis")
+    new.add_argument("--env-strength", type=finite_float, metavar="X", help="scale the --env map's radiance (default 1)")
+    new.add_argument("--env-background", nargs=3, type=finite_float, metavar=("R", "G", "B"),
+                     help="camera rays that miss see this colour; the --env map still lights the scene")
     new.add_argument("--tonemap", choices=("seed", "srgb"), default="seed",
                      help="PNG mapping: the seed's curve (default) or sRGB")
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
@@ -300,7 +338,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         width=width, height=height,
         spp=ns.sr or (preset.spp if preset else DEFAULT_SPP),
         depth=ns.depth or (preset.depth if preset else DEFAULT_DEPTH),
-        sky=_sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
+        sky=None if ns.env is not None else _sky(ns.sky, ns.sky_color, preset.sky if preset else DEFAULT_SKY),
+        env=_env_options(ns),
         out=out, threads=ns.threads, device=ns.device, seed=ns.seed, tonemap=ns.tonemap,
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
@@ -308,7 +347,8 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
         frame_all=ns.frame_all,
-        studio=ns.studio, sky_given=ns.sky is not None or ns.sky_color is not None or preset is not None,
+        studio=ns.studio, sky_given=(ns.sky is not None or ns.sky_color is not None or preset is not None
+                                     or ns.env is not None),
         exposure=ns.exposure, default_material=ns.default_material, file_camera=ns.file_camera,
         smooth_angle="auto" if ns.smooth_angle is None else ns.smooth_angle,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),

@@ -70,16 +70,31 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
     if getattr(opts, "file_camera", None) is not None:
         file_camera = _file_camera(opts, scene)
         opts = replace(opts, camera=file_camera, cam_given=True, frame=False, view=None)
+    env = _environment(opts, say) if opts.env is not None else None
     try:
         fv = first_view(scene, opts.camera, width=opts.width, height=opts.height, up=opts.up, studio=opts.studio,
-                        sky=opts.sky if opts.sky_given else None, frame=opts.frame, view=opts.view,
+                        sky=env or (opts.sky if opts.sky_given else None), frame=opts.frame, view=opts.view,
                         look_at=opts.look_at, frame_all=opts.frame_all, demo=opts.uses_demo_scene,
                         keep_camera=opts.cam_given, seed_camera=opts.cam_explicit,
                         fixed=opts.cam_explicit or bool(opts.camera_path) or file_camera is not None,
                         quiet_demo=opts.quiet, say=say)
     except ValueError as err:
         raise RunError(str(err)) from None
+    if env is not None:     # a light of the scene, shipped with it (a cluster's workers too), not a setting
+        return replace(fv.scene, sky=env), fv.camera, None
     return fv.scene, fv.camera, fv.sky if fv.sky is not None else opts.sky
+
+
+def _environment(opts, say) -> Sky:
+    """The --env map as a sky (RunError naming the file if it cannot be read)."""
+    from warp_spt.io.environment import load_environment
+
+    e = opts.env
+    try:
+        return load_environment(e.path, rotate=e.rotate, strength=e.strength, background=e.background,
+                                warn=lambda message: say(f"warning: {message}"))
+    except ValueError as err:
+        raise RunError(str(err)) from None
 
 
 def _file_camera(opts, scene) -> Camera:

@@ -105,6 +105,7 @@ class Features:
     emitters: bool = True
     smooth: bool = True
     sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
+    environment: bool = True   # the sky is an environment map (set per render, as ``sky``)
     # procedural textures used: sorted (name, source hash); () compiles no procedural code
     procedural: tuple[tuple[str, str], ...] = ()
     # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch

@@ -13,6 +13,9 @@
   ``@warp_spt.texture``): () for a number, (3,) for an RGB triple;
 * ``"sky.color"`` (3,) for a constant sky; ``"sky.zenith"`` and ``"sky.nadir"`` (3,) for the
   gradient sky (its colours straight up and straight down);
+* ``"environment.strength"`` and ``"environment.rotate"`` () for an environment-map sky (its
+  radiance scale, and its turn about the up axis in degrees; the rotation's derivative comes from the
+  map's lookup, linear in azimuth);
 * ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
   points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
   see docs/gradients.md).
@@ -46,8 +49,13 @@ from warp_spt.scene.material_schema import (
     range_text,
 )
 from warp_spt.scene.model import TEX_PROC_BASE, Scene
-from warp_spt.scene.sky import Sky
+from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 from warp_spt.scene.validate import check_procedural_colours
+
+# the environment map's light kind (core.lights.envmap) and its parameters, in the order of the rows
+# of its parameter array (EnvLight.params): Sky fields
+ENVIRONMENT = "environment"
+ENVIRONMENT_FIELDS = ("strength", "rotate")
 
 # the material schema's differentiable columns (warp_spt.scene.material_schema), in its order
 MATERIAL_FIELDS = tuple(c.name for c in DIFFERENTIABLE)
@@ -86,7 +94,7 @@ class SceneParameters:
             raise TypeError(f"sky must be a warp_spt.Sky or None, got {sky!r}")
         self.scene = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
         self.camera = camera or Camera()
-        self.sky = sky or Sky.black()
+        self.sky = sky or getattr(self.scene.scene, "sky", None) or Sky.black()
         self._info = _describe(self.scene.scene, self.sky)
 
     # --- the mapping -------------------------------------------------------------------------
@@ -121,7 +129,7 @@ class SceneParameters:
         if p.kind == "proc":
             off, size = proc_slice(s, p)
             return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
-        if p.kind == "sky":
+        if p.kind in ("sky", ENVIRONMENT):
             return np.array(getattr(self.sky, p.field), dtype=np.float32)
         return np.array(getattr(self.camera, p.field), dtype=np.float32)
 
@@ -147,6 +155,8 @@ class SceneParameters:
             self._set_proc(p, v)
         elif p.kind == "sky":
             self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
+        elif p.kind == ENVIRONMENT:
+            self.sky = replace(self.sky, **{p.field: float(v)})
         else:
             self.camera = replace(self.camera, **{p.field: tuple(float(x) for x in v)})
 
@@ -240,6 +250,10 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
     # the sky's colours: kind "sky", the light kind whose colour array holds them, index their row
     for row, f in enumerate(sky.colour_fields()):
         info[f"sky.{f}"] = ParamInfo(f"sky.{f}", "sky", f, row, (3,))
+    # an environment map's strength and rotation: rows of its light kind's parameter array
+    if sky.kind == SKY_ENVIRONMENT:
+        for row, f in enumerate(ENVIRONMENT_FIELDS):
+            info[f"{ENVIRONMENT}.{f}"] = ParamInfo(f"{ENVIRONMENT}.{f}", ENVIRONMENT, f, row, ())
     for f in ("position", "direction"):
         info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
     return info
@@ -288,7 +302,7 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
         return COLUMN[p.field].low, COLUMN[p.field].high
     if p.kind == "texture":
         return 0.0, 1.0                         # texels, as validate_scene requires
-    if p.kind == "sky":
+    if p.kind == "sky" or (p.kind, p.field) == (ENVIRONMENT, "strength"):
         return 0.0, MAX_RADIANCE
     if p.kind == "proc" and p.shape == (3,):
         return 0.0, None

@@ -199,7 +199,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
         p = path
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_miss(lights, p.d))
-            hit_le = wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
+            hit_le = wp.cw_mul(p.throughput, light.le_escaped(lights, p.d, p.depth)) * w
             p.radiance += hit_le
             p.alive = 0
             return p, wp.vec2i(-1, -1), float(0.0), hit_le[0] + hit_le[1] + hit_le[2]

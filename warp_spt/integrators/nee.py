@@ -244,7 +244,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         p.vis = VIS_TRACE
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_miss(lights, p.d))
-            p.radiance += wp.cw_mul(p.throughput, light.le_miss(lights, p.d)) * w
+            p.radiance += wp.cw_mul(p.throughput, light.le_escaped(lights, p.d, p.depth)) * w
             p.alive = 0
             return p
         p.depth += 1

@@ -21,7 +21,7 @@ import warp as wp
 
 from warp_spt.core.camera_rays import CameraParams, camera_params
 from warp_spt.core.device_scene import DeviceScene, Features, Textures
-from warp_spt.core.lights import Lights, light_table, sky_emits
+from warp_spt.core.lights import Lights, light_table, sky_features
 from warp_spt.integrators import Integrator, RenderParams, get_integrator, get_kernel
 from warp_spt.rendering.settings import RenderSettings, check_args, check_rows
 from warp_spt.scene.camera import Camera
@@ -47,8 +47,12 @@ class KernelKind:
 
 def render_features(scene_features: Features, rs: RenderSettings, sky: Sky) -> Features:
     """The features a path-tracing kernel is compiled for: the settings' override, else the scene's
-    own with the sky's (whether it emits)."""
-    return rs.features.covering(scene_features) if rs.features else replace(scene_features, sky=sky_emits(sky))
+    own with the sky's (whether it emits, whether it is an environment map: an override without the
+    environment's code would show a black sky, so it gets it)."""
+    if not rs.features:
+        return replace(scene_features, **sky_features(sky))
+    f = rs.features.covering(scene_features)
+    return f if f.environment or not sky_features(sky)["environment"] else replace(f, environment=True)
 
 
 KERNEL_KINDS: dict[str, KernelKind] = {}
@@ -163,6 +167,16 @@ def kernel_kind(mode: str) -> KernelKind:
     return KERNEL_KINDS[mode]
 
 
+def scene_sky(dev: DeviceScene, rs: RenderSettings) -> Sky:
+    """The sky a render sees: the settings' (an override), else the scene's own, else the seed's
+    BlackSky (TypeError for a scene sky that is not a :class:`Sky`)."""
+    own = getattr(dev.scene, "sky", None)
+    if own is not None and not isinstance(own, Sky):
+        raise TypeError(f"scene.sky must be a warp_spt.Sky (e.g. warp_spt.load_environment('sky.hdr')) or None, "
+                        f"got {type(own).__name__}")
+    return rs.sky or own or Sky.black()
+
+
 def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: RenderSettings | None = None, *,
          mode: str = "fast", rows: tuple[int, int] | None = None) -> Bound:
     """Check, upload and pick the kernel of ``mode`` (a ``KERNEL_KINDS`` name): the one set-up of
@@ -176,7 +190,7 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
         # a CUDA launch runs all its threads at once: each pass is one launch over the whole image,
         # from one host thread (CPU tiles and worker threads would only serialise on the stream)
         rs = replace(rs, tile_pixels=max(rs.tile_pixels, rs.width * rs.height), threads=1)
-    sky = rs.sky or Sky.black()
+    sky = scene_sky(dev, rs)
     b = Bound(dev, camera, rs, sky, kind.features(dev.features, rs, sky), get_integrator(rs.integrator), kind)
     b.options = b.integrator.options(rs.integrator_options)
     if b.features.media and mode == "fast" and not b.integrator.media:
@@ -195,7 +209,7 @@ def device_kernel(dev: DeviceScene, rs: RenderSettings, mode: str = "fast") -> w
     """Only the kernel :func:`bind` would pick for ``dev`` and ``rs`` (compiled and loaded): what a
     cluster worker prepares under its lock when it uploads a scene."""
     kind = kernel_kind(mode)
-    sky = rs.sky or Sky.black()
+    sky = scene_sky(dev, rs)
     return kind.build(Bound(dev, Camera(), rs, sky, kind.features(dev.features, rs, sky),
                             get_integrator(rs.integrator), kind))
 

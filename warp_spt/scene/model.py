@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from warp_spt.scene.sky import Sky
 from warp_spt.scene.material_schema import (
     COLOR,
     COLUMN,
@@ -234,6 +235,10 @@ class Scene:
     # camera starts in, and the interior medium of the closed meshes of a material, by material name
     fog: object = None
     interiors: dict = field(default_factory=dict)
+    # the scene's infinite light (warp_spt.scene.sky.Sky: a constant, the gradient, an environment
+    # map), uploaded and shipped to cluster workers with the scene; None: the seed's blue BlackSky.
+    # RenderSettings.sky, when given, overrides it.
+    sky: Sky | None = None
 
     @property
     def num_triangles(self) -> int:

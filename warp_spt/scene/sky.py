@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from warp_spt.scene.environment import EnvironmentMap
 from warp_spt.scene.limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
 
 SKY_CONSTANT = 0
 SKY_GRADIENT = 1
+SKY_ENVIRONMENT = 2
 Z_UP = (0.0, 0.0, 1.0)
 
 
@@ -31,6 +33,10 @@ class Sky:
 
     ``up`` is that axis (any non-zero 3-vector, stored normalised), or None to follow the camera's
     ``up`` (see :func:`warp_spt.core.lights.light_table`). A constant sky does not depend on it.
+
+    SKY_ENVIRONMENT is an environment map (``env``, see :meth:`environment`): its radiance
+    times ``strength``, turned by ``rotate`` degrees about the up axis; ``background``, if given, is
+    the colour camera rays see where they miss the scene (the map still lights it).
     """
 
     kind: int = SKY_CONSTANT
@@ -38,9 +44,13 @@ class Sky:
     up: tuple[float, float, float] | None = None
     zenith: tuple[float, float, float] = ZENITH
     nadir: tuple[float, float, float] = NADIR
+    env: EnvironmentMap | None = None
+    strength: float = 1.0
+    rotate: float = 0.0
+    background: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
-        problem = sky_problem(self.kind, self.color, self.up)
+        problem = sky_problem(self.kind, self.color, self.up) or self._environment_problem()
         for name in ("zenith", "nadir"):
             problem = problem or colour_problem(f"sky {name}", getattr(self, name))
         if not problem and self.kind == SKY_GRADIENT and max(self.zenith + self.nadir) <= 0.0:
@@ -51,6 +61,31 @@ class Sky:
             object.__setattr__(self, name, tuple(float(c) for c in getattr(self, name)))
         if self.up is not None:
             object.__setattr__(self, "up", _unit(self.up))
+
+    def _environment_problem(self) -> str | None:
+        if (self.kind == SKY_ENVIRONMENT) != (self.env is not None):
+            return "an environment sky (SKY_ENVIRONMENT) needs an EnvironmentMap, and only it takes one"
+        if self.env is not None and not isinstance(self.env, EnvironmentMap):
+            return f"environment must be a warp_spt.scene.environment.EnvironmentMap, got {type(self.env).__name__}"
+        if not (isinstance(self.strength, (int, float)) and 0.0 <= float(self.strength) <= MAX_RADIANCE):
+            return f"environment strength must be a number in [0, {MAX_RADIANCE:g}], got {self.strength!r}"
+        if not (isinstance(self.rotate, (int, float)) and math.isfinite(float(self.rotate))):
+            return f"environment rotation must be a finite number of degrees, got {self.rotate!r}"
+        if self.background is not None:
+            return colour_problem("environment background", self.background)
+        return None
+
+    @staticmethod
+    def environment(image, rotate: float = 0.0, strength: float = 1.0, background=None, up=None,
+                    name: str = "environment map") -> "Sky":
+        """An environment map: ``image`` an (H, W, 3) equirectangular radiance array with W = 2 H (or an
+        :class:`EnvironmentMap`; ``warp_spt.load_environment`` reads .hdr, .exr, .pfm and PNG files),
+        scaled by ``strength`` and turned ``rotate`` degrees about the up axis (``up``, default the
+        camera's); camera rays that miss see ``background`` (an RGB colour) instead, if given."""
+        env = image if isinstance(image, EnvironmentMap) else EnvironmentMap(image, name)
+        return Sky(SKY_ENVIRONMENT, (0.0, 0.0, 0.0), None if up is None else tuple(up), env=env,
+                   strength=float(strength), rotate=float(rotate),
+                   background=None if background is None else tuple(float(c) for c in background))
 
     @staticmethod
     def black() -> "Sky":
@@ -87,6 +122,8 @@ class Sky:
     def colour_fields(self) -> tuple[str, ...]:
         """The colours this sky is made of, in the order of their rows in the device's colour array
         (``warp_spt.core.lights.sky``) and of the parameters ``sky.<field>`` (``warp_spt.diff.params``)."""
+        if self.kind == SKY_ENVIRONMENT:
+            return ()
         return ("color",) if self.kind != SKY_GRADIENT else ("zenith", "nadir")
 
     def up_axis(self, camera_up=Z_UP) -> tuple[float, float, float]:
@@ -103,8 +140,8 @@ class Sky:
 
 def sky_problem(kind, color, up=None) -> str | None:
     """Why these sky values cannot be rendered exactly, or None."""
-    if kind not in (SKY_CONSTANT, SKY_GRADIENT):
-        return f"sky kind must be SKY_CONSTANT (0) or SKY_GRADIENT (1), got {kind!r}"
+    if kind not in (SKY_CONSTANT, SKY_GRADIENT, SKY_ENVIRONMENT):
+        return f"sky kind must be SKY_CONSTANT (0), SKY_GRADIENT (1) or SKY_ENVIRONMENT (2), got {kind!r}"
     problem = colour_problem("sky colour", color)
     if problem:
         return problem

@@ -41,6 +41,7 @@ class CommandSpec:
     studio: bool = False
     studio_off: bool = False    # --no-studio was asked for
     smooth_angle: float | None = None   # --smooth-angle, when not the default
+    env: tuple[str, float, float] | None = None   # sky "environment": --env FILE, --env-rotate, --env-strength
 
 
 def number(v: float) -> str:
@@ -68,7 +69,11 @@ def command_args(camera, spec: CommandSpec) -> list[str]:
     args += ["-res", str(spec.width), str(spec.height), "-sr", str(spec.spp), "-depth", str(spec.max_depth)]
     args += ["--studio"] if spec.studio else ["--no-studio"] if spec.studio_off else []
     args += ["--smooth-angle", number(spec.smooth_angle)] if spec.smooth_angle is not None else []
-    if spec.sky != "studio":
+    if spec.sky == "environment" and spec.env is not None:
+        path, rotate, strength = spec.env
+        args += ["--env", path] + (["--env-rotate", number(rotate)] if rotate else [])
+        args += ["--env-strength", number(strength)] if strength != 1.0 else []
+    elif spec.sky != "studio":
         args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
     args += ["--integrator", spec.integrator, "--sampler", spec.sampler]
     if spec.out.lower().endswith((".png", ".jpg", ".jpeg")):

@@ -146,6 +146,7 @@ SET_VALUES: dict[str, Callable] = {
     "integrator": text, "sampler": text, "sky": text, "tonemap": text,
     "exposure": number, "fov": number, "aperture": number,
     "sky_color": lambda v, n: numbers(v, n, 3),
+    "env_path": text, "env_rotate": number, "env_strength": number,
     "error_map": boolean,
 }
 

@@ -32,7 +32,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP, MAX_VIEW_PIXELS
+from warp_spt.scene.limits import MAX_DEPTH, MAX_RADIANCE, MAX_SPP, MAX_VIEW_PIXELS
 
 from . import display, messages, navigation
 from .command import CommandSpec, command_line
@@ -48,7 +48,7 @@ PREVIEW_SECONDS = 0.05       # a preview renders in this long at most (20 fps), 
 MAX_PREVIEW_SHRINK = 2.0     # ...but to no less than half the preview_scale size per side
 MAX_PASS_SPP = 256
 SLOW_CALL_SECONDS = 1.0      # a render call this slow is compiling a kernel: say so on the page
-SKY_NAMES = ("blue", "gradient", "pink", "studio", "black", "color")
+SKY_NAMES = ("blue", "gradient", "pink", "studio", "black", "color", "environment")
 DISPLAY_KEYS = ("exposure", "tonemap", "error_map")   # change the picture, not the render
 
 Listener = Callable[[dict, list], None]
@@ -68,6 +68,9 @@ class ViewSettings:
     max_depth: int = 6
     sky: str = "blue"
     sky_color: tuple = (0.5, 0.5, 0.5)
+    env_path: str = ""              # the "environment" sky's map file (--env), its turn and strength
+    env_rotate: float = 0.0
+    env_strength: float = 1.0
     max_spp: int = 1024
     preview_scale: int = 4
     exposure: float = 0.0
@@ -75,11 +78,17 @@ class ViewSettings:
     error_map: bool = False
 
 
-def make_sky(settings: ViewSettings):
-    """The :class:`warp_spt.Sky` the settings name."""
+def make_sky(settings: ViewSettings, environment=None):
+    """The :class:`warp_spt.Sky` the settings name; ``environment``: the "environment" sky's map (an
+    :class:`warp_spt.scene.environment.EnvironmentMap` read from ``env_path``, kept by the session so
+    that the light table built for it is reused)."""
     from warp_spt import Sky
     from warp_spt.scene.studio import studio_sky
 
+    if settings.sky == "environment":
+        if environment is None:
+            raise ValueError("the environment sky needs a map: give its file (.hdr, .exr, .pfm) first")
+        return Sky.environment(environment, rotate=settings.env_rotate, strength=settings.env_strength)
     return {"blue": Sky.black, "gradient": Sky.gradient, "pink": Sky.pink,
             "studio": studio_sky, "black": lambda: Sky.constant(0.0, 0.0, 0.0),
             "color": lambda: Sky.constant(*settings.sky_color)}[settings.sky]()
@@ -88,9 +97,16 @@ def make_sky(settings: ViewSettings):
 def sky_command(settings: ViewSettings, studio: bool = False) -> tuple[str | None, tuple]:
     """(-sky name, "studio" or None, --sky-color value) for :class:`.command.CommandSpec`; "studio"
     (no sky flag) when the studio look is on and its sky shown."""
-    if settings.sky in ("blue", "gradient", "pink") or (studio and settings.sky == "studio"):
+    if settings.sky in ("blue", "gradient", "pink", "environment") or (studio and settings.sky == "studio"):
         return settings.sky, (0.0, 0.0, 0.0)
     return None, make_sky(settings).color
+
+
+def _read_environment(path: str):
+    """The map of an environment file (ValueError naming the file, as the command line's)."""
+    import warp_spt
+
+    return warp_spt.load_environment(path).env
 
 
 def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
@@ -112,7 +128,8 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     if key in choices and value not in choices[key]:
         raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
     limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, MAX_DEPTH), "max_spp": (1, MAX_SPP),
-              "preview_scale": (1, 16), "exposure": (-20.0, 20.0)}
+              "preview_scale": (1, 16), "exposure": (-20.0, 20.0), "env_rotate": (-1e6, 1e6),
+              "env_strength": (0.0, MAX_RADIANCE)}
     if key in limits and not limits[key][0] <= value <= limits[key][1]:
         raise ValueError(f"{key} must lie in [{limits[key][0]}, {limits[key][1]}], got {value}")
     if key == "sky_color":
@@ -240,6 +257,7 @@ class Session:
             self._settings = checked_settings(self._settings, key, value)
         self._sky_given = "sky" in settings or "sky_color" in settings
         self._integrator_given = "integrator" in settings
+        self._environment = _read_environment(self._settings.env_path) if self._settings.env_path else None
         self._studio_given = studio      # --studio / --no-studio; None: the rule
         self._smooth_angle = smooth_angle
         self._studio = False             # the first view added the studio look
@@ -339,7 +357,7 @@ class Session:
             acc = self._acc
             if acc is None or acc.spp == 0:
                 return None
-            return _result(acc, self._settings, make_sky(self._settings))
+            return _result(acc, self._settings, self._make_sky(self._settings))
 
     def wait_for(self, spp: int = 1, timeout: float = 60.0):
         """Block until the current view is refined to at least ``spp`` samples per pixel; returns
@@ -371,6 +389,7 @@ class Session:
         spec = CommandSpec(self.objs, self.mtls, self._up, int(width or s.width), int(height or s.height),
                            int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out, s.exposure,
                            studio=self._studio, studio_off=self._studio_given is False,
+                           env=(s.env_path, s.env_rotate, s.env_strength) if s.sky == "environment" else None,
                            smooth_angle=None if self._smooth_angle == "auto" else self._smooth_angle)
         camera = self.camera
         if camera is None:
@@ -480,13 +499,20 @@ class Session:
             self._navigate(lambda rig: navigation.with_fov(rig, float(value)) if key == "fov"
                            else replace(rig, aperture=_non_negative(value, "aperture")))
             return
+        if key == "env_path":           # read before anything changes: a bad file leaves the view as it was
+            environment = _read_environment(str(value)) if str(value).strip() else None
         with self._cond:
             self._settings = checked_settings(self._settings, key, value)
+            if key == "env_path":
+                self._environment = environment
             if key not in DISPLAY_KEYS:
                 self._changed()
         if key in DISPLAY_KEYS:
             self._redraw()
         self._broadcast(self.state(), [])
+
+    def _make_sky(self, s: ViewSettings):
+        return make_sky(s, self._environment)
 
     def _on_param(self, msg, reply) -> None:
         name = str(msg["name"])
@@ -564,14 +590,14 @@ class Session:
             cam = rig_camera(self._rig)
             cam = replace(cam, position=tuple(float(p + o) for p, o in zip(cam.position, self._offset)))
             return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, fixed=True,
-                              sky=make_sky(s) if self._sky_given else None,
+                              sky=self._make_sky(s) if self._sky_given else None,
                               studio=self._studio if not demo else False)
         cam = self._given_camera
         if cam is None and demo:
             from warp_spt import Camera
             cam = Camera()                  # the built-in demo keeps the seed's camera, as the CLI does
         return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=self._studio_given,
-                          sky=make_sky(s) if self._sky_given else None)
+                          sky=self._make_sky(s) if self._sky_given else None)
 
     def _initial_rig(self, cam):
         """The first view's camera with its pivot at the scene centre's depth."""
@@ -663,7 +689,8 @@ class Session:
 
         version, s, camera, dev = self._snapshot()
         w, h = preview_size(s, PREVIEW_SECONDS * self._preview_rate)
-        rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth, sky=make_sky(s),
+        rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth,
+                                     sky=self._make_sky(s),
                                      integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
         start = time.perf_counter()
         res = self._timed(warp_spt.render_scene, dev, camera, rs)
@@ -689,7 +716,7 @@ class Session:
         spp = acc.pass_spp(min(MAX_PASS_SPP, int(PASS_SECONDS * self._rate / n)), s.max_spp)
         band = max(1, int(BAND_SECONDS * max(self._rate, 1.0) / (s.width * spp))) if self._rate > 0 else 8
         rs = warp_spt.RenderSettings(width=s.width, height=s.height, spp=spp, max_depth=s.max_depth,
-                                     sky=make_sky(s), integrator=s.integrator, sampler=s.sampler,
+                                     sky=self._make_sky(s), integrator=s.integrator, sampler=s.sampler,
                                      seed=acc.seeds[b], sample_offset=int(acc.counts[b]),
                                      tile_pixels=_tile(min(band, s.height) * s.width))
         sums = np.empty((s.height, s.width, 3))

@@ -3,6 +3,7 @@
 * ``base``: what a kind registers (``LightKind``) and the sample it returns (``LightSample``);
 * ``triangle``, ``sphere``: area lights (emitting triangles of meshes, emitting spheres), whose
   radiance is the emission of their surface's material;
+* ``envmap``: an environment map, an infinite light importance-sampled from its texels;
 * ``sky``: an infinite light, seen by rays that miss the scene, with its colours as a device array
   carrying gradients (the parameters ``sky.color``, ``sky.zenith``, ``sky.nadir``);
 * ``registry``: the kinds, one line each (``KINDS``);
@@ -42,8 +43,17 @@ from warp_spt.core.lights.table import (
     table_key,
 )
 from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL
+from warp_spt.core.lights.envmap import EnvLight, env_pdf, env_radiance, environment_emits, sample_env
+from warp_spt.scene.sky import SKY_ENVIRONMENT
 
-__all__ = ["KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
+
+def sky_features(sky) -> dict:
+    """The feature flags a sky sets (``Features.sky``: some infinite light emits; ``environment``:
+    it is an environment map, whose code is compiled in)."""
+    env = sky.kind == SKY_ENVIRONMENT
+    return {"sky": sky_emits(sky) or environment_emits(sky), "environment": env}
+
+__all__ = ["EnvLight", "env_pdf", "env_radiance", "environment_emits", "sample_env", "sky_features", "KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
            "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
            "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
            "table_key"]

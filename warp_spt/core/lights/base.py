@@ -63,6 +63,8 @@ class LightKind:
       density, shadow-ray length) and ``pdf_li``: ``(geo, lights, h, o, d) -> float`` for an area
       light (the density with which sampling from ``o`` would give the hit ``h``), ``(lights, d)``
       for an infinite one, which also gives ``le(lights, d) -> vec3``. Densities include the choice.
+    * ``present(features)``: its code is compiled in at all (an infinite light that these features
+      lack is not even looked at by rays that miss; its ``le`` is then no part of the kernel).
     * ``params``: the field of ``data`` holding its differentiable parameters, an array whose rows
       ``diff.params`` names (e.g. the sky's colours), or None.
     """
@@ -77,6 +79,7 @@ class LightKind:
     make: Callable[..., Any]
     cache: bool = True
     params: str | None = None
+    present: Callable[[Features], bool] = lambda features: True
 
 
 def device_array(x, dtype, np_dtype, device: str) -> wp.array:

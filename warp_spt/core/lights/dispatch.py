@@ -13,7 +13,9 @@ a kind the features do not use compiles no code).
 * ``pdf_li(geo, lights, h, o, d) -> float``: the density with which ``sample_li`` from ``o`` would
   have given the hit ``h`` along ``d`` (0 for a surface that is not in the table);
 * ``le_miss(lights, d)`` and ``pdf_miss(lights, d)``: the radiance of the infinite lights seen by a
-  ray that misses the scene along ``d``, and the density with which ``sample_li`` gives ``d``.
+  ray that misses the scene along ``d``, and the density with which ``sample_li`` gives ``d``;
+* ``le_escaped(lights, d, depth)``: ``le_miss`` for a path's ray after ``depth`` hits (a camera ray
+  sees an environment's background instead, where one is set).
 
 (No ``from __future__ import annotations`` here: the chain's functions are annotated with closure
 variables, which Warp must see as objects, not as strings.)
@@ -122,19 +124,41 @@ def _le_chain(levels):
     return le_of
 
 
+def _escaped(seen, miss_le):
+    """``le_escaped(lights, d, depth)``: what a ray that misses the scene along ``d`` after ``depth``
+    hits receives: ``le_miss``, except that a camera ray (depth 0) sees what an infinite kind's
+    ``seen`` says (an environment's background). Without such a kind it is ``le_miss`` itself."""
+    if not seen:
+        @wp.func(inline=True)
+        def plain(lights: Lights, d: wp.vec3, depth: int) -> wp.vec3:
+            return miss_le(lights, d)
+        return plain
+    view = seen[0]
+
+    @wp.func(inline=True)
+    def escaped(lights: Lights, d: wp.vec3, depth: int) -> wp.vec3:
+        le = miss_le(lights, d)
+        if depth == 0:
+            return view(lights, d, le)
+        return le
+
+    return escaped
+
+
 def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     """The interface above for the kinds these features use (``surface_at`` and ``emission``: the
     integrator's surface and the materials' emission, which area lights radiate)."""
     made = [k.make(Lights, features) for k in KINDS]
-    infinite = [i for i, k in enumerate(KINDS) if not k.area]
+    infinite = [i for i, k in enumerate(KINDS) if not k.area and k.present(features)]
     several = len(infinite) > 1
-    sampled = [(i, k, made[i]) for i, k in enumerate(KINDS) if k.sampled(features)]
+    sampled = [(i, k, made[i]) for i, k in enumerate(KINDS) if k.sampled(features) and k.present(features)]
     sample_entry = _sample_chain([(i, f.sample_li, infinite.index(i) if several and not k.area else -1)
                                   for i, k, f in sampled])
     pdf_hit = _pdf_chain([(k.hit_kind, f.pdf_li) for i, k, f in sampled if k.area])
     miss_pdf = _miss_sum([f.pdf_li for i, k, f in sampled if not k.area], 0.0)
     miss_le = _miss_sum([made[i].le for i in infinite], wp.vec3(0.0, 0.0, 0.0))
     sample_le = _le_chain([(n, made[i].le) for n, i in enumerate(infinite)])
+    le_escaped = _escaped([made[i].seen for i in infinite if hasattr(made[i], "seen")], miss_le)
 
     @wp.func
     def sample_li(geo: Geometry, lights: Lights, x: wp.vec3, u_pick: float, u: wp.vec2) -> LightSample:
@@ -180,7 +204,7 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
         return miss_le(lights, d)
 
     return SimpleNamespace(sample_li=sample_li, le=le, sample=sample, pdf_li=pdf_li, pdf_miss=pdf_miss,
-                           le_miss=le_miss)
+                           le_miss=le_miss, le_escaped=le_escaped)
 
 
 def detach_lights(light: SimpleNamespace) -> None:

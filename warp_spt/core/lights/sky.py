@@ -159,8 +159,8 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     s = SkyLight()
     s.prob = float(prob[0]) if len(prob) else 0.0
     s.kind = int(sky.kind)
-    s.colors = wp.array(np.array([getattr(sky, f) for f in sky.colour_fields()], dtype=np.float64),
-                        dtype=wp.vec3d, device=device)
+    rows = [getattr(sky, f) for f in sky.colour_fields()] or [(0.0, 0.0, 0.0)]   # an environment: black here
+    s.colors = wp.array(np.array(rows, dtype=np.float64), dtype=wp.vec3d, device=device)
     s.a, s.b = sky_density(sky) if len(prob) else (1.0, 0.0)
     s.t, s.b_axis, s.up = (wp.vec3(*v.astype(np.float32).tolist()) for v in sky_frame(up))
     return s

@@ -107,6 +107,9 @@ function build(el) {
     integrator: select([]), sampler: select([]),
     depth: h("input", { type: "number", min: "1", max: "4096" }),
     sky: select([]), skyColor: h("input", { type: "color" }),
+    envPath: h("input", { type: "text", size: "14", placeholder: "sky.hdr", class: "wspt-env-path" }),
+    envRotate: h("input", { type: "number", step: "5", style: "width:52px", title: "rotate (degrees)" }),
+    envStrength: h("input", { type: "number", min: "0", step: "0.1", style: "width:52px", title: "strength" }),
     maxSpp: h("input", { type: "number", min: "1", step: "1", class: "wspt-max-spp" }),
     exposure: h("input", { type: "range", min: "-6", max: "6", step: "0.1" }),
     exposureValue: h("span"),
@@ -130,7 +133,9 @@ function build(el) {
       field("aperture", ui.aperture), field("up axis", ui.up), h("div", {}, ui.frame, ui.reset)),
     h("details", { open: "" }, h("summary", {}, "Render"),
       field("integrator", ui.integrator), field("sampler", ui.sampler), field("max depth", ui.depth),
-      field("sky", h("span", {}, ui.sky, " ", ui.skyColor)), field("stop at spp", ui.maxSpp)),
+      field("sky", h("span", {}, ui.sky, " ", ui.skyColor)),
+      field("environment", h("span", {}, ui.envPath, " ", ui.envRotate, " ", ui.envStrength)),
+      field("stop at spp", ui.maxSpp)),
     h("details", { open: "" }, h("summary", {}, "Display"),
       field("exposure", h("span", { style: "display:flex;flex:1;gap:4px" }, ui.exposure, ui.exposureValue)),
       field("tone map", ui.tonemap), field("error map", ui.errorMap)),
@@ -224,7 +229,8 @@ function showState(ui, view, send, st) {
   for (const [input, value] of [[ui.width, s.width], [ui.height, s.height], [ui.integrator, s.integrator],
       [ui.sampler, s.sampler], [ui.depth, s.max_depth], [ui.sky, s.sky], [ui.maxSpp, s.max_spp],
       [ui.exposure, s.exposure], [ui.tonemap, s.tonemap], [ui.errorMap, s.error_map], [ui.up, st.up],
-      [ui.skyColor, toHex(s.sky_color, 1)]]) setValue(input, value);
+      [ui.skyColor, toHex(s.sky_color, 1)], [ui.envPath, s.env_path], [ui.envRotate, s.env_rotate],
+      [ui.envStrength, s.env_strength]]) setValue(input, value);
   ui.exposureValue.textContent = `${Number(s.exposure).toFixed(1)} EV`;
   ui.skyColor.style.display = s.sky === "color" ? "" : "none";
   if (!ui.cmdTouched) { ui.cmdWidth.value = s.width; ui.cmdHeight.value = s.height; }   // follows the view
@@ -380,6 +386,9 @@ function wireControls(ui, view, send) {
   on(ui.depth, "change", () => set("max_depth", Number(ui.depth.value)));
   on(ui.sky, "change", () => set("sky", ui.sky.value));
   on(ui.skyColor, "input", () => set("sky_color", fromHex(ui.skyColor.value, 1)));
+  on(ui.envPath, "change", () => { set("env_path", ui.envPath.value); if (ui.envPath.value) set("sky", "environment"); });
+  on(ui.envRotate, "change", () => set("env_rotate", Number(ui.envRotate.value)));
+  on(ui.envStrength, "change", () => set("env_strength", Number(ui.envStrength.value)));
   on(ui.maxSpp, "change", () => set("max_spp", Number(ui.maxSpp.value)));
   on(ui.exposure, "input", () => set("exposure", Number(ui.exposure.value)));
   on(ui.tonemap, "change", () => set("tonemap", ui.tonemap.value));

@@ -101,9 +101,10 @@ class Param:
             raise bad
         try:
             v = self.kind(value)
+            finite = math.isfinite(v)  # an int beyond float's range overflows here, even for an int option
         except OverflowError:          # an int too large for a float
             raise bad from None
-        if not math.isfinite(v):
+        if not finite:
             raise bad
         if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
             raise bad

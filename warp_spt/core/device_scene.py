@@ -34,6 +34,7 @@ from warp_spt.core.tangents import corner_tangents
 from warp_spt.core.textures import pack_atlas
 from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.warp_init import init_warp
+from warp_spt.scene.lights import punctual_lights
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
@@ -273,6 +274,7 @@ def _features(scene: Scene) -> Features:
         textures=bool((tex >= 0).any()),
         checker=bool((tex == TEX_CHECKER).any()),
         emitters=bool(emits),
+        punctual=bool(punctual_lights(scene.lights)),
         smooth=any(m.corner_normal is not None for m in scene.meshes),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
         material_kinds=kinds,

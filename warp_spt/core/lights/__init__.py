@@ -3,6 +3,7 @@
 * ``base``: what a kind registers (``LightKind``) and the sample it returns (``LightSample``);
 * ``triangle``, ``sphere``: area lights (emitting triangles of meshes, emitting spheres), whose
   radiance is the emission of their surface's material;
+* ``punctual``: the sun, point and spot lights, which no ray meets (delta lights in MIS);
 * ``sky``: an infinite light, seen by rays that miss the scene, with its colours as a device array
   carrying gradients (the parameters ``sky.color``, ``sky.zenith``, ``sky.nadir``);
 * ``registry``: the kinds, one line each (``KINDS``);
@@ -19,7 +20,7 @@ and one line in ``registry.KINDS``.
 
 from __future__ import annotations
 
-from warp_spt.core.lights.base import LightKind, LightSample
+from warp_spt.core.lights.base import KIND_PUNCTUAL, LightKind, LightSample
 from warp_spt.core.lights.dispatch import detach_lights, make_lights
 from warp_spt.core.lights.registry import KINDS
 from warp_spt.core.lights.sky import (
@@ -43,7 +44,7 @@ from warp_spt.core.lights.table import (
 )
 from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL
 
-__all__ = ["KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
+__all__ = ["KINDS", "KIND_PUNCTUAL", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
            "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
            "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
            "table_key"]

@@ -21,6 +21,10 @@ from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scen
 from warp_spt.scene.sky import Sky
 
 
+# the hit kind of a sample of a light no ray can meet (``punctual``: sun, point, spot): MIS weight 1
+KIND_PUNCTUAL = wp.constant(-2)
+
+
 @wp.struct
 class LightSample:
     """A sampled light direction: incident radiance, density (solid angle, choice included), and
@@ -64,7 +68,10 @@ class LightKind:
       light (the density with which sampling from ``o`` would give the hit ``h``), ``(lights, d)``
       for an infinite one, which also gives ``le(lights, d) -> vec3``. Densities include the choice.
     * ``params``: the field of ``data`` holding its differentiable parameters, an array whose rows
-      ``diff.params`` names (e.g. the sky's colours), or None.
+      ``diff.params`` names (e.g. the sky's colours), or None; ``pathwise``: those of its parameter
+      fields that move directions (a light's position), whose derivative needs the tape.
+    * ``delta``: no ray can meet it (its samples have hit kind KIND_PUNCTUAL): the dispatch's ``le``
+      asks its ``radiance(lights, ls, x)``, and neither a miss nor a hit counts it.
     """
 
     name: str
@@ -77,6 +84,8 @@ class LightKind:
     make: Callable[..., Any]
     cache: bool = True
     params: str | None = None
+    delta: bool = False
+    pathwise: frozenset = frozenset()
 
 
 def device_array(x, dtype, np_dtype, device: str) -> wp.array:

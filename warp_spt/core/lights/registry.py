@@ -4,10 +4,11 @@ their fields in ``table.Lights``. A new kind is a module of this package exporti
 
 from __future__ import annotations
 
-from warp_spt.core.lights import sky, sphere, triangle
+from warp_spt.core.lights import punctual, sky, sphere, triangle
 
 KINDS = (
     triangle.KIND,
     sphere.KIND,
     sky.KIND,
+    punctual.KIND,
 )

@@ -56,6 +56,9 @@ _EXPORTS = {
     "SceneParameters": "diff.params",
     "SceneError": "scene.errors",
     "Sky": "scene.sky",
+    "SunLight": "scene.lights",
+    "PointLight": "scene.lights",
+    "SpotLight": "scene.lights",
     "load_gltf": "io.gltf",
     "load_mtl": "io.mtl",
     "load_obj": "io.obj",
@@ -118,6 +121,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.scene.conventions import up_axis
     from warp_spt.scene.errors import SceneError
     from warp_spt.scene.model import Material, ObjData, Scene
+    from warp_spt.scene.lights import PointLight, SpotLight, SunLight
     from warp_spt.scene.sky import Sky
 
 

@@ -54,6 +54,8 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
+    if opts.lights:                 # --sun, --light, --lights: beside the scene's own lights
+        scene = replace(scene, lights=[*scene.lights, *opts.lights])
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} model file(s)"
     dropped = f" ({scene.dropped_degenerate:,} of zero area dropped)" if scene.dropped_degenerate else ""
     say(f"loaded {what}: {scene.num_triangles:,} triangles{dropped}, {len(scene.spheres)} spheres, "

@@ -20,7 +20,7 @@ is ``warp_spt.core.lights.punctual``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from warp_spt.scene.limits import MAX_RADIANCE
 
@@ -110,8 +110,8 @@ class SpotLight:
         object.__setattr__(self, "intensity", _colour(self.name, "intensity", self.intensity))
         outer = _angle(self.name, "outer_deg", self.outer_deg, 0.0, 90.0)
         inner = _angle(self.name, "inner_deg", self.inner_deg, 0.0, 90.0)
-        if not (inner < outer):
-            raise ValueError(f"light {self.name!r}: inner_deg ({inner:g}) must be below outer_deg ({outer:g})")
+        if inner > outer:
+            raise ValueError(f"light {self.name!r}: inner_deg ({inner:g}) must not be above outer_deg ({outer:g})")
         if outer <= 0.0:
             raise ValueError(f"light {self.name!r}: outer_deg must be above 0")
         object.__setattr__(self, "inner_deg", inner)
@@ -127,6 +127,13 @@ def spot_falloff(cos_angle: float, inner_deg: float, outer_deg: float) -> float:
     ci, co = math.cos(math.radians(inner_deg)), math.cos(math.radians(outer_deg))
     s = min(max((cos_angle - co) / max(1e-3, ci - co), 0.0), 1.0)
     return s * s
+
+
+def moved(light, offset) -> object:
+    """``light`` in a frame whose origin is at ``offset`` (scene.recentre): positions shift."""
+    if light.kind == KIND_SUN:
+        return light
+    return replace(light, position=tuple(float(p - o) for p, o in zip(light.position, offset)))
 
 
 def punctual_lights(lights) -> list:

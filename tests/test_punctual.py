@@ -146,3 +146,45 @@ def test_only_delta_lights_render(scene_dir, integrator):
     # the footprint's sampling is the only noise (a few % per pixel at 16 spp); the guided and ears
     # integrators' own agreement with nee is tests/test_light_transport.py's
     assert np.allclose(img[..., 0], e, rtol=0.15) and abs(img[..., 0].mean() / e.mean() - 1) < 0.02
+
+
+# --------------------------------------------------------------------------------------------
+# Gradients against finite differences (common random numbers: the same seed on both sides)
+
+def _fd(params, rs, name, h):
+    from warp_spt.rendering.tiles import render_scene
+
+    v = params[name].astype(np.float64)
+    out = np.zeros(3)
+    for i in range(3):
+        vals = []
+        for s in (1, -1):
+            params[name] = v + s * h * np.eye(3)[i]
+            vals.append(render_scene(params.scene, params.camera, rs).image.astype(np.float64).sum())
+        out[i] = (vals[0] - vals[1]) / (2 * h)
+    params[name] = v
+    return out
+
+
+@pytest.mark.parametrize("light, names", [
+    (PointLight(position=(0.3, 0.5, 1.5), intensity=(7.0, 5.0, 3.0), name="bulb"), ["bulb.position", "bulb.intensity"]),
+    (SpotLight(position=(0.0, 0.4, 2.0), direction=(0.0, 0.3, -1.0), intensity=(20.0, 20.0, 20.0), inner_deg=10,
+               outer_deg=40, name="spot"), ["spot.position"]),
+    (SunLight(direction=(0.4, -0.3, 1.0), color=(2.5, 2.0, 1.5)), ["sun.direction", "sun.color"]),
+])
+def test_light_gradients_match_finite_differences(scene_dir, light, names):
+    from warp_spt.diff.gradients import render_gradients
+    from warp_spt.diff.params import parameters
+    from warp_spt.rendering.settings import RenderSettings
+
+    dev = floor_scene(scene_dir, [light])
+    p = parameters(dev, FLOOR_CAM, sky(0.0))
+    rs = RenderSettings(width=8, height=6, spp=4, max_depth=2, sky=sky(0.0), integrator="nee")
+    assert set(names) <= set(p.names())
+    for name in names:
+        r = render_gradients(p, rs, adjoint=np.ones((rs.height, rs.width, 3), np.float32), wrt=[name])
+        assert r.mode == ("tape" if name.endswith(("position", "direction")) else "prb")
+        g = r.grads[name]
+        fd = _fd(p, rs, name, 1e-2 if name.endswith(("position", "direction")) else 1e-1)
+        assert np.allclose(g, fd, rtol=0.02, atol=0.02 * np.abs(fd).max()), (name, g, fd)
+        assert np.abs(fd).max() > 0

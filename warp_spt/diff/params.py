@@ -13,6 +13,9 @@
   ``@warp_spt.texture``): () for a number, (3,) for an RGB triple;
 * ``"sky.color"`` (3,) for a constant sky; ``"sky.zenith"`` and ``"sky.nadir"`` (3,) for the
   gradient sky (its colours straight up and straight down);
+* ``"<light>.direction"`` and ``"<light>.color"`` (3,) for a sun (towards it; its irradiance),
+  ``"<light>.position"`` and ``"<light>.intensity"`` (3,) for a point or spot light, ``<light>`` its
+  name (``scene.lights.unique_names``); positions and directions by the tape only;
 * ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
   points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
   see docs/gradients.md).
@@ -45,6 +48,7 @@ from warp_spt.scene.material_schema import (
     SLOT_COLUMNS,
     range_text,
 )
+from warp_spt.scene.lights import KIND_SUN, PUNCTUAL_TYPES, punctual_lights, unique_names
 from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import Sky
 from warp_spt.scene.validate import check_procedural_colours
@@ -60,7 +64,7 @@ _SLOT_NAMES = {c.slot: c.name for c in SLOT_COLUMNS}
 @dataclass(frozen=True)
 class ParamInfo:
     """Where a named parameter lives: ``kind`` is "material", "texture", "proc" (a procedural
-    texture's parameter), "sky" or "camera"; ``field`` the material field / texture key / sky or
+    texture's parameter), "sky", "punctual" (a sun, point or spot light) or "camera"; ``field`` the material field / texture key / sky or
     camera attribute; ``index`` the material row, texture index, procedural instance or row of the
     sky's colour array (``Sky.colour_fields`` order)."""
 
@@ -123,7 +127,15 @@ class SceneParameters:
             return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
         if p.kind == "sky":
             return np.array(getattr(self.sky, p.field), dtype=np.float32)
+        if p.kind == "punctual":
+            return np.array(getattr(self._light(p)[1], p.field), dtype=np.float32)
         return np.array(getattr(self.camera, p.field), dtype=np.float32)
+
+    def _light(self, p: ParamInfo):
+        """(place in scene.lights, the light) of a light's parameter (row 2 j or 2 j + 1: light j)."""
+        places = [k for k, x in enumerate(self.scene.scene.lights) if isinstance(x, PUNCTUAL_TYPES)]
+        k = places[p.index // 2]
+        return k, self.scene.scene.lights[k]
 
     def __setitem__(self, name: str, value) -> None:
         p = self.info(name)
@@ -147,6 +159,10 @@ class SceneParameters:
             self._set_proc(p, v)
         elif p.kind == "sky":
             self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
+        elif p.kind == "punctual":      # validated by the light's record; its table is rebuilt
+            k, light = self._light(p)
+            self.scene.scene.lights[k] = replace(light, **{p.field: tuple(float(x) for x in v)})
+            self._refresh()
         else:
             self.camera = replace(self.camera, **{p.field: tuple(float(x) for x in v)})
 
@@ -240,6 +256,15 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
     # the sky's colours: kind "sky", the light kind whose colour array holds them, index their row
     for row, f in enumerate(sky.colour_fields()):
         info[f"sky.{f}"] = ParamInfo(f"sky.{f}", "sky", f, row, (3,))
+    # sun, point and spot lights: kind "punctual", index the row of its parameter array (two per light)
+    lights = punctual_lights(scene.lights)
+    for j, (light, lname) in enumerate(zip(lights, unique_names(lights))):
+        fields = ("direction", "color") if light.kind == KIND_SUN else ("position", "intensity")
+        for row, f in enumerate(fields):
+            n = f"{lname}.{f}"
+            if n in info:           # a material of the same name
+                n = f"light:{n}"
+            info[n] = ParamInfo(n, "punctual", f, 2 * j + row, (3,))
     for f in ("position", "direction"):
         info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
     return info
@@ -288,7 +313,7 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
         return COLUMN[p.field].low, COLUMN[p.field].high
     if p.kind == "texture":
         return 0.0, 1.0                         # texels, as validate_scene requires
-    if p.kind == "sky":
+    if p.kind == "sky" or (p.kind == "punctual" and p.field in ("color", "intensity")):
         return 0.0, MAX_RADIANCE
     if p.kind == "proc" and p.shape == (3,):
         return 0.0, None

@@ -34,6 +34,7 @@ from warp_spt.core.lights.sky import (
 )
 from warp_spt.core.lights.table import (
     PARAMETER_KINDS,
+    PATHWISE_FIELDS,
     Lights,
     alias_parameters,
     light_table,
@@ -44,7 +45,7 @@ from warp_spt.core.lights.table import (
 )
 from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL
 
-__all__ = ["KINDS", "KIND_PUNCTUAL", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
+__all__ = ["KINDS", "KIND_PUNCTUAL", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "PATHWISE_FIELDS", "LightKind", "LightSample", "Lights", "SkyLight",
            "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
            "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
            "table_key"]

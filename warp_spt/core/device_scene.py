@@ -18,6 +18,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.bvh import build_tlas
+from warp_spt.core.lights.light_tree import MIN_TREE_LIGHTS
 from warp_spt.core.material_table import upload_materials
 from warp_spt.core.materials import declare
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
@@ -275,12 +276,22 @@ def _features(scene: Scene) -> Features:
         checker=bool((tex == TEX_CHECKER).any()),
         emitters=bool(emits),
         punctual=bool(punctual_lights(scene.lights)),
+        light_tree=_emitting_faces(scene) >= MIN_TREE_LIGHTS,
         smooth=any(m.corner_normal is not None for m in scene.meshes),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
         material_kinds=kinds,
         lobes=lobes,
         material_flags=flags,
     )
+
+
+def _emitting_faces(scene: Scene) -> int:
+    """Faces whose material emits (colour or texture): at least as many as the light table's
+    triangle entries, so that a scene whose table builds a light tree compiles its code."""
+    mt = scene.materials
+    tex = mt.tex[:, SLOT_EMISSION]
+    row_emits = (mt.emission > 0).any(axis=1) | (tex >= 0) | (tex <= TEX_PROC_BASE)
+    return int(sum(np.count_nonzero(row_emits[m.face_material]) for m in scene.meshes))
 
 
 def _corner_normals(m) -> np.ndarray:

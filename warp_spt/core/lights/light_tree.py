@@ -26,6 +26,7 @@ import warp as wp
 
 MIN_TREE_LIGHTS = 64
 ONE_MINUS_EPS = wp.constant(0.99999994)
+TREE_NEAR = wp.constant(0.0025)
 
 
 @wp.struct
@@ -43,17 +44,17 @@ class LightTree:
     leaf: wp.array(dtype=wp.int32)
 
 
-@wp.func
+@wp.func(inline=True)     # out of line, each call copied the tree's struct (its eight arrays)
 def importance(tree: LightTree, node: int, x: wp.vec3) -> float:
     lo = tree.lower[node]
     hi = tree.upper[node]
-    c = (lo + hi) * 0.5
-    d2 = wp.length_sq(x - c)
-    r2 = 0.25 * wp.length_sq(hi - lo)
+    q = wp.vec3(wp.clamp(x[0], lo[0], hi[0]), wp.clamp(x[1], lo[1], hi[1]), wp.clamp(x[2], lo[2], hi[2]))
+    d2 = wp.length_sq(x - q)
+    r2 = TREE_NEAR * wp.length_sq(hi - lo)
     return tree.power[node] / wp.max(wp.max(d2, r2), 1.0e-30)
 
 
-@wp.func
+@wp.func(inline=True)
 def pick_leaf(tree: LightTree, x: wp.vec3, u: float):
     """(triangle entry, its choice probability from x, u rescaled for reuse) by descending the tree."""
     node = int(0)
@@ -76,7 +77,7 @@ def pick_leaf(tree: LightTree, x: wp.vec3, u: float):
     return tree.entry[node], prob, uu
 
 
-@wp.func
+@wp.func(inline=True)
 def leaf_prob(tree: LightTree, entry: int, x: wp.vec3) -> float:
     """The probability with which ``pick_leaf`` from ``x`` chooses triangle entry ``entry``."""
     node = tree.leaf[entry]

@@ -150,11 +150,13 @@ def make(Lights, features: Features):
     if not features.light_tree:
         return SimpleNamespace(sample_li=sample_triangle, pdf_li=pdf_li)
 
-    @wp.func
+    @wp.func(inline=True)     # into the dispatch's chain: one call level, as without the tree
     def sample_li(geo: Geometry, lights: Lights, entry: int, prob: float, x: wp.vec3, u: wp.vec2) -> LightSample:
-        if lights.triangle.use_tree == 0:
-            return sample_triangle(geo, lights, entry, prob, x, u)
-        e, p, uu = pick_leaf(lights.triangle.tree, x, u[0])
+        e = entry
+        p = float(1.0)
+        uu = u[0]
+        if lights.triangle.use_tree != 0:
+            e, p, uu = pick_leaf(lights.triangle.tree, x, u[0])
         return sample_triangle(geo, lights, e, prob * p, x, wp.vec2(uu, u[1]))
 
     @wp.func(inline=True)

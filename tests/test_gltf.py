@@ -23,6 +23,7 @@ from tests.format_files import (
 )
 from warp_spt.io.gltf import MAX_NODE_DEPTH, parse_gltf_bytes
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.lights import PointLight, SunLight
 from warp_spt.scene.material_schema import KIND_PBR
 
 
@@ -146,7 +147,19 @@ def test_cameras_and_lights_are_placed_by_their_nodes():
     assert math.isclose(front.fov_degrees(200, 100), math.degrees(2 * math.atan(2 * math.tan(0.4))))
     (light,) = d.extras.lights
     assert (light.kind, light.color, light.intensity, light.position) == ("point", (1, 0.5, 0.25), 20, (0, 3, 0))
-    assert d.warnings == ["scene.gltf: 1 KHR_lights_punctual light(s) are read but not rendered yet"]
+    assert d.warnings == []
+    # the renderer's light: candela taken as W/sr, times the colour (docs/lights.md)
+    assert light.to_scene() == PointLight(position=(0, 3, 0), intensity=(20, 10, 5), name=light.name or "point")
+
+
+def test_gltf_spot_and_directional_lights_map_onto_the_renderers():
+    from warp_spt.io.gltf import GltfLight
+
+    sun = GltfLight("s", "directional", (1, 1, 1), 3.0, (0, 0, 0), (0.0, -1.0, 0.0)).to_scene()
+    assert sun == SunLight(direction=(0, 1, 0), color=(3, 3, 3), name="s")     # towards the sun: against -Z
+    spot = GltfLight("", "spot", (1, 1, 1), 2.0, (1, 2, 3), (0, 0, -1), inner_cone=0.2, outer_cone=0.5).to_scene()
+    assert spot.name == "spot" and spot.direction == (0, 0, -1) and spot.position == (1, 2, 3)
+    assert math.isclose(spot.inner_deg, math.degrees(0.2)) and math.isclose(spot.outer_deg, math.degrees(0.5))
 
 
 def _mutated(make, change):

@@ -119,10 +119,10 @@ def _frozen_fd(p, rs, name: str, c: int, h: float) -> float:
         v = v0.copy()
         v[c] += s
         p[name] = v                     # clears the cached tables and the Features
-        # the sky's colours as they are now (the only vec3d parameter array; the other light kinds' stay)
+        # the sky's colours (its array, vec3d; other kinds' parameter arrays stay as they are)
         colors = ((lambda a: wp.array(np.array([p.sky.color]), dtype=wp.vec3d) if a.dtype == wp.vec3d else a)
                   if name == "sky.color" else None)
-        frozen = alias_parameters(base, colors or (lambda a: a))
+        frozen = alias_parameters(base, colors or (lambda a: a))     # the sky's colours as they are now
         dev.light_cache(table_key(p.sky, p.camera.up), lambda: frozen)   # the cache was cleared above
         out.append(_image_sum(p, rs))
     p[name] = v0

@@ -57,6 +57,9 @@ _EXPORTS = {
     "SceneError": "scene.errors",
     "Sky": "scene.sky",
     "load_environment": "io.environment",
+    "SunLight": "scene.lights",
+    "PointLight": "scene.lights",
+    "SpotLight": "scene.lights",
     "load_gltf": "io.gltf",
     "load_mtl": "io.mtl",
     "load_obj": "io.obj",
@@ -120,6 +123,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.scene.conventions import up_axis
     from warp_spt.scene.errors import SceneError
     from warp_spt.scene.model import Material, ObjData, Scene
+    from warp_spt.scene.lights import PointLight, SpotLight, SunLight
     from warp_spt.scene.sky import Sky
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 from warp_spt.cli.budget_flags import BudgetOptions, add_flags, options, shared_output
+from warp_spt.cli.light_flags import add_light_flags, light_options
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
@@ -155,6 +156,7 @@ class Options:
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
     budget: BudgetOptions = field(default_factory=BudgetOptions)   # the budget flags (cli/budget_flags.py)
     env: EnvOptions | None = None    # --env and its flags: the scene's environment map (cli/view_checks.py)
+    lights: tuple = ()               # --sun, --light, --lights (cli/light_flags.py): added to the scene
     # Distribution and animation (warp_spt.cluster, warp_spt.animation)
     cluster: str | None = None
     workers: int | None = None
@@ -289,6 +291,7 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     add_flags(p, int_at_least)
+    add_light_flags(p, finite_float)
     _add_model_flags(p.add_argument_group("your own models"))
     more = p.add_argument_group("clusters and animation")
     more.add_argument("--cluster", type=cluster_address, metavar="ADDRESS",
@@ -352,7 +355,11 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         exposure=ns.exposure, default_material=ns.default_material, file_camera=ns.file_camera,
         smooth_angle="auto" if ns.smooth_angle is None else ns.smooth_angle,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
+        lights=light_options(ns, UsageError),
     )
+    if opts.lights and (ns.frames or ns.cluster or ns.workers or ns.camera_path):
+        raise UsageError("--sun, --light and --lights light single images on this machine; frames and clusters "
+                         "do not take them yet (a glTF file's own lights do render there)")
     return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
 
 

@@ -54,6 +54,8 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
+    if opts.lights:                 # --sun, --light, --lights: beside the scene's own lights
+        scene = replace(scene, lights=[*scene.lights, *opts.lights])
     if opts.fog is not None:
         scene = replace(scene, fog=opts.fog)
     if (scene.fog is not None or scene.interiors) and not opts.integrator:

@@ -18,6 +18,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.bvh import build_tlas
+from warp_spt.core.lights.light_tree import MIN_TREE_LIGHTS
 from warp_spt.core.material_table import upload_materials
 from warp_spt.core.materials import declare
 from warp_spt.core.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
@@ -38,6 +39,7 @@ from warp_spt.core.wide_bvh import MAX_TRIANGLES as WIDE_MAX_TRIANGLES
 from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.runtime.warp_init import init_warp
+from warp_spt.scene.lights import punctual_lights
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.validate import validate_scene
 
@@ -307,6 +309,8 @@ def _features(scene: Scene) -> Features:
         textures=bool((tex >= 0).any()),
         checker=bool((tex == TEX_CHECKER).any()),
         emitters=bool(emits),
+        punctual=bool(punctual_lights(scene.lights)),
+        light_tree=_emitting_faces(scene) >= MIN_TREE_LIGHTS,
         smooth=any(m.corner_normal is not None for m in scene.meshes),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
         material_kinds=kinds,
@@ -314,6 +318,15 @@ def _features(scene: Scene) -> Features:
         material_flags=flags,
         media=media_features(scene),
     )
+
+
+def _emitting_faces(scene: Scene) -> int:
+    """Faces whose material emits (colour or texture): at least as many as the light table's
+    triangle entries, so that a scene whose table builds a light tree compiles its code."""
+    mt = scene.materials
+    tex = mt.tex[:, SLOT_EMISSION]
+    row_emits = (mt.emission > 0).any(axis=1) | (tex >= 0) | (tex <= TEX_PROC_BASE)
+    return int(sum(np.count_nonzero(row_emits[m.face_material]) for m in scene.meshes))
 
 
 def _corner_normals(m) -> np.ndarray:

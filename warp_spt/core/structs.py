@@ -106,6 +106,8 @@ class Features:
     smooth: bool = True
     sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
     environment: bool = True   # the sky is an environment map (set per render, as ``sky``)
+    punctual: bool = True      # the scene has sun, point or spot lights (scene.lights)
+    light_tree: bool = True    # many emitting triangles: chosen by a light tree (core.lights.light_tree)
     # procedural textures used: sorted (name, source hash); () compiles no procedural code
     procedural: tuple[tuple[str, str], ...] = ()
     # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch
@@ -143,4 +145,5 @@ class Features:
         """These features with the mesh traversal that ``scene``'s meshes need added: a kernel
         compiled for other features (an override) must still trace this scene's rays."""
         stack = self.bvh_stack if scene.bvh_stack == 0 else max(self.bvh_stack, scene.bvh_stack)
-        return replace(self, bvh_stack=stack, warp_meshes=self.warp_meshes or scene.warp_meshes)
+        return replace(self, bvh_stack=stack, warp_meshes=self.warp_meshes or scene.warp_meshes,
+                       punctual=self.punctual or scene.punctual, light_tree=self.light_tree or scene.light_tree)

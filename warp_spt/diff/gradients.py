@@ -42,7 +42,7 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams
 from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.lights import PARAMETER_KINDS, Lights, alias_parameters, parameter_arrays
+from warp_spt.core.lights import PARAMETER_KINDS, PATHWISE_FIELDS, Lights, alias_parameters, parameter_arrays
 from warp_spt.core.material_table import with_gradients
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
@@ -95,8 +95,11 @@ REPLAYABLE = {("material", f) for f in REPLAYABLE_FIELDS} | {("texture", "texels
 
 def replayable(p: ParamInfo) -> bool:
     """Path replay differentiates ``p`` (every procedural-texture parameter and every light's: they
-    are read at the vertex)."""
-    return p.kind == "proc" or p.kind in PARAMETER_KINDS or (p.kind, p.field) in REPLAYABLE
+    are read at the vertex; not a light's position or direction, which moves the sampled direction
+    that replay holds still: the tape's)."""
+    if p.kind in PARAMETER_KINDS:
+        return p.field not in PATHWISE_FIELDS[p.kind]
+    return p.kind == "proc" or (p.kind, p.field) in REPLAYABLE
 
 
 # deltas[k] shift values passed by value in structs (the camera's frame); zero, they exist for

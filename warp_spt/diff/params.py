@@ -16,6 +16,9 @@
 * ``"environment.strength"`` and ``"environment.rotate"`` () for an environment-map sky (its
   radiance scale, and its turn about the up axis in degrees; the rotation's derivative comes from the
   map's lookup, linear in azimuth);
+* ``"<light>.direction"`` and ``"<light>.color"`` (3,) for a sun (towards it; its irradiance),
+  ``"<light>.position"`` and ``"<light>.intensity"`` (3,) for a point or spot light, ``<light>`` its
+  name (``scene.lights.unique_names``); positions and directions by the tape only;
 * ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
   points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
   see docs/gradients.md).
@@ -48,6 +51,7 @@ from warp_spt.scene.material_schema import (
     SLOT_COLUMNS,
     range_text,
 )
+from warp_spt.scene.lights import KIND_SUN, PUNCTUAL_TYPES, punctual_lights, unique_names
 from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 from warp_spt.scene.validate import check_procedural_colours
@@ -68,7 +72,7 @@ _SLOT_NAMES = {c.slot: c.name for c in SLOT_COLUMNS}
 @dataclass(frozen=True)
 class ParamInfo:
     """Where a named parameter lives: ``kind`` is "material", "texture", "proc" (a procedural
-    texture's parameter), "sky" or "camera"; ``field`` the material field / texture key / sky or
+    texture's parameter), "sky", "punctual" (a sun, point or spot light) or "camera"; ``field`` the material field / texture key / sky or
     camera attribute; ``index`` the material row, texture index, procedural instance or row of the
     sky's colour array (``Sky.colour_fields`` order)."""
 
@@ -131,7 +135,15 @@ class SceneParameters:
             return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
         if p.kind in ("sky", ENVIRONMENT):
             return np.array(getattr(self.sky, p.field), dtype=np.float32)
+        if p.kind == "punctual":
+            return np.array(getattr(self._light(p)[1], p.field), dtype=np.float32)
         return np.array(getattr(self.camera, p.field), dtype=np.float32)
+
+    def _light(self, p: ParamInfo):
+        """(place in scene.lights, the light) of a light's parameter (row 2 j or 2 j + 1: light j)."""
+        places = [k for k, x in enumerate(self.scene.scene.lights) if isinstance(x, PUNCTUAL_TYPES)]
+        k = places[p.index // 2]
+        return k, self.scene.scene.lights[k]
 
     def __setitem__(self, name: str, value) -> None:
         p = self.info(name)
@@ -157,6 +169,10 @@ class SceneParameters:
             self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
         elif p.kind == ENVIRONMENT:
             self.sky = replace(self.sky, **{p.field: float(v)})
+        elif p.kind == "punctual":      # validated by the light's record; its table is rebuilt
+            k, light = self._light(p)
+            self.scene.scene.lights[k] = replace(light, **{p.field: tuple(float(x) for x in v)})
+            self._refresh()
         else:
             self.camera = replace(self.camera, **{p.field: tuple(float(x) for x in v)})
 
@@ -254,6 +270,15 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
     if sky.kind == SKY_ENVIRONMENT:
         for row, f in enumerate(ENVIRONMENT_FIELDS):
             info[f"{ENVIRONMENT}.{f}"] = ParamInfo(f"{ENVIRONMENT}.{f}", ENVIRONMENT, f, row, ())
+    # sun, point and spot lights: kind "punctual", index the row of its parameter array (two per light)
+    lights = punctual_lights(scene.lights)
+    for j, (light, lname) in enumerate(zip(lights, unique_names(lights))):
+        fields = ("direction", "color") if light.kind == KIND_SUN else ("position", "intensity")
+        for row, f in enumerate(fields):
+            n = f"{lname}.{f}"
+            if n in info:           # a material of the same name
+                n = f"light:{n}"
+            info[n] = ParamInfo(n, "punctual", f, 2 * j + row, (3,))
     for f in ("position", "direction"):
         info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
     return info
@@ -302,7 +327,7 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
         return COLUMN[p.field].low, COLUMN[p.field].high
     if p.kind == "texture":
         return 0.0, 1.0                         # texels, as validate_scene requires
-    if p.kind == "sky" or (p.kind, p.field) == (ENVIRONMENT, "strength"):
+    if p.kind == "sky" or (p.kind, p.field) == (ENVIRONMENT, "strength") or (p.kind == "punctual" and p.field in ("color", "intensity")):
         return 0.0, MAX_RADIANCE
     if p.kind == "proc" and p.shape == (3,):
         return 0.0, None

@@ -79,7 +79,7 @@ from warp_spt.core.guiding import (
     record_energy,
     upload_tree,
 )
-from warp_spt.core.lights import Lights, make_lights
+from warp_spt.core.lights import KIND_PUNCTUAL, Lights, make_lights
 from warp_spt.core.lobes import LOBE_GLOSSY, LOBE_REFLECTION, LOBE_SMOOTH, LOBE_TRANSMISSION
 from warp_spt.core.materials import BsdfSample, make_materials
 from warp_spt.core.surface import Surface, make_surface
@@ -160,7 +160,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
     surface_at = make_surface(features)
     mat = make_materials(features)
     bsdf_dims = make_bsdf_dims(sampler, STRIDE, features)
-    sample_lights = (features.emitters or features.sky) and features.scatters
+    sample_lights = (features.emitters or features.sky or features.punctual) and features.scatters
     guiding = features.scatters
     blocked = make_blocked(features)
     light = make_lights(features, surface_at, mat.emission)
@@ -189,6 +189,9 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                     # MIS against the material's share of the mixture, (1 - a) p_material: the
                     # emitter the sampled direction meets is weighed with the same density (see vertex)
                     w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir))
+                    if wp.static(features.punctual):
+                        if ls.h.kind == KIND_PUNCTUAL:     # no sampled direction can meet it
+                            w = 1.0
                     contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 

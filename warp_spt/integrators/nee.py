@@ -22,7 +22,7 @@ from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.cutout import make_blocked, make_hit
 from warp_spt.core.geometry import KIND_MISS, Hit
-from warp_spt.core.lights import LightSample, Lights, detach_lights, make_lights, reuse_pick
+from warp_spt.core.lights import KIND_PUNCTUAL, LightSample, Lights, detach_lights, make_lights, reuse_pick
 from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
@@ -176,7 +176,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
     bsdf_dims = make_bsdf_dims(sampler, stride, features)
-    sample_lights = light_sampling and (features.emitters or features.sky) and features.scatters
+    sample_lights = light_sampling and (features.emitters or features.sky or features.punctual) and features.scatters
     blocked = make_blocked(features)
     light = make_lights(features, surface_at, mat.emission)
     if replay:
@@ -232,6 +232,9 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                                 seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
                         w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))
+                        if wp.static(features.punctual):
+                            if ls.h.kind == KIND_PUNCTUAL:     # no BSDF sample can meet it
+                                w = 1.0
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
                         if wp.static(media is not None):
                             contrib = wp.cw_mul(contrib, tr)

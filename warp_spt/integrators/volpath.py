@@ -26,7 +26,7 @@ import warp as wp
 
 from warp_spt.core.cutout import make_blocked, make_hit
 from warp_spt.core.geometry import KIND_MISS, KIND_TRIANGLE, Hit
-from warp_spt.core.lights import LightSample, Lights, make_lights
+from warp_spt.core.lights import KIND_PUNCTUAL, LightSample, Lights, make_lights
 from warp_spt.core.materials import make_materials
 from warp_spt.core.media import EVENT_ABSORB, EVENT_SCATTER, hg_eval, hg_sample, make_media
 from warp_spt.core.sampling import hash_u32, stream_state
@@ -154,7 +154,7 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     mat = make_materials(features)
     light = make_lights(features, surface_at, mat.emission)
     light_sample = make_light_sample(sampler, light, inline=True)
-    sample_lights = bool(features.emitters or features.sky)
+    sample_lights = bool(features.emitters or features.sky or features.punctual)
 
     @wp.func(inline=True)
     def scatter(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
@@ -181,6 +181,9 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
                     T = shadow_path(geo, mats, tex, p.medium, xo, ls.dir, ls.t_max,
                                     tracking_stream(p, _SALT_MEDIUM_SHADOW))
                     w = power_heuristic(ls.pdf, ph)
+                    if wp.static(features.punctual):
+                        if ls.h.kind == KIND_PUNCTUAL:     # no phase sample can meet it
+                            w = 1.0
                     p.radiance += wp.cw_mul(p.throughput, wp.cw_mul(le, T)) * (w / ls.pdf)
         d_new = hg_sample(p.d, g, u_dir)
         p.pdf = hg_eval(p.d, d_new, g)       # the phase function is sampled exactly: the weight is 1

@@ -17,7 +17,7 @@ Materials become the ``pbr`` kind (base colour, packed metallic-roughness, norma
 alpha, KHR_materials_ior/transmission/volume/specular/anisotropy/emissive_strength); every field is
 also kept in :class:`GltfMaterial` records on :class:`GltfExtras`.
 Cameras (perspective) and KHR_lights_punctual lights are kept as :class:`GltfCamera` and
-:class:`GltfLight` records; lights are not rendered yet (one warning).
+:class:`GltfLight` records; the loader turns the lights into the renderer's (``GltfLight.to_scene``).
 
 Every index, count, offset, stride and length is checked against its buffer view and buffer before
 anything is read or allocated; node cycles and nodes with two parents are refused, the node depth
@@ -84,7 +84,8 @@ class GltfCamera:
 
 @dataclass
 class GltfLight:
-    """A KHR_lights_punctual light placed by its node (not rendered yet)."""
+    """A KHR_lights_punctual light placed by its node, as written (:meth:`to_scene`: the light the
+    renderer draws)."""
 
     name: str
     kind: str                    # "point", "spot" or "directional"
@@ -95,6 +96,23 @@ class GltfLight:
     range: float | None = None
     inner_cone: float = 0.0
     outer_cone: float = math.pi / 4
+
+    def to_scene(self):
+        """The renderer's light (``warp_spt.scene.lights``): glTF's candela (point, spot) taken as
+        W/sr and its lux (directional) as irradiance, one to one in the renderer's units, times the
+        colour; a directional light's -Z is where its light goes, so the sun lies the other way;
+        cone angles from radians to degrees. ``range`` is not used: light falls off as 1 / r^2."""
+        from warp_spt.scene.lights import PointLight, SpotLight, SunLight
+
+        power = tuple(float(c) * float(self.intensity) for c in self.color)
+        name = self.name or self.kind
+        if self.kind == "directional":
+            return SunLight(direction=tuple(-float(c) for c in self.direction), color=power, name=name)
+        if self.kind == "spot":
+            outer = math.degrees(self.outer_cone)
+            return SpotLight(position=self.position, direction=self.direction, intensity=power,
+                             inner_deg=min(math.degrees(self.inner_cone), outer), outer_deg=outer, name=name)
+        return PointLight(position=self.position, intensity=power, name=name)
 
 
 @dataclass
@@ -466,9 +484,6 @@ class _Reader:
                     materials[name] = material
                 parts.append((*self._primitive(prim, pptr, world, mat, skin, weights), material_rows[mat]))
         extras.materials = [self._material_record(m) for m in range(len(self.get(self.doc, "materials", list, "", [])))]
-        if extras.lights:
-            self.warnings.append(f"{self.path}: {len(extras.lights)} KHR_lights_punctual light(s) are read but not "
-                                 "rendered yet")
         return self._object(parts, names, materials, extras)
 
     def _animation(self, n_nodes: int) -> tuple[dict[int, dict], tuple[float, float] | None]:

@@ -131,7 +131,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         seed_dialect=seed_dialect,
         bare=not libraries_read,
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
-        lights=[c for d in data for c in getattr(d.extras, "lights", ())],
+        lights=[c.to_scene() for d in data for c in getattr(d.extras, "lights", ())],
         interiors={m.name: m.interior for m in table_rows if m.interior is not None},
     )
     validate_scene(scene)       # zero-area triangles dropped: counted, not news (a UV sphere's poles)

@@ -65,8 +65,13 @@ def wants_studio(given: bool | None, *, lit: bool, seed_dialect: bool, sky_given
 
 def has_own_light(scene) -> bool:
     """Whether some face or sphere of ``scene`` has an emitting material: an emission colour above
-    zero or a texture in the emission slot (what makes the device scene compile its emitters)."""
+    zero or a texture in the emission slot (what makes the device scene compile its emitters), or
+    the scene has a sun, point or spot light (a glTF file's, or the command line's)."""
+    from warp_spt.scene.lights import punctual_lights
     from warp_spt.scene.model import SLOT_EMISSION, TEX_PROC_BASE
+
+    if punctual_lights(getattr(scene, "lights", ())):
+        return True
 
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes if len(m.indices)]
                                     + [scene.sphere_material]).astype(np.int64))

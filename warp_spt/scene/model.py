@@ -240,6 +240,17 @@ class Scene:
     # RenderSettings.sky, when given, overrides it.
     sky: Sky | None = None
 
+    def add_light(self, light) -> "Scene":
+        """Add a sun, point or spot light (``warp_spt.SunLight``, ``PointLight``, ``SpotLight``, made
+        with their parameters by name) and return the scene; before it is uploaded (a DeviceScene
+        made earlier keeps the lights it had)."""
+        from warp_spt.scene.lights import PUNCTUAL_TYPES
+
+        if not isinstance(light, PUNCTUAL_TYPES):
+            raise TypeError(f"add_light takes a SunLight, PointLight or SpotLight, got {light!r:.80}")
+        self.lights.append(light)
+        return self
+
     @property
     def num_triangles(self) -> int:
         return int(sum(len(m.indices) for m in self.meshes))

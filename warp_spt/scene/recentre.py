@@ -14,6 +14,8 @@ from typing import Sequence
 import numpy as np
 
 from warp_spt.scene.camera import RECENTRE_RATIO, Camera, exact_bounds, far_centre
+from warp_spt.scene.lights import PUNCTUAL_TYPES
+from warp_spt.scene.lights import moved as moved_light
 from warp_spt.scene.model import Scene
 
 
@@ -74,7 +76,8 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
     spheres = scene.spheres.astype(np.float32)
     if len(spheres):
         spheres[:, :3] = (scene.spheres[:, :3].astype(np.float64) - centre).astype(np.float32)
-    moved = replace(scene, meshes=meshes, spheres=spheres, fog=_moved_medium(scene.fog, centre),
+    lights = [moved_light(x, centre) if isinstance(x, PUNCTUAL_TYPES) else x for x in scene.lights]
+    moved = replace(scene, meshes=meshes, spheres=spheres, lights=lights, fog=_moved_medium(scene.fog, centre),
                     interiors={k: _moved_medium(v, centre) for k, v in scene.interiors.items()})
     cam = replace(camera, position=tuple(float(v) for v in np.asarray(camera.position, np.float64) - centre))
     return moved, cam, centre

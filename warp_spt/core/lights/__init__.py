@@ -4,6 +4,7 @@
 * ``triangle``, ``sphere``: area lights (emitting triangles of meshes, emitting spheres), whose
   radiance is the emission of their surface's material;
 * ``envmap``: an environment map, an infinite light importance-sampled from its texels;
+* ``punctual``: the sun, point and spot lights, which no ray meets (delta lights in MIS);
 * ``sky``: an infinite light, seen by rays that miss the scene, with its colours as a device array
   carrying gradients (the parameters ``sky.color``, ``sky.zenith``, ``sky.nadir``);
 * ``registry``: the kinds, one line each (``KINDS``);
@@ -20,7 +21,7 @@ and one line in ``registry.KINDS``.
 
 from __future__ import annotations
 
-from warp_spt.core.lights.base import LightKind, LightSample
+from warp_spt.core.lights.base import KIND_PUNCTUAL, LightKind, LightSample
 from warp_spt.core.lights.dispatch import detach_lights, make_lights
 from warp_spt.core.lights.registry import KINDS
 from warp_spt.core.lights.sky import (
@@ -34,6 +35,7 @@ from warp_spt.core.lights.sky import (
 )
 from warp_spt.core.lights.table import (
     PARAMETER_KINDS,
+    PATHWISE_FIELDS,
     Lights,
     alias_parameters,
     light_table,
@@ -53,7 +55,7 @@ def sky_features(sky) -> dict:
     env = sky.kind == SKY_ENVIRONMENT
     return {"sky": sky_emits(sky) or environment_emits(sky), "environment": env}
 
-__all__ = ["EnvLight", "env_pdf", "env_radiance", "environment_emits", "sample_env", "sky_features", "KINDS", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "LightKind", "LightSample", "Lights", "SkyLight",
+__all__ = ["EnvLight", "env_pdf", "env_radiance", "environment_emits", "sample_env", "sky_features", "KINDS", "KIND_PUNCTUAL", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "PATHWISE_FIELDS", "LightKind", "LightSample", "Lights", "SkyLight",
            "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
            "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
            "table_key"]

@@ -21,6 +21,10 @@ from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scen
 from warp_spt.scene.sky import Sky
 
 
+# the hit kind of a sample of a light no ray can meet (``punctual``: sun, point, spot): MIS weight 1
+KIND_PUNCTUAL = wp.constant(-2)
+
+
 @wp.struct
 class LightSample:
     """A sampled light direction: incident radiance, density (solid angle, choice included), and
@@ -66,7 +70,10 @@ class LightKind:
     * ``present(features)``: its code is compiled in at all (an infinite light that these features
       lack is not even looked at by rays that miss; its ``le`` is then no part of the kernel).
     * ``params``: the field of ``data`` holding its differentiable parameters, an array whose rows
-      ``diff.params`` names (e.g. the sky's colours), or None.
+      ``diff.params`` names (e.g. the sky's colours), or None; ``pathwise``: those of its parameter
+      fields that move directions (a light's position), whose derivative needs the tape.
+    * ``delta``: no ray can meet it (its samples have hit kind KIND_PUNCTUAL): the dispatch's ``le``
+      asks its ``radiance(lights, ls, x)``, and neither a miss nor a hit counts it.
     """
 
     name: str
@@ -80,6 +87,8 @@ class LightKind:
     cache: bool = True
     params: str | None = None
     present: Callable[[Features], bool] = lambda features: True
+    delta: bool = False
+    pathwise: frozenset = frozenset()
 
 
 def device_array(x, dtype, np_dtype, device: str) -> wp.array:

@@ -27,7 +27,7 @@ import warp as wp
 
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.geometry import KIND_MISS, Hit
-from warp_spt.core.lights.base import LightSample
+from warp_spt.core.lights.base import KIND_PUNCTUAL, LightSample
 from warp_spt.core.lights.registry import KINDS
 from warp_spt.core.lights.table import Lights, pick_entry
 
@@ -149,13 +149,17 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     """The interface above for the kinds these features use (``surface_at`` and ``emission``: the
     integrator's surface and the materials' emission, which area lights radiate)."""
     made = [k.make(Lights, features) for k in KINDS]
-    infinite = [i for i, k in enumerate(KINDS) if not k.area and k.present(features)]
+    infinite = [i for i, k in enumerate(KINDS) if not k.area and not k.delta and k.present(features)]
     several = len(infinite) > 1
     sampled = [(i, k, made[i]) for i, k in enumerate(KINDS) if k.sampled(features) and k.present(features)]
-    sample_entry = _sample_chain([(i, f.sample_li, infinite.index(i) if several and not k.area else -1)
+    sample_entry = _sample_chain([(i, f.sample_li, infinite.index(i) if several and i in infinite else -1)
                                   for i, k, f in sampled])
     pdf_hit = _pdf_chain([(k.hit_kind, f.pdf_li) for i, k, f in sampled if k.area])
-    miss_pdf = _miss_sum([f.pdf_li for i, k, f in sampled if not k.area], 0.0)
+    miss_pdf = _miss_sum([f.pdf_li for i, k, f in sampled if not k.area and not k.delta], 0.0)
+    # lights no ray meets (at most one such kind, ``punctual``): their samples' radiance
+    delta = [f.radiance for i, k, f in sampled if k.delta]
+    assert len(delta) <= 1, "one delta light kind: its hit kind tells its samples apart"
+    delta_radiance = delta[0] if delta else None
     miss_le = _miss_sum([made[i].le for i in infinite], wp.vec3(0.0, 0.0, 0.0))
     sample_le = _le_chain([(n, made[i].le) for n, i in enumerate(infinite)])
     le_escaped = _escaped([made[i].seen for i in infinite if hasattr(made[i], "seen")], miss_le)
@@ -174,6 +178,9 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     def le(geo: Geometry, m: Materials, t: Textures, lights: Lights, ls: LightSample, x: wp.vec3) -> wp.vec3:
         """The radiance arriving at ``x`` from the sampled point ``ls`` (unoccluded). Inlined: called out
         of line, it copied the four scene structs it takes by value (the fast kernel 5% slower)."""
+        if wp.static(delta_radiance is not None):
+            if ls.h.kind == KIND_PUNCTUAL:
+                return delta_radiance(lights, ls, x)
         if ls.h.kind == KIND_MISS:
             return sample_le(lights, ls)
         return emission(m, t, surface_at(geo, ls.h, x, ls.dir))

@@ -4,11 +4,12 @@ their fields in ``table.Lights``. A new kind is a module of this package exporti
 
 from __future__ import annotations
 
-from warp_spt.core.lights import envmap, sky, sphere, triangle
+from warp_spt.core.lights import envmap, punctual, sky, sphere, triangle
 
 KINDS = (
     triangle.KIND,
     sphere.KIND,
     sky.KIND,
     envmap.KIND,
+    punctual.KIND,
 )

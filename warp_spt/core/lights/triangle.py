@@ -7,7 +7,10 @@ pay area sampling's 1/r^2; a tiny or distant one is sampled uniformly by area, i
 density using ``|cos|`` on either face. ``pdf_li`` makes the same choice from the same numbers.
 
 Choice weight: area x mean emitted radiance x 2 (two-sided), the mean taken over the texture on the
-triangle at a few points for a textured emitter.
+triangle at a few points for a textured emitter. A scene with many emitting triangles (at least
+``light_tree.MIN_TREE_LIGHTS``) puts them all in one table entry of their total weight and chooses
+among them with a light tree (``light_tree``): in proportion to power over distance squared from the
+shading point.
 
 (No ``from __future__ import annotations`` here: ``make``'s functions are annotated with the
 ``Lights`` struct it is given, which Warp must see as an object, not as a string.)
@@ -27,6 +30,7 @@ from warp_spt.core.lights.base import (
     device_array,
     mean_emission,
 )
+from warp_spt.core.lights.light_tree import MIN_TREE_LIGHTS, LightTree, build_tree, leaf_prob, pick_leaf, upload_tree
 from warp_spt.core.sampling import spherical_triangle_sample, triangle_solid_angle
 from warp_spt.core.surface import offset_eps
 from warp_spt.scene.model import Scene
@@ -47,11 +51,15 @@ _BARY = np.array([(1 / 3, 1 / 3)] + [(a, b) for a in (0.1, 0.45, 0.8) for b in (
 @wp.struct
 class TriangleLights:
     """Per triangle entry: its mesh and face; per global face: its choice probability (0: not in the
-    table)."""
+    table). With a light tree (``use_tree``): the kind is one table entry, ``face_prob`` that entry's
+    probability, and the tree chooses the triangle (``face_entry``: a face's triangle entry)."""
 
     mesh: wp.array(dtype=wp.int32)
     face: wp.array(dtype=wp.int32)
     face_prob: wp.array(dtype=wp.float32)
+    use_tree: int
+    face_entry: wp.array(dtype=wp.int32)
+    tree: LightTree
 
 
 @wp.func
@@ -81,7 +89,7 @@ def make(Lights, features: Features):
     """``sample_li`` and ``pdf_li`` over ``lights.triangle``."""
 
     @wp.func
-    def sample_li(geo: Geometry, lights: Lights, entry: int, prob: float, x: wp.vec3, u: wp.vec2) -> LightSample:
+    def sample_triangle(geo: Geometry, lights: Lights, entry: int, prob: float, x: wp.vec3, u: wp.vec2) -> LightSample:
         ls = LightSample()
         ls.pdf = 0.0
         mesh = lights.triangle.mesh[entry]
@@ -139,7 +147,27 @@ def make(Lights, features: Features):
             return prob * triangle_pdf(geo.mesh_ids[h.index], h.face, o, h.t * h.t / cos_l)
         return 0.0
 
-    return SimpleNamespace(sample_li=sample_li, pdf_li=pdf_li)
+    if not features.light_tree:
+        return SimpleNamespace(sample_li=sample_triangle, pdf_li=pdf_li)
+
+    @wp.func(inline=True)     # into the dispatch's chain: one call level, as without the tree
+    def sample_li(geo: Geometry, lights: Lights, entry: int, prob: float, x: wp.vec3, u: wp.vec2) -> LightSample:
+        e = entry
+        p = float(1.0)
+        uu = u[0]
+        if lights.triangle.use_tree != 0:
+            e, p, uu = pick_leaf(lights.triangle.tree, x, u[0])
+        return sample_triangle(geo, lights, e, prob * p, x, wp.vec2(uu, u[1]))
+
+    @wp.func(inline=True)
+    def pdf_tree(geo: Geometry, lights: Lights, h: Hit, o: wp.vec3, d: wp.vec3) -> float:
+        pdf = pdf_li(geo, lights, h, o, d)
+        if lights.triangle.use_tree != 0 and pdf > 0.0:
+            e = lights.triangle.face_entry[geo.face_offset[h.index] + h.face]
+            pdf = pdf * leaf_prob(lights.triangle.tree, e, o)
+        return pdf
+
+    return SimpleNamespace(sample_li=sample_li, pdf_li=pdf_tree)
 
 
 def weigh(scene: Scene, sky: Sky) -> Weighed:
@@ -161,16 +189,28 @@ def weigh(scene: Scene, sky: Sky) -> Weighed:
         tw.append(weight[faces])
         start += len(m.indices)
     cat = (lambda parts, dt: np.concatenate(parts).astype(dt) if parts else np.zeros(0, dt))
-    return Weighed(cat(tw, np.float64), (cat(tm, np.int32), cat(tf, np.int32), cat(tg, np.int64), start))
+    weights, mesh, face = cat(tw, np.float64), cat(tm, np.int32), cat(tf, np.int32)
+    tree = None
+    if len(weights) >= MIN_TREE_LIGHTS:      # one table entry; the tree chooses among the triangles
+        corners = np.stack([scene.meshes[k].positions[scene.meshes[k].indices[f]] for k, f in zip(mesh, face)])
+        tree = build_tree(corners.astype(np.float64), weights)
+        return Weighed(np.array([weights.sum()]), (mesh, face, cat(tg, np.int64), start, tree))
+    return Weighed(weights, (mesh, face, cat(tg, np.int64), start, tree))
 
 
 def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -> TriangleLights:
-    mesh, face, global_face, num_faces = payload
+    mesh, face, global_face, num_faces, tree = payload
     face_prob = np.zeros(max(num_faces, 1), np.float32)
-    face_prob[global_face] = prob
+    face_prob[global_face] = prob if tree is None else prob[0]
+    face_entry = np.zeros(max(num_faces, 1) if tree is not None else 1, np.int32)
+    if tree is not None:
+        face_entry[global_face] = np.arange(len(global_face))
     t = TriangleLights()
     t.mesh, t.face = device_array(mesh, wp.int32, np.int32, device), device_array(face, wp.int32, np.int32, device)
     t.face_prob = device_array(face_prob, wp.float32, np.float32, device)
+    t.use_tree = int(tree is not None)
+    t.face_entry = device_array(face_entry, wp.int32, np.int32, device)
+    t.tree = upload_tree(tree, device)
     return t
 
 

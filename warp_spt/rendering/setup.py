@@ -196,6 +196,9 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     if b.features.media and mode == "fast" and not b.integrator.media:
         raise ValueError(f"the scene has participating media (a fog or an interior medium): integrator "
                          f"{b.integrator.name!r} ignores them; render it with integrator 'volpath'")
+    if b.features.media and mode in ("tape", "replay"):     # their kernels would ignore the media
+        raise ValueError("the scene has participating media (a fog or an interior medium): gradients "
+                         "through media are not implemented yet (docs/volumes.md)")
     b.kernel = kind.build(b)
     b.cam = camera_params(camera, rs.width, rs.height)
     b.lights = light_table(dev, sky, camera.up) if kind.lights else None

@@ -116,6 +116,27 @@ def make_light_sample(sampler: Sampler, light, inline: bool | None = None):
     return light_sample
 
 
+def make_roulette(sampler: Sampler):
+    """``roulette(p, rp, dim) -> PathState``: Russian roulette on the throughput from
+    ``rp.roulette_depth`` on (survival probability its largest channel, at most 1; the number from
+    sample dimension ``dim``); shared by ``nee``'s surface vertex and ``volpath``'s medium vertex."""
+
+    @wp.func(inline=True)
+    def roulette(path: PathState, rp: RenderParams, dim: int) -> PathState:
+        p = path
+        if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:
+            u_rr, st = sampler.next_1d(p.sampler, dim)
+            p.sampler = st
+            q = detached(wp.min(wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]), 1.0))
+            if u_rr >= q:
+                p.alive = 0
+            else:
+                p.throughput = p.throughput / q
+        return p
+
+    return roulette
+
+
 @wp.func
 def shadow_ray(sf: Surface, x: wp.vec3, ls: LightSample, extent: float):
     """(origin, direction, length) of the shadow ray of light sample ``ls``, drawn from ``x`` (the
@@ -179,6 +200,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     sample_lights = light_sampling and (features.emitters or features.sky or features.punctual) and features.scatters
     blocked = make_blocked(features)
     light = make_lights(features, surface_at, mat.emission)
+    roulette = make_roulette(sampler)
     if replay:
         detach_lights(light)
     light_sample = make_light_sample(sampler, light, inline=inline_callees)
@@ -274,14 +296,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             p = lit
         p = continue_path(p, sf, mat.sample(mats, tex, sf, u_lobe, u_dir, u_fresnel), geo.extent)
         if wp.static(light_sampling):
-            if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth and p.alive != 0:
-                u_rr, st = sampler.next_1d(p.sampler, base + OFF_ROULETTE)
-                p.sampler = st
-                q = detached(wp.min(wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]), 1.0))
-                if u_rr >= q:
-                    p.alive = 0
-                else:
-                    p.throughput = p.throughput / q
+            p = roulette(p, rp, base + OFF_ROULETTE)
         return p
 
     return vertex

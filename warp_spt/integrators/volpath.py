@@ -36,8 +36,8 @@ from warp_spt.integrators.common import DIM_BOUNCE, OFF_DIR, OFF_ROULETTE, Integ
 from warp_spt.integrators.nee import (
     STRIDE,
     VIS_TRACE,
-    detached,
     make_light_sample,
+    make_roulette,
     make_path_step,
     make_path_vertex,
     power_heuristic,
@@ -154,6 +154,7 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     mat = make_materials(features)
     light = make_lights(features, surface_at, mat.emission)
     light_sample = make_light_sample(sampler, light, inline=True)
+    roulette = make_roulette(sampler)
     sample_lights = bool(features.emitters or features.sky or features.punctual)
 
     @wp.func(inline=True)
@@ -192,15 +193,7 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
         p.singular = 0
         p.vis = VIS_TRACE
         p.sampler = st
-        if rp.roulette_depth > 0 and p.depth >= rp.roulette_depth:
-            u_rr, st2 = sampler.next_1d(p.sampler, base + OFF_ROULETTE)
-            p.sampler = st2
-            q = detached(wp.min(wp.max(wp.max(p.throughput[0], p.throughput[1]), p.throughput[2]), 1.0))
-            if u_rr >= q:
-                p.alive = 0
-            else:
-                p.throughput = p.throughput / q
-        return p
+        return roulette(p, rp, base + OFF_ROULETTE)
 
     @wp.func(inline=True)
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,

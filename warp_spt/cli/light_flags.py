@@ -3,7 +3,8 @@
 :mod:`warp_spt.cli.options` adds them to the parser (:func:`add_light_flags`) and reads them back
 (:func:`light_options`): a tuple of ``warp_spt.scene.lights`` records that the runners add to the
 scene's own lights. ``--light`` takes one line of a light file (``warp_spt.io.light_file``), so the
-file and the flag have one syntax. Warp-free.
+file and the flag have one syntax. Warp-free, and numpy-free until the flags are read: the command
+line imports this module before its Ctrl-C handlers go in (tests/test_interrupt.py).
 """
 
 from __future__ import annotations
@@ -11,8 +12,6 @@ from __future__ import annotations
 import argparse
 from typing import Callable
 
-from warp_spt.io.light_file import load_lights, parse_light
-from warp_spt.scene.lights import SunLight
 
 
 def add_light_flags(p: argparse.ArgumentParser, number: Callable) -> None:
@@ -33,6 +32,9 @@ def add_light_flags(p: argparse.ArgumentParser, number: Callable) -> None:
 def light_options(ns: argparse.Namespace, error: Callable[[str], Exception]) -> tuple:
     """The lights the flags give, in order (--sun, each --light, each file); ``error(message)`` is
     raised for a bad flag, ``SceneError`` for a bad light file."""
+    from warp_spt.io.light_file import load_lights, parse_light     # numpy: after the handlers
+    from warp_spt.scene.lights import SunLight
+
     lights = []
     if ns.sun is None and (ns.sun_color is not None or ns.sun_radius is not None):
         raise error("--sun-color and --sun-radius need --sun DX DY DZ (the direction towards the sun)")

@@ -159,12 +159,13 @@ def parse_config(name: str) -> tuple[str, str, set[str]]:
 
 def default_configs() -> list[str]:
     """Every integrator the progressive renderer can render (not ``guided``, which trains over its
-    own passes) with every sampler, and the renderer's default pair with +adaptive."""
+    own passes) with every sampler, and the renderer's default pair with +adaptive. Not ``volpath``
+    (an integrator for media): on the scenes here, which have none, it renders nee's images."""
     from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
     from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
 
-    pairs = [f"{i}/{s}" for i in sorted(INTEGRATORS) if INTEGRATORS[i].render_passes is None
-             for s in sorted(SAMPLERS)]
+    pairs = [f"{i}/{s}" for i in sorted(INTEGRATORS)
+             if INTEGRATORS[i].render_passes is None and not INTEGRATORS[i].media for s in sorted(SAMPLERS)]
     return pairs + [f"{DEFAULT_INTEGRATOR}/{DEFAULT_SAMPLER}+adaptive"]
 
 

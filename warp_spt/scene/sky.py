@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from warp_spt.scene.environment import EnvironmentMap
+if TYPE_CHECKING:     # numpy comes with it: the command line reads this module before its Ctrl-C handlers
+    from warp_spt.scene.environment import EnvironmentMap
 from warp_spt.scene.limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
 
 SKY_CONSTANT = 0
@@ -65,8 +67,11 @@ class Sky:
     def _environment_problem(self) -> str | None:
         if (self.kind == SKY_ENVIRONMENT) != (self.env is not None):
             return "an environment sky (SKY_ENVIRONMENT) needs an EnvironmentMap, and only it takes one"
-        if self.env is not None and not isinstance(self.env, EnvironmentMap):
-            return f"environment must be a warp_spt.scene.environment.EnvironmentMap, got {type(self.env).__name__}"
+        if self.env is not None:
+            from warp_spt.scene.environment import EnvironmentMap
+
+            if not isinstance(self.env, EnvironmentMap):
+                return f"environment must be a warp_spt.scene.environment.EnvironmentMap, got {type(self.env).__name__}"
         if not (isinstance(self.strength, (int, float)) and 0.0 <= float(self.strength) <= MAX_RADIANCE):
             return f"environment strength must be a number in [0, {MAX_RADIANCE:g}], got {self.strength!r}"
         if not (isinstance(self.rotate, (int, float)) and math.isfinite(float(self.rotate))):
@@ -82,6 +87,8 @@ class Sky:
         :class:`EnvironmentMap`; ``warp_spt.load_environment`` reads .hdr, .exr, .pfm and PNG files),
         scaled by ``strength`` and turned ``rotate`` degrees about the up axis (``up``, default the
         camera's); camera rays that miss see ``background`` (an RGB colour) instead, if given."""
+        from warp_spt.scene.environment import EnvironmentMap
+
         env = image if isinstance(image, EnvironmentMap) else EnvironmentMap(image, name)
         return Sky(SKY_ENVIRONMENT, (0.0, 0.0, 0.0), None if up is None else tuple(up), env=env,
                    strength=float(strength), rotate=float(rotate),

@@ -168,7 +168,8 @@ def checked(message: Any) -> dict:
         if value is not None:                 # an optional field sent as null: as if left out
             out[name] = value
     if kind == "set":
-        out["value"] = SET_VALUES.get(out["key"], _scalar)(out["value"], out["key"])
+        # by key, null included (the generic rule above drops a null; some keys take one, others refuse it)
+        out["value"] = SET_VALUES.get(out["key"], _scalar)(message["value"], out["key"])
     return out
 
 

@@ -31,7 +31,10 @@ default kernel and the small kernels also for sm_90:
   and the first view's probes (``rendering/first_view``: the CLI's, the viewer's, the API's). The
   viewer has no kernels of its own: it renders through the same set-up (``rendering/setup.bind``).
 
-**The full matrix** (``WARP_SPT_CUDA_FULL=1``): the fast kernel of every integrator x every sampler,
+**The full matrix** (``WARP_SPT_CUDA_FULL=1``): the representative set's feature sets and the
+meshes-only set with every medium kind (emitting, behind pass-through boundaries) for ``volpath``,
+the only integrator that reads media (not in the representative set: its NVRTC compile alone ran
+past 5 minutes here); the fast kernel of every integrator x every sampler,
 every other kind with every integrator (the kinds that refuse ``guided`` and ``ears``, ``replay``
 and ``tape``, reported as skipped), every variant for every architecture in ``ARCHS`` (sm_75 and
 sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides). Run it before a release and on a GPU machine
@@ -45,7 +48,7 @@ Warp's kernel cache keeps each PTX file by the module's hash, so a second run co
 Cost, measured on the 2-core development machine: a general fast kernel takes 30-80 s of NVRTC per
 architecture with the pbr kind compiled in, the adjoint kernels (NVRTC optimising replay's and the
 tape's adjoints) several CPU-minutes each. The full matrix (about 40 compiles) ran past an hour of CI's
-2 cores with Warp's cache cold, which is why CI compiles the representative set (15 compiles).
+2 cores with Warp's cache cold, which is why CI compiles the representative set (16 compiles).
 With Warp's cache warm (the modules unchanged since the last run): seconds.
 """
 
@@ -72,6 +75,7 @@ from warp_spt.rendering.setup import KERNEL_KINDS, Bound
 from warp_spt.runtime import kernel_cache
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
+from warp_spt.core.media.registry import KINDS as MEDIUM_KINDS
 from warp_spt.scene.material_schema import MATERIAL_KINDS
 from warp_spt.scene.sky import Sky
 
@@ -94,6 +98,13 @@ FEATURE_SETS = {
                                 lobes=LOBE_SPECULAR | LOBE_REFLECTION | LOBE_TRANSMISSION,
                                 material_flags=("dims.fresnel", "dims.lobe", "frame", "pbr.thin", "pbr.transmission")),
 }
+# participating media: every medium kind, emitting, behind pass-through boundaries (volpath alone reads
+# them), on the meshes-only set; in the full matrix only: NVRTC ran past 10 minutes on this kernel for
+# Features.general() and past 5 on the meshes-only set (the trackers are inlined at every call site)
+FEATURE_SETS["media"] = replace(FEATURE_SETS["meshes-warp-bvh"], media=tuple(sorted(MEDIUM_KINDS)) + ("emission", "interface"))
+FULL_ONLY_SETS = ("media",)
+# the integrator of each extra feature set (the default one unless the set's code is another's)
+SET_INTEGRATOR = {"media": "volpath"}
 
 
 @dataclass(frozen=True)
@@ -123,7 +134,8 @@ def variants(full: bool = FULL) -> list[Variant]:
         others = [k for k in KERNEL_KINDS if k != "fast"]
         out += [Variant(k, DEFAULT_INTEGRATOR, samplers[n % len(samplers)], ADJOINT_FEATURES)
                 for n, k in enumerate(others)]
-    out += [Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, f) for f in FEATURE_SETS if f != "general"]
+    out += [Variant("fast", SET_INTEGRATOR.get(f, DEFAULT_INTEGRATOR), DEFAULT_SAMPLER, f)
+            for f in FEATURE_SETS if f != "general" and (full or f not in FULL_ONLY_SETS)]
     return out
 
 
@@ -225,6 +237,7 @@ def test_the_variants_come_from_the_registries():
     for flag in ("frame", "cutout", "dims.lobe", "dims.fresnel", "seed.diffuse", "pbr.transmission"):
         assert {f.needs(flag) for f in sets} == {True, False}, flag
     assert {f.bvh_stack == 0 for f in sets} == {True, False}
+    assert {bool(f.media) for f in sets} == {True, False}
     assert {k for f in sets for k in f.material_kinds} == set(MATERIAL_KINDS)
     assert any(len(f.material_kinds) == 1 for f in sets)
     # every texture registered when this module was collected (the built-ins at least; other test modules

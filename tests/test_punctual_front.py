@@ -61,7 +61,6 @@ def test_sun_and_light_flags():
     (["--sun", "0", "0", "0"], "must not be zero"),
     (["--sun", "0", "0", "1", "--sun-radius", "60"], "radius"),
     (["--light", "point", "position", "1"], "--light point position 1: position needs 3 numbers"),
-    (["--sun", "0", "0", "1", "--frames", "0:2"], "single images"),
 ])
 def test_bad_light_flags_are_one_line_and_exit_2(argv, mentions, capsys):
     with pytest.raises(UsageError, match=mentions.replace("(", r"\(")):

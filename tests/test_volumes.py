@@ -455,11 +455,3 @@ def test_viewer_picks_volpath_for_a_scene_with_media(scene_dir):
         assert s.settings.integrator == "volpath"
     finally:
         s.close()
-
-
-def test_cli_fog_refuses_frames_and_clusters(scene_dir, capsys):
-    from warp_spt.cli.main import main
-
-    objs, _ = write_scene_files(scene_dir, "cli_frames", box_obj(material="m"))
-    assert main(["-obj", objs[0], "--fog", "sigma_s=0.1", "--workers", "2", "-out", str(scene_dir / "x.png")]) == 2
-    assert "--fog renders single images" in capsys.readouterr().err

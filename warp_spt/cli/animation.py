@@ -16,7 +16,7 @@ import numpy as np
 from warp_spt.animation import CameraPath, ObjSequence, render_animation
 from warp_spt.cli.common import load_texture_modules, say_for
 from warp_spt.cli.options import settings_of
-from warp_spt.cli.view_checks import frame_view
+from warp_spt.cli.view_checks import frame_view, media_integrator, with_flag_lights
 from warp_spt.io.images import save_gif
 from warp_spt.io.templates import frame_path
 from warp_spt.runtime.signals import ignored_by_children
@@ -133,11 +133,6 @@ def run_cli(opts, err, started: float | None = None) -> int:
     from warp_spt.runtime.progress import ProgressBar
 
     say = say_for(opts, err)
-    if getattr(opts, "fog", None) is not None:
-        from warp_spt.cli.common import UsageError
-
-        raise UsageError("--fog renders single images on this machine for now: not with --frames, --camera-path, "
-                         "--gif, --workers or --cluster (docs/volumes.md)")
     objs, mtls = scene_files(opts)
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
     seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps,
@@ -162,6 +157,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
         f"{spp}, depth {opts.depth} on {where}")
     if opts.workers and (warning := workers_warning(opts.workers)):
         say(warning)
+    opts = media_integrator(opts, with_flag_lights(opts, first), say)   # a fog or interiors: volpath for every frame
     if opts.animated:
         def images(client, progress):
             return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
@@ -170,7 +166,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
         from warp_spt.cli.common import CompileNotice
         from warp_spt.cli.view_checks import _view
         with CompileNotice(say):
-            scene, camera, sky = _view(opts, first, say)
+            scene, camera, sky = _view(opts, with_flag_lights(opts, first), say)
         opts = replace(opts, camera=camera, sky=sky)
         if opts.budget.active:
             return _run_budgeted(opts, scene, say, started)

@@ -357,9 +357,6 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
         lights=light_options(ns, UsageError),
     )
-    if opts.lights and (ns.frames or ns.cluster or ns.workers or ns.camera_path):
-        raise UsageError("--sun, --light and --lights light single images on this machine; frames and clusters "
-                         "do not take them yet (a glTF file's own lights do render there)")
     return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
 
 

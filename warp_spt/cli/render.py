@@ -23,7 +23,7 @@ from warp_spt.cli.common import (
 )
 from warp_spt.cli.options import Options, settings_of
 from warp_spt.cli.progressive import render_and_save
-from warp_spt.cli.view_checks import prepare_view
+from warp_spt.cli.view_checks import media_integrator, prepare_view, with_flag_lights
 from warp_spt.runtime.progress import ProgressBar
 from warp_spt.runtime.signals import deferred_signals
 
@@ -54,13 +54,8 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
-    if opts.lights:                 # --sun, --light, --lights: beside the scene's own lights
-        scene = replace(scene, lights=[*scene.lights, *opts.lights])
-    if opts.fog is not None:
-        scene = replace(scene, fog=opts.fog)
-    if (scene.fog is not None or scene.interiors) and not opts.integrator:
-        opts = replace(opts, integrator="volpath")
-        say("participating media: integrator volpath (docs/volumes.md)")
+    scene = with_flag_lights(opts, scene)   # --sun, --light, --lights beside the scene's own; --fog
+    opts = media_integrator(opts, scene, say)
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} model file(s)"
     dropped = f" ({scene.dropped_degenerate:,} of zero area dropped)" if scene.dropped_degenerate else ""
     say(f"loaded {what}: {scene.num_triangles:,} triangles{dropped}, {len(scene.spheres)} spheres, "

@@ -34,7 +34,8 @@ __all__ = ["PROBE_SIZE", "Probe", "enclosing_object", "frame_view", "lens_blur_s
 def prepare_view(opts, scene, say, notice: "CompileNotice | None" = None) -> tuple[object, Camera, Sky]:
     """The scene (uploaded to the device), camera and sky to render.
 
-    The scene is recentred if far from the origin, framed when the rule says so (see
+    ``scene`` holds the flags' lights and fog already (:func:`with_flag_lights`). The scene is
+    recentred if far from the origin, framed when the rule says so (see
     :func:`warp_spt.cli.view_checks.should_frame`), checked for views that show nothing, and given the studio
     preset if asked. The probe's kernel may compile on a first run: ``notice`` announces it.
     """
@@ -52,6 +53,7 @@ def frame_view(opts, say):
     A message that every frame repeats is said once."""
     fixed = opts.cam_given or bool(opts.camera_path)
     said: set[str] = set()
+    lit: list = [None, None]        # (a frame's loaded scene, it with the flags' lights): one upload while it stays
 
     def say_once(msg: str) -> None:
         if msg not in said:
@@ -59,13 +61,37 @@ def frame_view(opts, say):
             say(msg)
 
     def view(scene, camera):
-        return _view(replace(opts, camera=camera, cam_given=fixed), scene, say_once)
+        if lit[0] is not scene:
+            lit[:] = [scene, with_flag_lights(opts, scene)]
+        return _view(replace(opts, camera=camera, cam_given=fixed), lit[1], say_once)
     return view
+
+
+def with_flag_lights(opts, scene):
+    """``scene`` with the lights of --sun, --light and --lights beside its own, and the --fog medium:
+    part of the scene, so the probe, every frame and a cluster's workers (the scene travels to them)
+    see them as a single image does."""
+    if opts.lights:
+        scene = replace(scene, lights=[*scene.lights, *opts.lights])
+    if getattr(opts, "fog", None) is not None:
+        scene = replace(scene, fog=opts.fog)
+    return scene
+
+
+def media_integrator(opts, scene, say):
+    """``opts`` with integrator ``volpath`` when ``scene`` has a fog or an interior medium and no
+    --integrator was given (the other integrators refuse media), saying so."""
+    if (getattr(scene, "fog", None) is not None or getattr(scene, "interiors", None)) and not opts.integrator:
+        say("participating media: integrator volpath (docs/volumes.md)")
+        return replace(opts, integrator="volpath")
+    return opts
 
 
 def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
     """Recentre, choose the up axis, place the camera (keep, or frame), warn, add the studio look:
-    :func:`first_view` with the command's options (``--camera``: the model files' camera, never framed)."""
+    :func:`first_view` with the command's options (``--camera``: the model files' camera, never framed).
+    ``scene`` already holds the flags' lights and fog (:func:`with_flag_lights`): they count as its
+    own light for the studio rule."""
     file_camera = None
     if getattr(opts, "file_camera", None) is not None:
         file_camera = _file_camera(opts, scene)

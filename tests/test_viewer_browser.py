@@ -170,3 +170,31 @@ def test_the_page_and_the_widget_load_the_same_module():
     assert b'import viewer from "./viewer.js"' in static_text("index.html")
     widget = pytest.importorskip("warp_spt.viewer.widget", reason="the view extra installs anywidget")
     assert Path(str(widget.STATIC / "viewer.js")).read_bytes() == static_text("viewer.js")
+
+
+def test_the_lights_and_fog_controls(demo_page):
+    page, session = demo_page
+    wait_refined(page, session)
+    first = canvas_pixels(page)
+    page.click(".wspt summary:text('Lights and fog')")
+    direction = [float(page.input_value(f".wspt-sun-direction-{i}")) for i in range(3)]
+    assert direction == pytest.approx(session.settings.sun_direction, rel=1e-5)    # placed on load, shown
+    page.check(".wspt-sun")
+    eventually(lambda: session.settings.sun)
+    page.fill(".wspt-sun-color-0", "3")
+    page.press(".wspt-sun-color-0", "Enter")
+    eventually(lambda: session.settings.sun_color == (3.0, 1.0, 1.0))
+    page.fill(".wspt-sun-radius", "60")                                   # out of range: refused, said
+    page.press(".wspt-sun-radius", "Enter")
+    page.wait_for_function("() => document.querySelector('.wspt-notice').textContent.includes('sun_radius')",
+                           timeout=TIMEOUT_MS)
+    assert session.settings.sun_radius == 0.0
+    page.select_option(".wspt summary:text('Lights and fog') ~ label select", "point")
+    eventually(lambda: session.settings.lamp == "point")
+    page.check(".wspt-fog")
+    eventually(lambda: session.settings.fog and session.settings.integrator == "volpath")
+    page.fill(".wspt-fog-g", "0.3")
+    page.press(".wspt-fog-g", "Enter")
+    eventually(lambda: session.settings.fog_g == 0.3)
+    wait_refined(page, session)
+    assert np.abs(canvas_pixels(page).astype(int) - first.astype(int)).mean() > 2    # the picture changed

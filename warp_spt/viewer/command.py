@@ -42,6 +42,8 @@ class CommandSpec:
     studio_off: bool = False    # --no-studio was asked for
     smooth_angle: float | None = None   # --smooth-angle, when not the default
     env: tuple[str, float, float] | None = None   # sky "environment": --env FILE, --env-rotate, --env-strength
+    env_background: tuple[float, float, float] | None = None   # --env-background R G B
+    lighting: tuple[str, ...] = ()  # the page's lights and fog: --sun, --light, --fog flags (viewer.lighting)
 
 
 def number(v: float) -> str:
@@ -73,8 +75,10 @@ def command_args(camera, spec: CommandSpec) -> list[str]:
         path, rotate, strength = spec.env
         args += ["--env", path] + (["--env-rotate", number(rotate)] if rotate else [])
         args += ["--env-strength", number(strength)] if strength != 1.0 else []
+        args += ["--env-background", *map(number, spec.env_background)] if spec.env_background is not None else []
     elif spec.sky != "studio":
         args += SKY_FLAGS[spec.sky] if spec.sky in SKY_FLAGS else ["--sky-color", *map(number, spec.sky_color)]
+    args += list(spec.lighting)
     args += ["--integrator", spec.integrator, "--sampler", spec.sampler]
     if spec.out.lower().endswith((".png", ".jpg", ".jpeg")):
         args += ["--tonemap", spec.tonemap] if spec.tonemap != "seed" else []

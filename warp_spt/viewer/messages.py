@@ -141,13 +141,19 @@ FIELDS: dict[str, dict[str, tuple[Callable, bool]]] = {
 # "set": the value's kind by key (ViewSettings' fields and the camera's fov and aperture); ranges
 # and choices are checked by the session (viewer.session.checked_settings) on the typed value.
 _INT = lambda v, n: integer(v, n, -(1 << 31), 1 << 31)           # noqa: E731
+_VEC3 = lambda v, n: numbers(v, n, 3)                             # noqa: E731
 SET_VALUES: dict[str, Callable] = {
     "width": _INT, "height": _INT, "max_depth": _INT, "max_spp": _INT, "preview_scale": _INT,
     "integrator": text, "sampler": text, "sky": text, "tonemap": text,
     "exposure": number, "fov": number, "aperture": number,
     "sky_color": lambda v, n: numbers(v, n, 3),
     "env_path": text, "env_rotate": number, "env_strength": number,
+    "env_background": _optional(lambda v, n: numbers(v, n, 3)),
     "error_map": boolean,
+    # the page's lights and fog (viewer/lighting.py checks their ranges)
+    "sun": boolean, "sun_direction": _VEC3, "sun_color": _VEC3, "sun_radius": number,
+    "lamp": text, "lamp_position": _VEC3, "lamp_intensity": _VEC3, "lamp_direction": _VEC3, "lamp_angle": number,
+    "fog": boolean, "fog_sigma_a": _VEC3, "fog_sigma_s": _VEC3, "fog_g": number,
 }
 
 

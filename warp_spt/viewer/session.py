@@ -34,7 +34,7 @@ import numpy as np
 
 from warp_spt.scene.limits import MAX_DEPTH, MAX_RADIANCE, MAX_SPP, MAX_VIEW_PIXELS
 
-from . import display, messages, navigation
+from . import display, lighting, messages, navigation
 from .command import CommandSpec, command_line
 from .raycast import first_hit
 
@@ -71,6 +71,22 @@ class ViewSettings:
     env_path: str = ""              # the "environment" sky's map file (--env), its turn and strength
     env_rotate: float = 0.0
     env_strength: float = 1.0
+    env_background: tuple | None = None   # what camera rays that miss see (--env-background); None: the map
+    # lights and a fog the page adds (viewer/lighting.py; the command line's --sun, --light, --fog);
+    # positions in world coordinates; (0, 0, 0) directions are placed when the scene loads
+    sun: bool = False
+    sun_direction: tuple = (0.0, 0.0, 0.0)     # towards the sun
+    sun_color: tuple = (1.0, 1.0, 1.0)         # its irradiance on a surface facing it
+    sun_radius: float = 0.0                    # angular radius, degrees (0: a delta light)
+    lamp: str = "off"                          # "off", "point" or "spot"
+    lamp_position: tuple = (0.0, 0.0, 0.0)
+    lamp_intensity: tuple = (1.0, 1.0, 1.0)    # W/sr
+    lamp_direction: tuple = (0.0, 0.0, 0.0)    # where a spot shines
+    lamp_angle: float = 30.0                   # a spot's outer cone angle, degrees
+    fog: bool = False
+    fog_sigma_a: tuple = (0.01, 0.01, 0.01)    # per unit length
+    fog_sigma_s: tuple = (0.05, 0.05, 0.05)
+    fog_g: float = 0.0                         # Henyey-Greenstein asymmetry, in (-1, 1)
     max_spp: int = 1024
     preview_scale: int = 4
     exposure: float = 0.0
@@ -88,7 +104,8 @@ def make_sky(settings: ViewSettings, environment=None):
     if settings.sky == "environment":
         if environment is None:
             raise ValueError("the environment sky needs a map: give its file (.hdr, .exr, .pfm) first")
-        return Sky.environment(environment, rotate=settings.env_rotate, strength=settings.env_strength)
+        return Sky.environment(environment, rotate=settings.env_rotate, strength=settings.env_strength,
+                               background=settings.env_background)
     return {"blue": Sky.black, "gradient": Sky.gradient, "pink": Sky.pink,
             "studio": studio_sky, "black": lambda: Sky.constant(0.0, 0.0, 0.0),
             "color": lambda: Sky.constant(*settings.sky_color)}[settings.sky]()
@@ -117,7 +134,9 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     if key not in kinds:
         raise ValueError(f"unknown setting {key!r}")
     current = getattr(settings, key)
-    if isinstance(current, bool):
+    if key in lighting.VECTORS:
+        value = lighting.vector(value, key)
+    elif isinstance(current, bool):
         value = bool(value)
     elif isinstance(current, tuple):
         value = tuple(float(v) for v in value)
@@ -135,6 +154,7 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     if key == "sky_color":
         warp_spt.Sky.constant(*value)          # Sky validates a colour (ValueError)
     new = replace(settings, **{key: value})
+    lighting.check(new)                        # the page's lights and fog, as their records check them
     if new.width * new.height > MAX_VIEW_PIXELS:     # the refined image's batch sums: docs/viewer.md
         raise ValueError(f"a view of {new.width}x{new.height} is more than the {MAX_VIEW_PIXELS:,} pixels a view "
                          "may have (1920x1080 fits); render larger images with the copied command line")
@@ -257,6 +277,11 @@ class Session:
             self._settings = checked_settings(self._settings, key, value)
         self._sky_given = "sky" in settings or "sky_color" in settings
         self._integrator_given = "integrator" in settings
+        self._given = frozenset(settings)        # placed by the caller: the load does not place them
+        self._own_lights: list = []      # the loaded scene's lights and fog, to which the page's are added
+        self._own_fog = None
+        self._relight = False            # the page's lights or fog changed: the scene is uploaded again
+        self._meshes: dict = {}          # uploaded meshes, reused by those uploads (DeviceScene's cache)
         self._environment = _read_environment(self._settings.env_path) if self._settings.env_path else None
         self._studio_given = studio      # --studio / --no-studio; None: the rule
         self._smooth_angle = smooth_angle
@@ -390,6 +415,8 @@ class Session:
                            int(spp), s.max_depth, sky, colour, s.integrator, s.sampler, s.tonemap, out, s.exposure,
                            studio=self._studio, studio_off=self._studio_given is False,
                            env=(s.env_path, s.env_rotate, s.env_strength) if s.sky == "environment" else None,
+                           env_background=s.env_background,
+                           lighting=tuple(lighting.command_flags(s, self._own_fog)[0]),
                            smooth_angle=None if self._smooth_angle == "auto" else self._smooth_angle)
         camera = self.camera
         if camera is None:
@@ -505,11 +532,32 @@ class Session:
             self._settings = checked_settings(self._settings, key, value)
             if key == "env_path":
                 self._environment = environment
+            if key == "integrator":
+                self._integrator_given = True
+            if key in lighting.LIGHT_KEYS or key in lighting.FOG_KEYS:
+                self._relight = True
+                if key == "fog":
+                    self._settings = self._media_integrator(self._settings)
             if key not in DISPLAY_KEYS:
                 self._changed()
         if key in DISPLAY_KEYS:
             self._redraw()
         self._broadcast(self.state(), [])
+
+    def _media_integrator(self, s: ViewSettings) -> ViewSettings:
+        """``s`` rendering media with volpath (the other integrators refuse them) when a fog or an
+        interior medium is there and nobody chose the integrator; back to the default without them."""
+        media = s.fog or bool(getattr(self._scene, "interiors", None))
+        if self._integrator_given:
+            return s
+        if media:
+            return replace(s, integrator="volpath")
+        return replace(s, integrator=ViewSettings.integrator) if s.integrator == "volpath" else s
+
+    def _lit(self, scene, s: ViewSettings):
+        """``scene`` with the page's lights beside its own lights and the page's fog."""
+        return replace(scene, lights=[*self._own_lights, *lighting.lights(s, self._offset)],
+                       fog=lighting.fog(s, self._own_fog))
 
     def _make_sky(self, s: ViewSettings):
         return make_sky(s, self._environment)
@@ -528,6 +576,7 @@ class Session:
         notes = []
         if self._edits:
             notes.append("edited material values are not on the command line: write them into the MTL file")
+        notes += lighting.command_flags(self._settings, self._own_fog)[1]
         out = str(msg.get("out") or "view.png")
         if self._settings.exposure and not out.lower().endswith((".png", ".jpg", ".jpeg")):
             notes.append("the exposure is not on the command line: a linear image holds the scene's radiance")
@@ -657,6 +706,9 @@ class Session:
                     continue
                 if self._pending:
                     return self._apply_params
+                if self._relight:
+                    self._relight = False
+                    return self._apply_lighting
                 job, wait = self._choose()
                 if job is not None:
                     return job
@@ -768,6 +820,22 @@ class Session:
             self._changed()
         self._broadcast(self.state(), [])
 
+    def _apply_lighting(self) -> None:
+        """The page's lights or fog changed: upload the scene again with them (its meshes are
+        reused; material edits are kept: they live in the uploaded scene's host copy)."""
+        import warp_spt
+        from warp_spt.core.device_scene import DeviceScene
+
+        with self._cond:
+            s, params = self._settings, self._params
+        dev = DeviceScene(self._lit(params.scene.scene, s), meshes=self._meshes)
+        new = warp_spt.parameters(dev)
+        with self._cond:
+            if self._params is params:          # not replaced by a reload meanwhile
+                self._params = new
+                self._changed()
+        self._broadcast(self.state(), [])
+
     def _load(self) -> None:
         """(Re)load the scene from the loader; on success keep the view (or make the first one)."""
         import warp_spt
@@ -778,20 +846,33 @@ class Session:
         except Exception as err:
             self._fail(str(err) if _is_scene_error(err) else f"{type(err).__name__}: {err}", scene_lost=True)
             return
+        from warp_spt.core.device_scene import DeviceScene
+        from warp_spt.scene.camera import AXES
+
         first = self._rig is None
         fv = self._first_view(scene)
-        params = warp_spt.parameters(fv.scene)     # uploads the scene once; edits go through it
+        s = self._settings
+        if first:       # the page's lights placed for this scene, its own fog shown on the page
+            size = float(np.linalg.norm(np.ptp(fv.subject.bounds, axis=0))) or 1.0
+            centre = fv.subject.bounds.mean(axis=0) + fv.offset
+            s = lighting.placed(s, self._given, AXES[fv.up.axis], fv.camera, centre, size)
+            s = lighting.from_scene_fog(s, getattr(fv.scene, "fog", None), self._given)
+        self._own_lights, self._own_fog = list(fv.scene.lights), getattr(fv.scene, "fog", None)
+        self._meshes = {}
+        self._offset = fv.offset
+        dev = DeviceScene(self._lit(fv.scene, s), meshes=self._meshes)
+        params = warp_spt.parameters(dev)          # uploads the scene once; edits go through it
         with self._cond:
             self._scene, self._params, self._error, self._edits = fv.scene, params, None, set()
             self._pending.clear()
-            self._offset, self._studio, self._subject = fv.offset, fv.studio, fv.subject
+            self._studio, self._subject = fv.studio, fv.subject
             if first:
+                self._settings = replace(self._settings, **{k: getattr(s, k) for k in (
+                    *lighting.LIGHT_KEYS, *lighting.FOG_KEYS)})
                 self._up = fv.up.axis
                 if fv.studio and not self._sky_given:
                     self._settings = replace(self._settings, sky="studio")
-                media = getattr(fv.scene, "fog", None) is not None or getattr(fv.scene, "interiors", None)
-                if media and not self._integrator_given:       # a fog or an interior medium: volpath
-                    self._settings = replace(self._settings, integrator="volpath")
+                self._settings = self._media_integrator(self._settings)   # a fog or an interior medium: volpath
                 self._rig = self._initial_rig(fv.camera)
                 self._home = (self._rig, self._up)
             self._changed()

@@ -71,6 +71,15 @@ function field(label, input) {
   return h("label", {}, h("span", {}, label), input);
 }
 
+// three number fields for a vector or an RGB colour; get() reads them, set(v) shows v
+function vec3(cls, step, min) {
+  const inputs = [0, 1, 2].map((i) => h("input", { type: "number", step, class: `${cls}-${i}`,
+                                                 style: "width:52px", ...(min === undefined ? {} : { min }) }));
+  return { el: h("span", { class: cls }, ...inputs), inputs,
+           get: () => inputs.map((x) => Number(x.value)),
+           set: (v) => inputs.forEach((x, i) => setValue(x, +Number(v[i]).toPrecision(6))) };
+}
+
 function select(options) {
   const s = h("select");
   setOptions(s, options);
@@ -110,6 +119,19 @@ function build(el) {
     envPath: h("input", { type: "text", size: "14", placeholder: "sky.hdr", class: "wspt-env-path" }),
     envRotate: h("input", { type: "number", step: "5", style: "width:52px", title: "rotate (degrees)" }),
     envStrength: h("input", { type: "number", min: "0", step: "0.1", style: "width:52px", title: "strength" }),
+    envBackdrop: h("input", { type: "checkbox", class: "wspt-env-backdrop", title: "camera rays see a colour" }),
+    envBackground: h("input", { type: "color", class: "wspt-env-background" }),
+    // the page's lights and fog (viewer/lighting.py): vectors as three number fields
+    sun: h("input", { type: "checkbox", class: "wspt-sun" }),
+    sunDirection: vec3("wspt-sun-direction", "0.1"), sunColor: vec3("wspt-sun-color", "0.1", "0"),
+    sunRadius: h("input", { type: "number", min: "0", max: "45", step: "0.1", class: "wspt-sun-radius" }),
+    lamp: select(["off", "point", "spot"]),
+    lampPosition: vec3("wspt-lamp-position", "0.1"), lampIntensity: vec3("wspt-lamp-intensity", "1", "0"),
+    lampDirection: vec3("wspt-lamp-direction", "0.1"),
+    lampAngle: h("input", { type: "number", min: "0.5", max: "90", step: "1", class: "wspt-lamp-angle" }),
+    fog: h("input", { type: "checkbox", class: "wspt-fog" }),
+    fogSigmaA: vec3("wspt-fog-sigma-a", "0.001", "0"), fogSigmaS: vec3("wspt-fog-sigma-s", "0.001", "0"),
+    fogG: h("input", { type: "number", min: "-0.99", max: "0.99", step: "0.05", class: "wspt-fog-g" }),
     maxSpp: h("input", { type: "number", min: "1", step: "1", class: "wspt-max-spp" }),
     exposure: h("input", { type: "range", min: "-6", max: "6", step: "0.1" }),
     exposureValue: h("span"),
@@ -135,7 +157,15 @@ function build(el) {
       field("integrator", ui.integrator), field("sampler", ui.sampler), field("max depth", ui.depth),
       field("sky", h("span", {}, ui.sky, " ", ui.skyColor)),
       field("environment", h("span", {}, ui.envPath, " ", ui.envRotate, " ", ui.envStrength)),
+      field("backdrop", h("span", {}, ui.envBackdrop, " ", ui.envBackground)),
       field("stop at spp", ui.maxSpp)),
+    h("details", {}, h("summary", {}, "Lights and fog"),
+      field("sun", ui.sun), field("towards", ui.sunDirection.el), field("irradiance", ui.sunColor.el),
+      field("radius (deg)", ui.sunRadius),
+      field("lamp", ui.lamp), field("position", ui.lampPosition.el), field("intensity", ui.lampIntensity.el),
+      field("spot aims", ui.lampDirection.el), field("spot cone", ui.lampAngle),
+      field("fog", ui.fog), field("sigma_a", ui.fogSigmaA.el), field("sigma_s", ui.fogSigmaS.el),
+      field("g", ui.fogG)),
     h("details", { open: "" }, h("summary", {}, "Display"),
       field("exposure", h("span", { style: "display:flex;flex:1;gap:4px" }, ui.exposure, ui.exposureValue)),
       field("tone map", ui.tonemap), field("error map", ui.errorMap)),
@@ -230,7 +260,13 @@ function showState(ui, view, send, st) {
       [ui.sampler, s.sampler], [ui.depth, s.max_depth], [ui.sky, s.sky], [ui.maxSpp, s.max_spp],
       [ui.exposure, s.exposure], [ui.tonemap, s.tonemap], [ui.errorMap, s.error_map], [ui.up, st.up],
       [ui.skyColor, toHex(s.sky_color, 1)], [ui.envPath, s.env_path], [ui.envRotate, s.env_rotate],
-      [ui.envStrength, s.env_strength]]) setValue(input, value);
+      [ui.envStrength, s.env_strength], [ui.envBackdrop, s.env_background !== null],
+      [ui.sun, s.sun], [ui.sunRadius, s.sun_radius], [ui.lamp, s.lamp], [ui.lampAngle, s.lamp_angle],
+      [ui.fog, s.fog], [ui.fogG, s.fog_g]]) setValue(input, value);
+  if (s.env_background !== null) setValue(ui.envBackground, toHex(s.env_background, Math.max(1, ...s.env_background)));
+  for (const [v, value] of [[ui.sunDirection, s.sun_direction], [ui.sunColor, s.sun_color],
+      [ui.lampPosition, s.lamp_position], [ui.lampIntensity, s.lamp_intensity], [ui.lampDirection, s.lamp_direction],
+      [ui.fogSigmaA, s.fog_sigma_a], [ui.fogSigmaS, s.fog_sigma_s]]) v.set(value);
   ui.exposureValue.textContent = `${Number(s.exposure).toFixed(1)} EV`;
   ui.skyColor.style.display = s.sky === "color" ? "" : "none";
   if (!ui.cmdTouched) { ui.cmdWidth.value = s.width; ui.cmdHeight.value = s.height; }   // follows the view
@@ -389,6 +425,20 @@ function wireControls(ui, view, send) {
   on(ui.envPath, "change", () => { set("env_path", ui.envPath.value); if (ui.envPath.value) set("sky", "environment"); });
   on(ui.envRotate, "change", () => set("env_rotate", Number(ui.envRotate.value)));
   on(ui.envStrength, "change", () => set("env_strength", Number(ui.envStrength.value)));
+  const backdrop = () => set("env_background", ui.envBackdrop.checked ? fromHex(ui.envBackground.value, 1) : null);
+  on(ui.envBackdrop, "change", backdrop);
+  on(ui.envBackground, "input", () => { if (ui.envBackdrop.checked) backdrop(); });
+  on(ui.sun, "change", () => set("sun", ui.sun.checked));
+  on(ui.sunRadius, "change", () => set("sun_radius", Number(ui.sunRadius.value)));
+  on(ui.lamp, "change", () => set("lamp", ui.lamp.value));
+  on(ui.lampAngle, "change", () => set("lamp_angle", Number(ui.lampAngle.value)));
+  on(ui.fog, "change", () => set("fog", ui.fog.checked));
+  on(ui.fogG, "change", () => set("fog_g", Number(ui.fogG.value)));
+  for (const [v, key] of [[ui.sunDirection, "sun_direction"], [ui.sunColor, "sun_color"],
+      [ui.lampPosition, "lamp_position"], [ui.lampIntensity, "lamp_intensity"], [ui.lampDirection, "lamp_direction"],
+      [ui.fogSigmaA, "fog_sigma_a"], [ui.fogSigmaS, "fog_sigma_s"]]) {
+    for (const input of v.inputs) on(input, "change", () => set(key, v.get()));
+  }
   on(ui.maxSpp, "change", () => set("max_spp", Number(ui.maxSpp.value)));
   on(ui.exposure, "input", () => set("exposure", Number(ui.exposure.value)));
   on(ui.tonemap, "change", () => set("tonemap", ui.tonemap.value));

@@ -203,11 +203,24 @@ def camera_at(camera: Camera | CameraPath | None, frame: int) -> Camera:
 class ObjSequence:
     """A scene per frame from OBJ templates and static files; only files whose name changes are re-read.
 
-    ``loads`` counts OBJ files parsed (tests check that static files are parsed once).
+    ``loads`` counts OBJ files parsed (tests check that static files are parsed once). ``lights``
+    (sun, point and spot lights: ``warp_spt.SunLight``...) join every frame's own lights, ``fog`` (a
+    ``warp_spt.scene.media.Medium``) fills every frame, ``sky`` (a ``warp_spt.Sky``, an environment map
+    included) is every frame's own sky: all part of the scene, so they travel with it to a cluster's
+    workers (the command line's ``--sun``, ``--light``, ``--fog`` and ``--env``).
     """
 
     def __init__(self, objs: Sequence[str], mtls: Sequence[str] = (), *, default_material: str = "checker",
-                 fps: float = 24.0, smooth_angle: float | str | None = None) -> None:
+                 fps: float = 24.0, smooth_angle: float | str | None = None, lights: Sequence = (),
+                 fog=None, sky=None) -> None:
+        from warp_spt.scene.lights import PUNCTUAL_TYPES
+
+        for light in lights:
+            if not isinstance(light, PUNCTUAL_TYPES):
+                raise TypeError(f"lights must be SunLight, PointLight or SpotLight records, got {type(light).__name__}")
+        if fog is not None:
+            fog.check("fog")
+        self.lights, self.fog, self.sky = tuple(lights), fog, sky
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
         self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
@@ -262,6 +275,9 @@ class ObjSequence:
         data = [self._posed(p, frame) if p in posed else self._parsed[p] for p in paths]
         scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material,
                            smooth_angle=self.smooth_angle)
+        if self.lights or self.fog is not None or self.sky is not None:
+            scene = replace(scene, lights=[*scene.lights, *self.lights], fog=scene.fog if self.fog is None else self.fog,
+                            sky=scene.sky if self.sky is None else self.sky)
         self._last_scene = (key, scene)
         return scene
 
@@ -277,7 +293,8 @@ class ObjSequence:
 
 def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = (), frames: Sequence[int] = (0,),
                      camera: Camera | CameraPath | None = None, settings=None, *, client=None, options=None,
-                     progress=False, view: View | None = None, **kw) -> Iterator[tuple[int, np.ndarray]]:
+                     progress=False, view: View | None = None, lights: Sequence = (), fog=None,
+                     **kw) -> Iterator[tuple[int, np.ndarray]]:
     """Render ``frames``; yield ``(frame, float32 (H, W, 3) image)`` as each frame finishes.
 
     ``settings`` is a :class:`warp_spt.rendering.settings.RenderSettings`, or its fields are given as keywords.
@@ -290,10 +307,17 @@ def render_animation(objs: Sequence[str] | ObjSequence, mtls: Sequence[str] = ()
     whole run. ``view(scene, camera) -> (scene, camera, sky or None)`` prepares each frame as a
     single render would (the command line's recentring, framing and studio: the same function, so
     frame k is the image of a single render of frame k's files); without it a frame is recentred only.
+    ``lights`` and ``fog`` join every frame's scene (:class:`ObjSequence`'s; with a fog, render with
+    ``integrator="volpath"``); an environment is ``settings.sky``, or ``ObjSequence(..., sky=...)``.
     """
     from warp_spt.rendering.settings import RenderSettings
 
-    seq = objs if isinstance(objs, ObjSequence) else ObjSequence(objs, mtls)
+    if isinstance(objs, ObjSequence):
+        if lights or fog is not None:
+            raise TypeError("give lights and fog to the ObjSequence, not to render_animation as well")
+        seq = objs
+    else:
+        seq = ObjSequence(objs, mtls, lights=lights, fog=fog)
     frames = list(frames)
     if settings is not None and kw:
         raise TypeError("give either settings or keyword settings, not both")

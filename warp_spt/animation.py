@@ -276,7 +276,8 @@ class ObjSequence:
         scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material,
                            smooth_angle=self.smooth_angle)
         if self.lights or self.fog is not None or self.sky is not None:
-            scene = replace(scene, lights=[*scene.lights, *self.lights], fog=scene.fog if self.fog is None else self.fog,
+            scene = replace(scene, lights=[*scene.lights, *self.lights],
+                            fog=scene.fog if self.fog is None else self.fog,
                             sky=scene.sky if self.sky is None else self.sky)
         self._last_scene = (key, scene)
         return scene

@@ -111,7 +111,8 @@ def placed(s, given, up, camera, centre, size: float):
     if "sun_direction" not in given:
         fields["sun_direction"] = tuple(float(x) for x in 1.5 * u - d + 0.5 * left)
     if "lamp_position" not in given:
-        fields["lamp_position"] = tuple(float(x) for x in np.asarray(centre) + 0.25 * size * u)
+        fields["lamp_position"] = tuple(float(x) for x in np.clip(np.asarray(centre) + 0.25 * size * u,
+                                                                  -MAX_COORDINATE, MAX_COORDINATE))
     if "lamp_direction" not in given:
         fields["lamp_direction"] = tuple(float(-x) for x in u)
     if "lamp_intensity" not in given:

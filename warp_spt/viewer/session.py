@@ -851,12 +851,14 @@ class Session:
 
         first = self._rig is None
         fv = self._first_view(scene)
-        s = self._settings
+        s = before = self._settings
         if first:       # the page's lights placed for this scene, its own fog shown on the page
             size = float(np.linalg.norm(np.ptp(fv.subject.bounds, axis=0))) or 1.0
             centre = fv.subject.bounds.mean(axis=0) + fv.offset
             s = lighting.placed(s, self._given, AXES[fv.up.axis], fv.camera, centre, size)
             s = lighting.from_scene_fog(s, getattr(fv.scene, "fog", None), self._given)
+        placed = {k: getattr(s, k) for k in (*lighting.LIGHT_KEYS, *lighting.FOG_KEYS)
+                  if getattr(s, k) != getattr(before, k)}
         self._own_lights, self._own_fog = list(fv.scene.lights), getattr(fv.scene, "fog", None)
         self._meshes = {}
         self._offset = fv.offset
@@ -867,8 +869,7 @@ class Session:
             self._pending.clear()
             self._studio, self._subject = fv.studio, fv.subject
             if first:
-                self._settings = replace(self._settings, **{k: getattr(s, k) for k in (
-                    *lighting.LIGHT_KEYS, *lighting.FOG_KEYS)})
+                self._settings = replace(self._settings, **placed)     # a page's set meanwhile stays
                 self._up = fv.up.axis
                 if fv.studio and not self._sky_given:
                     self._settings = replace(self._settings, sky="studio")

@@ -168,3 +168,55 @@ def test_the_environment_background_is_set_by_message(tmp_path):
         assert np.array_equal(again.image[missed], plain.image[missed])
     finally:
         s.close()
+
+
+# ---------------------------------------------------------------- warp-spt view's flags
+
+def test_the_view_commands_light_fog_and_environment_flags_become_the_pages_settings():
+    from warp_spt.cli.view import build_parser, lighting_settings
+
+    ns = build_parser().parse_args(["--sun", "0", "1", "0", "--sun-color", "2", "2", "2", "--sun-radius", "0.5",
+                                    "--light", "spot", "position", "0", "2", "0", "intensity", "5", "outer", "20",
+                                    "--fog", "sigma_s=0.1", "--fog", "sigma_a=0.01,0.02,0.03", "--fog", "g=0.2",
+                                    "--env", "sky.hdr", "--env-rotate", "30", "--env-background", "0", "0", "0"])
+    assert lighting_settings(ns) == dict(
+        sky="environment", env_path="sky.hdr", env_rotate=30.0, env_background=(0.0, 0.0, 0.0),
+        sun=True, sun_direction=(0.0, 1.0, 0.0), sun_color=(2.0, 2.0, 2.0), sun_radius=0.5,
+        lamp="spot", lamp_position=(0.0, 2.0, 0.0), lamp_intensity=(5.0, 5.0, 5.0), lamp_direction=(0.0, 0.0, -1.0),
+        lamp_angle=20.0, fog=True, fog_sigma_a=(0.01, 0.02, 0.03), fog_sigma_s=(0.1, 0.1, 0.1), fog_g=0.2)
+    assert lighting_settings(build_parser().parse_args([])) == {}
+
+
+@pytest.mark.parametrize("argv, mentions", [
+    (["--light", "point", "--light", "point", "position", "1", "1", "1"], "one sun and one point or spot light"),
+    (["--light", "spot", "inner", "5"], "no inner cone"),
+    (["--fog", "emission=1"], "sigma_a, sigma_s and g"),
+    (["--fog", "g=1"], "g (Henyey-Greenstein asymmetry) must lie in (-1, 1)"),
+    (["--env-rotate", "30"], "--env-rotate needs --env FILE"),
+    (["--sun-radius", "2"], "need --sun"),
+])
+def test_the_view_command_refuses_what_the_page_cannot_hold_in_one_line(argv, mentions, capsys):
+    from warp_spt.cli.view import main
+
+    assert main([*argv, "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and mentions in err and "Traceback" not in err
+
+
+def test_a_light_from_the_start_turns_the_studio_look_off_as_on_the_command_line(tmp_path):
+    """A bare model gets the studio look; with a sun from the start it is lit, as ``warp-spt --sun``
+    makes it (and the copied command, with --sun and no --studio, renders it so)."""
+    from .models import write_model
+
+    write_model(tmp_path / "cow.obj", "cow", up="y")
+    looks = {}
+    for name, kw in (("bare", {}), ("sun", dict(sun=True, sun_direction=(0.3, 1.0, 0.4)))):
+        s = Session(loader=lambda: warp_spt.load_scene([str(tmp_path / "cow.obj")], default_material="auto"),
+                    objs=[str(tmp_path / "cow.obj")], width=16, height=12, max_spp=1, **kw)
+        try:
+            s.wait_for(1, timeout=TIMEOUT)
+            looks[name] = (s.settings.sky, s.command_line(spp=1))
+        finally:
+            s.close()
+    assert looks["bare"][0] == "studio" and looks["sun"][0] != "studio"
+    assert "--sun 0.3 1 0.4" in looks["sun"][1] and "--studio" not in looks["sun"][1]

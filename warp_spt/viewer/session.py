@@ -645,7 +645,10 @@ class Session:
         if cam is None and demo:
             from warp_spt import Camera
             cam = Camera()                  # the built-in demo keeps the seed's camera, as the CLI does
-        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=self._studio_given,
+        studio = self._studio_given
+        if studio is None and (s.sun or s.lamp != "off"):
+            studio = False          # a light from the start makes the scene lit, as --sun does for warp-spt
+        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=studio,
                           sky=self._make_sky(s) if self._sky_given else None)
 
     def _initial_rig(self, cam):

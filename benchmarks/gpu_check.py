@@ -49,6 +49,7 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 
 import numpy as np  # noqa: E402
 
+TEST_FILES = ("tests/test_gpu.py", "tests/test_gpu_kinds.py")
 BLOCK = 16            # pixels per side of the blocks whose differences estimate the noise
 FLAG_T = 4.0
 
@@ -111,9 +112,13 @@ def configs(gpu: str) -> tuple:
     return (("cpu", "cpu", None), (gpu, gpu, None), (f"{gpu}, wide BVH", gpu, WIDE_BVH_MAX_TRIANGLES))
 
 
-def device_scene(host, device: str, wide):
+def device_scene(host, device: str, wide, stand_in: bool = False):
+    """``host`` on ``device``; ``stand_in``: on the CPU with the features the GPU would give it (Warp's
+    BVH unless ``wide`` says otherwise), so that its kernels can be compiled to PTX without a GPU."""
     from warp_spt.core.device_scene import DeviceScene
 
+    if stand_in and device != "cpu":
+        return DeviceScene(host, device="cpu", wide_bvh_max_triangles=0 if wide is None else wide)
     return DeviceScene(host, device=device, wide_bvh_max_triangles=wide)
 
 
@@ -162,7 +167,9 @@ def warm(jobs: list) -> None:
         f"{sum(each):.1f} s)" + (f"; {len(failed)} retried in {time.perf_counter() - t1:.1f} s" if failed else ""))
 
 
-def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu: str) -> list:
+def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu: str, stand_in: bool = False) -> list:
+    """[(kernel, device)] of every kernel the run needs; ``stand_in``: the GPU's kernels built from
+    CPU scenes with the GPU's features (see :func:`device_scene`), for :func:`compile_ptx`."""
     import warp_spt.rendering.aux_buffers  # noqa: F401  (registers the "aov" kind)
     from warp_spt.core.device_scene import WIDE_BVH_MAX_TRIANGLES
     from warp_spt.integrators import INTEGRATORS
@@ -170,30 +177,61 @@ def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu:
     from warp_spt.samplers import SAMPLERS
     from warp_spt.scene.sky import Sky
 
+    def rs(device, **kw):
+        return RenderSettings(device="cpu" if stand_in else device, **kw)
+
     jobs = []
     for host, camera, sky in scenes.values():
         for _, device, wide in configs(gpu):
-            dev = device_scene(host, device, wide)
-            jobs.append((unloaded_kernel(dev, RenderSettings(width=size, height=size, spp=spp, sky=sky,
-                                                             device=device)), device))
-    if tests:           # tests/test_gpu.py's kernels: its Cornell box, every integrator x sampler
+            dev = device_scene(host, device, wide, stand_in)
+            jobs.append((unloaded_kernel(dev, rs(device, width=size, height=size, spp=spp, sky=sky)), device))
+    if tests:           # the kernels of tests/test_gpu.py (its Cornell box, every integrator x sampler)
         from tests.stability_scenes import cornell_files
+        from tests.test_gpu_kinds import KIND_SCENES, settings
 
         from warp_spt.io.loader import load_scene
         host = load_scene(*cornell_files(folder), warn=lambda message: None)
         sky = Sky.constant(0.1, 0.1, 0.1)
         for device in (gpu, "cpu"):
-            dev = device_scene(host, device, None)
+            dev = device_scene(host, device, None, stand_in)
             for i in INTEGRATORS:
                 for s in SAMPLERS:
                     if device == "cpu" and s != "sobol":
                         continue
-                    jobs.append((unloaded_kernel(dev, RenderSettings(integrator=i, sampler=s, sky=sky,
-                                                                     device=device)), device))
-            jobs.append((unloaded_kernel(dev, RenderSettings(sampler="independent", device=device), "aov"), device))
-        wide = device_scene(host, gpu, WIDE_BVH_MAX_TRIANGLES)
-        jobs.append((unloaded_kernel(wide, RenderSettings(sky=sky, device=gpu)), gpu))
+                    jobs.append((unloaded_kernel(dev, rs(device, integrator=i, sampler=s, sky=sky)), device))
+            jobs.append((unloaded_kernel(dev, rs(device, sampler="independent"), "aov"), device))
+        wide = device_scene(host, gpu, WIDE_BVH_MAX_TRIANGLES, stand_in)
+        jobs.append((unloaded_kernel(wide, rs(gpu, sky=sky)), gpu))
+        # and of tests/test_gpu_kinds.py (this round's kinds: pbr, environment map, punctual lights,
+        # the light tree, volpath's media), on both devices
+        for k, build in enumerate(KIND_SCENES.values()):
+            host, _, kw, _ = build(folder / f"kind{k}")
+            for device in (gpu, "cpu"):
+                dev = device_scene(host, device, None, stand_in)
+                jobs.append((unloaded_kernel(dev, settings("cpu" if stand_in else device, kw)), device))
     return jobs
+
+
+def compile_ptx(jobs: list, gpu: str, arch: int) -> int:
+    """Compile the GPU's kernels of ``jobs`` to PTX for ``arch`` into Warp's kernel cache, from a thread
+    pool, without a GPU (Warp's bundled NVRTC). A GPU machine whose Warp picks that architecture (the
+    lowest of its GPUs', PTX when its driver is at least Warp's CUDA toolkit) then loads them from the
+    cache (``WARP_CACHE_PATH``) instead of compiling: NVRTC is most of a cold check's time."""
+    import warp as wp
+
+    todo = list({id(k.module): k for k, dev in jobs if dev == gpu}.values())
+    say(f"compiling {len(todo)} modules to PTX for sm_{arch} into {wp.config.kernel_cache_dir}")
+
+    def one(k):
+        t = time.perf_counter()
+        wp.compile_aot_module(k.module, arch=arch, use_ptx=True)
+        return time.perf_counter() - t
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
+        each = list(pool.map(one, todo))
+    say(f"{len(todo)} modules in {time.perf_counter() - t0:.1f} s (longest {max(each, default=0):.1f} s)")
+    return 0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -205,15 +243,15 @@ def run_tests(timeout: float, gpu: str) -> int:
         [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
     t = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, "-m", "pytest", "tests/test_gpu.py", "-q", "-rs", "-p", "no:cacheprovider"],
+        out = subprocess.run([sys.executable, "-m", "pytest", *TEST_FILES, "-q", "-rs", "-p", "no:cacheprovider"],
                              cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as err:
-        say(f"tests/test_gpu.py: TIMED OUT after {timeout:.0f} s")
+        say(f"{' '.join(TEST_FILES)}: TIMED OUT after {timeout:.0f} s")
         say((err.stdout or b"").decode("utf-8", "replace")[-3000:] if isinstance(err.stdout, bytes) else
             (err.stdout or "")[-3000:])
         return 124
     lines = (out.stdout + out.stderr).strip().splitlines()
-    say(f"tests/test_gpu.py (WARP_SPT_TEST_DEVICE={gpu}), {time.perf_counter() - t:.1f} s, exit status {out.returncode}:")
+    say(f"{' '.join(TEST_FILES)} (WARP_SPT_TEST_DEVICE={gpu}), {time.perf_counter() - t:.1f} s, exit status {out.returncode}:")
     say("\n".join(lines[-60:] if out.returncode else lines[-8:]))
     return out.returncode
 
@@ -283,6 +321,10 @@ def main() -> int:
     ap.add_argument("--test-timeout", type=float, default=300.0)
     ap.add_argument("--device", default="cuda", help="the GPU (cuda:N); 'cpu' rehearses the script where there "
                     "is no GPU")
+    ap.add_argument("--compile-ptx", type=int, metavar="ARCH", default=None,
+                    help="on any machine (no GPU needed): compile the check's CUDA kernels to PTX for sm_ARCH "
+                         "(90 for an H100/H200) into Warp's kernel cache, then stop; carry the cache to the "
+                         "GPU machine (WARP_CACHE_PATH) so that its run skips NVRTC")
     args = ap.parse_args()
     size = args.size or (128 if args.quick else 512)
     spp = args.spp or (4 if args.quick else 16)
@@ -290,6 +332,11 @@ def main() -> int:
     from warp_spt.runtime.warp_init import check_device, init_warp
 
     init_warp()
+    if args.compile_ptx is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            return compile_ptx(warm_jobs(bench_scenes(folder), size, spp, not args.no_tests, folder, args.device,
+                                         stand_in=True), args.device, args.compile_ptx)
     try:
         check_device(args.device)
     except ValueError as err:

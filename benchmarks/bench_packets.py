@@ -1,18 +1,26 @@
 """Issue 33: filling the vector lanes on the CPU. Packets or a wavefront, measured against today's
 scalar traversal on the same rays (a prototype: nothing here is used by the renderer).
 
-Three ways to trace the same rays through the same 8-wide BVH (``core.wide_bvh.build_wide``):
+Ways to trace the same rays through the same 8-wide BVH (``core.wide_bvh.build_wide``):
 
     scalar      today's traversal: one ray per Warp thread, ``core.wide_traversal.make_closest_query``
                 exactly as the path kernel calls it (its 8 slab tests of a node are one AVX op each)
+    scalar W-wide, arrays
+                the same traversal re-typed for W = 8 or 16 children per node (boxes and children
+                passed as arrays: the Geometry struct's are typed 8-wide); 8 checks the copy against
+                the renderer's, 16 fills an AVX-512 register with one ray's slab tests
     packet P    one Warp thread traces P = 8 or 16 coherent rays (a 4x2 or 4x4 pixel tile; for the
                 bounce, the bounce rays of that tile) with one shared stack and an active mask: a
                 node is fetched once for the whole packet and each child's slab test runs over the P
-                rays at once (fixed-size loops over ``vector(length=P)``, which clang can map onto
-                one AVX-512 or two AVX2 registers). A stack entry carries the mask of the rays that
-                hit the node and the nearest of their entry distances. Leaves test each active ray
-                with the renderer's watertight triangle test (per ray, scalar), so a hit's t, u, v
+                rays at once (whole-vector operations on ``vector(length=P)``, loops clang may map
+                onto one AVX-512 or two AVX2 registers). A stack entry carries the mask of the rays
+                that hit the node and the nearest of their entry distances. Leaves test each active
+                ray with the renderer's watertight triangle test (per ray, scalar), so a hit's t, u, v
                 are bit for bit the scalar traversal's; only exact ties in t may pick another face.
+    packet P mem
+                the same, the packet's origins, inverse directions and nearest hits kept in a scratch
+                row of the thread and re-read at every box test (vector loads instead of values clang
+                must gather from scalar registers: the variant where clang does emit zmm arithmetic)
     wavefront   the pass split into launches over arrays: generate camera rays, intersect, shade
                 (a diffuse bounce), intersect the bounce rays, shade; against the same pass as one
                 "megakernel" (one thread per pixel doing all of it, as the path kernel does).
@@ -395,6 +403,112 @@ def packet_kernel(size: int, stack: int, options: dict = OPTIONS, in_memory: boo
     return packet
 
 
+def wide_kernel(width: int, stack: int) -> wp.Kernel:
+    """Today's scalar traversal (one ray per thread, the renderer's code path re-typed) over a tree of
+    ``width`` children per node, its boxes and children passed as arrays (the Geometry struct's are
+    typed 8-wide): width 16 tests a node's children in one AVX-512 register's lanes."""
+    vw = wp.types.vector(length=width, dtype=wp.float32)
+    vwi = wp.types.vector(length=width, dtype=wp.int32)
+    vs_i = wp.types.vector(length=stack, dtype=wp.int32)
+    vs_f = wp.types.vector(length=stack, dtype=wp.float32)
+
+    @wp.func
+    def wmax(a: vw, b: vw) -> vw:
+        out = vw()
+        for j in range(wp.static(width)):
+            out[j] = wp.where(a[j] > b[j], a[j], b[j])
+        return out
+
+    @wp.func
+    def wmin(a: vw, b: vw) -> vw:
+        out = vw()
+        for j in range(wp.static(width)):
+            out[j] = wp.where(a[j] < b[j], a[j], b[j])
+        return out
+
+    @wp.func
+    def entries_of(box: wp.array(dtype=vw), node: int, r: MeshRay, t_max: float) -> vw:
+        b = node * 6
+        t_in = wmax(wmax(wp.cw_mul(box[b + r.near[0]] - vw(r.o[0]), vw(r.inv[0])),
+                         wp.cw_mul(box[b + r.near[1]] - vw(r.o[1]), vw(r.inv[1]))),
+                    wmax(wp.cw_mul(box[b + r.near[2]] - vw(r.o[2]), vw(r.inv[2])), vw(0.0)))
+        t_out = wmin(wmin(wp.cw_mul(box[b + 3 - r.near[0]] - vw(r.o[0]), vw(r.inv[0])),
+                          wp.cw_mul(box[b + 5 - r.near[1]] - vw(r.o[1]), vw(r.inv[1]))),
+                     wmin(wp.cw_mul(box[b + 7 - r.near[2]] - vw(r.o[2]), vw(r.inv[2])), vw(t_max)))
+        out = vw()
+        for j in range(wp.static(width)):
+            out[j] = wp.where(t_in[j] <= t_out[j] * _FAR_SLACK, t_in[j], NO_HIT)
+        return out
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=OPTIONS)
+    def wide(box: wp.array(dtype=vw), child: wp.array(dtype=vwi), v0: wp.array(dtype=wp.vec3),
+             v1: wp.array(dtype=wp.vec3), v2: wp.array(dtype=wp.vec3), o: wp.array(dtype=wp.vec3),
+             d: wp.array(dtype=wp.vec3), k_out: wp.array(dtype=wp.int32), t_out: wp.array(dtype=float)):
+        i = wp.tid()
+        if wp.length_sq(d[i]) == 0.0:
+            k_out[i] = -1
+            t_out[i] = NO_HIT
+            return
+        r = mesh_ray(o[i], d[i])
+        best_k = int(-1)
+        best_t = float(NO_HIT)
+        nodes = vs_i()
+        entries = vs_f()
+        nodes[0] = 0
+        entries[0] = 0.0
+        sp = int(1)
+        while sp > 0:
+            sp -= 1
+            if entries[sp] >= best_t:
+                continue
+            node = nodes[sp]
+            if node < 0:
+                first, end = leaf_range(node)
+                for k in range(first, end):
+                    h, t, u, v = triangle_hit(r, v0[k], v1[k], v2[k])
+                    if h and t < best_t and t >= 0.0:
+                        best_k = k
+                        best_t = t
+            else:
+                dist = entries_of(box, node, r, best_t)
+                kids = child[node]
+                base = sp
+                for j in range(wp.static(width)):
+                    if dist[j] < NO_HIT:
+                        nodes[sp] = kids[j]
+                        entries[sp] = dist[j]
+                        sp += 1
+                for a in range(base + 1, sp):
+                    kn = nodes[a]
+                    kd = entries[a]
+                    b = a - 1
+                    while b >= base and entries[b] < kd:
+                        nodes[b + 1] = nodes[b]
+                        entries[b + 1] = entries[b]
+                        b -= 1
+                    nodes[b + 1] = kn
+                    entries[b + 1] = kd
+        k_out[i] = best_k
+        t_out[i] = best_t
+
+    return wide
+
+
+class WideTree:
+    """A ``width``-wide tree's arrays for :func:`wide_kernel` (leaf order: positions in its own order)."""
+
+    def __init__(self, points: np.ndarray, tris: np.ndarray, width: int):
+        wb = build_wide(points, tris, width=width)
+        v = points[tris[wb.order]].astype(np.float32)
+        vw = wp.types.vector(length=width, dtype=wp.float32)
+        vwi = wp.types.vector(length=width, dtype=wp.int32)
+        self.order = wb.order
+        self.arrays = [wp.array(wb.box.reshape(-1, width), dtype=vw), wp.array(wb.child, dtype=vwi)] + \
+            [wp.array(np.ascontiguousarray(v[:, c]), dtype=wp.vec3) for c in range(3)]
+        self.stack = -(-wb.stack_bound // 16) * 16
+        self.num_nodes = wb.num_nodes
+
+
 def tile_order(size: int, packet: int) -> np.ndarray:
     """Pixel indices grouped by tile: packet-sized runs of a ``TILES[packet]`` tile each."""
     tw, th = TILES[packet]
@@ -410,8 +524,9 @@ def tile_order(size: int, packet: int) -> np.ndarray:
 # Measurement
 
 
-def geometry(points: np.ndarray, tris: np.ndarray) -> tuple[Geometry, int, int]:
-    """(the Geometry struct with one mesh's wide BVH, the traversal stack it needs, its node count)."""
+def geometry(points: np.ndarray, tris: np.ndarray) -> tuple[Geometry, int, int, np.ndarray]:
+    """(the Geometry struct with one mesh's wide BVH, the traversal stack it needs, its node count,
+    its leaf order: triangle ids by leaf-order position)."""
     wb = build_wide(points, tris)
     v = points[tris[wb.order]].astype(np.float32)
     g = Geometry()
@@ -421,10 +536,11 @@ def geometry(points: np.ndarray, tris: np.ndarray) -> tuple[Geometry, int, int]:
     g.tri_v0, g.tri_v1, g.tri_v2 = (wp.array(np.ascontiguousarray(v[:, c]), dtype=wp.vec3) for c in range(3))
     g.num_meshes = 1
     stack = next(n for n in BVH_STACKS if n >= wb.stack_bound)
-    return g, stack, wb.num_nodes
+    return g, stack, wb.num_nodes, wb.order
 
 
-def timed(fn, repeat: int, rows: dict, label: str) -> None:
+def timed(fn, rows: dict, label: str) -> None:
+    """One run of fn, its launching thread's CPU seconds appended to rows[label] (CPU launches are synchronous)."""
     rows.setdefault(label, [])
     t = time.thread_time()
     fn()
@@ -433,13 +549,15 @@ def timed(fn, repeat: int, rows: dict, label: str) -> None:
 
 def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bool, packet_options: dict) -> list:
     t0 = time.perf_counter()
-    g, stack, num_nodes = geometry(points, tris)
+    g, stack, num_nodes, ref_order = geometry(points, tris)
+    trees = {w: WideTree(points, tris, w) for w in (8, 16)}
     build_s = time.perf_counter() - t0
     lo, hi = points.min(axis=0), points.max(axis=0)
     eps = float(1e-4 * np.max(hi - lo))
     n = size * size
     cam = pinhole(cam_desc, size)
     ks = scalar_kernels(stack)
+    wides = {f"scalar {w}-wide, arrays": wide_kernel(w, tree.stack) for w, tree in trees.items()}
     packets = {f"packet {p}": packet_kernel(p, stack, packet_options) for p in (8, 16)}
     packets.update({f"packet {p} mem": packet_kernel(p, stack, packet_options, True) for p in (8, 16)})
     psize = {pname: int(pname.split()[1]) for pname in packets}
@@ -452,7 +570,7 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
     film_w, film_m, k_m = arr(float), arr(float), arr(wp.int32)
     rays = wp.empty(n, dtype=MeshRay)
     c0 = time.perf_counter()
-    for k in list(ks.values()) + list(packets.values()):
+    for k in list(ks.values()) + list(packets.values()) + list(wides.values()):
         wp.load_module(k.module, device="cpu")
     compile_s = time.perf_counter() - c0
 
@@ -477,6 +595,9 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
     runs = {}
     for kind, (o, d) in sources.items():
         runs[(kind, "scalar")] = lambda o=o, d=d: wp.launch(ks["scalar"], dim=n, inputs=[g, o, d, kp, tp])
+        for (wname, kern), tree in zip(wides.items(), trees.values()):
+            runs[(kind, wname)] = (lambda o=o, d=d, kern=kern, tree=tree:
+                                   wp.launch(kern, dim=n, inputs=tree.arrays + [o, d, kp, tp]))
         for pname, kern in packets.items():
             p = psize[pname]
             runs[(kind, pname)] = (lambda o=o, d=d, p=p, kern=kern:
@@ -497,7 +618,8 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
             continue
         rk, rt = ref[key[0]]
         fk, ft = kp.numpy(), tp.numpy()
-        diff = fk != rk
+        order = trees[16].order if "16-wide" in key[1] else ref_order     # leaf positions -> triangle ids
+        diff = np.where(fk >= 0, order[fk], -1) != np.where(rk >= 0, ref_order[rk], -1)
         same_t = np.array_equal(ft[~diff], rt[~diff])
         ties = int((diff & (np.abs(ft - rt) <= 4e-7 * np.maximum(np.abs(rt), 1e-30))).sum())
         agree[key] = f"{int(diff.sum())} faces differ ({ties} ties), t {'bit-identical' if same_t else 'DIFFERS'}"
@@ -505,16 +627,17 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
     times: dict = {}
     for _ in range(repeat):
         for key, fn in runs.items():
-            timed(fn, repeat, times, key)
+            timed(fn, times, key)
     rows = []
     for key, ts in times.items():
         med = statistics.median(ts)
         rays_n = counts["camera"] + counts["bounce"] if key[0] == "pass" else counts[key[0]]
         rows.append((name, key[0], key[1], med, rays_n / med, agree[key]))
-    print(f"\n{name}: {len(tris):,} triangles, {num_nodes:,} wide nodes, stack {stack}; build {build_s:.2f} s, "
+    print(f"\n{name}: {len(tris):,} triangles, {num_nodes:,} wide nodes ({trees[16].num_nodes:,} 16-wide), "
+          f"stack {stack}; build {build_s:.2f} s, "
           f"kernels compiled/loaded in {compile_s:.1f} s; {n:,} camera rays, {counts['bounce']:,} bounce rays")
     if asm:
-        report_asm({"scalar": ks["scalar"], "megakernel": ks["megakernel"], **packets})
+        report_asm({"scalar": ks["scalar"], "megakernel": ks["megakernel"], **wides, **packets})
     return rows
 
 

@@ -637,8 +637,66 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
           f"stack {stack}; build {build_s:.2f} s, "
           f"kernels compiled/loaded in {compile_s:.1f} s; {n:,} camera rays, {counts['bounce']:,} bounce rays")
     if asm:
-        report_asm({"scalar": ks["scalar"], "megakernel": ks["megakernel"], **wides, **packets})
+        report_asm({"scalar": ks["scalar"], "megakernel": ks["megakernel"], **wides, **packets,
+                    **shape_kernels()})
     return rows
+
+
+def shape_kernels() -> dict:
+    """Two small kernels for ``--asm`` alone (never timed): the packet's slab tests of eight children
+    over 16 lanes, once straight-line and once with the packet kernel's branch and hit-mask
+    reduction in the child loop: what the code's shape does to clang's vectorisation."""
+    vp = wp.types.vector(length=16, dtype=wp.float32)
+
+    @wp.func
+    def vmax(a: vp, b: vp) -> vp:
+        out = vp()
+        for j in range(16):
+            out[j] = wp.where(a[j] > b[j], a[j], b[j])
+        return out
+
+    @wp.func
+    def vmin(a: vp, b: vp) -> vp:
+        out = vp()
+        for j in range(16):
+            out[j] = wp.where(a[j] < b[j], a[j], b[j])
+        return out
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=OPTIONS)
+    def straight(ox: wp.array(dtype=vp), ix: wp.array(dtype=vp), lo: wp.array(dtype=float),
+                 hi: wp.array(dtype=float), out: wp.array(dtype=vp)):
+        i = wp.tid()
+        o = ox[i]
+        inv = ix[i]
+        acc = vp(0.0)
+        for c in range(8):
+            acc = vmax(acc, vmin(wp.cw_mul(vp(lo[c]) - o, inv), wp.cw_mul(vp(hi[c]) - o, inv)))
+        out[i] = acc
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=OPTIONS)
+    def branchy(ox: wp.array(dtype=vp), ix: wp.array(dtype=vp), lo: wp.array(dtype=float),
+                hi: wp.array(dtype=float), out: wp.array(dtype=int)):
+        i = wp.tid()
+        o = ox[i]
+        inv = ix[i]
+        total = int(0)
+        for c in range(8):
+            if lo[c] > hi[c]:
+                break
+            x0 = wp.cw_mul(vp(lo[c]) - o, inv)
+            x1 = wp.cw_mul(vp(hi[c]) - o, inv)
+            tn = vmin(x0, x1)
+            tf = vmax(x0, x1)
+            hit = int(0)
+            for j in range(16):
+                hit = hit | wp.where(tn[j] <= tf[j], 1 << j, 0)
+            total += hit
+        out[i] = total
+
+    for k in (straight, branchy):
+        wp.load_module(k.module, device="cpu")
+    return {"shape test: 16-lane slab tests, straight-line": straight,
+            "shape test: the same with a branch and a hit mask": branchy}
 
 
 def report_asm(kernels: dict) -> None:

@@ -39,7 +39,8 @@ those are exact ties in t); the films of the wavefront and the megakernel must b
 
 ``--asm`` disassembles each kernel's object file from Warp's kernel cache (objdump) and counts the
 packed single-precision arithmetic, compare and blend instructions on zmm (16 lanes), ymm (8) and
-xmm (4) registers: whether clang did vectorise.
+xmm (4) registers: whether clang did vectorise (and in two small test kernels, never timed, the
+16-lane slab tests alone with and without the packet kernel's branch and hit mask).
 
     python benchmarks/bench_packets.py                    # 256x256, Cornell and 1M triangles
     python benchmarks/bench_packets.py --size 128 --repeat 3 --triangles 100k --asm

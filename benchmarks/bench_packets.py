@@ -541,8 +541,16 @@ def geometry(points: np.ndarray, tris: np.ndarray) -> tuple[Geometry, int, int, 
 
 
 def timed(fn, rows: dict, label: str) -> None:
-    """One run of fn, its launching thread's CPU seconds appended to rows[label] (CPU launches are synchronous)."""
+    """One run of fn: on the CPU its launching thread's CPU seconds (CPU launches are synchronous),
+    on a GPU its wall seconds between two synchronisations; appended to rows[label]."""
     rows.setdefault(label, [])
+    if wp.get_device().is_cuda:
+        wp.synchronize_device()
+        t = time.perf_counter()
+        fn()
+        wp.synchronize_device()
+        rows[label].append(time.perf_counter() - t)
+        return
     t = time.thread_time()
     fn()
     rows[label].append(time.thread_time() - t)
@@ -572,7 +580,7 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
     rays = wp.empty(n, dtype=MeshRay)
     c0 = time.perf_counter()
     for k in list(ks.values()) + list(packets.values()) + list(wides.values()):
-        wp.load_module(k.module, device="cpu")
+        wp.load_module(k.module, device=wp.get_device())
     compile_s = time.perf_counter() - c0
 
     def wavefront(packet_primary: bool = False):
@@ -637,7 +645,7 @@ def run_scene(name: str, points, tris, cam_desc, size: int, repeat: int, asm: bo
     print(f"\n{name}: {len(tris):,} triangles, {num_nodes:,} wide nodes ({trees[16].num_nodes:,} 16-wide), "
           f"stack {stack}; build {build_s:.2f} s, "
           f"kernels compiled/loaded in {compile_s:.1f} s; {n:,} camera rays, {counts['bounce']:,} bounce rays")
-    if asm:
+    if asm and wp.get_device().is_cpu:
         report_asm({"scalar": ks["scalar"], "megakernel": ks["megakernel"], **wides, **packets,
                     **shape_kernels()})
     return rows
@@ -757,18 +765,26 @@ def main() -> None:
     ap.add_argument("--packet-flags", default=OPTIONS["cpu_compiler_flags"],
                     help="clang flags of the packet kernels (default: the path kernel's)")
     ap.add_argument("--asm", action="store_true", help="count vector instructions in the kernels' object code")
+    ap.add_argument("--device", default="cpu",
+                    help="cpu (default) or cuda[:N]: on a GPU, wall time between synchronisations (the trees "
+                         "are built on the CPU and copied); the packet kernels then run one packet per GPU thread")
     args = ap.parse_args()
     wp.init()
-    print(f"CPU: {cpu_name()}; Warp {wp.config.version}; one thread, median of {args.repeat}, "
+    if args.device != "cpu" and not wp.is_cuda_available():
+        raise SystemExit(f"--device {args.device}: no CUDA device here")
+    where = cpu_name() if args.device == "cpu" else f"{wp.get_device(args.device).name} ({args.device})"
+    clock = "one thread, CPU s" if args.device == "cpu" else "wall s between synchronisations"
+    print(f"Device: {where}; Warp {wp.config.version}; {clock}, median of {args.repeat}, "
           f"{args.size}x{args.size} pixels; packet kernels' flags: {args.packet_flags}")
     rows = []
-    for name in args.scenes:
-        pts, tris, cam = cornell() if name == "cornell" else heightfield(args.triangles)
-        label = "Cornell box" if name == "cornell" else f"heightfield {len(tris) / 1e6:.2g}M"
-        rows += run_scene(label, pts, tris, cam, args.size, args.repeat, args.asm,
-                          {"cpu_compiler_flags": args.packet_flags})
-    print(f"\nCPU: {cpu_name()}")
-    print("| scene | rays | variant | CPU s | Mrays/s | over scalar | hits |")
+    with wp.ScopedDevice(args.device):
+        for name in args.scenes:
+            pts, tris, cam = cornell() if name == "cornell" else heightfield(args.triangles)
+            label = "Cornell box" if name == "cornell" else f"heightfield {len(tris) / 1e6:.2g}M"
+            rows += run_scene(label, pts, tris, cam, args.size, args.repeat, args.asm,
+                              {"cpu_compiler_flags": args.packet_flags})
+    print(f"\nDevice: {where}")
+    print(f"| scene | rays | variant | {'CPU s' if args.device == 'cpu' else 'wall s'} | Mrays/s | over scalar | hits |")
     print("|---|---|---|---|---|---|---|")
     base = {}
     for scene, kind, variant, sec, rate, agree in rows:

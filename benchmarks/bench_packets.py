@@ -31,11 +31,12 @@ ray's hit, a cosine-distributed direction about the face normal (a hash of the p
 origin pushed off the surface. Scenes: bench_vs_mitsuba's Cornell box (46 triangles: its light
 housing and two blocks) and bench_scaling's heightfield of about 1M triangles with its camera.
 
-Times: the launching thread's CPU time (``time.thread_time``) of single-threaded launches, rows
-interleaved, median of ``--repeat``. Rates are rays per second (bounce rays: those leaving a hit).
+Times: the launching thread's CPU time (``time.thread_time``) of single-threaded launches (with
+``--device cuda``: wall time between synchronisations), rows interleaved, median of ``--repeat``. Rates are rays per second (bounce rays: those leaving a hit).
 The pass rows count camera + bounce rays over the whole pass (ray generation and shading included).
 Every variant's hits are compared with the scalar traversal's (faces differing, and how many of
-those are exact ties in t); the films of the wavefront and the megakernel must be identical.
+those are exact ties in t), and each pass's film with the wavefront's (identical but where a tie
+sent a bounce elsewhere).
 
 ``--asm`` disassembles each kernel's object file from Warp's kernel cache (objdump) and counts the
 packed single-precision arithmetic, compare and blend instructions on zmm (16 lanes), ymm (8) and
@@ -45,7 +46,6 @@ xmm (4) registers: whether clang did vectorise (and in two small test kernels, n
     python benchmarks/bench_packets.py                    # 256x256, Cornell and 1M triangles
     python benchmarks/bench_packets.py --size 128 --repeat 3 --triangles 100k --asm
 """
-
 
 import argparse
 import os

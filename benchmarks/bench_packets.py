@@ -252,6 +252,7 @@ def packet_kernel(size: int, stack: int, options: dict = OPTIONS, in_memory: boo
     vpi = wp.types.vector(length=size, dtype=wp.int32)
     vs_i = wp.types.vector(length=stack, dtype=wp.int32)
     vs_f = wp.types.vector(length=stack, dtype=wp.float32)
+
     @wp.func
     def vmax(a: vp, b: vp) -> vp:
         out = vp()
@@ -362,7 +363,7 @@ def packet_kernel(size: int, stack: int, options: dict = OPTIONS, in_memory: boo
                 for c in range(wp.static(WIDTH)):
                     if c > 0 and kids[c] == 0:      # empty slots come last (node 0 is nobody's child)
                         break
-                    # whole-vector operations over the packet's rays (loops clang can vectorise);
+                    # whole-vector operations over the packet's rays (loops clang may vectorise: see --asm);
                     # min/max of the two planes picks the near one as the scalar test's sign rule
                     # does (the same float values: the slot is not empty)
                     if wp.static(in_memory):

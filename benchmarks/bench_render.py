@@ -142,13 +142,91 @@ print(t1 - t0, t2 - t1, t3 - t2, t4 - t3, c1 - c0, c2 - c1, c3 - c2, c4 - c3)
 """
 
 
+_PARTS_CHILD = """
+import time
+c0 = time.process_time()
+import warp as wp
+c1 = time.process_time()
+wp.config.log_level = wp.LOG_WARNING
+from warp_spt.runtime.warp_init import init_warp
+init_warp()
+c2 = time.process_time()
+from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
+import warp_spt.core.device_scene as ds
+import warp_spt.rendering.setup as setup
+from warp._src import context
+c3 = time.process_time()
+spent = {{"upload (DeviceScene)": 0.0, "step and kernel built, hashed": 0.0, "module loaded": 0.0}}
+def timed(owner, name, key):
+    orig = getattr(owner, name)
+    def wrapper(*a, **k):
+        c = time.process_time()
+        try:
+            return orig(*a, **k)
+        finally:
+            spent[key] += time.process_time() - c
+    setattr(owner, name, wrapper)
+timed(ds.DeviceScene, "__init__", "upload (DeviceScene)")
+timed(setup, "get_kernel", "step and kernel built, hashed")
+timed(context.Module, "load", "module loaded")
+scene = load_scene([{obj!r}], [{mtl!r}])
+c4 = time.process_time()
+rs = RenderSettings(width=64, height=64, spp=1, max_depth=6, sky=Sky.black(), threads=1)
+cam = Camera(position=(16.0, -38.0, 16.0), direction=(0.0, 1.0, 0.0), fov=40.0, aperture=0.0, focus=30.0)
+setup.bind(scene, cam, rs)
+c5 = time.process_time()
+parts = {{"import warp": c1 - c0, "wp.init": c2 - c1, "warp_spt imports": c3 - c2, "load_scene": c4 - c3,
+         "bind": c5 - c4, **spent}}
+print(repr(parts))
+"""
+
+
+def start_parts(repeat: int) -> None:
+    """Where a cached start's CPU time goes, in one process: ``import warp``, ``wp.init``, warp_spt's
+    imports, ``load_scene`` and ``bind`` (and, inside bind, the upload, building and hashing the
+    step and kernel, loading the compiled module), CPU seconds, ``repeat`` fresh processes on a
+    filled temporary kernel cache (the Cornell box of --start-only), min and median of each part.
+    The parts of bind may overlap: the wide BVH's build module loads inside the upload."""
+    import ast
+    import statistics
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_vs_mitsuba as mb
+    desc = mb.SCENES["cornell"]
+    with tempfile.TemporaryDirectory() as folder, tempfile.TemporaryDirectory() as cache:
+        obj, mtl = Path(folder) / "scene.obj", Path(folder) / "scene.mtl"
+        obj.write_text(mb.obj_text(desc["shapes"]))
+        mtl.write_text(mb.mtl_text(desc["materials"]))
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        env.update(PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)),
+                   PYTHONPYCACHEPREFIX=str(Path(folder) / "pycache"), WARP_CACHE_PATH=cache)
+        code = _PARTS_CHILD.format(obj=str(obj), mtl=str(mtl))
+        subprocess.run([sys.executable, "-c", code], env=env, check=True, cwd=folder, capture_output=True)
+        runs = []
+        for _ in range(repeat):
+            out = subprocess.run([sys.executable, "-c", code], env=env, cwd=folder, capture_output=True, text=True)
+            if out.returncode != 0:
+                raise RuntimeError(out.stderr[-2000:])
+            runs.append(ast.literal_eval(out.stdout.strip().splitlines()[-1]))
+    print(f"\n## A cached start's CPU seconds by part (Cornell box, {repeat} fresh processes, "
+          f"load average {os.getloadavg()[0]:.1f})")
+    print("| part | min | median |")
+    print("|---|---|---|")
+    for key in runs[0]:
+        vals = [r[key] for r in runs]
+        inner = key not in ("import warp", "wp.init", "warp_spt imports", "load_scene", "bind")
+        print(f"| {'  of bind: ' if inner else ''}{key} | {min(vals):.3f} | {statistics.median(vals):.3f} |")
+
+
 def start_times(repeat: int) -> None:
     """Cold and cached start of a render of bench_vs_mitsuba's Cornell box (64x64, 1 spp: the
     launch itself is short) in fresh processes: an empty kernel cache (a temporary WARP_CACHE_PATH,
     so the shared cache is left alone), then the cache that run filled, then a new scene's start:
-    that cache without its compiled modules (the state after rendering other scenes: Warp's other
-    folders kept, such as the shared precompiled header). Medians of ``repeat`` (a new empty cache
-    each cold run).
+    that cache without its compiled modules (Warp's other folders kept, such as the shared
+    precompiled header), and a new scene's start after another scene was rendered: a new cache
+    filled by a render of bench_vs_mitsuba's caustics scene (other materials and spheres: another
+    path kernel), so the modules that do not depend on the scene (the wide BVH's build kernels) are
+    cached as on a machine that has rendered before, and only the Cornell box's path kernel is
+    compiled. Medians of ``repeat`` (new empty caches each run).
 
     Python's bytecode is cached for the children (in a temporary PYTHONPYCACHEPREFIX, filled by an
     import before any timing) even where PYTHONDONTWRITEBYTECODE is set, as on our VM: an installed
@@ -159,12 +237,18 @@ def start_times(repeat: int) -> None:
     import bench_vs_mitsuba as mb
     desc = mb.SCENES["cornell"]
     rows: dict[str, list[list[float]]] = {"cold (empty kernel cache)": [], "cached": [],
-                                          "new scene (cache of other scenes)": []}
+                                          "new scene (all compiled modules removed)": [],
+                                          "new scene (after another scene's render)": []}
     with tempfile.TemporaryDirectory() as folder:
         obj, mtl = Path(folder) / "scene.obj", Path(folder) / "scene.mtl"
         obj.write_text(mb.obj_text(desc["shapes"]))
         mtl.write_text(mb.mtl_text(desc["materials"]))
         code = _START_CHILD.format(obj=str(obj), mtl=str(mtl))
+        other = mb.SCENES["caustics"]
+        other_obj, other_mtl = Path(folder) / "other.obj", Path(folder) / "other.mtl"
+        other_obj.write_text(mb.obj_text(other["shapes"]))
+        other_mtl.write_text(mb.mtl_text(other["materials"]))
+        other_code = _START_CHILD.format(obj=str(other_obj), mtl=str(other_mtl))
         # PYTHONPATH as given (another checkout's warp_spt: before/after figures), else this one
         base_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         base_env.update(PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO)),
@@ -176,13 +260,17 @@ def start_times(repeat: int) -> None:
             t = time.perf_counter()
             subprocess.run([sys.executable, "-c", "pass"], check=True)
             bare.append(time.perf_counter() - t)
-            with tempfile.TemporaryDirectory() as cache:
-                env = dict(base_env, WARP_CACHE_PATH=cache)
+            with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as other_cache:
                 for label in rows:
-                    if label.startswith("new scene"):     # drop the compiled modules, keep the rest
+                    env = dict(base_env, WARP_CACHE_PATH=cache)
+                    if label == "new scene (all compiled modules removed)":     # drop the compiled modules, keep the rest
                         for sub in Path(cache).glob("*/wp_*"):
                             if sub.name != "wp_spt_clang_pch":
                                 shutil.rmtree(sub)
+                    elif label.startswith("new scene (after"):
+                        env = dict(base_env, WARP_CACHE_PATH=other_cache)
+                        subprocess.run([sys.executable, "-c", other_code], env=env, capture_output=True,
+                                       check=True, cwd=folder)
                     t = time.perf_counter()
                     # cwd: python -c puts it first on sys.path, where a checkout would shadow PYTHONPATH
                     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
@@ -217,10 +305,15 @@ def main() -> None:
     ap.add_argument("--speed-only", action="store_true", help="only the speed and scaling table")
     ap.add_argument("--start-only", action="store_true",
                     help="only the cold and cached start-up times (fresh processes, temporary kernel caches)")
-    ap.add_argument("--repeat", type=int, default=3, help="--start-only: runs (default 3)")
+    ap.add_argument("--start-parts", action="store_true",
+                    help="only where a cached start's CPU time goes, part by part (fresh processes)")
+    ap.add_argument("--repeat", type=int, default=3, help="--start-only, --start-parts: runs (default 3)")
     args = ap.parse_args()
     if args.start_only:
         start_times(args.repeat)
+        return
+    if args.start_parts:
+        start_parts(args.repeat)
         return
     size, spp = (128, 4) if args.quick else (512, 16)
     if not args.speed_only:

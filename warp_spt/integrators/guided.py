@@ -79,7 +79,7 @@ from warp_spt.core.guiding import (
     record_energy,
     upload_tree,
 )
-from warp_spt.core.lights import KIND_PUNCTUAL, Lights, make_lights
+from warp_spt.core.lights import Lights, make_lights
 from warp_spt.core.lobes import LOBE_GLOSSY, LOBE_REFLECTION, LOBE_SMOOTH, LOBE_TRANSMISSION
 from warp_spt.core.materials import BsdfSample, make_materials
 from warp_spt.core.surface import Surface, make_surface
@@ -188,10 +188,7 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                 if not blocked(geo, mats, tex, so, sd, st_max):
                     # MIS against the material's share of the mixture, (1 - a) p_material: the
                     # emitter the sampled direction meets is weighed with the same density (see vertex)
-                    w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir))
-                    if wp.static(features.punctual):
-                        if ls.h.kind == KIND_PUNCTUAL:     # no sampled direction can meet it
-                            w = 1.0
+                    w = light.mis_li(ls, power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir)))
                     contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
         return contrib, st
 

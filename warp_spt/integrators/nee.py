@@ -22,7 +22,7 @@ from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.cutout import make_blocked, make_hit
 from warp_spt.core.geometry import KIND_MISS, Hit
-from warp_spt.core.lights import KIND_PUNCTUAL, LightSample, Lights, detach_lights, make_lights, reuse_pick
+from warp_spt.core.lights import LightSample, Lights, detach_lights, make_lights, reuse_pick
 from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
@@ -253,10 +253,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                             if wp.max(wp.max(tr[0], tr[1]), tr[2]) <= 0.0:
                                 seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
-                        w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))
-                        if wp.static(features.punctual):
-                            if ls.h.kind == KIND_PUNCTUAL:     # no BSDF sample can meet it
-                                w = 1.0
+                        w = light.mis_li(ls, mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir)))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
                         if wp.static(media is not None):
                             contrib = wp.cw_mul(contrib, tr)

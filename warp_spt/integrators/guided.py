@@ -44,6 +44,11 @@ guide's probability in every quadtree that learnt something (and training never 
 ``nee``'s estimator, so its image is ``nee``'s bit for bit (tests/test_guiding.py) at the cost of
 the recording; the others tune training and the tree (``guiding_tree``'s constants are their defaults).
 
+Not a speed option: on the benchmarks' indirectly lit room it reaches 1.6-1.8x lower MSE than ``nee``
+at equal spp but costs 1.4-1.5x its CPU time, so its efficiency (1 / (MSE x time)) is 1.1-1.2x
+``nee``'s, short of the 1.5x that would make it worth choosing for speed (docs/performance.md,
+Path guiding); ``nee`` stays the default and the integrator to pick for speed.
+
 Determinism: the records are integer sums (fixed point), exact in any order, and each worker
 thread records into its own arrays, added on the host; the pass schedule depends only on the spp
 and on the trees;
@@ -413,4 +418,6 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
 
 INTEGRATOR = Integrator("guided", make, None, STRIDE, tape=False, make_kernel=make_kernel,
                         render_passes=render_passes, params=PARAMS,
-                        summary="path guiding: NEE + MIS with BSDF directions mixed with a learnt SD-tree")
+                        summary="path guiding: NEE + MIS with BSDF directions mixed with a learnt SD-tree (lower "
+                                "error per sample on indirect light, but no faster than nee at equal error: "
+                                "not a speed option, docs/performance.md#path-guiding)")

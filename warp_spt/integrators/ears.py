@@ -202,7 +202,7 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
                         p.throughput = p.throughput / q
         return p, n
 
-    hooks = VertexHooks(Aux=EarsAux, Out=int, new_out=no_split, finish=finish, leave=decide)
+    hooks = VertexHooks(Aux=EarsAux, new_out=no_split, finish=finish, leave=decide)
     return make_path_step(features, sampler, light_sampling=True, hooks=hooks)
 
 

@@ -145,7 +145,7 @@ class GuidedAux:
 
 @wp.struct
 class GuideVertex:
-    """The guide at one vertex (``VertexHooks.Guide``): whether it has a density lobe, the sampling
+    """The guide at one vertex (``VertexHooks.guide``): whether it has a density lobe, the sampling
     quadtree's root (-1: the guide is not sampled), the recording quadtree, the guide's probability."""
 
     dense: int
@@ -156,7 +156,7 @@ class GuideVertex:
 
 @wp.struct
 class GuideNote:
-    """What a guided vertex reports (``VertexHooks.Out``): the recording leaf and its quadtree's root
+    """What a guided vertex reports (``VertexHooks.new_out``, ``finish``): the recording leaf and its quadtree's root
     ((-1, -1): nothing to record), the recorded density, the radiance its own hit added (channel sum)."""
 
     node: wp.vec2i
@@ -293,9 +293,8 @@ def make_hooks(features: Features) -> VertexHooks:
     def leave(aux: GuidedAux, out: GuideNote, p: PathState, rp: RenderParams, dim: int):
         return p, out
 
-    return VertexHooks(Aux=GuidedAux, Out=GuideNote, new_out=no_note, finish=finish, emitted=note_emitted,
-                       Guide=GuideVertex, guide=guide, share=material_share, sample=sample, record=record,
-                       leave=leave)
+    return VertexHooks(Aux=GuidedAux, new_out=no_note, finish=finish, emitted=note_emitted, guide=guide,
+                       share=material_share, sample=sample, record=record, leave=leave)
 
 
 def make_kernel(step, start_path):

@@ -89,7 +89,8 @@ INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE,
 def make_light_sample(sampler: Sampler, light, inline: bool | None = None):
     """``light_sample(geo, lights, state, sf, base) -> (light sample, shadow ray origin, state)``: the
     light sample of a vertex at ``sf`` whose bounce's dimensions start at ``base`` (the light choice
-    and the point on it, from ``light.sample_li``); shared by ``nee`` and ``guided``."""
+    and the point on it, from ``light.sample_li``); shared by ``nee``'s vertex and ``volpath``'s
+    medium vertex."""
 
     @wp.func(inline=inline)
     def light_sample(geo: Geometry, lights: Lights, state: SamplerState, sf: Surface, base: int):
@@ -199,27 +200,25 @@ class VertexHooks:
 
     * ``Aux``: the type (a ``wp.struct``) of the vertex's last argument, the integrator's per-launch
       data (its learnt tables), in place of ``nee``'s visibility; the vertex traces its shadow rays.
-    * ``Out``, ``new_out() -> Out``: what the vertex reports besides the path (recording data), and
-      its value at a vertex that reports nothing; ``finish(p, out)``: the vertex's (and the step's)
-      return value (e.g. the tuple ``(p, out)``).
-    * ``emitted(out, le) -> Out``: recording callback for the radiance (vec3, throughput and MIS
+    * ``new_out() -> out``: what the vertex reports besides the path (recording data, a value of the
+      integrator's own type), as at a vertex that reports nothing; ``finish(p, out)``: the vertex's
+      (and the step's) return value (e.g. the tuple ``(p, out)``).
+    * ``emitted(out, le) -> out``: recording callback for the radiance (vec3, throughput and MIS
       weight included) the vertex's own hit adds (an emitter met, the sky); None: nothing.
-    * ``Guide``, ``guide(aux, mats, tex, sf) -> Guide``: the direction hook's state at this vertex
+    * ``guide(aux, mats, tex, sf) -> guide``: the direction hook's state at this vertex
       (looked up once, before light sampling); ``share(guide) -> float``: the fraction of the
       material's density in the direction's, which MIS against light sampling weighs (1: ``nee``);
       ``sample(aux, guide, mats, tex, sf, u_lobe, u_dir, u_fresnel) -> (BsdfSample, pdf)``: the
       direction that continues the path, and the density it was drawn with. None: the material's.
-    * ``record(aux, guide, out, sf, bs, pdf) -> Out``: recording callback for the direction taken.
-    * ``leave(aux, out, p, rp, dim) -> (PathState, Out)``: the continuation after the direction
+    * ``record(aux, guide, out, sf, bs, pdf) -> out``: recording callback for the direction taken.
+    * ``leave(aux, out, p, rp, dim) -> (PathState, out)``: the continuation after the direction
       (``dim``: the bounce's roulette dimension); None: ``nee``'s Russian roulette.
     """
 
     Aux: type
-    Out: type
     new_out: Callable
     finish: Callable
     emitted: Callable | None = None
-    Guide: type | None = None
     guide: Callable | None = None
     share: Callable | None = None
     sample: Callable | None = None
@@ -258,7 +257,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     if replay:
         detach_lights(light)
     hooked = hooks is not None
-    guided = hooked and hooks.sample is not None
+    directed = hooked and hooks.sample is not None      # the direction comes from the hooks
     # the vertex's last argument: nee's shadow-ray visibility, or a hooked integrator's own data
     Aux = hooks.Aux if hooked else int
 
@@ -362,7 +361,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         share = float(1.0)
-        if wp.static(guided):
+        if wp.static(directed):
             gv = hooks.guide(vis, mats, tex, sf)
             share = hooks.share(gv)
         if wp.static(sample_lights):
@@ -378,7 +377,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             lit.sampler = st
             lit.vis = seen
             p = lit
-        if wp.static(guided):
+        if wp.static(directed):
             bs, pdf = hooks.sample(vis, gv, mats, tex, sf, u_lobe, u_dir, u_fresnel)
             if wp.static(hooks.record is not None):
                 out = hooks.record(vis, gv, out, sf, bs, pdf)

@@ -60,10 +60,8 @@ import warp as wp
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.lights import Lights
 from warp_spt.integrators.common import (
-    DIM_BOUNCE,
     FAST_KERNEL_OPTIONS,
     FULL_STRIDE,
-    OFF_ROULETTE,
     CameraParams,
     Integrator,
     Param,
@@ -72,7 +70,7 @@ from warp_spt.integrators.common import (
     add_to_pixel,
 )
 from warp_spt.integrators.guiding_tree import box_of
-from warp_spt.integrators.nee import make_path_step
+from warp_spt.integrators.nee import VertexHooks, make_path_step
 from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 from warp_spt.samplers.sobol import mix32
@@ -154,26 +152,44 @@ def mean3(v: wp.vec3) -> float:
     return (v[0] + v[1] + v[2]) / 3.0
 
 
+@wp.struct
+class EarsAux:
+    """The ears vertex's data (``VertexHooks.Aux``): the decisions' table and this pixel's 1 / P."""
+
+    tab: EarsTable
+    pix_inv: float
+
+
+@wp.func
+def no_split() -> int:
+    return 0
+
+
+@wp.func
+def finish(p: PathState, n: int):
+    return p, n
+
+
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
-    """``step(geo, mats, tex, lights, rp, tab, pix_inv, path) -> (path, n)``: ``nee``'s bounce, then
-    the decision: ``n`` continuations (0: the path ended, by roulette or otherwise; 1: it goes on;
-    more: the caller splits it, dividing the throughput by the n it can hold)."""
+    """``step(geo, mats, tex, lights, rp, path, aux) -> (path, n)``: ``nee``'s bounce whose
+    continuation hook is the decision: ``n`` continuations (0: the path ended, by roulette or
+    otherwise; 1: it goes on; more: the caller splits it, dividing the throughput by the n it can hold)."""
     if differentiable:
         raise ValueError("the ears integrator has no differentiable kernel")
-    bounce = make_path_step(features, sampler, light_sampling=True)
 
-    @wp.func(inline=True)
-    def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams, tab: EarsTable,
-             pix_inv: float, path: PathState):
-        p = bounce(geo, mats, tex, lights, rp, path)
+    @wp.func
+    def decide(aux: EarsAux, out: int, path: PathState, rp: RenderParams, dim: int):
+        """The continuation (``VertexHooks.leave``, in place of nee's roulette): q from the learnt
+        table, rounded stochastically with the bounce's roulette dimension ``dim``."""
+        p = path
         if p.alive == 0:
             return p, int(0)
         n = int(1)
-        if tab.on != 0:
-            s = tab.s[cell_index(tab, p.o, p.depth)]
+        if aux.tab.on != 0:
+            s = aux.tab.s[cell_index(aux.tab, p.o, p.depth)]
             if s >= 0.0:
-                q = wp.clamp(mean3(p.throughput) * pix_inv * s, tab.q_min, tab.q_max)
-                u, st = sampler.next_1d(p.sampler, DIM_BOUNCE + wp.static(STRIDE) * (p.depth - 1) + OFF_ROULETTE)
+                q = wp.clamp(mean3(p.throughput) * aux.pix_inv * s, aux.tab.q_min, aux.tab.q_max)
+                u, st = sampler.next_1d(p.sampler, dim)
                 p.sampler = st
                 fq = wp.floor(q)
                 n = int(fq)
@@ -186,7 +202,8 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
                         p.throughput = p.throughput / q
         return p, n
 
-    return step
+    hooks = VertexHooks(Aux=EarsAux, new_out=no_split, finish=finish, leave=decide)
+    return make_path_step(features, sampler, light_sampling=True, hooks=hooks)
 
 
 def make_kernel(step, start_path):
@@ -204,9 +221,11 @@ def make_kernel(step, start_path):
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         bad = int(0)
         rays = int(0)
-        pinv = float(1.0)
+        aux = EarsAux()
+        aux.tab = tab
+        aux.pix_inv = float(1.0)
         if tab.on != 0:
-            pinv = tab.pix_inv[pix]
+            aux.pix_inv = tab.pix_inv[pix]
         for j in range(rp.sample_count):
             index = rp.sample_start + j
             path = start_path(cam, pix, rp.width, rp.seed, index)
@@ -217,7 +236,7 @@ def make_kernel(step, start_path):
             more = int(1)
             while more != 0:
                 while path.alive != 0:
-                    path, n = step(geo, mats, tex, lights, rp, tab, pinv, path)
+                    path, n = step(geo, mats, tex, lights, rp, path, aux)
                     if rec.on != 0 and path.alive != 0 and nrec < rec.slot_k.shape[1]:
                         t = mean3(path.throughput)
                         if t > 0.0:

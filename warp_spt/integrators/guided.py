@@ -44,6 +44,11 @@ guide's probability in every quadtree that learnt something (and training never 
 ``nee``'s estimator, so its image is ``nee``'s bit for bit (tests/test_guiding.py) at the cost of
 the recording; the others tune training and the tree (``guiding_tree``'s constants are their defaults).
 
+Not a speed option: on the benchmarks' indirectly lit room it reaches 1.6-1.8x lower MSE than ``nee``
+at equal spp but costs 1.4-1.5x its CPU time, so its efficiency (1 / (MSE x time)) is 1.1-1.2x
+``nee``'s, short of the 1.5x that would make it worth choosing for speed (docs/performance.md,
+Path guiding); ``nee`` stays the default and the integrator to pick for speed.
+
 Determinism: the records are integer sums (fixed point), exact in any order, and each worker
 thread records into its own arrays, added on the host; the pass schedule depends only on the spp
 and on the trees;
@@ -65,8 +70,6 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.cutout import make_blocked, make_hit
-from warp_spt.core.geometry import KIND_MISS, Hit
 from warp_spt.core.guiding import (
     GuideRecord,
     GuideTree,
@@ -79,13 +82,12 @@ from warp_spt.core.guiding import (
     record_energy,
     upload_tree,
 )
-from warp_spt.core.lights import KIND_PUNCTUAL, Lights, make_lights
+from warp_spt.core.lights import Lights
 from warp_spt.core.lobes import LOBE_GLOSSY, LOBE_REFLECTION, LOBE_SMOOTH, LOBE_TRANSMISSION
 from warp_spt.core.materials import BsdfSample, make_materials
-from warp_spt.core.surface import Surface, make_surface
+from warp_spt.core.surface import Surface
 from warp_spt.integrators import guiding_tree
 from warp_spt.integrators.common import (
-    DIM_BOUNCE,
     FAST_KERNEL_OPTIONS,
     FULL_STRIDE,
     CameraParams,
@@ -94,10 +96,8 @@ from warp_spt.integrators.common import (
     PathState,
     RenderParams,
     add_to_pixel,
-    continue_path,
-    make_bsdf_dims,
 )
-from warp_spt.integrators.nee import make_light_sample, power_heuristic, shadow_ray
+from warp_spt.integrators.nee import VertexHooks, make_path_step
 from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler
 
@@ -135,128 +135,114 @@ PARAMS = (
 )
 
 
+@wp.struct
+class GuidedAux:
+    """The guided vertex's data (``VertexHooks.Aux``): the sampling tree and this launch's record."""
+
+    g: GuideTree
+    rec: GuideRecord
+
+
+@wp.struct
+class GuideVertex:
+    """The guide at one vertex (``VertexHooks.guide``): whether it has a density lobe, the sampling
+    quadtree's root (-1: the guide is not sampled), the recording quadtree, the guide's probability."""
+
+    dense: int
+    root: int
+    rqi: int
+    a: float
+
+
+@wp.struct
+class GuideNote:
+    """What a guided vertex reports (``VertexHooks.new_out``, ``finish``): the recording leaf and its quadtree's root
+    ((-1, -1): nothing to record), the recorded density, the radiance its own hit added (channel sum)."""
+
+    node: wp.vec2i
+    pdf: float
+    emitted: float
+
+
+@wp.func
+def no_note() -> GuideNote:
+    n = GuideNote()
+    n.node = wp.vec2i(-1, -1)
+    n.pdf = 0.0
+    n.emitted = 0.0
+    return n
+
+
+@wp.func
+def note_emitted(out: GuideNote, le: wp.vec3) -> GuideNote:
+    n = out
+    n.emitted = le[0] + le[1] + le[2]
+    return n
+
+
+@wp.func
+def finish(p: PathState, out: GuideNote):
+    return p, out.node, out.pdf, out.emitted
+
+
+@wp.func
+def material_share(gv: GuideVertex) -> float:
+    return 1.0 - gv.a
+
+
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
-    """``step(geo, mats, tex, lights, rp, guide, rec, path) -> (path, record node, record pdf)``:
-    one guided bounce; the record node is (the recording tree's leaf for the direction taken, the
-    root of its quadtree), (-1, -1) when there is nothing to record; the pdf that direction's density."""
+    """``step(geo, mats, tex, lights, rp, path, aux) -> (path, record node, record pdf, emitted)``:
+    one guided bounce, ``nee``'s vertex with the hooks of :func:`make_hooks`; the record node is (the
+    recording tree's leaf for the direction taken, the root of its quadtree), (-1, -1) when there is
+    nothing to record; the pdf that direction's density; emitted the radiance its hit added."""
     if differentiable:
         raise ValueError("the guided integrator has no differentiable kernel")
-    hit = make_hit(features)
-    vertex = make_vertex_guided(features, sampler)
-
-    @wp.func(inline=True)
-    def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-             g: GuideTree, rec: GuideRecord, path: PathState):
-        p = path
-        h = hit(geo, mats, tex, p.o, p.d)
-        p.rays += 1
-        return vertex(geo, mats, tex, lights, rp, g, rec, p, h)
-
-    return step
+    return make_path_step(features, sampler, light_sampling=True, hooks=make_hooks(features))
 
 
-def make_vertex_guided(features: Features, sampler: Sampler):
-    """The guided vertex: ``nee``'s (emission, light sampling, MIS) with the mixture's direction."""
-    surface_at = make_surface(features)
+def make_hooks(features: Features) -> VertexHooks:
+    """``nee``'s vertex with the mixture's direction (``VertexHooks``): the guide looked up once per
+    vertex with a density lobe, its share of the direction's density, the mixture's sample, the
+    record of the direction taken; no Russian roulette (the guided paths never had it)."""
     mat = make_materials(features)
-    bsdf_dims = make_bsdf_dims(sampler, STRIDE, features)
-    sample_lights = (features.emitters or features.sky or features.punctual) and features.scatters
     guiding = features.scatters
-    blocked = make_blocked(features)
-    light = make_lights(features, surface_at, mat.emission)
-    light_sample = make_light_sample(sampler, light)
 
     @wp.func
-    def mis_bsdf(p: PathState, pdf_light: float) -> float:
-        """MIS weight of an emitter reached by the path's sampled direction."""
-        if wp.static(not sample_lights):
-            return 1.0
-        if p.singular != 0:
-            return 1.0
-        return power_heuristic(p.pdf, pdf_light)
-
-    @wp.func
-    def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
-               base: int, a: float):
-        """Light sampling at this vertex, weighed against the mixture: (radiance, sampler state)."""
-        contrib = wp.vec3(0.0, 0.0, 0.0)
-        ls, x, st = light_sample(geo, lights, p.sampler, sf, base)
-        if ls.pdf > 0.0:
-            le = wp.cw_mul(mat.eval(mats, tex, sf, ls.dir), light.le(geo, mats, tex, lights, ls, x))
-            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
-                so, sd, st_max = shadow_ray(sf, x, ls, geo.extent)
-                if not blocked(geo, mats, tex, so, sd, st_max):
-                    # MIS against the material's share of the mixture, (1 - a) p_material: the
-                    # emitter the sampled direction meets is weighed with the same density (see vertex)
-                    w = power_heuristic(ls.pdf, (1.0 - a) * mat.pdf(mats, tex, sf, ls.dir))
-                    if wp.static(features.punctual):
-                        if ls.h.kind == KIND_PUNCTUAL:     # no sampled direction can meet it
-                            w = 1.0
-                    contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
-        return contrib, st
-
-    # inlined into the step, as nee's: called out of line, every bounce copied the scene's structs
-    @wp.func(inline=True)
-    def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-               g: GuideTree, rec: GuideRecord, path: PathState, h: Hit):
-        p = path
-        if h.kind == KIND_MISS:
-            w = mis_bsdf(p, light.pdf_miss(lights, p.d))
-            hit_le = wp.cw_mul(p.throughput, light.le_escaped(lights, p.d, p.depth)) * w
-            p.radiance += hit_le
-            p.alive = 0
-            return p, wp.vec2i(-1, -1), float(0.0), hit_le[0] + hit_le[1] + hit_le[2]
-        p.depth += 1
-        sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
-        emitted = float(0.0)
-        if wp.static(features.emitters):
-            le = mat.emission(mats, tex, sf)
-            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
-                w = mis_bsdf(p, light.pdf_li(geo, lights, h, p.o, p.d))
-                hit_le = wp.cw_mul(p.throughput, le) * w
-                p.radiance += hit_le
-                emitted = hit_le[0] + hit_le[1] + hit_le[2]
-        if p.depth >= rp.max_depth:
-            p.alive = 0
-            return p, wp.vec2i(-1, -1), float(0.0), emitted
-        base = DIM_BOUNCE + wp.static(STRIDE) * (p.depth - 1)
-        u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)
-        dense = bool(False)
-        root = int(-1)
-        rqi = int(-1)
-        a = float(0.0)
+    def guide(aux: GuidedAux, mats: Materials, tex: Textures, sf: Surface) -> GuideVertex:
+        gv = GuideVertex()
+        gv.dense = 0
+        gv.root = -1
+        gv.rqi = -1
+        gv.a = 0.0
         if wp.static(guiding):
-            dense = (mat.lobes(mats, tex, sf) & LOBE_SMOOTH) != 0
-            if dense:
+            if (mat.lobes(mats, tex, sf) & LOBE_SMOOTH) != 0:
+                gv.dense = 1
                 qi = int(-1)
-                if rec.on != 0:
+                if aux.rec.on != 0:
                     # one spatial walk, in the recording tree, which refines the sampling tree
-                    rqi = guide_quadtree(rec.tree, sf.p, sf.ns)
-                    qi = rec.to_sampling[rqi]
-                elif g.alpha > 0.0:
-                    qi = guide_quadtree(g, sf.p, sf.ns)
-                if qi >= 0 and g.alpha > 0.0:
-                    a = g.q_alpha[qi]
-                    if a > 0.0:
-                        root = g.d_root[qi]
-        if wp.static(sample_lights):
-            if dense:
-                contrib, st = direct(geo, mats, tex, lights, p, sf, base, a)
-                lit = p
-                lit.radiance += contrib
-                lit.sampler = st
-                p = lit
+                    gv.rqi = guide_quadtree(aux.rec.tree, sf.p, sf.ns)
+                    qi = aux.rec.to_sampling[gv.rqi]
+                elif aux.g.alpha > 0.0:
+                    qi = guide_quadtree(aux.g, sf.p, sf.ns)
+                if qi >= 0 and aux.g.alpha > 0.0:
+                    gv.a = aux.g.q_alpha[qi]
+                    if gv.a > 0.0:
+                        gv.root = aux.g.d_root[qi]
+        return gv
+
+    @wp.func
+    def sample(aux: GuidedAux, gv: GuideVertex, mats: Materials, tex: Textures, sf: Surface, u_lobe: float,
+               u_dir: wp.vec2, u_fresnel: float):
+        """The mixture's direction and the density it was drawn with (a BsdfSample whose ``pdf`` is the
+        material's share, (1 - a) p_material: what MIS weighs, see the module docs)."""
         bs = BsdfSample()
-        pm = float(0.0)        # the density the direction was sampled with: the mixture's
-        # bs.pdf, the density multiple importance sampling weighs against light sampling, is the
-        # material's share alone, (1 - a) p_material: MIS weights need only sum to 1 over the
-        # techniques, so any density used on both sides is unbiased, and this one spares a guide
-        # look-up per light sample (the guide learns no emitter light sampling reaches: little lost)
+        pm = float(0.0)
+        a = gv.a
         if a > 0.0:
             # the direction's first coordinate also chooses guide or material (rescaled, as reuse_pick):
             # the 2D point set stays stratified within each branch, and no dimension is drawn for it
             if u_dir[0] < a:
-                gd, pg = guide_sample(g, root, wp.vec2(wp.min(u_dir[0] / a, 0.99999994), u_dir[1]))
+                gd, pg = guide_sample(aux.g, gv.root, wp.vec2(wp.min(u_dir[0] / a, 0.99999994), u_dir[1]))
                 bs.dir = gd
                 bs.singular = 0
                 bs.alive = 1
@@ -277,28 +263,38 @@ def make_vertex_guided(features: Features, sampler: Sampler):
                     if bs.alive != 0:
                         # weight = f cos / p_material, so f cos = weight x p_material: no eval again
                         bs.pdf = (1.0 - a) * bs.pdf
-                        pm = bs.pdf + a * guide_pdf(g, root, bs.dir)
+                        pm = bs.pdf + a * guide_pdf(aux.g, gv.root, bs.dir)
                         bs.weight = bs.weight * (bs.pdf / ((1.0 - a) * pm))
                 else:
                     bs.weight = bs.weight / (1.0 - a)
         else:
             bs = mat.sample(mats, tex, sf, u_lobe, u_dir, u_fresnel)
             pm = bs.pdf
-        node = wp.vec2i(-1, -1)
-        rpdf = pm
+        return bs, pm
+
+    @wp.func
+    def record(aux: GuidedAux, gv: GuideVertex, out: GuideNote, sf: Surface, bs: BsdfSample, pm: float) -> GuideNote:
+        """The recording leaf of the direction taken (training passes, density lobes only) and its
+        density over the cosine to its quadtree's axis (the guide learns the product's shape)."""
+        n = out
+        n.pdf = pm
         if wp.static(guiding):
-            if rec.on != 0 and dense and bs.singular == 0 and bs.alive != 0:
-                rroot = rec.tree.d_root[rqi]
-                node = wp.vec2i(dir_leaf(rec.tree, rroot, bs.dir), rroot)
-                # learn radiance x cos to the quadtree's axis (its normal bin): the product's shape
+            if aux.rec.on != 0 and gv.dense != 0 and bs.singular == 0 and bs.alive != 0:
+                rroot = aux.rec.tree.d_root[gv.rqi]
+                n.node = wp.vec2i(dir_leaf(aux.rec.tree, rroot, bs.dir), rroot)
                 c = bin_cos(sf.ns, bs.dir)
                 if c > 0.0:
-                    rpdf = rpdf / c
+                    n.pdf = pm / c
                 else:
-                    node = wp.vec2i(-1, -1)
-        return continue_path(p, sf, bs, geo.extent), node, rpdf, emitted
+                    n.node = wp.vec2i(-1, -1)
+        return n
 
-    return vertex
+    @wp.func
+    def leave(aux: GuidedAux, out: GuideNote, p: PathState, rp: RenderParams, dim: int):
+        return p, out
+
+    return VertexHooks(Aux=GuidedAux, new_out=no_note, finish=finish, emitted=note_emitted, guide=guide,
+                       share=material_share, sample=sample, record=record, leave=leave)
 
 
 def make_kernel(step, start_path):
@@ -317,12 +313,15 @@ def make_kernel(step, start_path):
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         bad = int(0)
         rays = int(0)
+        aux = GuidedAux()
+        aux.g = g
+        aux.rec = rec
         for j in range(rp.sample_count):
             path = start_path(cam, pix, rp.width, rp.seed, rp.sample_start + j)
             n = int(0)
             recorded = int(0)
             while path.alive != 0:
-                path, node, pdf, emitted = step(geo, mats, tex, lights, rp, g, rec, path)
+                path, node, pdf, emitted = step(geo, mats, tex, lights, rp, path, aux)
                 if recorded != 0:
                     # the emitter the last recorded direction met directly: light sampling's share
                     v = rec.slot_value[wp.tid(), n - 1]
@@ -418,4 +417,6 @@ def render_passes(b, tiles: list[tuple[int, int]], film: wp.array, counters: wp.
 
 INTEGRATOR = Integrator("guided", make, None, STRIDE, tape=False, make_kernel=make_kernel,
                         render_passes=render_passes, params=PARAMS,
-                        summary="path guiding: NEE + MIS with BSDF directions mixed with a learnt SD-tree")
+                        summary="path guiding: NEE + MIS with BSDF directions mixed with a learnt SD-tree (lower "
+                                "error per sample on indirect light, but no faster than nee at equal error: "
+                                "not a speed option, docs/performance.md#path-guiding)")

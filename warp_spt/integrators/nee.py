@@ -14,7 +14,8 @@ component), and divide by it: unbiased. A scene whose lights (emitters and sky) 
 compiles no light-sampling code and behaves as the seed integrator plus roulette.
 """
 
-from __future__ import annotations
+from dataclasses import dataclass
+from typing import Callable
 
 import warp as wp
 
@@ -22,7 +23,7 @@ from warp_spt.core.adjoint import zero_adjoint
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.cutout import make_blocked, make_hit
 from warp_spt.core.geometry import KIND_MISS, Hit
-from warp_spt.core.lights import KIND_PUNCTUAL, LightSample, Lights, detach_lights, make_lights, reuse_pick
+from warp_spt.core.lights import LightSample, Lights, detach_lights, make_lights, reuse_pick
 from warp_spt.core.lobes import LOBE_SMOOTH
 from warp_spt.core.materials import make_materials
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
@@ -88,7 +89,8 @@ INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE,
 def make_light_sample(sampler: Sampler, light, inline: bool | None = None):
     """``light_sample(geo, lights, state, sf, base) -> (light sample, shadow ray origin, state)``: the
     light sample of a vertex at ``sf`` whose bounce's dimensions start at ``base`` (the light choice
-    and the point on it, from ``light.sample_li``); shared by ``nee`` and ``guided``."""
+    and the point on it, from ``light.sample_li``); shared by ``nee``'s vertex and ``volpath``'s
+    medium vertex."""
 
     @wp.func(inline=inline)
     def light_sample(geo: Geometry, lights: Lights, state: SamplerState, sf: Surface, base: int):
@@ -153,16 +155,31 @@ def shadow_ray(sf: Surface, x: wp.vec3, ls: LightSample, extent: float):
     return o, d / t, t
 
 
-def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False):
+def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, differentiable: bool = False,
+                   hooks: "VertexHooks | None" = None):
     """A path-tracing bounce step: trace the path's ray, then ``make_path_vertex``'s vertex at what it
     meets. ``light_sampling`` False leaves pure BSDF sampling, no roulette, and the seed's four
     dimensions per bounce (``integrators.seed``); ``differentiable`` re-intersects the hit in closed
-    form so that it carries derivatives in the ray (the tape kernel only)."""
+    form so that it carries derivatives in the ray (the tape kernel only). ``hooks``
+    (:class:`VertexHooks`): an integrator built on this vertex (``guided``, ``ears``); its step is
+    ``step(geo, mats, tex, lights, rp, path, aux)`` and returns what ``hooks.finish`` makes."""
     hit = make_hit(features, differentiable=differentiable)
     # the fast kernel inlines the step and its vertex: called out of line, each bounce copied the scene
     # structs they take by value (about 2 KB); the tape kernel, unrolled, keeps the compiler's choice
     inline = None if differentiable else True
-    vertex = make_path_vertex(features, sampler, light_sampling, inline=inline)
+    vertex = make_path_vertex(features, sampler, light_sampling, inline=inline, hooks=hooks)
+    if hooks is not None:
+        Aux = hooks.Aux
+
+        @wp.func(inline=True)
+        def hooked_step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
+                        path: PathState, aux: Aux):
+            p = path
+            h = hit(geo, mats, tex, p.o, p.d)
+            p.rays += 1
+            return vertex(geo, mats, tex, lights, rp, p, h, aux)
+
+        return hooked_step
 
     @wp.func(inline=inline)
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
@@ -175,8 +192,42 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     return step
 
 
+@dataclass(frozen=True)
+class VertexHooks:
+    """What an integrator built on ``nee``'s vertex (``make_path_vertex(hooks=...)``) changes in it:
+    Warp functions, each inlined where the vertex would otherwise do ``nee``'s own thing. Emission,
+    the sky, light sampling and its MIS, the depth limit and the sample dimensions stay the vertex's.
+
+    * ``Aux``: the type (a ``wp.struct``) of the vertex's last argument, the integrator's per-launch
+      data (its learnt tables), in place of ``nee``'s visibility; the vertex traces its shadow rays.
+    * ``new_out() -> out``: what the vertex reports besides the path (recording data, a value of the
+      integrator's own type), as at a vertex that reports nothing; ``finish(p, out)``: the vertex's
+      (and the step's) return value (e.g. the tuple ``(p, out)``).
+    * ``emitted(out, le) -> out``: recording callback for the radiance (vec3, throughput and MIS
+      weight included) the vertex's own hit adds (an emitter met, the sky); None: nothing.
+    * ``guide(aux, mats, tex, sf) -> guide``: the direction hook's state at this vertex
+      (looked up once, before light sampling); ``share(guide) -> float``: the fraction of the
+      material's density in the direction's, which MIS against light sampling weighs (1: ``nee``);
+      ``sample(aux, guide, mats, tex, sf, u_lobe, u_dir, u_fresnel) -> (BsdfSample, pdf)``: the
+      direction that continues the path, and the density it was drawn with. None: the material's.
+    * ``record(aux, guide, out, sf, bs, pdf) -> out``: recording callback for the direction taken.
+    * ``leave(aux, out, p, rp, dim) -> (PathState, out)``: the continuation after the direction
+      (``dim``: the bounce's roulette dimension); None: ``nee``'s Russian roulette.
+    """
+
+    Aux: type
+    new_out: Callable
+    finish: Callable
+    emitted: Callable | None = None
+    guide: Callable | None = None
+    share: Callable | None = None
+    sample: Callable | None = None
+    record: Callable | None = None
+    leave: Callable | None = None
+
+
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
-                     replay: bool = False, media=None):
+                     replay: bool = False, media=None, hooks: VertexHooks | None = None):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
@@ -189,7 +240,9 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     hooks of an integrator that tracks participating media (``integrators.volpath``): its
     ``shadow(geo, mats, tex, path, sf, o, d, t_max) -> T`` traces the shadow ray in place of
     ``blocked`` and returns the transmittance of the media it crosses (0: occluded), which weighs the
-    light sample; None (every other integrator) compiles none of it."""
+    light sample; None (every other integrator) compiles none of it. ``hooks``: an integrator's changes
+    (:class:`VertexHooks`: direction sampling, continuation, recording); the vertex's last argument
+    is then its ``Aux`` data and it returns ``hooks.finish(path, out)``; None compiles none of it."""
     surface_at = make_surface(features)
     if replay:
         detach_surface(surface_at)
@@ -203,6 +256,11 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     roulette = make_roulette(sampler)
     if replay:
         detach_lights(light)
+    hooked = hooks is not None
+    directed = hooked and hooks.sample is not None      # the direction comes from the hooks
+    # the vertex's last argument: nee's shadow-ray visibility, or a hooked integrator's own data
+    Aux = hooks.Aux if hooked else int
+
     light_sample = make_light_sample(sampler, light, inline=inline_callees)
 
     @wp.func
@@ -226,10 +284,11 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
 
     @wp.func(inline=inline_callees)
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
-               base: int, vis: int):
+               base: int, vis: int, share: float):
         """Light sampling at this vertex: (radiance to add, sampler state, visibility of the light
         sample: VIS_VISIBLE/VIS_OCCLUDED, VIS_TRACE if no shadow ray was needed). ``vis`` other than
-        VIS_TRACE is taken as the shadow ray's answer instead of tracing it."""
+        VIS_TRACE is taken as the shadow ray's answer instead of tracing it. ``share`` (hooked
+        vertices only): the material's fraction of the direction's density, which MIS weighs."""
         contrib = wp.vec3(0.0, 0.0, 0.0)
         seen = int(VIS_TRACE)
         st = p.sampler
@@ -253,10 +312,13 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                             if wp.max(wp.max(tr[0], tr[1]), tr[2]) <= 0.0:
                                 seen = VIS_OCCLUDED
                     if seen == VIS_VISIBLE:
-                        w = mis_weight(ls.pdf, mat.pdf(mats, tex, sf, ls.dir))
-                        if wp.static(features.punctual):
-                            if ls.h.kind == KIND_PUNCTUAL:     # no BSDF sample can meet it
-                                w = 1.0
+                        pb = mat.pdf(mats, tex, sf, ls.dir)
+                        if wp.static(hooked):
+                            # a hooked direction (a guide's mixture) is weighed by the material's share
+                            # alone: MIS weights need only sum to 1, and the same density stands on the
+                            # BSDF side (bs.pdf), so no guide look-up per light sample
+                            pb = share * pb
+                        w = light.mis_li(ls, mis_weight(ls.pdf, pb))
                         contrib = wp.cw_mul(p.throughput, le) * (w / ls.pdf)
                         if wp.static(media is not None):
                             contrib = wp.cw_mul(contrib, tr)
@@ -264,28 +326,49 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
 
     @wp.func(inline=inline)
     def vertex(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-               path: PathState, h: Hit, vis: int) -> PathState:
+               path: PathState, h: Hit, vis: Aux):
         p = path
         p.vis = VIS_TRACE
+        if wp.static(hooked):
+            out = hooks.new_out()
         if h.kind == KIND_MISS:
             w = mis_bsdf(p, light.pdf_miss(lights, p.d))
-            p.radiance += wp.cw_mul(p.throughput, light.le_escaped(lights, p.d, p.depth)) * w
+            hit_le = wp.cw_mul(p.throughput, light.le_escaped(lights, p.d, p.depth)) * w
+            p.radiance += hit_le
             p.alive = 0
-            return p
+            if wp.static(hooked):
+                if wp.static(hooks.emitted is not None):
+                    out = hooks.emitted(out, hit_le)
+                return hooks.finish(p, out)
+            else:
+                return p
         p.depth += 1
         sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
             if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):       # NaN: the guard reports it
                 w = mis_bsdf(p, light.pdf_li(geo, lights, h, p.o, p.d))
-                p.radiance += wp.cw_mul(p.throughput, le) * w
+                hit_le = wp.cw_mul(p.throughput, le) * w
+                p.radiance += hit_le
+                if wp.static(hooked and hooks.emitted is not None):
+                    out = hooks.emitted(out, hit_le)
         if p.depth >= rp.max_depth:     # max_depth counts hits, as in the seed
             p.alive = 0
-            return p
+            if wp.static(hooked):
+                return hooks.finish(p, out)
+            else:
+                return p
         base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
         u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
+        share = float(1.0)
+        if wp.static(directed):
+            gv = hooks.guide(vis, mats, tex, sf)
+            share = hooks.share(gv)
         if wp.static(sample_lights):
-            contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, vis)
+            if wp.static(hooked):      # ``vis`` is the hook's data: the shadow ray is traced
+                contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, VIS_TRACE, share)
+            else:
+                contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, vis, share)
             # a copy, not p's own fields: Warp assigns struct fields in place, and the adjoint of
             # ``direct`` (gradients) replays it with ``p`` as it is at that point; an updated
             # p.sampler there drew other light samples (independent sampler: gradients off by up to 4x)
@@ -294,9 +377,20 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             lit.sampler = st
             lit.vis = seen
             p = lit
-        p = continue_path(p, sf, mat.sample(mats, tex, sf, u_lobe, u_dir, u_fresnel), geo.extent)
-        if wp.static(light_sampling):
+        if wp.static(directed):
+            bs, pdf = hooks.sample(vis, gv, mats, tex, sf, u_lobe, u_dir, u_fresnel)
+            if wp.static(hooks.record is not None):
+                out = hooks.record(vis, gv, out, sf, bs, pdf)
+            p = continue_path(p, sf, bs, geo.extent)
+        else:
+            p = continue_path(p, sf, mat.sample(mats, tex, sf, u_lobe, u_dir, u_fresnel), geo.extent)
+        if wp.static(hooked and hooks.leave is not None):
+            p, out = hooks.leave(vis, out, p, rp, base + OFF_ROULETTE)
+        elif wp.static(light_sampling):
             p = roulette(p, rp, base + OFF_ROULETTE)
-        return p
+        if wp.static(hooked):
+            return hooks.finish(p, out)
+        else:
+            return p
 
     return vertex

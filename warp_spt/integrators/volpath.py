@@ -26,7 +26,7 @@ import warp as wp
 
 from warp_spt.core.cutout import make_blocked, make_hit
 from warp_spt.core.geometry import KIND_MISS, KIND_TRIANGLE, Hit
-from warp_spt.core.lights import KIND_PUNCTUAL, LightSample, Lights, make_lights
+from warp_spt.core.lights import LightSample, Lights, make_lights
 from warp_spt.core.materials import make_materials
 from warp_spt.core.media import EVENT_ABSORB, EVENT_SCATTER, hg_eval, hg_sample, make_media
 from warp_spt.core.sampling import hash_u32, stream_state
@@ -181,10 +181,7 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
                     T = shadow_path(geo, mats, tex, p.medium, xo, ls.dir, ls.t_max,
                                     tracking_stream(p, _SALT_MEDIUM_SHADOW))
-                    w = power_heuristic(ls.pdf, ph)
-                    if wp.static(features.punctual):
-                        if ls.h.kind == KIND_PUNCTUAL:     # no phase sample can meet it
-                            w = 1.0
+                    w = light.mis_li(ls, power_heuristic(ls.pdf, ph))
                     p.radiance += wp.cw_mul(p.throughput, wp.cw_mul(le, T)) * (w / ls.pdf)
         d_new = hg_sample(p.d, g, u_dir)
         p.pdf = hg_eval(p.d, d_new, g)       # the phase function is sampled exactly: the weight is 1

@@ -15,7 +15,10 @@ a kind the features do not use compiles no code).
 * ``le_miss(lights, d)`` and ``pdf_miss(lights, d)``: the radiance of the infinite lights seen by a
   ray that misses the scene along ``d``, and the density with which ``sample_li`` gives ``d``;
 * ``le_escaped(lights, d, depth)``: ``le_miss`` for a path's ray after ``depth`` hits (a camera ray
-  sees an environment's background instead, where one is set).
+  sees an environment's background instead, where one is set);
+* ``mis_li(ls, w) -> float``: the MIS weight of light sample ``ls`` given ``w``, its weight against
+  the other technique (the BSDF, the phase function, a guide): 1 for a delta light's sample, which
+  no sampled direction can meet, else ``w``. Every integrator that weighs light samples calls it.
 
 (No ``from __future__ import annotations`` here: the chain's functions are annotated with closure
 variables, which Warp must see as objects, not as strings.)
@@ -210,8 +213,17 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
         """The radiance of the infinite lights (the sky) along ``d``, seen by a ray that misses."""
         return miss_le(lights, d)
 
+    @wp.func(inline=True)
+    def mis_li(ls: LightSample, w: float) -> float:
+        """The MIS weight of light sample ``ls``: ``w``, or 1 for a delta light (no sampled direction
+        meets it, so light sampling is its only technique). Without delta kinds: ``w`` itself."""
+        if wp.static(delta_radiance is not None):
+            if ls.h.kind == KIND_PUNCTUAL:
+                return 1.0
+        return w
+
     return SimpleNamespace(sample_li=sample_li, le=le, sample=sample, pdf_li=pdf_li, pdf_miss=pdf_miss,
-                           le_miss=le_miss, le_escaped=le_escaped)
+                           le_miss=le_miss, le_escaped=le_escaped, mis_li=mis_li)
 
 
 def detach_lights(light: SimpleNamespace) -> None:

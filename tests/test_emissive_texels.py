@@ -93,8 +93,9 @@ def test_cells_subdivide_the_triangle_and_follow_the_texture(scene_dir):
     assert sorted(table) == [0, 1]
     lum = lamp_image(dev).mean(axis=2)
     # the triangle's weight is 2 x area x its mean luminance: the two halves (area 2 each) hold the
-    # whole texture (1% off: the mean is taken at a grid of points, which the diagonal's texels split)
-    assert math.isclose(w.sum() / (2 * (2 * HALF) ** 2), lum.mean(), rel_tol=0.01)
+    # whole texture, to the accuracy of about 10 jittered points a texel (the bright block's 4 texels,
+    # most of the light, counted to a few percent: 2.9% off measured, 5% asked)
+    assert math.isclose(w.sum() / (2 * (2 * HALF) ** 2), lum.mean(), rel_tol=0.05)
     n, cw = table[0]
     assert n == 6 and cw.max() > 20 * np.median(cw[cw > 0])          # the bright block stands out
     assert cw[cw > 0].min() >= CELL_FLOOR * lum.min()
@@ -150,8 +151,8 @@ def test_sampled_density_is_what_mis_evaluates(scene_dir, where):
 
 def test_cells_beat_uniform_sampling_on_a_bright_corner(scene_dir):
     # the same floor rendered with cells and with them removed (uniform over each triangle): at equal
-    # samples the cells' squared error against the closed form is lower (3.4x measured: the floor's
-    # BSDF samples and the lamp's cos / r^2 keep some noise either way; 2x asserted). Without cells
+    # samples the cells' squared error against the closed form is lower (5.7x measured: the floor's
+    # BSDF samples and the lamp's cos / r^2 keep some noise either way; 3x asserted). Without cells
     # a sample finds the bright block (4 of 64 texels, most of the light) once in 16 draws.
     from warp_spt.core.lights import emissive_texels
     dev = lamp_scene(scene_dir, "texel_lamp_vs")
@@ -169,4 +170,4 @@ def test_cells_beat_uniform_sampling_on_a_bright_corner(scene_dir):
     table.triangle.texel = emissive_texels.upload({}, np.zeros(0, np.int64), 0, plain.device)
     without = seed_batches(plain, FLOOR_CAM, 4, 4, 100, **kw)
     mse_plain = ((without - expected) ** 2).mean()
-    assert mse_cells < mse_plain / 2, (mse_cells, mse_plain)
+    assert mse_cells < mse_plain / 3, (mse_cells, mse_plain)

@@ -11,7 +11,7 @@ drew from. ``n`` is chosen so that a cell covers about one texel of the triangle
 (at most ``MAX_N``); a triangle covering under two texels keeps uniform sampling.
 
 A cell's weight is its mean emitted luminance (mean over RGB, nearest texels at s x s points per
-cell) plus 1% of the triangle's mean, so that no cell that might emit (a bilinear filter bleeds
+cell, about half a texel apart) plus 1% of the triangle's mean, so that no cell that might emit (a bilinear filter bleeds
 across a black texel's edge) has density 0. Within the chosen cell a point is drawn as the
 triangle sampler draws one on a whole triangle: uniformly in solid angle where the cell subtends a
 fair solid angle (``use_solid_angle``), else uniformly by area. The triangle's own choice weight
@@ -39,7 +39,10 @@ from warp_spt.core.textures import sample_texture_np
 from warp_spt.scene.model import SLOT_EMISSION, Scene
 
 MAX_N = 32                 # cells per edge at most (2 n^2 table slots per triangle)
-MAX_SLOTS = 1 << 22        # table slots for the whole scene; triangles past it keep uniform sampling
+MAX_SLOTS = 1 << 18        # table slots for the whole scene; triangles past it keep uniform sampling
+                           # (it also bounds the weights' texture lookups: 4.5 a slot, 18 for cells of
+                           # MAX_N, a second or three of numpy at most; a screen of 32 x 32 cells a
+                           # triangle fits 128 triangles, one of 2 x 2 cells 32,768)
 FLOOR = 0.01               # each cell's weight gets this fraction of the triangle's mean
 ONE_MINUS_EPS = wp.constant(0.99999994)
 
@@ -237,61 +240,105 @@ def cell_of_np(n: int, bu: np.ndarray, bv: np.ndarray) -> np.ndarray:
     return 2 * (i * n + j) + up
 
 
-def fine_points(m: int) -> np.ndarray:
-    """The centroids (k, 2) of the order-m subdivision's cells: barycentrics (u, v)."""
+def fine_points(m: int, jitter: bool = False) -> np.ndarray:
+    """One point (k, 2) in each cell of the order-m subdivision, barycentrics (u, v): its centroid, or
+    with ``jitter`` a point drawn uniformly in its inner 90% (a fixed seed: the same points every
+    time), which turns the regular grid's aliasing against the texel grid (a texel caught by 4 points
+    or by 9) into a small unbiased noise."""
     i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
     low = (i + j <= m - 1)
     upp = (i + j <= m - 2)
-    pts = [np.stack([(i[low] + 1 / 3) / m, (j[low] + 1 / 3) / m], 1),
-           np.stack([(i[upp] + 2 / 3) / m, (j[upp] + 2 / 3) / m], 1)]
-    return np.concatenate(pts)
+    pts = np.concatenate([np.stack([(i[low] + 1 / 3) / m, (j[low] + 1 / 3) / m], 1),
+                          np.stack([(i[upp] + 2 / 3) / m, (j[upp] + 2 / 3) / m], 1)])
+    if not jitter:
+        return pts
+    k = low.sum()
+    r = np.random.default_rng(12345).random((len(pts), 2))
+    fold = r.sum(axis=1) > 1
+    r[fold] = 1 - r[fold]
+    edge = np.full((len(pts), 2, 2), 1.0 / m)           # the cell's two edge vectors from its first corner
+    edge[:, 0, 1] = edge[:, 1, 0] = 0.0
+    edge[k:] *= -1.0                                    # upper cells point the other way
+    first = pts - (edge[:, 0] + edge[:, 1]) / 3         # centroid = first corner + (e1 + e2) / 3
+    p = first + r[:, :1] * edge[:, 0] + r[:, 1:] * edge[:, 1]
+    return pts + 0.9 * (p - pts)
 
 
-def order(uv: np.ndarray, shape: tuple[int, int]) -> int:
-    """The order n for a triangle of corner uv ``uv`` (3, 2) on a texture of ``shape`` (H, W): about
-    one texel a cell, at most MAX_N; 1 below two texels."""
-    e1, e2 = uv[1] - uv[0], uv[2] - uv[0]
-    texels = 0.5 * abs(e1[0] * e2[1] - e1[1] * e2[0]) * shape[0] * shape[1]
-    if not np.isfinite(texels) or texels < 2.0:
-        return 1
-    return int(min(MAX_N, np.ceil(np.sqrt(texels))))
+def footprint(uv: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The texels covered by triangles of corner uv ``uv`` (..., 3, 2) on a texture of ``shape``."""
+    uv = np.asarray(uv, dtype=np.float64)
+    e1, e2 = uv[..., 1, :] - uv[..., 0, :], uv[..., 2, :] - uv[..., 0, :]
+    texels = 0.5 * np.abs(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]) * shape[0] * shape[1]
+    return np.where(np.isfinite(texels), texels, 0.0)
+
+
+def order(uv: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The order n of triangles of corner uv ``uv`` (..., 3, 2) on a texture of ``shape`` (H, W):
+    about one texel a cell, at most MAX_N; 1 below two texels."""
+    texels = footprint(uv, shape)
+    return np.where(texels < 2.0, 1, np.minimum(MAX_N, np.ceil(np.sqrt(np.maximum(texels, 1.0))))).astype(np.int64)
+
+
+def _cell_means(image: np.ndarray, cuv: np.ndarray, n: int) -> np.ndarray:
+    """(E, 2 n^2): the mean luminance of each cell of E triangles of order n (corner uv ``cuv`` (E, 3,
+    2)), nearest texels at s x s points a cell, spaced at most about half a texel (s = 3 for a cell of a
+    texel or less; up to 6 for the larger cells of MAX_N), so that a cell partly over a bright texel is
+    not weighed as if it missed it (its samples would then be rare and bright: a firefly); 0 for slots
+    that are not a cell."""
+    per_cell = float(footprint(cuv, image.shape[:2]).max()) / (n * n)
+    s = int(np.clip(np.ceil(3.0 * np.sqrt(per_cell)), 3, 6))
+    b = fine_points(n * s, jitter=True)
+    slot = cell_of_np(n, b[:, 0], b[:, 1])
+    by_cell = np.argsort(slot, kind="stable")       # s^2 points to a cell (fine_points' subdivision)
+    cells_ = np.unique(slot)
+    out = np.zeros((len(cuv), 2 * n * n))
+    chunk = max(1, (1 << 20) // len(b))          # at most about a million lookups at a time
+    for lo in range(0, len(cuv), chunk):
+        c = cuv[lo:lo + chunk]
+        uv = (c[:, None, 0] * b[None, :, :1] + c[:, None, 1] * b[None, :, 1:]
+              + c[:, None, 2] * (1 - b[None, :, :1] - b[None, :, 1:]))
+        lum = sample_texture_np(image, uv.reshape(-1, 2)).astype(np.float64).mean(axis=1).reshape(len(c), -1)
+        out[lo:lo + chunk, cells_] = lum[:, by_cell].reshape(len(c), len(cells_), s * s).mean(axis=2)
+    return out
 
 
 def cells(scene: Scene, mesh: np.ndarray, face: np.ndarray, weights: np.ndarray):
     """For the light triangles (``mesh``, ``face``, choice ``weights``) whose emission is an image
     texture: their cells. Returns (weights with those triangles' replaced by 2 x area x the cells'
     mean luminance, {entry index: (n, per-slot weights)})."""
-    mt = scene.materials
     out = weights.copy()
     table: dict[int, tuple[int, np.ndarray]] = {}
-    slots = 0
-    for e in range(len(face)):
-        m = scene.meshes[mesh[e]]
-        mat = m.face_material[face[e]]
-        k = int(mt.tex[mat, SLOT_EMISSION])
-        if k < 0:
-            continue
-        image = scene.textures[k]
-        cuv = m.corner_uv[face[e]].astype(np.float64)
-        n = order(cuv, image.shape[:2])
-        if n <= 1 or slots + 2 * n * n > MAX_SLOTS:
-            continue
-        s = max(1, 64 // n)           # points per cell edge: at most a 64 x 64 grid per triangle
-        b = fine_points(n * s)
-        uv = cuv[0] * b[:, :1] + cuv[1] * b[:, 1:] + cuv[2] * (1 - b[:, :1] - b[:, 1:])
-        lum = sample_texture_np(image, uv).astype(np.float64).mean(axis=1)
-        slot = cell_of_np(n, b[:, 0], b[:, 1])
-        total = np.bincount(slot, lum, minlength=2 * n * n)
-        count = np.bincount(slot, minlength=2 * n * n)
-        mean = np.where(count > 0, total / np.maximum(count, 1), 0.0)
-        tri_mean = lum.mean()
-        if not tri_mean > 0:
-            continue
-        p = m.positions[m.indices[face[e]]].astype(np.float64)
-        area = 0.5 * np.linalg.norm(np.cross(p[1] - p[0], p[2] - p[0]))
-        out[e] = 2.0 * area * tri_mean
-        table[e] = (n, np.where(count > 0, mean + FLOOR * tri_mean, 0.0))
-        slots += 2 * n * n
+    if not len(face):
+        return out, table
+    tex = np.full(len(face), -1, np.int64)
+    cuv = np.zeros((len(face), 3, 2))
+    area = np.zeros(len(face))
+    for k in np.unique(mesh):       # gathered mesh by mesh (few), vectorised within
+        sel = mesh == k
+        m = scene.meshes[k]
+        tex[sel] = scene.materials.tex[m.face_material[face[sel]], SLOT_EMISSION]
+        cuv[sel] = m.corner_uv[face[sel]]
+        p = m.positions[m.indices[face[sel]]].astype(np.float64)
+        area[sel] = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    n = np.ones(len(face), np.int64)
+    for k in np.unique(tex[tex >= 0]):
+        sel = tex == k
+        n[sel] = order(cuv[sel], scene.textures[k].shape[:2])
+    n[tex < 0] = 1
+    slots = np.where(n > 1, 2 * n * n, 0)
+    n[np.cumsum(slots) > MAX_SLOTS] = 1          # past the budget: uniform sampling, as before
+    for k in np.unique(tex[n > 1]):
+        for order_n in np.unique(n[(tex == k) & (n > 1)]):
+            (idx,) = np.nonzero((tex == k) & (n == order_n))
+            means = _cell_means(scene.textures[k], cuv[idx], int(order_n))
+            valid = means.sum(axis=1) > 0
+            m_all = np.zeros(2 * order_n * order_n, bool)        # the slots that are cells
+            m_all[np.unique(cell_of_np(int(order_n), *fine_points(int(order_n)).T))] = True
+            tri_mean = means[:, m_all].mean(axis=1)
+            for j in np.nonzero(valid)[0]:
+                e = int(idx[j])
+                out[e] = 2.0 * area[e] * tri_mean[j]
+                table[e] = (int(order_n), np.where(m_all, means[j] + FLOOR * tri_mean[j], 0.0))
     return out, table
 
 

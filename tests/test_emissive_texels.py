@@ -171,3 +171,24 @@ def test_cells_beat_uniform_sampling_on_a_bright_corner(scene_dir):
     without = seed_batches(plain, FLOOR_CAM, 4, 4, 100, **kw)
     mse_plain = ((without - expected) ** 2).mean()
     assert mse_cells < mse_plain / 3, (mse_cells, mse_plain)
+
+
+@pytest.mark.parametrize("mode", ["prb", "tape"])
+def test_the_lamps_texture_gradient_holds_the_cells_fixed(scene_dir, mode):
+    # the image is linear in the lamp's texels while the cells' distribution is held fixed (detached,
+    # as the environment map's), so sum(gradient x texels) is the image's sum, sample for sample
+    # (Euler's theorem for a function homogeneous of degree 1); it also compiles the cells' code into
+    # both backward passes
+    from warp_spt.diff.gradients import render_gradients
+    from warp_spt.diff.params import parameters
+    from warp_spt.rendering.settings import RenderSettings
+
+    dev = lamp_scene(scene_dir, f"texel_lamp_grad_{mode}")
+    p = parameters(dev, FLOOR_CAM, sky(0.0))
+    rs = RenderSettings(width=8, height=6, spp=4, max_depth=2, sky=sky(0.0), integrator="nee")
+    r = render_gradients(p, rs, adjoint=np.ones((6, 8, 3), np.float32), wrt=["lamp.emission_map"], mode=mode)
+    assert r.mode == mode
+    g = r.grads["lamp.emission_map"]
+    total = float((g * p["lamp.emission_map"]).sum())
+    assert total == pytest.approx(float(r.image.astype(np.float64).sum()), rel=2e-3)
+    assert r.image.sum() > 0

@@ -7,10 +7,10 @@ A grey ball is lit by a sky (an environment map: blue above, brown below the hor
 unknown RGB tint, and by a sun of known irradiance from an unknown direction. The sky is hidden from
 the camera (``background``): both must be read from the ball's shading. (Nothing casts a shadow on
 what the camera sees: a moving shadow's edge is a visibility discontinuity, whose derivative the
-tape does not hold; with a floor under the ball, the sun converged some 10 degrees off.) A target image is rendered with the true values (more samples, another seed); the
-optimisation starts from a white tint and a sun straight overhead and runs Adam on the L2 loss with
-a fresh seed per iteration (and another for the gradient: an unbiased gradient of the expected
-loss).
+tape does not hold; with a floor under the ball, the sun converged some 10 degrees off.) A target
+image is rendered with the true values (more samples, another seed); the optimisation starts from
+a white tint and a sun straight overhead and runs Adam on the L2 loss with a fresh seed per
+iteration (and another for the gradient: an unbiased gradient of the expected loss).
 
 The tint is not a parameter of its own: the map is ``base x tint``, so the tint's gradient is the
 map's, ``environment.texels``, summed against the base map per channel (the chain rule). The sun's

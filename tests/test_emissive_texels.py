@@ -29,7 +29,6 @@ from .test_light_transport import (
     floor_points,
     polygon_irradiance,
     seed_batches,
-    sphere_directions,
 )
 
 LZ, HALF = 3.0, 1.0      # above the camera (z 2.5, looking down): the floor's pixels never see the lamp

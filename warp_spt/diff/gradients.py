@@ -42,7 +42,14 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams
 from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.lights import PARAMETER_KINDS, PATHWISE_FIELDS, Lights, alias_field, alias_parameters, parameter_arrays
+from warp_spt.core.lights import (
+    PARAMETER_KINDS,
+    PATHWISE_FIELDS,
+    Lights,
+    alias_field,
+    alias_parameters,
+    parameter_arrays,
+)
 from warp_spt.core.material_table import with_gradients
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (

@@ -335,7 +335,8 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
         return COLUMN[p.field].low, COLUMN[p.field].high
     if p.kind == "texture":
         return 0.0, 1.0                         # texels, as validate_scene requires
-    if p.kind == "sky" or (p.kind == ENVIRONMENT and p.field in ("strength", ENVIRONMENT_TEXELS)) or (p.kind == "punctual" and p.field in ("color", "intensity")):
+    if (p.kind == "sky" or (p.kind == ENVIRONMENT and p.field in ("strength", ENVIRONMENT_TEXELS))
+            or (p.kind == "punctual" and p.field in ("color", "intensity"))):
         return 0.0, MAX_RADIANCE
     if p.kind == "proc" and p.shape == (3,):
         return 0.0, None

@@ -10,10 +10,10 @@ is found from its barycentrics alone (``cell_of``), so MIS evaluates the same de
 drew from. ``n`` is chosen so that a cell covers about one texel of the triangle's uv footprint
 (at most ``MAX_N``); a triangle covering under two texels keeps uniform sampling.
 
-A cell's weight is its mean emitted luminance (mean over RGB, nearest texels at s x s points per
-cell, about half a texel apart) plus 1% of the triangle's mean, so that no cell that might emit (a bilinear filter bleeds
-across a black texel's edge) has density 0. Within the chosen cell a point is drawn as the
-triangle sampler draws one on a whole triangle: uniformly in solid angle where the cell subtends a
+A cell's weight is its mean emitted luminance (mean over RGB, nearest texels at s x s jittered
+points per cell, about half a texel apart) plus 1% of the triangle's mean, so that no cell that
+might emit (a bilinear filter bleeds across a black texel's edge) has density 0. Within the chosen
+cell a point is drawn as the triangle sampler draws one on a whole triangle: uniformly in solid angle where the cell subtends a
 fair solid angle (``use_solid_angle``), else uniformly by area. The triangle's own choice weight
 becomes 2 x area x the cells' mean, a better estimate than a few points.
 

@@ -311,6 +311,7 @@ def _features(scene: Scene) -> Features:
         emitters=bool(emits),
         punctual=bool(punctual_lights(scene.lights)),
         light_tree=_emitting_faces(scene) >= MIN_TREE_LIGHTS,
+        emissive_texels=bool((tex[:, SLOT_EMISSION] >= 0).any()),
         smooth=any(m.corner_normal is not None for m in scene.meshes),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
         material_kinds=kinds,

@@ -108,6 +108,7 @@ class Features:
     environment: bool = True   # the sky is an environment map (set per render, as ``sky``)
     punctual: bool = True      # the scene has sun, point or spot lights (scene.lights)
     light_tree: bool = True    # many emitting triangles: chosen by a light tree (core.lights.light_tree)
+    emissive_texels: bool = True   # image-textured emitters: drawn by their texels (core.lights.emissive_texels)
     # procedural textures used: sorted (name, source hash); () compiles no procedural code
     procedural: tuple[tuple[str, str], ...] = ()
     # material kinds used (warp_spt.core.materials), in MATERIAL_KINDS order; one compiles no dispatch

@@ -42,12 +42,21 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams
 from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.lights import PARAMETER_KINDS, PATHWISE_FIELDS, Lights, alias_parameters, parameter_arrays
+from warp_spt.core.lights import (
+    PARAMETER_KINDS,
+    PATHWISE_FIELDS,
+    Lights,
+    alias_field,
+    alias_parameters,
+    parameter_arrays,
+)
 from warp_spt.core.material_table import with_gradients
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
     CAMERA_FIELDS,
     COLOR_FIELDS,
+    ENVIRONMENT,
+    ENVIRONMENT_TEXELS,
     MATERIAL_FIELDS,
     REPLAYABLE_FIELDS,
     ParamInfo,
@@ -56,6 +65,8 @@ from warp_spt.diff.params import (
     proc_slice,
 )
 from warp_spt.diff.prb import replay_inputs
+
+ENV_TEXELS_KEY = "environment.texels"       # its reduced buffer among the parts of ``_Backward.run``
 from warp_spt.integrators import (
     RenderParams,
     check_integrator,
@@ -257,7 +268,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
-    bw = _Backward(bind(dev, camera, brs, mode="replay" if mode == "prb" else "tape"), wants={p.kind for p in infos})
+    bw = _Backward(bind(dev, camera, brs, mode="replay" if mode == "prb" else "tape"),
+                   wants={p.kind for p in infos} | {(p.kind, p.field) for p in infos})
     sums = bw.run(adj.reshape(-1, 3), rs.threads, want_image=replay_image)
     if replay_image:
         image = Film(sums.pop("film").reshape(shape), rs.spp).image()
@@ -295,6 +307,8 @@ class _Backward:
         rs = self.rs
         self.wants_texels = "texture" in wants
         self.wants_proc = "proc" in wants
+        # the environment map's texels: a gradient buffer of the map's size per tile, only when asked
+        self.wants_env = (ENVIRONMENT, ENVIRONMENT_TEXELS) in wants
         n = rs.width * rs.height
         self.tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
         self.nbytes = 0
@@ -324,6 +338,8 @@ class _Backward:
             self.nbytes += scratch.capacity
         self.nbytes += 2 * deltas.capacity
         lights = alias_parameters(self.bound.lights, self._grad_alias)     # the sky's colours, as m's
+        if self.wants_env:
+            lights = alias_field(lights, ENVIRONMENT, ENVIRONMENT_TEXELS, self._grad_alias)
         return m, t, lights, deltas, scratch
 
     def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
@@ -360,6 +376,8 @@ class _Backward:
                 parts["texels"] = t.texels.grad
             if self.wants_proc:
                 parts["proc"] = t.proc_params.grad
+            if self.wants_env:
+                parts[ENV_TEXELS_KEY] = getattr(getattr(lights, ENVIRONMENT), ENVIRONMENT_TEXELS).grad
             for key, g in parts.items():
                 v = g.numpy().astype(np.float64)
                 sums[key] = sums[key] + v if key in sums else v
@@ -381,6 +399,8 @@ def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -
     if p.kind == "proc":
         off, size = proc_slice(dev.scene, p)
         return sums["proc"][p.index][off:off + size].reshape(p.shape).copy()
+    if (p.kind, p.field) == (ENVIRONMENT, ENVIRONMENT_TEXELS):
+        return sums[ENV_TEXELS_KEY].reshape(p.shape).copy()
     if p.kind in PARAMETER_KINDS:            # a light's parameter (the sky's colours): a row of its array
         return sums[p.kind][p.index].copy()
     raise ValueError(f"no gradient buffer holds {p.name}")

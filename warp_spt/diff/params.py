@@ -15,7 +15,8 @@
   gradient sky (its colours straight up and straight down);
 * ``"environment.strength"`` and ``"environment.rotate"`` () for an environment-map sky (its
   radiance scale, and its turn about the up axis in degrees; the rotation's derivative comes from the
-  map's lookup, linear in azimuth);
+  map's lookup, linear in azimuth), and ``"environment.texels"`` (H, W, 3), the map's radiance (row 0
+  the zenith), differentiated with its sampling distribution held fixed (docs/lights.md);
 * ``"<light>.direction"`` and ``"<light>.color"`` (3,) for a sun (towards it; its irradiance),
   ``"<light>.position"`` and ``"<light>.intensity"`` (3,) for a point or spot light, ``<light>`` its
   name (``scene.lights.unique_names``); positions and directions by the tape only;
@@ -60,6 +61,7 @@ from warp_spt.scene.validate import check_procedural_colours
 # of its parameter array (EnvLight.params): Sky fields
 ENVIRONMENT = "environment"
 ENVIRONMENT_FIELDS = ("strength", "rotate")
+ENVIRONMENT_TEXELS = "texels"       # the map itself: not a row of that array (EnvLight.texels)
 
 # the material schema's differentiable columns (warp_spt.scene.material_schema), in its order
 MATERIAL_FIELDS = tuple(c.name for c in DIFFERENTIABLE)
@@ -133,6 +135,8 @@ class SceneParameters:
         if p.kind == "proc":
             off, size = proc_slice(s, p)
             return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
+        if (p.kind, p.field) == (ENVIRONMENT, ENVIRONMENT_TEXELS):
+            return np.array(self.sky.env.image, dtype=np.float32)
         if p.kind in ("sky", ENVIRONMENT):
             return np.array(getattr(self.sky, p.field), dtype=np.float32)
         if p.kind == "punctual":
@@ -167,6 +171,8 @@ class SceneParameters:
             self._set_proc(p, v)
         elif p.kind == "sky":
             self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
+        elif (p.kind, p.field) == (ENVIRONMENT, ENVIRONMENT_TEXELS):     # a new map: its own light table
+            self.sky = replace(self.sky, env=replace(self.sky.env, image=v.astype(np.float32)))
         elif p.kind == ENVIRONMENT:
             self.sky = replace(self.sky, **{p.field: float(v)})
         elif p.kind == "punctual":      # validated by the light's record; its table is rebuilt
@@ -270,6 +276,8 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
     if sky.kind == SKY_ENVIRONMENT:
         for row, f in enumerate(ENVIRONMENT_FIELDS):
             info[f"{ENVIRONMENT}.{f}"] = ParamInfo(f"{ENVIRONMENT}.{f}", ENVIRONMENT, f, row, ())
+        n = f"{ENVIRONMENT}.{ENVIRONMENT_TEXELS}"
+        info[n] = ParamInfo(n, ENVIRONMENT, ENVIRONMENT_TEXELS, -1, tuple(sky.env.image.shape))
     # sun, point and spot lights: kind "punctual", index the row of its parameter array (two per light)
     lights = punctual_lights(scene.lights)
     for j, (light, lname) in enumerate(zip(lights, unique_names(lights))):
@@ -327,7 +335,8 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
         return COLUMN[p.field].low, COLUMN[p.field].high
     if p.kind == "texture":
         return 0.0, 1.0                         # texels, as validate_scene requires
-    if p.kind == "sky" or (p.kind, p.field) == (ENVIRONMENT, "strength") or (p.kind == "punctual" and p.field in ("color", "intensity")):
+    if (p.kind == "sky" or (p.kind == ENVIRONMENT and p.field in ("strength", ENVIRONMENT_TEXELS))
+            or (p.kind == "punctual" and p.field in ("color", "intensity"))):
         return 0.0, MAX_RADIANCE
     if p.kind == "proc" and p.shape == (3,):
         return 0.0, None

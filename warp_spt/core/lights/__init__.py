@@ -37,6 +37,7 @@ from warp_spt.core.lights.table import (
     PARAMETER_KINDS,
     PATHWISE_FIELDS,
     Lights,
+    alias_field,
     alias_parameters,
     light_table,
     parameter_arrays,
@@ -56,6 +57,6 @@ def sky_features(sky) -> dict:
     return {"sky": sky_emits(sky) or environment_emits(sky), "environment": env}
 
 __all__ = ["EnvLight", "env_pdf", "env_radiance", "environment_emits", "sample_env", "sky_features", "KINDS", "KIND_PUNCTUAL", "MAX_SPHERICAL", "MIN_SPHERICAL", "PARAMETER_KINDS", "PATHWISE_FIELDS", "LightKind", "LightSample", "Lights", "SkyLight",
-           "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
+           "alias_field", "alias_parameters", "detach_lights", "light_table", "make_lights", "parameter_arrays", "pick_entry",
            "reuse_pick", "sample_sky", "sky_density", "sky_emits", "sky_frame", "sky_pdf", "sky_radiance",
            "table_key"]

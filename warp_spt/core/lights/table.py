@@ -144,3 +144,14 @@ def alias_parameters(lights: Lights, alias) -> Lights:
             setattr(data, k.params, alias(getattr(data, k.params)))
             setattr(out, k.name, data)
     return out
+
+
+def alias_field(lights: Lights, kind: str, field: str, alias) -> Lights:
+    """A copy of ``lights`` whose kind ``kind`` has array ``field`` replaced by ``alias(array)`` (the
+    environment map's texels, differentiated only when asked: a buffer of the map's size per tile)."""
+    out = _copy(Lights, lights)
+    k = next(k for k in KINDS if k.name == kind)
+    data = _copy(k.data, getattr(lights, kind))
+    setattr(data, field, alias(getattr(data, field)))
+    setattr(out, kind, data)
+    return out

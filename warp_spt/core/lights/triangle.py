@@ -30,6 +30,8 @@ from warp_spt.core.lights.base import (
     device_array,
     mean_emission,
 )
+from warp_spt.core.lights import emissive_texels
+from warp_spt.core.lights.emissive_texels import TexelLights
 from warp_spt.core.lights.light_tree import MIN_TREE_LIGHTS, LightTree, build_tree, leaf_prob, pick_leaf, upload_tree
 from warp_spt.core.sampling import spherical_triangle_sample, triangle_solid_angle
 from warp_spt.core.surface import offset_eps
@@ -60,6 +62,7 @@ class TriangleLights:
     use_tree: int
     face_entry: wp.array(dtype=wp.int32)
     tree: LightTree
+    texel: TexelLights     # textured emitters' cells (``emissive_texels``)
 
 
 @wp.func
@@ -147,6 +150,10 @@ def make(Lights, features: Features):
             return prob * triangle_pdf(geo.mesh_ids[h.index], h.face, o, h.t * h.t / cos_l)
         return 0.0
 
+    if features.emissive_texels:       # image-textured emitters drawn by their texels' light
+        by_texels = emissive_texels.make(Lights, use_solid_angle, sample_triangle, pdf_li)
+        sample_triangle, pdf_li = by_texels.sample_li, by_texels.pdf_li
+
     if not features.light_tree:
         return SimpleNamespace(sample_li=sample_triangle, pdf_li=pdf_li)
 
@@ -198,16 +205,17 @@ def weigh(scene: Scene, sky: Sky) -> Weighed:
         start += len(m.indices)
     cat = (lambda parts, dt: np.concatenate(parts).astype(dt) if parts else np.zeros(0, dt))
     weights, mesh, face = cat(tw, np.float64), cat(tm, np.int32), cat(tf, np.int32)
+    weights, cells = emissive_texels.cells(scene, mesh, face, weights)
     tree = None
     if len(weights) >= MIN_TREE_LIGHTS:      # one table entry; the tree chooses among the triangles
         corners = np.stack([scene.meshes[k].positions[scene.meshes[k].indices[f]] for k, f in zip(mesh, face)])
         tree = build_tree(corners.astype(np.float64), weights)
-        return Weighed(np.array([weights.sum()]), (mesh, face, cat(tg, np.int64), start, tree))
-    return Weighed(weights, (mesh, face, cat(tg, np.int64), start, tree))
+        return Weighed(np.array([weights.sum()]), (mesh, face, cat(tg, np.int64), start, tree, cells))
+    return Weighed(weights, (mesh, face, cat(tg, np.int64), start, tree, cells))
 
 
 def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -> TriangleLights:
-    mesh, face, global_face, num_faces, tree = payload
+    mesh, face, global_face, num_faces, tree, cells = payload
     face_prob = np.zeros(max(num_faces, 1), np.float32)
     face_prob[global_face] = prob if tree is None else prob[0]
     face_entry = np.zeros(max(num_faces, 1) if tree is not None else 1, np.int32)
@@ -219,6 +227,7 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     t.use_tree = int(tree is not None)
     t.face_entry = device_array(face_entry, wp.int32, np.int32, device)
     t.tree = upload_tree(tree, device)
+    t.texel = emissive_texels.upload(cells, global_face, num_faces, device)
     return t
 
 

@@ -245,7 +245,8 @@ def flat_normal(scene: Scene, towards: np.ndarray) -> np.ndarray | None:
     """The unit normal of a flat model (a 2-D cut-out exported as a mesh: its thinnest extent below
     FLAT_RATIO of its widest, no spheres), on the side its faces face (or, for a sheet seen from both
     sides, the side of ``towards``); None for a solid model."""
-    points = [m.positions[np.unique(m.indices)].astype(np.float64) for m in scene.meshes if len(m.indices)]
+    meshes = list(scene.placed_meshes())
+    points = [m.positions[np.unique(m.indices)].astype(np.float64) for m in meshes if len(m.indices)]
     if len(scene.spheres) or not points:
         return None
     p = np.concatenate(points)
@@ -256,7 +257,7 @@ def flat_normal(scene: Scene, towards: np.ndarray) -> np.ndarray | None:
     n = vt[2]
     facing = sum(float(np.sum(np.cross(m.positions[m.indices[:, 1]] - m.positions[m.indices[:, 0]],
                                       m.positions[m.indices[:, 2]] - m.positions[m.indices[:, 0]]) @ n))
-                 for m in scene.meshes if len(m.indices))
+                 for m in meshes if len(m.indices))
     scale = max(float(sv[0]) ** 2 / len(p), 1e-300)
     side = facing if abs(facing) > 1e-6 * scale else float(np.dot(n, towards))
     return n if side >= 0.0 else -n
@@ -271,7 +272,7 @@ def exact_bounds(scene: Scene) -> np.ndarray:
     """(2, 3) float64 bounds of the positions as parsed (``Scene.bounds`` gives them rounded to
     float32, where a 2-unit model 1e9 from the origin is a point)."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for m in scene.meshes:
+    for m in scene.placed_meshes():
         if len(m.indices):
             mask = np.zeros(len(m.positions), dtype=bool)
             mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
@@ -307,7 +308,7 @@ def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[np.
     low = float(np.min(b @ axis)) if len(scene.meshes) else 0.0
     eps = tol * max(float(np.max(b[1] - b[0])), 1e-30)
     out = []
-    for m in scene.meshes:
+    for m in scene.placed_meshes():
         h = m.positions.astype(np.float64) @ axis
         out.append(np.all(h[m.indices] <= low + eps, axis=1) if len(m.indices) else np.zeros(0, bool))
     return out
@@ -323,7 +324,7 @@ def base_share(scene: Scene, up: str | Sequence[float]) -> float:
     if not rect > 0.0:
         return 0.0
     area = 0.0
-    for m, mask in zip(scene.meshes, _bottom_faces(scene, u)):
+    for m, mask in zip(scene.placed_meshes(), _bottom_faces(scene, u)):
         if mask.any():
             t = m.positions.astype(np.float64)[m.indices[mask]]
             area += 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
@@ -350,7 +351,7 @@ def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None
         return None
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     blo, bhi = np.full(3, np.inf), np.full(3, -np.inf)
-    for m, mask in zip(scene.meshes, masks):
+    for m, mask in zip(scene.placed_meshes(), masks):
         if not len(m.indices):
             continue
         p = m.positions.astype(np.float32).astype(np.float64)

@@ -9,7 +9,7 @@ Nothing in this module imports Warp.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, make_dataclass, replace
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -124,7 +124,9 @@ class ObjData:
 
 @dataclass
 class MeshData:
-    """The triangles of one OBJ file, in world space, ready for one ``wp.Mesh``."""
+    """The triangles of one OBJ file, in world space, ready for one ``wp.Mesh``; or, with
+    ``transforms``, a mesh in its own object space placed once per transform (instances: uploaded once,
+    docs/formats.md "Instances")."""
 
     name: str
     positions: np.ndarray       # (V, 3) float64 (or float32), world space; see Scene.rounded
@@ -132,6 +134,32 @@ class MeshData:
     corner_uv: np.ndarray       # (F, 3, 2) float32, zeros where the OBJ gave none
     corner_normal: np.ndarray | None  # (F, 3, 3) float32 unit vectors, or None: flat shading
     face_material: np.ndarray   # (F,) int32 into Scene.materials
+    # (I, 4, 4) float64 object-to-world affine maps, one per instance (invertible linear part); None:
+    # the positions are world space (one placement, no transform)
+    transforms: np.ndarray | None = None
+
+    def placed(self) -> Iterator["MeshData"]:
+        """This mesh as world-space copies, one per placement (itself when it has no transforms).
+        Host-side geometry code (bounds, framing cues) walks these; a copy holds its own positions
+        only, so at most one instance's positions exist at a time."""
+        if self.transforms is None:
+            yield self
+            return
+        p = np.asarray(self.positions, dtype=np.float64)
+        for x in self.transforms:
+            linear = x[:3, :3]
+            normals = self.corner_normal
+            if normals is not None:           # normals map by A^-T (as row vectors: n @ A^-1)
+                n = normals.astype(np.float64) @ np.linalg.inv(linear)
+                normals = (n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)).astype(np.float32)
+            tri, uv = self.indices, self.corner_uv
+            if np.linalg.det(linear) < 0:
+                # a mirroring transform reverses the winding, so that the winding normal stays A^-T n;
+                # the per-corner data follows its corners
+                tri, uv = tri[:, ::-1].copy(), uv[:, ::-1].copy()
+                normals = None if normals is None else normals[:, ::-1].copy()
+            yield replace(self, positions=p @ linear.T + x[:3, 3], indices=tri, corner_uv=uv, corner_normal=normals,
+                          transforms=None)
 
 
 def _table_post_init(self) -> None:
@@ -255,6 +283,23 @@ class Scene:
     def num_triangles(self) -> int:
         return int(sum(len(m.indices) for m in self.meshes))
 
+    @property
+    def instanced(self) -> bool:
+        """Some mesh is placed by transforms (MeshData.transforms)."""
+        return any(m.transforms is not None for m in self.meshes)
+
+    def placed_meshes(self) -> Iterator[MeshData]:
+        """Every mesh in world space, instances as copies made one at a time (MeshData.placed)."""
+        for m in self.meshes:
+            yield from m.placed()
+
+    def flattened(self) -> "Scene":
+        """This scene with every instance copied into a world-space mesh of its own (what a renderer
+        without instances would upload; the reference instancing is checked against)."""
+        if not self.instanced:
+            return self
+        return replace(self, meshes=list(self.placed_meshes()))
+
     def rounded(self) -> "Scene":
         """This scene as the float32 engine sees it: positions and spheres rounded to float32.
 
@@ -275,7 +320,7 @@ class Scene:
         """(2, 3) float64 world bounds of all geometry as the engine sees it (float32 coordinates)."""
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
-        for m in self.meshes:
+        for m in self.placed_meshes():
             if len(m.indices):
                 mask = np.zeros(len(m.positions), dtype=bool)
                 mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort

@@ -1,0 +1,123 @@
+"""Instances in the renderer: a mesh placed by several transforms (MeshData.transforms) is uploaded once
+and renders as the same scene flattened into world-space copies (Scene.flattened), within the
+statistical error of both images; glTF files whose nodes share a mesh, or move it rigidly, come in
+as instances."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from warp_spt.core.device_scene import DeviceScene
+from warp_spt.io.gltf import quaternion_matrix
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.tiles import render_scene
+from warp_spt.scene.camera import Camera
+from warp_spt.scene.lights import SunLight
+from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
+
+from . import format_files
+from .stability_scenes import assert_same_image, sky
+from .test_instances import bumpy_sphere
+
+
+def _uv_sphere() -> MeshData:
+    """The lumpy sphere with smooth corner normals and a spherical uv (tangent frames for anisotropy)."""
+    m = bumpy_sphere(12)
+    p = m.positions.astype(np.float64)[m.indices]                    # (F, 3, 3)
+    n = p / np.linalg.norm(p, axis=2, keepdims=True)
+    uv = np.stack([np.arctan2(p[..., 1], p[..., 0]) / (2 * np.pi) + 0.5, np.arccos(np.clip(n[..., 2], -1, 1)) / np.pi],
+                  -1)
+    return replace(m, corner_uv=uv.astype(np.float32), corner_normal=n.astype(np.float32))
+
+
+def _quad(size: float, z: float, material: int) -> MeshData:
+    p = np.array([[-size, -size, z], [size, -size, z], [size, size, z], [-size, size, z]], np.float64)
+    tri = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+    return MeshData("quad", p, tri, np.zeros((2, 3, 2), np.float32), None, np.full(2, material, np.int32))
+
+
+def _placement(q, scale, offset) -> np.ndarray:
+    x = np.eye(4)
+    x[:3, :3] = quaternion_matrix(np.asarray(q, np.float64) / np.linalg.norm(q)) @ np.diag(scale)
+    x[:3, 3] = offset
+    return x
+
+
+def instanced_scene() -> Scene:
+    """Three placements of one sphere (a rotation with non-uniform scale, a mirror, a plain move) on a
+    ground, lit by a low sun and a small emitting quad placed twice (emitters are flattened at upload)."""
+    table = MaterialTable.from_rows([
+        Material(CHECKER_NAME),
+        Material.pbr("brushed", base_color=(0.9, 0.6, 0.3), metallic=1.0, roughness=0.35, anisotropy=0.8),
+        Material.pbr("clay", base_color=(0.6, 0.6, 0.6), roughness=1.0),
+        Material.pbr("lamp", base_color=(0.0, 0.0, 0.0), emission=(20.0, 20.0, 16.0)),
+    ])
+    sphere = _uv_sphere()
+    sphere = replace(sphere, face_material=np.where(np.arange(len(sphere.indices)) % 2 == 0, 1, 2).astype(np.int32),
+                     transforms=np.stack([_placement([0.3, 0.2, 0.9, 0.4], [1.4, 0.7, 1.0], [-2.2, 0.3, 1.0]),
+                                          _placement([1, 0, 0, 0], [-1.0, 1.0, 1.2], [0.0, 0.0, 1.2]),
+                                          _placement([0.1, 0.9, 0.1, 0.3], [0.8, 0.8, 0.8], [2.1, -0.4, 0.8])]))
+    lamp = replace(_quad(0.6, 0.0, 3), transforms=np.stack([_placement([0, 1, 0, 0], [1, 1, 1], [-1.5, 0, 4.5]),
+                                                            _placement([0, 1, 0, 0], [2, 1, 1], [1.5, 0, 4.5])]))
+    scene = Scene(meshes=[_quad(6.0, 0.0, 2), sphere, lamp], spheres=np.zeros((0, 4)),
+                  sphere_material=np.zeros(0, np.int32), materials=table, textures=[], seed_dialect=False)
+    # a low sun from the side: shading that a wrong normal or point would change
+    return scene.add_light(SunLight(direction=(-0.7, -0.4, 0.6), color=(3.0, 3.0, 3.0)))
+
+
+CAMERA = Camera.look_at((0.0, -9.0, 4.0), (0.0, 0.0, 1.0), up="z", fov=40.0)
+
+
+def _batches(dev: DeviceScene, k: int, **kw) -> np.ndarray:
+    rs = RenderSettings(width=32, height=24, spp=4, max_depth=3, sky=sky(0.0), integrator="nee", **kw)
+    return np.stack([render_scene(dev, CAMERA, replace(rs, seed=1000 + s)).image for s in range(k)])
+
+
+def test_instances_render_as_the_flattened_scene():
+    scene = instanced_scene()
+    inst, flat = DeviceScene(scene), DeviceScene(scene.flattened())
+    # the sphere is uploaded once: the ground, the sphere, and the lamp's two world-space copies
+    assert inst.features.instances and not flat.features.instances
+    assert len(inst._meshes) == 4 and len(flat._meshes) == 6
+    assert inst.geometry.num_instances == 6 and inst.geometry.num_meshes == 4
+    assert inst.features.needs("frame.uv")              # the anisotropic metal reads the tangents
+    a, b = _batches(inst, 10), _batches(flat, 10)
+    assert a.mean() > 0.05
+    assert_same_image(a, b, "instanced against flattened")
+
+
+def test_a_gltf_with_a_shared_mesh_renders_through_instances(tmp_path):
+    from warp_spt.cli.main import main
+    from warp_spt.io.loader import load_scene
+
+    path = tmp_path / "two.glb"
+    path.write_bytes(format_files.gltf_two_instances().glb())
+    scene = load_scene([path])
+    assert scene.instanced and len(scene.meshes) == 1 and scene.meshes[0].transforms.shape == (2, 4, 4)
+    dev = DeviceScene(scene)
+    assert dev.features.instances and len(dev._meshes) == 1 and dev.geometry.num_instances == 2
+    flat = scene.flattened()
+    assert np.array_equal(scene.bounds, flat.bounds)
+    cam = Camera.look_at((4.0, -30.0, 12.0), (4.0, 2.0, -1.0), up="z", fov=45.0)
+    rs = RenderSettings(width=16, height=12, spp=2, max_depth=2, sky=sky(1.0), integrator="nee")
+    ks = range(6)
+    a = np.stack([render_scene(dev, cam, replace(rs, seed=s)).image for s in ks])
+    b = np.stack([render_scene(DeviceScene(flat), cam, replace(rs, seed=s)).image for s in ks])
+    assert_same_image(a, b, "glTF instanced against flattened", block=4)
+    out = tmp_path / "two.npy"
+    assert main(["-obj", str(path), "-res", "8", "6", "-sr", "1", "--quiet", "-out", str(out)]) == 0
+    assert np.load(out).shape[:2] == (6, 8)
+
+
+def test_bad_transforms_are_refused():
+    from warp_spt.scene.errors import SceneError
+
+    scene = instanced_scene()
+    sphere = scene.meshes[1]
+    for bad, match in ((np.zeros((1, 4, 4)), "invertible"), (np.full((1, 4, 4), np.nan), "non-finite"),
+                       (np.eye(4), "shape")):
+        with pytest.raises(SceneError, match=match):
+            DeviceScene(replace(scene, meshes=[scene.meshes[0], replace(sphere, transforms=bad)]))

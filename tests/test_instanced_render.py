@@ -121,3 +121,19 @@ def test_bad_transforms_are_refused():
                        (np.eye(4), "shape")):
         with pytest.raises(SceneError, match=match):
             DeviceScene(replace(scene, meshes=[scene.meshes[0], replace(sphere, transforms=bad)]))
+
+
+def test_a_rigidly_moving_gltf_mesh_keeps_its_bvh_from_frame_to_frame(tmp_path):
+    from warp_spt.animation import ObjSequence
+
+    (tmp_path / "a.glb").write_bytes(format_files.gltf_animated().glb())      # a cube turned and moved by its node
+    seq = ObjSequence([str(tmp_path / "a.glb")], fps=4)
+    cache: dict = {}
+    first = DeviceScene(seq.scene(0), meshes=cache)
+    later = DeviceScene(seq.scene(2), meshes=cache)
+    assert seq.scene(0).meshes[0].transforms is not None
+    assert not np.array_equal(seq.scene(0).meshes[0].transforms, seq.scene(2).meshes[0].transforms)
+    # the same wp.Mesh and wide BVH: only the instance's transform changed
+    assert later._meshes[0] is first._meshes[0] and len(cache) == 1
+    assert list(cache.values())[0].wide is not None
+    assert not np.array_equal(first.geometry.inst_linear.numpy(), later.geometry.inst_linear.numpy())

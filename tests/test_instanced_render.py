@@ -100,7 +100,7 @@ def test_a_gltf_with_a_shared_mesh_renders_through_instances(tmp_path):
     dev = DeviceScene(scene)
     assert dev.features.instances and len(dev._meshes) == 1 and dev.geometry.num_instances == 2
     flat = scene.flattened()
-    assert np.array_equal(scene.bounds, flat.bounds)
+    assert np.allclose(scene.bounds, flat.bounds, rtol=1e-6, atol=1e-6)
     cam = Camera.look_at((4.0, -30.0, 12.0), (4.0, 2.0, -1.0), up="z", fov=45.0)
     rs = RenderSettings(width=16, height=12, spp=2, max_depth=2, sky=sky(1.0), integrator="nee")
     ks = range(6)

@@ -272,12 +272,10 @@ def exact_bounds(scene: Scene) -> np.ndarray:
     """(2, 3) float64 bounds of the positions as parsed (``Scene.bounds`` gives them rounded to
     float32, where a 2-unit model 1e9 from the origin is a point)."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for m in scene.placed_meshes():
-        if len(m.indices):
-            mask = np.zeros(len(m.positions), dtype=bool)
-            mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-            used = m.positions[mask].astype(np.float64)
-            lo, hi = np.minimum(lo, used.min(0)), np.maximum(hi, used.max(0))
+    for m in scene.meshes:
+        b = m.world_bounds(rounded=False)
+        if b is not None:
+            lo, hi = np.minimum(lo, b[0]), np.maximum(hi, b[1])
     if len(scene.spheres):
         s = scene.spheres.astype(np.float64)
         lo, hi = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(0)), np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(0))

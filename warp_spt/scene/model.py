@@ -138,6 +138,28 @@ class MeshData:
     # the positions are world space (one placement, no transform)
     transforms: np.ndarray | None = None
 
+    def world_bounds(self, rounded: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower, upper) float64 bounds of the used vertices in world space, every placement
+        included (``rounded``: of the positions rounded to float32, as the engine stores them); None
+        for a mesh without triangles. An instanced mesh's bounds come from one matrix product per
+        batch of placements (each placement's rows against every vertex), not from copies."""
+        if not len(self.indices):
+            return None
+        mask = np.zeros(len(self.positions), dtype=bool)
+        mask[self.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
+        used = self.positions[mask]
+        used = _as_float32(used) if rounded else used.astype(np.float64)
+        if self.transforms is None:
+            return used.min(0), used.max(0)
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        batch = max(1, (1 << 22) // (3 * len(used)))          # at most ~32 MB of projections at a time
+        for k in range(0, len(self.transforms), batch):
+            x = self.transforms[k:k + batch]
+            proj = used @ x[:, :3, :3].reshape(-1, 3).T            # (V, 3 * batch): row r of placement j
+            lo = np.minimum(lo, (proj.min(0).reshape(-1, 3) + x[:, :3, 3]).min(0))
+            hi = np.maximum(hi, (proj.max(0).reshape(-1, 3) + x[:, :3, 3]).max(0))
+        return lo, hi
+
     def placed(self) -> Iterator["MeshData"]:
         """This mesh as world-space copies, one per placement (itself when it has no transforms).
         Host-side geometry code (bounds, framing cues) walks these; a copy holds its own positions
@@ -320,13 +342,11 @@ class Scene:
         """(2, 3) float64 world bounds of all geometry as the engine sees it (float32 coordinates)."""
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
-        for m in self.placed_meshes():
-            if len(m.indices):
-                mask = np.zeros(len(m.positions), dtype=bool)
-                mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-                used = _as_float32(m.positions[mask])
-                lo = np.minimum(lo, used.min(0))
-                hi = np.maximum(hi, used.max(0))
+        for m in self.meshes:
+            b = m.world_bounds()
+            if b is not None:
+                lo = np.minimum(lo, b[0])
+                hi = np.maximum(hi, b[1])
         if len(self.spheres):
             s = _as_float32(self.spheres)
             c, r = s[:, :3], s[:, 3:4]

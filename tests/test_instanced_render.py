@@ -137,3 +137,15 @@ def test_a_rigidly_moving_gltf_mesh_keeps_its_bvh_from_frame_to_frame(tmp_path):
     assert later._meshes[0] is first._meshes[0] and len(cache) == 1
     assert list(cache.values())[0].wide is not None
     assert not np.array_equal(first.geometry.inst_linear.numpy(), later.geometry.inst_linear.numpy())
+
+
+def test_a_shared_mesh_under_a_node_scaled_to_nothing_is_not_drawn_there():
+    from warp_spt.io.gltf import parse_gltf_bytes, world_triangles
+
+    g = format_files.gltf_two_instances()
+    g.doc["nodes"][2]["matrix"] = [0.0] * 16           # the second placement: a zero matrix hides it
+    g.doc["nodes"][2]["matrix"][15] = 1.0
+    d = parse_gltf_bytes(g.gltf()[0], "hidden.gltf")
+    (sub, transforms), = d.extras.placed
+    assert len(transforms) == 1
+    assert np.allclose(world_triangles(d)[0], format_files.two_instances_expected()[:8], atol=1e-12)

@@ -502,7 +502,10 @@ class _Reader:
                 if mesh not in placed:
                     placed[mesh] = (self._object_parts(mesh, material_rows, names, materials), [])
                 if placed[mesh][0] is not None:
-                    placed[mesh][1].append(world)
+                    # a node scaled to nothing (a common way to hide one) draws nothing, as its
+                    # flattened triangles of zero area would not be drawn
+                    if abs(np.linalg.det(world[:3, :3])) > 1e-30:
+                        placed[mesh][1].append(world)
                     continue
             for prim_k, prim in enumerate(self._primitives(mesh)):
                 pptr = f"/meshes/{mesh}/primitives/{prim_k}"
@@ -515,7 +518,7 @@ class _Reader:
                 parts.append((*self._primitive(prim, pptr, world, mat, skin, weights), material_rows[mat]))
         extras.materials = [self._material_record(m) for m in range(len(self.get(self.doc, "materials", list, "", [])))]
         for mesh, (mesh_parts, xf) in placed.items():
-            if mesh_parts is None:
+            if mesh_parts is None or not xf:
                 continue
             sub = self._object(mesh_parts, names, materials, GltfExtras())
             sub.path = f"{self.path}#mesh{mesh}"

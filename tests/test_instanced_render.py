@@ -137,6 +137,11 @@ def test_a_rigidly_moving_gltf_mesh_keeps_its_bvh_from_frame_to_frame(tmp_path):
     assert later._meshes[0] is first._meshes[0] and len(cache) == 1
     assert list(cache.values())[0].wide is not None
     assert not np.array_equal(first.geometry.inst_linear.numpy(), later.geometry.inst_linear.numpy())
+    # what a cluster ships is keyed with the placements (a moved mesh is sent again); the BVH cache without
+    from warp_spt.core.device_scene import mesh_key
+
+    m0, m2 = seq.scene(0).meshes[0], seq.scene(2).meshes[0]
+    assert mesh_key(m0) != mesh_key(m2) and mesh_key(m0, placements=False) == mesh_key(m2, placements=False)
 
 
 def test_a_shared_mesh_under_a_node_scaled_to_nothing_is_not_drawn_there():

@@ -177,7 +177,7 @@ class DeviceScene:
         start = 0
         cache = self._mesh_cache
         for m in scene.meshes:
-            key = mesh_key(m, device) if cache is not None else ""
+            key = mesh_key(m, device, placements=False) if cache is not None else ""
             wide = len(m.indices) <= self._wide_limit
             uploaded = cache.get(key) if cache is not None else None
             if uploaded is not None and not wide and uploaded.leaf_size != MESH_LEAF_SIZE:
@@ -298,7 +298,6 @@ class DeviceScene:
         pad = np.where(moved[:, None], 1e-6 * (whi - wlo).max(1, keepdims=True)
                        + 1e-6 * np.abs(world).max(axis=(1, 2))[:, None], 0.0)
         s.num_instances = len(mesh_of)
-        self.instance_count = len(mesh_of)
         _set_arrays(s, device, inst_mesh=(mesh_of, wp.int32), inst_linear=(linear, wp.mat33),
                     inst_offset=(offset, wp.vec3), inst_to_object=(inv, wp.mat33),
                     inst_to_object_offset=(-np.einsum("nij,nj->ni", inv, offset), wp.vec3),
@@ -323,10 +322,15 @@ def flatten_emitters(scene: Scene) -> Scene:
         a is not b for a, b in zip(meshes, scene.meshes)) else scene
 
 
-def mesh_key(m, device: str = "cpu") -> str:
-    """What a ``wp.Mesh`` is built from (float32 positions, int32 triangles, the device), hashed."""
+def mesh_key(m, device: str = "cpu", placements: bool = True) -> str:
+    """What a ``wp.Mesh`` is built from (float32 positions, int32 triangles, the device), hashed; with
+    ``placements``, an instanced mesh's transforms too (a MeshData moved between animation frames is
+    another MeshData to ship, while its ``wp.Mesh`` and BVH, cached by the key without them, stay)."""
     h = hashlib.sha256(str(device).encode())
-    for a, dtype in ((m.positions, np.float32), (m.indices, np.int32)):
+    arrays = [(m.positions, np.float32), (m.indices, np.int32)]
+    if placements and getattr(m, "transforms", None) is not None:
+        arrays.append((m.transforms, np.float64))
+    for a, dtype in arrays:
         a = np.ascontiguousarray(a, dtype=dtype)
         h.update(str(a.shape).encode())
         h.update(a.data)

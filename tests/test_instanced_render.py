@@ -117,8 +117,11 @@ def test_bad_transforms_are_refused():
 
     scene = instanced_scene()
     sphere = scene.meshes[1]
+    far = np.eye(4)[None].copy()
+    far[0, 0, 3] = 1e16
+    huge = np.diag([1e11, 1.0, 1.0, 1.0])[None]
     for bad, match in ((np.zeros((1, 4, 4)), "invertible"), (np.full((1, 4, 4), np.nan), "non-finite"),
-                       (np.eye(4), "shape")):
+                       (np.eye(4), "shape"), (far, "beyond the supported range"), (huge, "edge of")):
         with pytest.raises(SceneError, match=match):
             DeviceScene(replace(scene, meshes=[scene.meshes[0], replace(sphere, transforms=bad)]))
 

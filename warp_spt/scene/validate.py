@@ -109,6 +109,14 @@ def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
         det = np.linalg.det(x[:, :3, :3].astype(np.float64))
         if np.any(np.abs(det) < 1e-30):
             _fail(f"{name}.transforms[{int(np.argmin(np.abs(det)))}]: the linear part must be invertible")
+        # the world-space limits of a flattened copy: an edge grows at most by the largest singular value
+        stretch = float(np.linalg.norm(x[:, :3, :3].astype(np.float64), ord=2, axis=(1, 2)).max())
+        if f and not edges.max() * stretch <= MAX_TRIANGLE_EDGE:
+            _fail(f"{name} as placed by its transforms: {edge_problem(float(edges.max()) * stretch)}")
+        b = m.world_bounds(rounded=False)
+        if b is not None and not np.abs(np.asarray(b)).max() <= MAX_COORDINATE:
+            _fail(f"{name} as placed by its transforms reaches {np.abs(np.asarray(b)).max():g}, beyond the supported "
+                  f"range of +-{MAX_COORDINATE:g}")
 
 
 def _check_materials(t: MaterialTable, n_textures: int, n_procedural: int = 0) -> None:

@@ -157,3 +157,37 @@ def test_a_shared_mesh_under_a_node_scaled_to_nothing_is_not_drawn_there():
     (sub, transforms), = d.extras.placed
     assert len(transforms) == 1
     assert np.allclose(world_triangles(d)[0], format_files.two_instances_expected()[:8], atol=1e-12)
+
+
+@pytest.mark.parametrize("mirror", [False, True])
+def test_framing_cues_of_instances_equal_those_of_the_flattened_scene(mirror):
+    from warp_spt.scene.camera import base_share, exact_bounds, flat_normal, subject_bounds
+
+    rng = np.random.default_rng(3)
+    # a flat model: quads placed in the plane z = 0.3 x (rotations about that plane's normal, scales within it)
+    n = np.array([-0.3, 0.0, 1.0]) / np.linalg.norm([-0.3, 0.0, 1.0])
+    e1 = np.array([1.0, 0.0, 0.3]) / np.linalg.norm([1.0, 0.0, 0.3])
+    e2 = np.cross(n, e1)
+    xs = []
+    for k in range(5):
+        x = np.eye(4)
+        a, s = rng.uniform(0, 2 * np.pi), rng.uniform(0.5, 2.0, 2) * ([-1, 1] if mirror and k == 2 else [1, 1])
+        rot = np.stack([e1, e2, n], 1) @ np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        x[:3, :3] = rot @ np.diag([s[0], s[1], 1.0])
+        x[:3, 3] = e1 * rng.uniform(-5, 5) + e2 * rng.uniform(-5, 5)
+        xs.append(x)
+    flat_quad = replace(_quad(1.0, 0.0, 0), transforms=np.stack(xs))
+    solid = instanced_scene()
+    for scene in (replace(solid, meshes=[flat_quad], lights=[]), solid):
+        flat = scene.flattened()
+        towards = np.array([0.2, -1.0, 0.5])
+        a, b = flat_normal(scene, towards), flat_normal(flat, towards)
+        assert (a is None) == (b is None)
+        if a is not None:
+            assert np.allclose(a, b, atol=1e-9)
+        assert np.allclose(exact_bounds(scene), exact_bounds(flat), rtol=1e-12, atol=1e-12)
+        for up in ("y", "z"):
+            assert base_share(scene, up) == pytest.approx(base_share(flat, up), rel=1e-9)
+            sa, sb = subject_bounds(scene, up), subject_bounds(flat, up)
+            assert (sa is None) == (sb is None) and (sa is None or np.allclose(sa, sb, rtol=1e-6, atol=1e-6))
+    assert flat_normal(replace(solid, meshes=[flat_quad], lights=[]), towards) is not None     # the cue is exercised

@@ -160,6 +160,17 @@ class MeshData:
             hi = np.maximum(hi, (proj.max(0).reshape(-1, 3) + x[:, :3, 3]).max(0))
         return lo, hi
 
+    def world_parts(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """(positions, triangles) in world space per placement, positions only (no per-corner data):
+        the cheap walk for host-side geometry cues. A mirroring placement reverses the winding."""
+        if self.transforms is None:
+            yield self.positions, self.indices
+            return
+        p = np.asarray(self.positions, dtype=np.float64)
+        for x in self.transforms:
+            tri = self.indices[:, ::-1] if np.linalg.det(x[:3, :3]) < 0 else self.indices
+            yield p @ x[:3, :3].T + x[:3, 3], tri
+
     def placed(self) -> Iterator["MeshData"]:
         """This mesh as world-space copies, one per placement (itself when it has no transforms).
         Host-side geometry code (bounds, framing cues) walks these; a copy holds its own positions
@@ -309,6 +320,11 @@ class Scene:
     def instanced(self) -> bool:
         """Some mesh is placed by transforms (MeshData.transforms)."""
         return any(m.transforms is not None for m in self.meshes)
+
+    def world_parts(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Every mesh's (positions, triangles) in world space, one placement at a time (MeshData.world_parts)."""
+        for m in self.meshes:
+            yield from m.world_parts()
 
     def placed_meshes(self) -> Iterator[MeshData]:
         """Every mesh in world space, instances as copies made one at a time (MeshData.placed)."""

@@ -335,16 +335,28 @@ BASE_RATIO = 3.0
 SCAN_BASE_SHARE, SCAN_MIN_HEIGHT = 0.05, 0.5
 
 
-def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[np.ndarray]:
-    """Per mesh, a mask of the triangles that lie (all three corners, within ``tol`` of the scene's
-    size) in the scene's lowest plane along ``axis``."""
+def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[tuple]:
+    """Per mesh (per placement of an instanced one): (world positions, triangles, mask of the
+    triangles that lie, all three corners within ``tol`` of the scene's size, in the scene's lowest
+    plane along ``axis``, placement bounds or None). A placement whose box lies wholly above that
+    plane is not copied: positions and mask None, its bounds given instead."""
     b = scene.bounds
     low = float(np.min(b @ axis)) if len(scene.meshes) else 0.0
     eps = tol * max(float(np.max(b[1] - b[0])), 1e-30)
     out = []
-    for positions, tri in scene.world_parts():
-        h = positions.astype(np.float64) @ axis
-        out.append(np.all(h[tri] <= low + eps, axis=1) if len(tri) else np.zeros(0, bool))
+    for m in scene.meshes:
+        boxes = m.placement_bounds() if m.transforms is not None else None
+        for k in range(m.placements):
+            if boxes is not None:
+                # the box's lowest point along the axis bounds every vertex's from below
+                lowest = float(np.minimum(axis * boxes[k, 0], axis * boxes[k, 1]).sum())
+                if lowest > low + eps:
+                    out.append((None, m.indices, None, boxes[k]))
+                    continue
+            positions, tri = m.world_part(k)
+            h = positions.astype(np.float64) @ axis
+            mask = np.all(h[tri] <= low + eps, axis=1) if len(tri) else np.zeros(0, bool)
+            out.append((positions, tri, mask, None))
     return out
 
 
@@ -358,8 +370,8 @@ def base_share(scene: Scene, up: str | Sequence[float]) -> float:
     if not rect > 0.0:
         return 0.0
     area = 0.0
-    for (positions, tri), mask in zip(scene.world_parts(), _bottom_faces(scene, u)):
-        if mask.any():
+    for positions, tri, mask, _ in _bottom_faces(scene, u):
+        if mask is not None and mask.any():
             t = positions.astype(np.float64)[tri[mask]]
             area += 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
     return area / rect
@@ -380,13 +392,16 @@ def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None
     """The bounds of what stands on a base (see BASE_RATIO), to frame instead of the whole scene, or
     None when the scene has no base that much wider than the rest."""
     u = up_vector(up)
-    masks = _bottom_faces(scene, u)
-    if not any(m.any() for m in masks):
+    parts = _bottom_faces(scene, u)
+    if not any(mask is not None and mask.any() for _, _, mask, _ in parts):
         return None
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     blo, bhi = np.full(3, np.inf), np.full(3, -np.inf)
-    for (positions, tri), mask in zip(scene.world_parts(), masks):
+    for positions, tri, mask, box in parts:
         if not len(tri):
+            continue
+        if box is not None:             # a placement wholly above the base
+            lo[:], hi[:] = np.minimum(lo, box[0]), np.maximum(hi, box[1])
             continue
         p = positions.astype(np.float32).astype(np.float64)
         for sel, (a, z) in ((~mask, (lo, hi)), (mask, (blo, bhi))):

@@ -141,8 +141,14 @@ class MeshData:
     def world_bounds(self, rounded: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
         """(lower, upper) float64 bounds of the used vertices in world space, every placement
         included (``rounded``: of the positions rounded to float32, as the engine stores them); None
-        for a mesh without triangles. An instanced mesh's bounds come from one matrix product per
-        batch of placements (each placement's rows against every vertex), not from copies."""
+        for a mesh without triangles."""
+        b = self.placement_bounds(rounded)
+        return None if b is None else (b[:, 0].min(0), b[:, 1].max(0))
+
+    def placement_bounds(self, rounded: bool = True) -> np.ndarray | None:
+        """(I, 2, 3) float64: each placement's world bounds (one row without transforms), or None for
+        a mesh without triangles. From one matrix product per batch of placements (each placement's
+        rows against every used vertex), not from copies."""
         if not len(self.indices):
             return None
         mask = np.zeros(len(self.positions), dtype=bool)
@@ -150,26 +156,29 @@ class MeshData:
         used = self.positions[mask]
         used = _as_float32(used) if rounded else used.astype(np.float64)
         if self.transforms is None:
-            return used.min(0), used.max(0)
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            return np.stack([used.min(0), used.max(0)])[None]
+        out = np.empty((len(self.transforms), 2, 3))
         batch = max(1, (1 << 22) // (3 * len(used)))          # at most ~32 MB of projections at a time
         for k in range(0, len(self.transforms), batch):
             x = self.transforms[k:k + batch]
             proj = used @ x[:, :3, :3].reshape(-1, 3).T            # (V, 3 * batch): row r of placement j
-            lo = np.minimum(lo, (proj.min(0).reshape(-1, 3) + x[:, :3, 3]).min(0))
-            hi = np.maximum(hi, (proj.max(0).reshape(-1, 3) + x[:, :3, 3]).max(0))
-        return lo, hi
+            out[k:k + batch, 0] = proj.min(0).reshape(-1, 3) + x[:, :3, 3]
+            out[k:k + batch, 1] = proj.max(0).reshape(-1, 3) + x[:, :3, 3]
+        return out
 
-    def world_parts(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        """(positions, triangles) in world space per placement, positions only (no per-corner data):
-        the cheap walk for host-side geometry cues. A mirroring placement reverses the winding."""
+    def world_part(self, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, triangles) of placement ``k`` in world space, positions only (no per-corner
+        data): what host-side geometry cues read. A mirroring placement reverses the winding."""
         if self.transforms is None:
-            yield self.positions, self.indices
-            return
-        p = np.asarray(self.positions, dtype=np.float64)
-        for x in self.transforms:
-            tri = self.indices[:, ::-1] if np.linalg.det(x[:3, :3]) < 0 else self.indices
-            yield p @ x[:3, :3].T + x[:3, 3], tri
+            return self.positions, self.indices
+        x = self.transforms[k]
+        tri = self.indices[:, ::-1] if np.linalg.det(x[:3, :3]) < 0 else self.indices
+        return np.asarray(self.positions, dtype=np.float64) @ x[:3, :3].T + x[:3, 3], tri
+
+    @property
+    def placements(self) -> int:
+        """How many times the mesh is placed (1 without transforms)."""
+        return 1 if self.transforms is None else len(self.transforms)
 
     def placed(self) -> Iterator["MeshData"]:
         """This mesh as world-space copies, one per placement (itself when it has no transforms).
@@ -320,11 +329,6 @@ class Scene:
     def instanced(self) -> bool:
         """Some mesh is placed by transforms (MeshData.transforms)."""
         return any(m.transforms is not None for m in self.meshes)
-
-    def world_parts(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        """Every mesh's (positions, triangles) in world space, one placement at a time (MeshData.world_parts)."""
-        for m in self.meshes:
-            yield from m.world_parts()
 
     def placed_meshes(self) -> Iterator[MeshData]:
         """Every mesh in world space, instances as copies made one at a time (MeshData.placed)."""

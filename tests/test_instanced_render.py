@@ -79,10 +79,11 @@ def _batches(dev: DeviceScene, k: int, **kw) -> np.ndarray:
 def test_instances_render_as_the_flattened_scene():
     scene = instanced_scene()
     inst, flat = DeviceScene(scene), DeviceScene(scene.flattened())
-    # the sphere is uploaded once: the ground, the sphere, and the lamp's two world-space copies
+    # the sphere is uploaded once: the ground, the sphere, and the lamp's two copies joined in world space
     assert inst.features.instances and not flat.features.instances
-    assert len(inst._meshes) == 4 and len(flat._meshes) == 6
-    assert inst.geometry.num_instances == 6 and inst.geometry.num_meshes == 4
+    assert len(inst._meshes) == 3 and len(flat._meshes) == 6
+    assert inst.geometry.num_instances == 5 and inst.geometry.num_meshes == 3
+    assert inst.scene.meshes[2].transforms is None and len(inst.scene.meshes[2].indices) == 4
     assert inst.features.needs("frame.uv")              # the anisotropic metal reads the tangents
     a, b = _batches(inst, 10), _batches(flat, 10)
     assert a.mean() > 0.05

@@ -306,20 +306,32 @@ class DeviceScene:
 
 
 def flatten_emitters(scene: Scene) -> Scene:
-    """``scene`` with every instanced mesh that emits light copied into world-space meshes, one per
-    placement: the emissive-triangle light table samples world-space triangles (its areas and
-    probabilities per face), so an emitter is never instanced; everything else stays shared."""
+    """``scene`` with every instanced mesh that emits light copied into world space, its placements
+    joined into one mesh: the emissive-triangle light table samples world-space triangles (its areas
+    and probabilities per face), so an emitter is never instanced; everything else stays shared."""
     if not scene.instanced:
         return scene
     emits = _emitting_rows(scene)
     meshes: list = []
     for m in scene.meshes:
         if m.transforms is not None and emits[m.face_material].any():
-            meshes.extend(m.placed())
+            meshes.append(_joined(list(m.placed())))      # one world-space mesh: one BVH, not one per copy
         else:
             meshes.append(m)
     return replace(scene, meshes=meshes) if len(meshes) != len(scene.meshes) or any(
         a is not b for a, b in zip(meshes, scene.meshes)) else scene
+
+
+def _joined(copies: list) -> Any:
+    """World-space copies of one mesh (MeshData.placed) as a single mesh."""
+    if len(copies) == 1:
+        return copies[0]
+    starts = np.cumsum([0] + [len(c.positions) for c in copies[:-1]])
+    normals = None if copies[0].corner_normal is None else np.concatenate([c.corner_normal for c in copies])
+    return replace(copies[0], positions=np.concatenate([c.positions for c in copies]),
+                   indices=np.concatenate([c.indices + k for c, k in zip(copies, starts)]).astype(np.int32),
+                   corner_uv=np.concatenate([c.corner_uv for c in copies]), corner_normal=normals,
+                   face_material=np.concatenate([c.face_material for c in copies]))
 
 
 def mesh_key(m, device: str = "cpu", placements: bool = True) -> str:

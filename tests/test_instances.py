@@ -1,5 +1,5 @@
-"""Instanced intersection (the renderer's traversal over MeshData.transforms) against the same instances flattened into world-space
-meshes and traced by the renderer's own closest hit."""
+"""Instanced intersection (the renderer's traversal over MeshData.transforms) against the same
+instances flattened into world-space meshes, traced by the same closest hit and shadow test."""
 
 from __future__ import annotations
 

@@ -69,9 +69,10 @@ class Geometry:
     node_count: wp.array(dtype=wp.int32)
     items: wp.array(dtype=wp.int32)
     # Instances (read by kernels compiled with Features.instances; a scene without them has one
-    # identity placement per mesh, num_instances == num_meshes): top-level item i < num_instances places mesh inst_mesh[i] by the affine map
-    # p -> inst_linear[i] p + inst_offset[i] (identity for a mesh in world space); rays go into object
-    # space by inst_to_object / inst_to_object_offset, normals come back by inst_normal = A^-T.
+    # identity placement per mesh, num_instances == num_meshes): top-level item i < num_instances
+    # places mesh inst_mesh[i] by the affine map p -> inst_linear[i] p + inst_offset[i] (identity for
+    # a mesh in world space); rays go into object space by inst_to_object / inst_to_object_offset,
+    # normals come back by inst_normal = A^-T.
     num_instances: int
     inst_mesh: wp.array(dtype=wp.int32)
     inst_linear: wp.array(dtype=wp.mat33)

@@ -17,6 +17,7 @@ from warp_spt.rendering.tiles import render_scene
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.lights import SunLight
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
+from warp_spt.scene.sky import Sky
 
 from . import format_files
 from .stability_scenes import assert_same_image, sky
@@ -102,8 +103,11 @@ def test_a_gltf_with_a_shared_mesh_renders_through_instances(tmp_path):
     assert dev.features.instances and len(dev._meshes) == 1 and dev.geometry.num_instances == 2
     flat = scene.flattened()
     assert np.allclose(scene.bounds, flat.bounds, rtol=1e-6, atol=1e-6)
-    cam = Camera.look_at((4.0, -30.0, 12.0), (4.0, 2.0, -1.0), up="z", fov=45.0)
-    rs = RenderSettings(width=16, height=12, spp=2, max_depth=2, sky=sky(1.0), integrator="nee")
+    cam = Camera.look_at((5.5, -8.0, 0.5), (5.5, 0.0, -2.2), up="z", fov=80.0)        # both cubes in view
+    # a sky bright above and dark below: the cubes' faces differ (under a constant sky a white
+    # furnace-like cube would look the same whatever its normals)
+    rs = RenderSettings(width=36, height=24, spp=2, max_depth=2, integrator="nee",
+                        sky=Sky.gradient((1.0, 1.0, 1.0), (0.05, 0.05, 0.05), up=(0, 0, 1)))
     ks = range(6)
     a = np.stack([render_scene(dev, cam, replace(rs, seed=s)).image for s in ks])
     b = np.stack([render_scene(DeviceScene(flat), cam, replace(rs, seed=s)).image for s in ks])

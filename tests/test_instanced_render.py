@@ -91,7 +91,7 @@ def test_instances_render_as_the_flattened_scene():
     assert_same_image(a, b, "instanced against flattened")
 
 
-def test_a_gltf_with_a_shared_mesh_renders_through_instances(tmp_path):
+def test_a_gltf_with_a_shared_mesh_renders_through_instances(tmp_path, capsys):
     from warp_spt.cli.main import main
     from warp_spt.io.loader import load_scene
 
@@ -113,8 +113,10 @@ def test_a_gltf_with_a_shared_mesh_renders_through_instances(tmp_path):
     b = np.stack([render_scene(DeviceScene(flat), cam, replace(rs, seed=s)).image for s in ks])
     assert_same_image(a, b, "glTF instanced against flattened", block=4)
     out = tmp_path / "two.npy"
-    assert main(["-obj", str(path), "-res", "8", "6", "-sr", "1", "--quiet", "-out", str(out)]) == 0
+    assert main(["-obj", str(path), "-res", "8", "6", "-sr", "1", "-out", str(out)]) == 0
     assert np.load(out).shape[:2] == (6, 8)
+    said = capsys.readouterr()
+    assert "12 triangles, 24 placed by instances" in said.out + said.err
 
 
 def test_bad_transforms_are_refused():

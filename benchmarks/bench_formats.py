@@ -6,16 +6,23 @@ is read ``--repeat`` times by our reader and by ``trimesh.load(..., process=Fals
 wall time is printed. ``--first-pixel`` also times ``warp-spt -obj MODEL -res 8 8 -sr 1`` (a child
 process: parsing, validation, BVH builds, kernel from the cache, one tiny image).
 
-``--instances N`` measures instancing instead (core/instances.py): N instances of a
-``--mesh-triangles`` mesh (a lumpy sphere) on a grid, uploaded once and instanced, against the same
-scene flattened into world-space meshes (``--flat-instances`` of them, as far as memory allows):
-device bytes of the geometry, upload time, and closest-hit rays per second on the same rays (a
-pinhole view of the grid, ``--size`` squared; best of 3 launches). ``--image PNG`` saves the instanced view shaded by
-|cos| of the world normal.
+``--instances N`` measures instancing instead (MeshData.transforms, through core/instances.py): N
+instances of a ``--mesh-triangles`` mesh (a lumpy sphere) on a grid, uploaded once and instanced,
+against the same scene flattened into world-space meshes (``--flat-instances`` of them, as far as
+memory allows): device bytes of the geometry, upload time, closest-hit rays per second on the same
+rays (a pinhole view of the grid, ``--size`` squared; best of 3 launches; the renderer's own
+traversal) and the wall time of a path-traced render (``--render-size`` squared, 1 spp, nee, after a
+warm-up render). ``--image PNG`` saves the instanced view shaded by |cos| of the world normal.
+
+``--rigid T`` measures rigid animation instead: a .glb of one T-triangle grid whose node is
+translated and rotated by a channel, loaded and uploaded per frame as ``--frames`` renders do
+(``ObjSequence`` and a ``DeviceScene`` with the mesh cache), best of ``--repeat`` per frame. Run it
+with PYTHONPATH at another checkout to time that one's code (the script uses the public API only).
 
     python benchmarks/bench_formats.py                      # 1M triangles
     python benchmarks/bench_formats.py --triangles 100000 --first-pixel
     python benchmarks/bench_formats.py --instances 1000 --mesh-triangles 100000 --flat-instances 10
+    python benchmarks/bench_formats.py --rigid 51000
 """
 
 from __future__ import annotations
@@ -73,10 +80,14 @@ def main() -> None:
     ap.add_argument("--mesh-triangles", type=int, default=100_000)
     ap.add_argument("--flat-instances", type=int, default=10)
     ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--render-size", type=int, default=64)
     ap.add_argument("--image")
+    ap.add_argument("--rigid", type=int, default=0)
     args = ap.parse_args()
     if args.instances:
         return bench_instances(args)
+    if args.rigid:
+        return bench_rigid(args)
     from warp_spt.io.gltf import load_gltf
     from warp_spt.io.ply import load_ply
 
@@ -110,7 +121,10 @@ def bench_instances(args) -> None:
     import warp as wp
 
     from tests.test_instances import _cast_flat, _cast_inst, bumpy_sphere, flattened
-    from warp_spt.core.instances import upload_instances
+    from warp_spt.core.instances import geometry_bytes, upload_instances
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render_scene
+    from warp_spt.scene.camera import Camera
 
     n = max(4, int(np.sqrt(args.mesh_triangles / 4)))
     mesh = bumpy_sphere(n)
@@ -149,13 +163,23 @@ def bench_instances(args) -> None:
             best = min(best, time.perf_counter() - t)
         return best, outs
 
+    camera = Camera.look_at(eye, centre, up="y", fov=2 * np.degrees(np.arctan(0.5 * np.sqrt(2))))
+    rs = RenderSettings(width=args.render_size, height=args.render_size, spp=1, max_depth=3, integrator="nee")
+
+    def render_time(dev):
+        render_scene(dev, camera, rs)                      # compile, warm
+        t = time.perf_counter()
+        render_scene(dev, camera, rs)
+        return time.perf_counter() - t
+
     t = time.perf_counter()
     inst = upload_instances([mesh], np.zeros(args.instances, np.int32), xf)
     up_inst = time.perf_counter() - t
-    secs, outs = trace(_cast_inst, [inst.meshes.geometry, inst.instances])
+    secs, outs = trace(_cast_inst, [inst.device.geometry])
     hits = int((outs[1].numpy() >= 0).sum())
     print(f"instanced: {inst.device_bytes() / 2**20:8.1f} MiB geometry, upload {up_inst:.2f} s, "
-          f"{len(d) / secs / 1e6:.2f} M rays/s ({hits:,} hits)")
+          f"{len(d) / secs / 1e6:.2f} M rays/s ({hits:,} hits), render {args.render_size}^2 x 1 spp "
+          f"{render_time(inst.device):.2f} s")
     if args.image:
         from PIL import Image
 
@@ -168,17 +192,53 @@ def bench_instances(args) -> None:
         t = time.perf_counter()
         flat = flattened([mesh], np.zeros(m, np.int32), xf[:m])
         up_flat = time.perf_counter() - t
-        g = flat.geometry
-        flat_bytes = sum(getattr(g, a).capacity for a in ("bvh_box", "bvh_child", "tri_v0", "tri_v1", "tri_v2",
-                                                          "tri_face", "face_material", "corner_uv", "corner_normal"))
-        flat_bytes += sum(mm.points.capacity + mm.indices.capacity for mm in flat._meshes)
+        flat_bytes = geometry_bytes(flat)
         s_flat, _ = trace(_cast_flat, [flat.geometry])
-        s_sub, _ = trace(_cast_inst, [sub.meshes.geometry, sub.instances])
+        s_sub, _ = trace(_cast_inst, [sub.device.geometry])
         print(f"first {m} instances: flattened {flat_bytes / 2**20:.1f} MiB, upload {up_flat:.2f} s, "
-              f"{len(d) / s_flat / 1e6:.2f} M rays/s; instanced {sub.device_bytes() / 2**20:.1f} MiB, "
-              f"{len(d) / s_sub / 1e6:.2f} M rays/s (same rays)")
+              f"{len(d) / s_flat / 1e6:.2f} M rays/s, render {render_time(flat):.2f} s; "
+              f"instanced {sub.device_bytes() / 2**20:.1f} MiB, {len(d) / s_sub / 1e6:.2f} M rays/s, "
+              f"render {render_time(sub.device):.2f} s (same rays, same view)")
         print(f"flattened, all {args.instances}: about {flat_bytes / m * args.instances / 2**30:.1f} GiB "
               "(scaled from the first ones)")
+
+
+def bench_rigid(args) -> None:
+    from warp_spt.animation import ObjSequence
+    from warp_spt.core.device_scene import DeviceScene
+
+    pos, faces = grid(args.rigid)
+    g = GltfBuilder()
+    p = g.accessor(pos, "VEC3", 5126)
+    i = g.accessor(faces.reshape(-1).astype(np.uint32), "SCALAR", 5125)
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": p}, "indices": i}]})
+    g.node(mesh=0)
+    times = g.accessor(np.array([0.0, 1.0], np.float32), "SCALAR", 5126)
+    moves = g.accessor(np.array([[0, 0, 0], [2, 0, 1]], np.float32), "VEC3", 5126)
+    s = np.sqrt(0.5)
+    turns = g.accessor(np.array([[0, 0, 0, 1], [0, s, 0, s]], np.float32), "VEC4", 5126)
+    g.doc["animations"] = [{"samplers": [{"input": times, "output": moves}, {"input": times, "output": turns}],
+                            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                                         {"sampler": 1, "target": {"node": 0, "path": "rotation"}}]}]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "moving.glb"
+        path.write_bytes(g.glb())
+        print(f"a {len(faces):,}-triangle mesh moved rigidly by a node channel; per frame: load (posed) + upload, "
+              f"best of {args.repeat}, wall seconds")
+        for _ in range(2):
+            seq = ObjSequence([str(path)], fps=8)
+            meshes: dict = {}
+            DeviceScene(seq.scene(0), meshes=meshes)                  # frame 0: the first build
+            loads, uploads = [], []
+            for k in range(1, 1 + args.repeat):
+                t = time.perf_counter()
+                scene = seq.scene(k)
+                loads.append(time.perf_counter() - t)
+                t = time.perf_counter()
+                DeviceScene(scene, meshes=meshes)
+                uploads.append(time.perf_counter() - t)
+        print(f"per frame: load {min(loads):.3f} s, upload {min(uploads):.3f} s (frames 1..{args.repeat}, uploads: "
+              + ", ".join(f"{x:.3f}" for x in uploads) + ")")
 
 
 if __name__ == "__main__":

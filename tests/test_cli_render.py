@@ -137,7 +137,7 @@ class FakeEngine:
         self.render_effect = render_effect
         scene = types.SimpleNamespace(warnings=["a warning"], num_triangles=2, spheres=np.zeros((1, 4)),
                                       bounds=np.zeros((2, 3)), meshes=[], dropped_degenerate=0,
-                                      lights=[], fog=None, interiors={})
+                                      lights=[], fog=None, interiors={}, instanced=False)
         stub_view(monkeypatch)
         fakes = {
             "warp_spt.io.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),
@@ -238,7 +238,8 @@ def test_real_interrupt_during_save_leaves_no_partial_file(tmp_path, monkeypatch
     monkeypatch.setitem(sys.modules, "warp_spt.io.loader",
                         types.SimpleNamespace(load_scene=lambda o, m, **kw: types.SimpleNamespace(
                             warnings=[], num_triangles=0, spheres=np.zeros((0, 4)), bounds=np.zeros((2, 3)),
-                            meshes=[], dropped_degenerate=0, lights=[], fog=None, interiors={})))
+                            meshes=[], dropped_degenerate=0, lights=[], fog=None, interiors={},
+                            instanced=False)))
     stub_view(monkeypatch)
     monkeypatch.setitem(sys.modules, "warp_spt.rendering.tiles",
                         fake_renderer(lambda scene, camera, **kw: np.full((kw["height"], kw["width"], 3), 0.5, np.float32)))

@@ -21,7 +21,7 @@ from tests.format_files import (
     gltf_two_instances,
     two_instances_expected,
 )
-from warp_spt.io.gltf import MAX_NODE_DEPTH, parse_gltf_bytes
+from warp_spt.io.gltf import MAX_NODE_DEPTH, parse_gltf_bytes, world_triangles
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.lights import PointLight, SunLight
 from warp_spt.scene.material_schema import KIND_PBR
@@ -54,9 +54,14 @@ def test_an_external_bin_file_is_read_relative_to_the_gltf(tmp_path):
 
 def test_two_instances_with_parent_child_and_matrix_transforms():
     d = _load(gltf_two_instances())
-    assert np.allclose(d.positions, two_instances_expected(), atol=1e-12)
+    positions, faces = world_triangles(d)
+    assert np.allclose(positions, two_instances_expected(), atol=1e-12)
     assert [(node, mesh) for node, mesh, _ in d.extras.instances] == [(0, 0), (2, 0)]
-    assert np.array_equal(d.faces, np.concatenate([CUBE_TRIANGLES, CUBE_TRIANGLES + 8]))
+    assert np.array_equal(faces, np.concatenate([CUBE_TRIANGLES, CUBE_TRIANGLES + 8]))
+    # the shared mesh is kept once, in its own space, with both nodes' world matrices
+    assert len(d.faces) == 0 and len(d.extras.placed) == 1
+    sub, transforms = d.extras.placed[0]
+    assert np.array_equal(sub.positions, CUBE_POSITIONS) and transforms.shape == (2, 4, 4)
 
 
 def test_a_mirroring_node_reverses_the_winding_and_normals_use_the_inverse_transpose():
@@ -383,6 +388,8 @@ def test_animated_nodes_are_posed_at_the_time_asked(interpolation):
     assert np.array_equal(parse_gltf_bytes(data, "a.gltf").positions, CUBE_POSITIONS)     # no time: the bind pose
     d = parse_gltf_bytes(data, "a.gltf", time=0.5)
     assert d.extras.time_range == (0.0, 2.0)
+    # a rigidly moving node's mesh stays in its own space (its BVH is kept from frame to frame)
+    assert len(d.faces) == 0 and np.array_equal(d.extras.placed[0][0].positions, CUBE_POSITIONS)
     # rotation at t = 0.5: a quarter of the way from 0 to 90 degrees about z (slerp: 22.5 degrees)
     a = math.radians(22.5)
     r = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
@@ -392,7 +399,7 @@ def test_animated_nodes_are_posed_at_the_time_asked(interpolation):
         t = np.array([0.0, 0, 0])     # held at the key of t = 0 (the rotation's sampler is LINEAR in all)
     else:     # Hermite on [0, 1] at u = 1/2, dt = 1: 0.5 v0 + 0.125 b0 + 0.5 v1 - 0.125 a1 = (1 + 0.125, 0, 0)
         t = np.array([1.125, 0, 0])
-    assert np.allclose(d.positions, CUBE_POSITIONS @ r.T + t, atol=1e-6)
+    assert np.allclose(world_triangles(d)[0], CUBE_POSITIONS @ r.T + t, atol=1e-6)
 
 
 def test_an_animated_gltf_through_frames(tmp_path):
@@ -402,8 +409,8 @@ def test_an_animated_gltf_through_frames(tmp_path):
     (tmp_path / "a.glb").write_bytes(format_files.gltf_animated().glb())
     seq = ObjSequence([str(tmp_path / "a.glb")], fps=4)
     for k in (0, 2, 9):                              # t = 0, 0.5 and 2.25 (past the end: the last pose)
-        want = parse_gltf_bytes(format_files.gltf_animated().glb(), "a.glb", time=k / 4).positions
-        got = seq.scene(k).meshes[0].positions
+        want = world_triangles(parse_gltf_bytes(format_files.gltf_animated().glb(), "a.glb", time=k / 4))[0]
+        got = next(seq.scene(k).placed_meshes()).positions
         assert np.array_equal(got, want)
     assert seq.loads == 1 and seq.scene(2) is seq.scene(2) and seq.scene(2) is not seq.scene(0)
     # frame 1 rendered alone equals frame 1 of the sequence, bit for bit

@@ -1,5 +1,5 @@
-"""Instanced intersection (core/instances.py) against the same instances flattened into world-space
-meshes and traced by the renderer's own closest hit."""
+"""Instanced intersection (the renderer's traversal over MeshData.transforms) against the same
+instances flattened into world-space meshes, traced by the same closest hit and shadow test."""
 
 from __future__ import annotations
 
@@ -9,35 +9,27 @@ import warp as wp
 
 from warp_spt.core.device_scene import DeviceScene, Features, Geometry
 from warp_spt.core.geometry import make_closest_hit, make_occluded
-from warp_spt.core.instances import Instances, make_instance_closest_hit, make_instance_occluded, upload_instances
+from warp_spt.core.instances import upload_instances
 from warp_spt.io.gltf import quaternion_matrix
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
 
-_flat = make_closest_hit(Features.general(), small_scene=0)
-_inst = make_instance_closest_hit(Features.general())
-_flat_occ = make_occluded(Features.general(), small_scene=0)
-_inst_occ = make_instance_occluded(Features.general())
+# the renderer's own traversal, through the top-level BVH (small_scene=0), for both scenes
+_closest = make_closest_hit(Features.general(), small_scene=0)
+_occluded = make_occluded(Features.general(), small_scene=0)
 
 
 @wp.kernel(enable_backward=False)
-def _occ_flat(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
-              out: wp.array(dtype=int)):
+def _occ(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t_max: wp.array(dtype=float),
+         out: wp.array(dtype=int)):
     i = wp.tid()
-    out[i] = wp.where(_flat_occ(s, o[i], d[i], t_max[i]), 1, 0)
-
-
-@wp.kernel(enable_backward=False)
-def _occ_inst(s: Geometry, inst: Instances, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
-              t_max: wp.array(dtype=float), out: wp.array(dtype=int)):
-    i = wp.tid()
-    out[i] = wp.where(_inst_occ(s, inst, o[i], d[i], t_max[i]), 1, 0)
+    out[i] = wp.where(_occluded(s, o[i], d[i], t_max[i]), 1, 0)
 
 
 @wp.kernel(enable_backward=False)
 def _cast_flat(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t: wp.array(dtype=float),
                index: wp.array(dtype=int), face: wp.array(dtype=int), n: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    h = _flat(s, o[i], d[i], 3.0e38)
+    h = _closest(s, o[i], d[i], 3.0e38)
     t[i] = h.t
     index[i] = wp.where(h.kind == 0, h.index, -1)
     face[i] = h.face
@@ -45,13 +37,12 @@ def _cast_flat(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec
 
 
 @wp.kernel(enable_backward=False)
-def _cast_inst(s: Geometry, inst: Instances, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3),
-               t: wp.array(dtype=float), index: wp.array(dtype=int), face: wp.array(dtype=int),
-               n: wp.array(dtype=wp.vec3)):
+def _cast_inst(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t: wp.array(dtype=float),
+               index: wp.array(dtype=int), face: wp.array(dtype=int), n: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    h = _inst(s, inst, o[i], d[i], 3.0e38)
+    h = _closest(s, o[i], d[i], 3.0e38)
     t[i] = h.t
-    index[i] = wp.where(h.kind == 0, h.index, -1)
+    index[i] = wp.where(h.kind == 0, h.placed - 1, -1)        # the top-level item: which instance
     face[i] = h.face
     n[i] = h.normal
 
@@ -126,11 +117,15 @@ def test_instanced_hits_equal_the_flattened_scene(wide_limit):
     xf = transforms(rng, len(mesh_of))
     inst = upload_instances(meshes, mesh_of, xf)
     if wide_limit == 0:         # the instanced meshes through Warp's BVH: mesh_root -1
-        inst.meshes.geometry.mesh_root = wp.array(np.full(len(meshes), -1, np.int32), dtype=wp.int32)
+        inst.device.geometry.mesh_root = wp.array(np.full(len(meshes), -1, np.int32), dtype=wp.int32)
+    assert inst.device.features.instances and len(inst.device._meshes) == len(meshes)    # each mesh uploaded once
     flat = flattened(meshes, mesh_of, xf)
+    assert not flat.features.instances
     o, d = _rays(rng, 20000, xf[:, :3, 3])
     tf, idf, ff, nf = _cast(_cast_flat, [flat.geometry], o, d)
-    ti, idi, fi, ni = _cast(_cast_inst, [inst.meshes.geometry, inst.instances], o, d)
+    ti, item, fi, ni = _cast(_cast_inst, [inst.device.geometry], o, d)
+    instance_of = np.argsort(inst.item_of)
+    idi = np.where(item >= 0, instance_of[np.maximum(item, 0)], -1)
     hit = idf >= 0
     assert 0.3 < hit.mean() < 0.95                       # the rays test both hits and misses
     same = (idf == idi) & (ff == fi)
@@ -146,8 +141,8 @@ def test_instanced_hits_equal_the_flattened_scene(wide_limit):
     clear = ~hit | (np.abs(frac - 1) > 1e-3)
     args = [wp.array(o, dtype=wp.vec3), wp.array(d, dtype=wp.vec3), wp.array(t_max, dtype=float)]
     flat_out, inst_out = wp.zeros(len(o), dtype=int), wp.zeros(len(o), dtype=int)
-    wp.launch(_occ_flat, dim=len(o), inputs=[flat.geometry, *args, flat_out])
-    wp.launch(_occ_inst, dim=len(o), inputs=[inst.meshes.geometry, inst.instances, *args, inst_out])
+    wp.launch(_occ, dim=len(o), inputs=[flat.geometry, *args, flat_out])
+    wp.launch(_occ, dim=len(o), inputs=[inst.device.geometry, *args, inst_out])
     want = hit & (frac > 1)
     assert np.array_equal(flat_out.numpy()[clear], want[clear])
     assert np.array_equal(inst_out.numpy()[clear], want[clear])
@@ -159,3 +154,41 @@ def test_bad_instances_are_refused():
         upload_instances([m], [0], np.zeros((1, 4, 4)))
     with pytest.raises(ValueError, match="mesh index out of range"):
         upload_instances([m], [1], np.eye(4)[None])
+
+
+_closest_diff = make_closest_hit(Features.general(), small_scene=0, differentiable=True)
+
+
+@wp.kernel
+def _hit_distance(s: Geometry, o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), t: wp.array(dtype=float)):
+    i = wp.tid()
+    h = _closest_diff(s, o[i], d[i], 3.0e38)
+    t[i] = wp.where(h.kind == 0, h.t, 0.0)
+
+
+def _distance_gradient(dev: DeviceScene, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, dt/do) per ray through the differentiable closest hit (its closed-form re-intersection)."""
+    oa = wp.array(o, dtype=wp.vec3, requires_grad=True)
+    da = wp.array(d, dtype=wp.vec3, requires_grad=True)
+    t = wp.zeros(len(o), dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(_hit_distance, dim=len(o), inputs=[dev.geometry, oa, da, t])
+    tape.backward(grads={t: wp.ones(len(o), dtype=float)})
+    return t.numpy(), oa.grad.numpy()
+
+
+def test_the_differentiable_hit_distance_through_an_instance_moves_as_the_flattened_one():
+    """dt/do is -n / (d . n) on a triangle's plane: the re-intersection must use the placed corners."""
+    rng = np.random.default_rng(11)
+    meshes = [bumpy_sphere(8)]
+    mesh_of = np.zeros(3, np.int32)
+    xf = transforms(rng, 3)
+    inst = upload_instances(meshes, mesh_of, xf)
+    flat = flattened(meshes, mesh_of, xf)
+    o, d = _rays(rng, 400, xf[:, :3, 3])
+    ti, gi = _distance_gradient(inst.device, o, d)
+    tf, gf = _distance_gradient(flat, o, d)
+    hit = (ti > 0) & (tf > 0) & np.isclose(ti, tf, rtol=1e-4)
+    assert hit.mean() > 0.3 and np.abs(gf[hit]).max() > 0.1
+    assert np.allclose(gi[hit], gf[hit], rtol=1e-3, atol=1e-3)

@@ -58,6 +58,8 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     opts = media_integrator(opts, scene, say)
     what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} model file(s)"
     dropped = f" ({scene.dropped_degenerate:,} of zero area dropped)" if scene.dropped_degenerate else ""
+    if scene.instanced:         # the triangles held, then as many as the instances place
+        dropped += f", {sum(len(m.indices) * m.placements for m in scene.meshes):,} placed by instances"
     say(f"loaded {what}: {scene.num_triangles:,} triangles{dropped}, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")

@@ -111,6 +111,7 @@ class DeviceScene:
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a warp_spt.Scene (from warp_spt.load_scene), got {type(scene).__name__}")
         map_large_allocations()       # a large mesh's freed temporaries go back to the system
+        scene = flatten_emitters(scene)
         scene = scene.rounded()       # positions were float64 until now (recentring needs them): round once
         validate_scene(scene)
         init_warp()            # quietly, once, before the first Warp array (not at import time)
@@ -176,7 +177,7 @@ class DeviceScene:
         start = 0
         cache = self._mesh_cache
         for m in scene.meshes:
-            key = mesh_key(m, device) if cache is not None else ""
+            key = mesh_key(m, device, placements=False) if cache is not None else ""
             wide = len(m.indices) <= self._wide_limit
             uploaded = cache.get(key) if cache is not None else None
             if uploaded is not None and not wide and uploaded.leaf_size != MESH_LEAF_SIZE:
@@ -252,8 +253,7 @@ class DeviceScene:
                     tri_face=(_cat(faces, (0,), np.int32), wp.int32))
 
     def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
-        lowers = [lo for lo, _ in self._mesh_bounds]
-        uppers = [hi for _, hi in self._mesh_bounds]
+        lowers, uppers = self._upload_instances(s, scene, device)
         sph = scene.spheres.astype(np.float64).reshape(-1, 4)
         lowers.extend(sph[:, :3] - sph[:, 3:4])
         uppers.extend(sph[:, :3] + sph[:, 3:4])
@@ -266,10 +266,83 @@ class DeviceScene:
                     node_first=(t.first, wp.int32), node_count=(t.count, wp.int32), items=(t.items, wp.int32))
 
 
-def mesh_key(m, device: str = "cpu") -> str:
-    """What a ``wp.Mesh`` is built from (float32 positions, int32 triangles, the device), hashed."""
+    def _upload_instances(self, s: Geometry, scene: Scene, device: str) -> tuple[list, list]:
+        """The top-level mesh items' boxes; with instances (Features.instances) also their transforms:
+        one item per placement of a mesh (an identity one for a mesh in world space)."""
+        if not self.features.instances:
+            # identity placements, one per mesh: a kernel compiled with instances (Features.general())
+            # traces this scene too, with the same hits
+            n = s.num_meshes
+            s.num_instances = n
+            eye = np.tile(np.eye(3, dtype=np.float32), (n, 1, 1))
+            _set_arrays(s, device, inst_mesh=(np.arange(n, dtype=np.int32), wp.int32), inst_linear=(eye, wp.mat33),
+                        inst_offset=(np.zeros((n, 3)), wp.vec3), inst_to_object=(eye, wp.mat33),
+                        inst_to_object_offset=(np.zeros((n, 3)), wp.vec3), inst_normal=(eye, wp.mat33))
+            return [lo for lo, _ in self._mesh_bounds], [hi for _, hi in self._mesh_bounds]
+        mesh_of, xf = [], []
+        for k, m in enumerate(scene.meshes):
+            x = np.eye(4)[None] if m.transforms is None else np.asarray(m.transforms, np.float64)
+            mesh_of.append(np.full(len(x), k, np.int32))
+            xf.append(x)
+        mesh_of, xf = np.concatenate(mesh_of), np.concatenate(xf)
+        linear, offset = xf[:, :3, :3], xf[:, :3, 3]
+        inv = np.linalg.inv(linear)
+        # world boxes: each mesh box's corners mapped in float64, padded by the float32 rounding of the
+        # ray's transform, so that no hit the object-space query finds lies outside its item's box
+        lo = np.array([b[0] for b in self._mesh_bounds])[mesh_of]
+        hi = np.array([b[1] for b in self._mesh_bounds])[mesh_of]
+        corners = np.stack([np.where(np.array([(i >> a) & 1 for a in range(3)], bool), hi, lo) for i in range(8)], 1)
+        world = np.einsum("nij,nkj->nki", linear, corners) + offset[:, None]
+        wlo, whi = world.min(1), world.max(1)
+        moved = ~np.all(xf == np.eye(4), axis=(1, 2))
+        pad = np.where(moved[:, None], 1e-6 * (whi - wlo).max(1, keepdims=True)
+                       + 1e-6 * np.abs(world).max(axis=(1, 2))[:, None], 0.0)
+        s.num_instances = len(mesh_of)
+        _set_arrays(s, device, inst_mesh=(mesh_of, wp.int32), inst_linear=(linear, wp.mat33),
+                    inst_offset=(offset, wp.vec3), inst_to_object=(inv, wp.mat33),
+                    inst_to_object_offset=(-np.einsum("nij,nj->ni", inv, offset), wp.vec3),
+                    inst_normal=(np.transpose(inv, (0, 2, 1)), wp.mat33))
+        return list(wlo - pad), list(whi + pad)
+
+
+def flatten_emitters(scene: Scene) -> Scene:
+    """``scene`` with every instanced mesh that emits light copied into world space, its placements
+    joined into one mesh: the emissive-triangle light table samples world-space triangles (its areas
+    and probabilities per face), so an emitter is never instanced; everything else stays shared."""
+    if not scene.instanced:
+        return scene
+    emits = _emitting_rows(scene)
+    meshes: list = []
+    for m in scene.meshes:
+        if m.transforms is not None and emits[m.face_material].any():
+            meshes.append(_joined(list(m.placed())))      # one world-space mesh: one BVH, not one per copy
+        else:
+            meshes.append(m)
+    return replace(scene, meshes=meshes) if len(meshes) != len(scene.meshes) or any(
+        a is not b for a, b in zip(meshes, scene.meshes)) else scene
+
+
+def _joined(copies: list) -> Any:
+    """World-space copies of one mesh (MeshData.placed) as a single mesh."""
+    if len(copies) == 1:
+        return copies[0]
+    starts = np.cumsum([0] + [len(c.positions) for c in copies[:-1]])
+    normals = None if copies[0].corner_normal is None else np.concatenate([c.corner_normal for c in copies])
+    return replace(copies[0], positions=np.concatenate([c.positions for c in copies]),
+                   indices=np.concatenate([c.indices + k for c, k in zip(copies, starts)]).astype(np.int32),
+                   corner_uv=np.concatenate([c.corner_uv for c in copies]), corner_normal=normals,
+                   face_material=np.concatenate([c.face_material for c in copies]))
+
+
+def mesh_key(m, device: str = "cpu", placements: bool = True) -> str:
+    """What a ``wp.Mesh`` is built from (float32 positions, int32 triangles, the device), hashed; with
+    ``placements``, an instanced mesh's transforms too (a MeshData moved between animation frames is
+    another MeshData to ship, while its ``wp.Mesh`` and BVH, cached by the key without them, stay)."""
     h = hashlib.sha256(str(device).encode())
-    for a, dtype in ((m.positions, np.float32), (m.indices, np.int32)):
+    arrays = [(m.positions, np.float32), (m.indices, np.int32)]
+    if placements and getattr(m, "transforms", None) is not None:
+        arrays.append((m.transforms, np.float64))
+    for a, dtype in arrays:
         a = np.ascontiguousarray(a, dtype=dtype)
         h.update(str(a.shape).encode())
         h.update(a.data)
@@ -318,16 +391,22 @@ def _features(scene: Scene) -> Features:
         lobes=lobes,
         material_flags=flags,
         media=media_features(scene),
+        instances=scene.instanced,
     )
 
 
 def _emitting_faces(scene: Scene) -> int:
     """Faces whose material emits (colour or texture): at least as many as the light table's
     triangle entries, so that a scene whose table builds a light tree compiles its code."""
+    row_emits = _emitting_rows(scene)
+    return int(sum(np.count_nonzero(row_emits[m.face_material]) for m in scene.meshes))
+
+
+def _emitting_rows(scene: Scene) -> np.ndarray:
+    """Per material row: it emits (a colour or an emission texture)."""
     mt = scene.materials
     tex = mt.tex[:, SLOT_EMISSION]
-    row_emits = (mt.emission > 0).any(axis=1) | (tex >= 0) | (tex <= TEX_PROC_BASE)
-    return int(sum(np.count_nonzero(row_emits[m.face_material]) for m in scene.meshes))
+    return (mt.emission > 0).any(axis=1) | (tex >= 0) | (tex <= TEX_PROC_BASE)
 
 
 def _corner_normals(m) -> np.ndarray:

@@ -1,7 +1,11 @@
-"""Ray-scene intersection on the device: our top-level BVH over per-OBJ meshes and spheres.
+"""Ray-scene intersection on the device: our top-level BVH over per-OBJ meshes (or instances of
+them) and spheres.
 
 Inside a mesh, rays traverse its wide BVH (:mod:`warp_spt.core.wide_traversal`), which answers as
-``wp.mesh_query_ray`` would, faster.
+``wp.mesh_query_ray`` would, faster. With instances (``Features.instances``: a mesh uploaded once and
+placed by several affine transforms, ``MeshData.transforms``) a top-level item is an instance: the ray
+goes into the mesh's object space (``o' = A^-1 (o - c)``, ``d' = A^-1 d``, left unnormalised so that
+the hit's ``t`` is the world ``t``) and the geometric normal comes back through ``A^-T``.
 
 ``make_closest_hit(features)`` returns a Warp function specialised to the scene's features (no mesh
 code in a spheres-only scene and vice versa).
@@ -42,6 +46,9 @@ class Hit:
     u: float            # barycentrics as wp.mesh_query_ray reports them
     v: float
     normal: wp.vec3     # unit geometric normal: triangle winding normal, or sphere outward normal
+    # 1 + the top-level item (Geometry.inst_*) that placed the hit mesh (Features.instances only); 0: the
+    # mesh is in world space (every hit of a scene without instances, and the light samplers' hits)
+    placed: int
 
 
 @wp.func
@@ -118,10 +125,11 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
 
     mesh_closest = make_closest_query(max(features.bvh_stack, 1))
     wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
+    instanced = features.instances and features.meshes
 
     # inline: called, it would copy the Geometry struct (~2 KB) at every call (measured: +25% time)
     @wp.func(inline=True)
-    def mesh_hit(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
+    def mesh_query(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
         if wp.static(warp_bvh):
             if not wp.static(wide) or s.mesh_root[item] < 0:
                 q = wp.mesh_query_ray(s.mesh_ids[item], r.o, r.d, hit.t)
@@ -149,15 +157,40 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
         return hit
 
     @wp.func(inline=True)
+    def mesh_hit(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
+        if wp.static(instanced):
+            a = s.inst_to_object[item]
+            ro = MeshRay()
+            if wp.static(wide):
+                ro = mesh_ray(a * r.o + s.inst_to_object_offset[item], a * r.d)
+            else:
+                ro.o = a * r.o + s.inst_to_object_offset[item]
+                ro.d = a * r.d
+            # mesh_query sets the index only when it finds a closer hit: -1 marks "not found here"
+            before = hit.index
+            hit.index = -1
+            hit = mesh_query(s, s.inst_mesh[item], ro, hit)
+            if hit.index >= 0:
+                hit.placed = item + 1
+                hit.normal = wp.normalize(s.inst_normal[item] * hit.normal)
+            else:
+                hit.index = before
+            return hit
+        return mesh_query(s, item, r, hit)
+
+    @wp.func(inline=True)
     def visit_item(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
         o = r.o
         d = r.d
-        if item < s.num_meshes:
+        n_mesh_items = s.num_meshes
+        if wp.static(instanced):
+            n_mesh_items = s.num_instances
+        if item < n_mesh_items:
             if wp.static(features.meshes):
                 hit = mesh_hit(s, item, r, hit)
         else:
             if wp.static(features.spheres):
-                j = item - s.num_meshes
+                j = item - n_mesh_items
                 sph = s.spheres[j]
                 t = sphere_hit(sph, o, d, hit.t)
                 if t < hit.t:
@@ -190,11 +223,14 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
                     # meshes, then spheres, in item order as before: one loop of visit_item, which
                     # branches on the kind per item, made a one-mesh closest hit ~9% slower
                     # (docs/performance.md, Where the time goes)
+                    n_mesh_items = s.num_meshes
+                    if wp.static(instanced):
+                        n_mesh_items = s.num_instances
                     if wp.static(features.meshes):
-                        for item in range(s.num_meshes):
+                        for item in range(n_mesh_items):
                             hit = mesh_hit(s, item, r, hit)
                     if wp.static(features.spheres):
-                        for item in range(s.num_meshes, n_items):
+                        for item in range(n_mesh_items, n_items):
                             hit = visit_item(s, item, r, hit)
                 return hit
         nodes = vec_stack_i()
@@ -265,9 +301,10 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
 
     wide_any_hit = make_any_hit_query(max(features.bvh_stack, 1))
     wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
+    instanced = features.instances and features.meshes
 
     @wp.func(inline=True)
-    def mesh_any_hit(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
+    def mesh_blocks(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
         if wp.static(warp_bvh):
             if not wp.static(wide) or s.mesh_root[item] < 0:
                 return wp.mesh_query_ray_anyhit(s.mesh_ids[item], r.o, r.d, t_max)
@@ -276,13 +313,29 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
         return False
 
     @wp.func(inline=True)
+    def mesh_any_hit(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
+        if wp.static(instanced):
+            a = s.inst_to_object[item]
+            ro = MeshRay()
+            if wp.static(wide):
+                ro = mesh_ray(a * r.o + s.inst_to_object_offset[item], a * r.d)
+            else:
+                ro.o = a * r.o + s.inst_to_object_offset[item]
+                ro.d = a * r.d
+            return mesh_blocks(s, s.inst_mesh[item], ro, t_max)
+        return mesh_blocks(s, item, r, t_max)
+
+    @wp.func(inline=True)
     def blocks(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
-        if item < s.num_meshes:
+        n_mesh_items = s.num_meshes
+        if wp.static(instanced):
+            n_mesh_items = s.num_instances
+        if item < n_mesh_items:
             if wp.static(features.meshes):
                 return mesh_any_hit(s, item, r, t_max)
         else:
             if wp.static(features.spheres):
-                return sphere_hit(s.spheres[item - s.num_meshes], r.o, r.d, t_max) < t_max
+                return sphere_hit(s.spheres[item - n_mesh_items], r.o, r.d, t_max) < t_max
         return False
 
     @wp.func
@@ -299,12 +352,15 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
             n_items = s.items.shape[0]
             if n_items <= wp.static(small_scene):
                 if in_root:
+                    n_mesh_items = s.num_meshes
+                    if wp.static(instanced):
+                        n_mesh_items = s.num_instances
                     if wp.static(features.meshes):            # meshes, then spheres (as in closest_hit)
-                        for item in range(s.num_meshes):
+                        for item in range(n_mesh_items):
                             if mesh_any_hit(s, item, r, t_max):
                                 return True
                     if wp.static(features.spheres):
-                        for item in range(s.num_meshes, n_items):
+                        for item in range(n_mesh_items, n_items):
                             if blocks(s, item, r, t_max):
                                 return True
                 return False
@@ -416,11 +472,21 @@ def make_refine_hit(features: Features):
         r.u = detach(h.u)
         r.v = detach(h.v)
         r.normal = wp.vec3(detach(h.normal[0]), detach(h.normal[1]), detach(h.normal[2]))
+        r.placed = h.placed
         if h.kind == KIND_TRIANGLE:
             if wp.static(features.meshes):
                 mesh = s.mesh_ids[h.index]
-                tuv = ray_triangle(wp.mesh_get_point(mesh, 3 * h.face), wp.mesh_get_point(mesh, 3 * h.face + 1),
-                                   wp.mesh_get_point(mesh, 3 * h.face + 2), o, d)
+                p0 = wp.mesh_get_point(mesh, 3 * h.face)
+                p1 = wp.mesh_get_point(mesh, 3 * h.face + 1)
+                p2 = wp.mesh_get_point(mesh, 3 * h.face + 2)
+                if wp.static(features.instances):
+                    if h.placed > 0:
+                        a = s.inst_linear[h.placed - 1]
+                        c = s.inst_offset[h.placed - 1]
+                        p0 = a * p0 + c
+                        p1 = a * p1 + c
+                        p2 = a * p2 + c
+                tuv = ray_triangle(p0, p1, p2, o, d)
                 r.t = with_derivative(h.t, tuv[0])
                 r.u = with_derivative(h.u, tuv[1])
                 r.v = with_derivative(h.v, tuv[2])

@@ -301,7 +301,7 @@ def nonfinite_textures(scene, device: str = "cpu", samples: int = 4096) -> list[
     uv = [m.corner_uv.reshape(-1, 2) for m in scene.meshes] + [rng.uniform(-2, 2, (samples, 2))]
     b = scene.bounds
     lo, hi = (b[0], b[1]) if np.all(np.isfinite(b)) else (np.full(3, -1.0), np.full(3, 1.0))
-    pts = np.concatenate([m.positions[m.indices.reshape(-1)] for m in scene.meshes]
+    pts = np.concatenate([m.world_part()[0][m.indices.reshape(-1)] for m in scene.meshes]   # first placements
                          + [rng.uniform(lo, hi, (samples, 3))]) if scene.meshes else rng.uniform(lo, hi, (samples, 3))
     uv = np.concatenate(uv)[:len(pts)]
     uv = np.concatenate([uv, rng.uniform(-2, 2, (len(pts) - len(uv), 2))])

@@ -60,7 +60,7 @@ class Geometry:
     # Analytic spheres
     spheres: wp.array(dtype=wp.vec4)           # centre xyz, radius
     sphere_material: wp.array(dtype=wp.int32)
-    # Top-level BVH over mesh bounds (items 0..num_meshes-1) and spheres (the rest)
+    # Top-level BVH over mesh bounds (items 0..num_meshes-1, or the instances') and spheres (the rest)
     node_lower: wp.array(dtype=wp.vec3)
     node_upper: wp.array(dtype=wp.vec3)
     node_left: wp.array(dtype=wp.int32)
@@ -68,6 +68,18 @@ class Geometry:
     node_first: wp.array(dtype=wp.int32)
     node_count: wp.array(dtype=wp.int32)
     items: wp.array(dtype=wp.int32)
+    # Instances (read by kernels compiled with Features.instances; a scene without them has one
+    # identity placement per mesh, num_instances == num_meshes): top-level item i < num_instances
+    # places mesh inst_mesh[i] by the affine map p -> inst_linear[i] p + inst_offset[i] (identity for
+    # a mesh in world space); rays go into object space by inst_to_object / inst_to_object_offset,
+    # normals come back by inst_normal = A^-T.
+    num_instances: int
+    inst_mesh: wp.array(dtype=wp.int32)
+    inst_linear: wp.array(dtype=wp.mat33)
+    inst_offset: wp.array(dtype=wp.vec3)
+    inst_to_object: wp.array(dtype=wp.mat33)
+    inst_to_object_offset: wp.array(dtype=wp.vec3)
+    inst_normal: wp.array(dtype=wp.mat33)
     # Length scale of the scene: ray-origin offsets scale with it (and with |p|)
     extent: float
     # participating media (core.media): read only by kernels compiled with Features.media
@@ -123,6 +135,9 @@ class Features:
     # participating media (core.media.media_features): the medium kinds used, "emission" where one
     # emits; () compiles no media code (every scene without a medium)
     media: tuple[str, ...] = ()
+    # some mesh is placed by transforms (MeshData.transforms): the traversal moves rays into object
+    # space and the surface look-up moves points, normals and tangents back (Geometry's inst_* arrays)
+    instances: bool = True
 
     @staticmethod
     def general() -> "Features":
@@ -147,4 +162,5 @@ class Features:
         compiled for other features (an override) must still trace this scene's rays."""
         stack = self.bvh_stack if scene.bvh_stack == 0 else max(self.bvh_stack, scene.bvh_stack)
         return replace(self, bvh_stack=stack, warp_meshes=self.warp_meshes or scene.warp_meshes,
-                       punctual=self.punctual or scene.punctual, light_tree=self.light_tree or scene.light_tree)
+                       punctual=self.punctual or scene.punctual, light_tree=self.light_tree or scene.light_tree,
+                       instances=self.instances or scene.instances)

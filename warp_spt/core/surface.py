@@ -96,9 +96,14 @@ def triangle_point(mesh: wp.uint64, face: int, u: float, v: float, extent: float
       the next ray then met the other wall at t = 0 from behind and went through it. Barycentrics
       are raised to at least eps / altitude (capped at 1/3: tiny triangles give their centroid).
     """
-    p0 = wp.mesh_get_point(mesh, 3 * face)
-    p1 = wp.mesh_get_point(mesh, 3 * face + 1)
-    p2 = wp.mesh_get_point(mesh, 3 * face + 2)
+    return triangle_point_of(wp.mesh_get_point(mesh, 3 * face), wp.mesh_get_point(mesh, 3 * face + 1),
+                             wp.mesh_get_point(mesh, 3 * face + 2), u, v, extent)
+
+
+@wp.func
+def triangle_point_of(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, u: float, v: float, extent: float) -> wp.vec3:
+    """:func:`triangle_point` of the triangle with these world-space corners (an instance's, moved
+    out of its mesh's object space)."""
     e0 = p0 - p2
     e1 = p1 - p2
     eps = offset_eps(p2 + (e0 * u + e1 * v), extent)
@@ -124,13 +129,28 @@ def make_surface(features: Features):
             if wp.static(features.meshes):
                 g = s.face_offset[h.index] + h.face
                 sf.mat = s.face_material[g]
-                sf.p = triangle_point(s.mesh_ids[h.index], h.face, h.u, h.v, s.extent)
+                placed = False
+                if wp.static(features.instances):
+                    placed = h.placed > 0
+                if placed:
+                    # corners into world space first: the point is then made exactly as for a
+                    # world-space mesh (kept inside the triangle, off its edges)
+                    mesh = s.mesh_ids[h.index]
+                    a = s.inst_linear[h.placed - 1]
+                    c = s.inst_offset[h.placed - 1]
+                    sf.p = triangle_point_of(a * wp.mesh_get_point(mesh, 3 * h.face) + c,
+                                             a * wp.mesh_get_point(mesh, 3 * h.face + 1) + c,
+                                             a * wp.mesh_get_point(mesh, 3 * h.face + 2) + c, h.u, h.v, s.extent)
+                else:
+                    sf.p = triangle_point(s.mesh_ids[h.index], h.face, h.u, h.v, s.extent)
                 w = 1.0 - h.u - h.v
                 sf.uv = s.corner_uv[3 * g] * h.u + s.corner_uv[3 * g + 1] * h.v + s.corner_uv[3 * g + 2] * w
                 if wp.static(features.smooth):
                     if s.has_corner_normals != 0:
                         n = (s.corner_normal[3 * g] * h.u + s.corner_normal[3 * g + 1] * h.v
                              + s.corner_normal[3 * g + 2] * w)
+                        if placed:
+                            n = s.inst_normal[h.placed - 1] * n        # normals map by A^-T
                         if wp.length(n) > 1.0e-12:
                             ns = wp.normalize(n)
         else:
@@ -168,6 +188,14 @@ def make_surface(features: Features):
                             hint = (wp.vec3(c0[0], c0[1], c0[2]) * h.u + wp.vec3(c1[0], c1[1], c1[2]) * h.v
                                     + wp.vec3(c2[0], c2[1], c2[2]) * w)
                             sign = c0[3]
+                            if wp.static(features.instances):
+                                if h.placed > 0:
+                                    # tangents map by A; a mirroring A flips the (t, b, n) frame's
+                                    # handedness, which the bitangent's sign carries
+                                    a = s.inst_linear[h.placed - 1]
+                                    hint = a * hint
+                                    if wp.determinant(a) < 0.0:
+                                        sign = -sign
                 else:
                     # a sphere's u grows with the azimuth about z (surface_at's spherical uv)
                     hint = wp.vec3(-ns[1], ns[0], 0.0)

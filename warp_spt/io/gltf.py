@@ -142,11 +142,26 @@ class GltfExtras:
     cameras: list[GltfCamera] = field(default_factory=list)
     lights: list[GltfLight] = field(default_factory=list)
     materials: list[GltfMaterial] = field(default_factory=list)
-    # every placement of a mesh: (node, mesh index, 4x4 world matrix); a mesh placed by several nodes
-    # is copied per node in the triangles for now (the scene graph an instancing upload would use)
+    # every placement of a mesh: (node, mesh index, 4x4 world matrix)
     instances: list[tuple[int, int, np.ndarray]] = field(default_factory=list)
+    # the meshes kept in their own object space and instanced (see parse_gltf_bytes): per glTF mesh,
+    # its triangles (an ObjData sharing the file's material names) and its (I, 4, 4) world matrices
+    placed: list[tuple[ObjData, np.ndarray]] = field(default_factory=list)
     # the first animation's time range in seconds (None: the file has no animation)
     time_range: tuple[float, float] | None = None
+
+
+def world_triangles(d: ObjData) -> tuple[np.ndarray, np.ndarray]:
+    """(positions (V, 3) float64, triangles (F, 3) int32): a read file's triangles all in world space,
+    its flattened ones first, then every placement of each instanced mesh (``GltfExtras.placed``; a
+    mirroring placement reverses the winding, as flattening does)."""
+    positions, faces, n = [d.positions], [d.faces], len(d.positions)
+    for sub, transforms in getattr(d.extras, "placed", ()):
+        for x in transforms:
+            positions.append(sub.positions @ x[:3, :3].T + x[:3, 3])
+            faces.append((sub.faces[:, ::-1] if np.linalg.det(x[:3, :3]) < 0 else sub.faces) + n)
+            n += len(sub.positions)
+    return np.concatenate(positions), np.concatenate(faces).astype(np.int32)
 
 
 def load_gltf(path: str | os.PathLike[str], time: float | None = None) -> ObjData:
@@ -438,9 +453,10 @@ class _Reader:
         seen: set[int] = set()
         worlds: dict[int, np.ndarray] = {}
         order: list[int] = []
-        stack = [(k, np.eye(4), 0, f"/scenes/{self._scene_index()}/nodes") for k in reversed(roots)]
+        stack = [(k, np.eye(4), 0, f"/scenes/{self._scene_index()}/nodes", False) for k in reversed(roots)]
+        moving: dict[int, bool] = {}      # the node or an ancestor has a TRS channel
         while stack:
-            k, parent, depth, via = stack.pop()
+            k, parent, depth, via, parent_moves = stack.pop()
             ptr = f"/nodes/{k}"
             if k in seen:
                 raise _err(self.path, via, f"node {k} is reached twice: the nodes form a cycle or a node has two "
@@ -451,6 +467,8 @@ class _Reader:
             node = self.item("nodes", k)
             world = parent @ self._local(node, ptr, channels.get(k))
             worlds[k] = world
+            moving[k] = parent_moves or (self.time is not None and any(
+                c in channels.get(k, {}) for c in ("translation", "rotation", "scale")))
             order.append(k)
             cam = self.index(node, "camera", ptr, "cameras")
             if cam is not None:
@@ -463,8 +481,14 @@ class _Reader:
                 if not isinstance(child, int) or isinstance(child, bool) or not 0 <= child < len(nodes):
                     raise _err(self.path, f"{ptr}/children/{c}", f"expected a node index in 0..{len(nodes) - 1}, got "
                                f"{json.dumps(child)[:40]}")
-                stack.append((child, world, depth + 1, f"{ptr}/children/{c}"))
+                stack.append((child, world, depth + 1, f"{ptr}/children/{c}", moving[k]))
         # meshes after the walk: a skin needs its joints' world matrices, wherever they are in the tree
+        users: dict[int, int] = {}
+        for k in order:
+            mesh = self.index(self.item("nodes", k), "mesh", f"/nodes/{k}", "meshes")
+            if mesh is not None:
+                users[mesh] = users.get(mesh, 0) + 1
+        placed: dict[int, tuple[list, list]] = {}        # mesh -> (object-space parts, world matrices)
         for k in order:
             node, ptr = self.item("nodes", k), f"/nodes/{k}"
             mesh = self.index(node, "mesh", ptr, "meshes")
@@ -474,6 +498,15 @@ class _Reader:
             extras.instances.append((k, mesh, world))
             skin = self._skin(node, ptr, worlds)
             weights = self._morph_weights(node, ptr, mesh, channels.get(k, {}).get("weights"))
+            if (users[mesh] > 1 or moving[k]) and skin is None and weights is None:
+                if mesh not in placed:
+                    placed[mesh] = (self._object_parts(mesh, material_rows, names, materials), [])
+                if placed[mesh][0] is not None:
+                    # a node scaled to nothing (a common way to hide one) draws nothing, as its
+                    # flattened triangles of zero area would not be drawn
+                    if abs(np.linalg.det(world[:3, :3])) > 1e-30:
+                        placed[mesh][1].append(world)
+                    continue
             for prim_k, prim in enumerate(self._primitives(mesh)):
                 pptr = f"/meshes/{mesh}/primitives/{prim_k}"
                 mat = self.index(prim, "material", pptr, "materials")
@@ -484,7 +517,45 @@ class _Reader:
                     materials[name] = material
                 parts.append((*self._primitive(prim, pptr, world, mat, skin, weights), material_rows[mat]))
         extras.materials = [self._material_record(m) for m in range(len(self.get(self.doc, "materials", list, "", [])))]
+        for mesh, (mesh_parts, xf) in placed.items():
+            if mesh_parts is None or not xf:
+                continue
+            sub = self._object(mesh_parts, names, materials, GltfExtras())
+            sub.path = f"{self.path}#mesh{mesh}"
+            transforms = np.stack(xf)
+            self._check_placed(sub, transforms, f"/meshes/{mesh}")
+            if len(sub.faces):
+                extras.placed.append((sub, transforms))
         return self._object(parts, names, materials, extras)
+
+    def _object_parts(self, mesh: int, material_rows: dict, names: list, materials: dict) -> list | None:
+        """Mesh ``mesh``'s primitives in its own object space, to be instanced; None where it cannot be
+        (vertex colours: they are baked into a texture of the whole file's triangles)."""
+        out = []
+        for prim_k, prim in enumerate(self._primitives(mesh)):
+            pptr = f"/meshes/{mesh}/primitives/{prim_k}"
+            mat = self.index(prim, "material", pptr, "materials")
+            part = self._primitive(prim, pptr, np.eye(4), mat)
+            if part[4] is not None:
+                return None
+            if mat not in material_rows:
+                name, material = self._material(mat, names)
+                material_rows[mat] = len(names)
+                names.append(name)
+                materials[name] = material
+            out.append((*part, material_rows[mat]))
+        return out
+
+    def _check_placed(self, sub: ObjData, transforms: np.ndarray, ptr: str) -> None:
+        """Every placement of an instanced mesh within the coordinate range, as flattened vertices are."""
+        if not len(sub.positions):
+            return
+        lo, hi = sub.positions.min(0), sub.positions.max(0)
+        corners = np.array([[(hi if (i >> a) & 1 else lo)[a] for a in range(3)] for i in range(8)])
+        world = np.einsum("nij,kj->nki", transforms[:, :3, :3], corners) + transforms[:, None, :3, 3]
+        if not np.abs(world).max() <= MAX_COORDINATE:
+            raise _err(self.path, ptr, f"an instance's vertex lies near {np.abs(world).max():g}, beyond the "
+                       f"supported range of +-{MAX_COORDINATE:g}")
 
     def _animation(self, n_nodes: int) -> tuple[dict[int, dict], tuple[float, float] | None]:
         """The first animation's channels as {node: {path: sampler(time)}} and its time range.

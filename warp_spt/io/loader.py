@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import os
 import warnings as _warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterable
 
@@ -119,7 +120,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
     textures = _TextureCache(note)
     scene = Scene(
-        meshes=[_mesh(d, rows, note, angle) for d, rows in zip(data, obj_rows) if len(d.faces)],
+        meshes=[m for d, rows in zip(data, obj_rows) for m in _meshes(d, rows, note, angle)],
         spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float64),
         sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
@@ -174,7 +175,7 @@ def _kind_by_content(path: str) -> str | None:
 
 def _require_geometry(data: list[ObjData]) -> None:
     """A scene with nothing to draw is an error that names every OBJ file and says why."""
-    if any(len(d.faces) or len(d.spheres) for d in data):
+    if any(len(d.faces) or len(d.spheres) or _placed(d) for d in data):
         return
     if not data:
         raise SceneError(None, 0, "the scene has no geometry: no OBJ files were given")
@@ -234,6 +235,8 @@ def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
     obj_rows = []
     for d in data:
         used = set(np.unique(d.face_material).tolist()) | set(np.unique(d.sphere_material).tolist())
+        for sub, _ in _placed(d):           # instanced meshes share the model's material names
+            used |= set(np.unique(sub.face_material).tolist())
         mapping = np.zeros(len(d.material_names), dtype=np.int32)
         for k, (name, line) in enumerate(zip(d.material_names, d.material_lines)):
             if name not in library and name != CHECKER_NAME:
@@ -246,6 +249,17 @@ def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
             mapping[k] = row_of.get(name, 0)
         obj_rows.append(mapping)
     return rows, obj_rows
+
+
+def _placed(d: ObjData) -> list:
+    """The (object-space ObjData, (I, 4, 4) transforms) a model keeps instanced (glTF: io.gltf.GltfExtras.placed)."""
+    return list(getattr(d.extras, "placed", ()))
+
+
+def _meshes(d: ObjData, rows: np.ndarray, note: WarnFn, smooth_angle: float | None) -> list[MeshData]:
+    """A model's world-space triangles as one mesh, then each of its instanced meshes with its transforms."""
+    out = [_mesh(d, rows, note, smooth_angle)] if len(d.faces) else []
+    return out + [replace(_mesh(sub, rows, note, smooth_angle), transforms=xf) for sub, xf in _placed(d)]
 
 
 def _mesh(d: ObjData, rows: np.ndarray, note: WarnFn, smooth_angle: float | None = None) -> MeshData:

@@ -127,13 +127,21 @@ def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | N
         for m in scene.meshes:
             if not len(m.indices):
                 continue
-            mesh = wp.Mesh(points=wp.array(m.positions, dtype=wp.vec3, device=device),
+            mesh = wp.Mesh(points=wp.array(np.asarray(m.positions, np.float32), dtype=wp.vec3, device=device),
                            indices=wp.array(m.indices.reshape(-1), dtype=wp.int32, device=device))
-            t_best = wp.full(len(flat), 1e30, dtype=float, device=device)
-            wp.launch(_kernels()[0], dim=len(flat), device=device,
-                      inputs=[mesh.id, wp.vec3(*origin.astype(np.float32).tolist()), d_dirs, t_best])
-            tm = t_best.numpy().astype(np.float64)
-            t = np.minimum(t, np.where(tm < 1e29, tm, np.inf))
+            # an instanced mesh: the rays go into each placement's object space, directions left
+            # unnormalised so that t stays the world distance
+            for x in (None,) if m.transforms is None else m.transforms:
+                o, dd = origin, d_dirs
+                if x is not None:
+                    inv = np.linalg.inv(x[:3, :3])
+                    o = inv @ (origin - x[:3, 3])
+                    dd = wp.array((flat @ inv.T).astype(np.float32), dtype=wp.vec3, device=device)
+                t_best = wp.full(len(flat), 1e30, dtype=float, device=device)
+                wp.launch(_kernels()[0], dim=len(flat), device=device,
+                          inputs=[mesh.id, wp.vec3(*o.astype(np.float32).tolist()), dd, t_best])
+                tm = t_best.numpy().astype(np.float64)
+                t = np.minimum(t, np.where(tm < 1e29, tm, np.inf))
     for c, r in zip(scene.spheres[:, :3].astype(np.float64), scene.spheres[:, 3].astype(np.float64)):
         t = np.minimum(t, _sphere_hits(origin, flat, c, r))
     return Probe(t.reshape(height, width), dirs)
@@ -170,10 +178,13 @@ def enclosing_object(scene: Scene, point: Sequence[float], device: str = "cpu") 
         if not len(m.indices):
             continue
         lo, hi = m.positions.min(0).astype(np.float64), m.positions.max(0).astype(np.float64)
-        if np.any(p < lo) or np.any(p > hi):
-            continue
-        if _winding_inside(m, p, 2.0 * float(np.linalg.norm(hi - lo)) + 1.0, device):
-            return m.name
+        # an instanced mesh: the point in each placement's object space (inside is kept by any affine map)
+        for x in (None,) if m.transforms is None else m.transforms:
+            q = p if x is None else np.linalg.solve(x[:3, :3], p - x[:3, 3])
+            if np.any(q < lo) or np.any(q > hi):
+                continue
+            if _winding_inside(m, q, 2.0 * float(np.linalg.norm(hi - lo)) + 1.0, device):
+                return m.name
     return None
 
 

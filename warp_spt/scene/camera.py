@@ -245,21 +245,58 @@ def flat_normal(scene: Scene, towards: np.ndarray) -> np.ndarray | None:
     """The unit normal of a flat model (a 2-D cut-out exported as a mesh: its thinnest extent below
     FLAT_RATIO of its widest, no spheres), on the side its faces face (or, for a sheet seen from both
     sides, the side of ``towards``); None for a solid model."""
-    points = [m.positions[np.unique(m.indices)].astype(np.float64) for m in scene.meshes if len(m.indices)]
-    if len(scene.spheres) or not points:
+    if len(scene.spheres) or not any(len(m.indices) for m in scene.meshes):
         return None
-    p = np.concatenate(points)
-    p -= p.mean(0)
-    _, sv, vt = np.linalg.svd(p, full_matrices=False)
-    if len(sv) < 3 or not sv[0] > 0 or sv[2] > FLAT_RATIO * sv[0]:
-        return None
-    n = vt[2]
-    facing = sum(float(np.sum(np.cross(m.positions[m.indices[:, 1]] - m.positions[m.indices[:, 0]],
-                                      m.positions[m.indices[:, 2]] - m.positions[m.indices[:, 0]]) @ n))
-                 for m in scene.meshes if len(m.indices))
-    scale = max(float(sv[0]) ** 2 / len(p), 1e-300)
+    if scene.instanced:
+        found = _flat_by_moments(scene)
+        if found is None:
+            return None
+        n, facing, scale = found
+    else:
+        points = [m.positions[np.unique(m.indices)].astype(np.float64) for m in scene.meshes if len(m.indices)]
+        p = np.concatenate(points)
+        p -= p.mean(0)
+        _, sv, vt = np.linalg.svd(p, full_matrices=False)
+        if len(sv) < 3 or not sv[0] > 0 or sv[2] > FLAT_RATIO * sv[0]:
+            return None
+        n = vt[2]
+        facing = sum(float(np.sum(np.cross(m.positions[m.indices[:, 1]] - m.positions[m.indices[:, 0]],
+                                          m.positions[m.indices[:, 2]] - m.positions[m.indices[:, 0]]) @ n))
+                     for m in scene.meshes if len(m.indices))
+        scale = max(float(sv[0]) ** 2 / len(p), 1e-300)
     side = facing if abs(facing) > 1e-6 * scale else float(np.dot(n, towards))
     return n if side >= 0.0 else -n
+
+
+def _flat_by_moments(scene: Scene) -> tuple[np.ndarray, float, float] | None:
+    """flat_normal's (normal, facing, scale) for a scene with instances, from each mesh's vertex
+    moments and summed face normals mapped by every placement (no copies): the same principal axes
+    as the SVD of every placed vertex, and the same sum of winding normals (a placement maps a face's
+    cross product by |det A| A^-T, its winding reversed when A mirrors)."""
+    count, first, second, faces = 0.0, np.zeros(3), np.zeros((3, 3)), np.zeros(3)
+    for m in scene.meshes:
+        if not len(m.indices):
+            continue
+        p = m.positions[np.unique(m.indices)].astype(np.float64)
+        s1, s2 = p.sum(0), p.T @ p
+        q = m.positions.astype(np.float64)
+        c = np.cross(q[m.indices[:, 1]] - q[m.indices[:, 0]], q[m.indices[:, 2]] - q[m.indices[:, 0]]).sum(0)
+        xs = np.eye(4)[None] if m.transforms is None else m.transforms
+        a, t = xs[:, :3, :3], xs[:, :3, 3]
+        a_s1 = a @ s1                                               # (I, 3)
+        count += len(p) * len(xs)
+        first += (a_s1 + len(p) * t).sum(0)
+        second += (np.einsum("nij,jk,nlk->il", a, s2, a) + np.einsum("ni,nj->ij", a_s1, t)
+                   + np.einsum("ni,nj->ij", t, a_s1) + len(p) * np.einsum("ni,nj->ij", t, t))
+        det = np.abs(np.linalg.det(a))
+        faces += np.einsum("n,nji,j->i", det, np.linalg.inv(a), c)    # sum of |det A| A^-T c
+    scatter = second - np.outer(first, first) / count
+    w, v = np.linalg.eigh(scatter)                                   # ascending: w[2] is the widest
+    sv = np.sqrt(np.maximum(w[::-1], 0.0))
+    if not sv[0] > 0 or sv[2] > FLAT_RATIO * sv[0]:
+        return None
+    n = v[:, 0]
+    return n, float(faces @ n), max(float(sv[0]) ** 2 / count, 1e-300)
 
 
 # A scene whose centre lies farther from the origin than this many times its size is recentred
@@ -272,11 +309,9 @@ def exact_bounds(scene: Scene) -> np.ndarray:
     float32, where a 2-unit model 1e9 from the origin is a point)."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for m in scene.meshes:
-        if len(m.indices):
-            mask = np.zeros(len(m.positions), dtype=bool)
-            mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-            used = m.positions[mask].astype(np.float64)
-            lo, hi = np.minimum(lo, used.min(0)), np.maximum(hi, used.max(0))
+        b = m.world_bounds(rounded=False)
+        if b is not None:
+            lo, hi = np.minimum(lo, b[0]), np.maximum(hi, b[1])
     if len(scene.spheres):
         s = scene.spheres.astype(np.float64)
         lo, hi = np.minimum(lo, (s[:, :3] - s[:, 3:4]).min(0)), np.maximum(hi, (s[:, :3] + s[:, 3:4]).max(0))
@@ -300,16 +335,28 @@ BASE_RATIO = 3.0
 SCAN_BASE_SHARE, SCAN_MIN_HEIGHT = 0.05, 0.5
 
 
-def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[np.ndarray]:
-    """Per mesh, a mask of the triangles that lie (all three corners, within ``tol`` of the scene's
-    size) in the scene's lowest plane along ``axis``."""
+def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[tuple]:
+    """Per mesh (per placement of an instanced one): (world positions, triangles, mask of the
+    triangles that lie, all three corners within ``tol`` of the scene's size, in the scene's lowest
+    plane along ``axis``, placement bounds or None). A placement whose box lies wholly above that
+    plane is not copied: positions and mask None, its bounds given instead."""
     b = scene.bounds
     low = float(np.min(b @ axis)) if len(scene.meshes) else 0.0
     eps = tol * max(float(np.max(b[1] - b[0])), 1e-30)
     out = []
     for m in scene.meshes:
-        h = m.positions.astype(np.float64) @ axis
-        out.append(np.all(h[m.indices] <= low + eps, axis=1) if len(m.indices) else np.zeros(0, bool))
+        boxes = m.placement_bounds() if m.transforms is not None else None
+        for k in range(m.placements):
+            if boxes is not None:
+                # the box's lowest point along the axis bounds every vertex's from below
+                lowest = float(np.minimum(axis * boxes[k, 0], axis * boxes[k, 1]).sum())
+                if lowest > low + eps:
+                    out.append((None, m.indices, None, boxes[k]))
+                    continue
+            positions, tri = m.world_part(k)
+            h = positions.astype(np.float64) @ axis
+            mask = np.all(h[tri] <= low + eps, axis=1) if len(tri) else np.zeros(0, bool)
+            out.append((positions, tri, mask, None))
     return out
 
 
@@ -323,9 +370,9 @@ def base_share(scene: Scene, up: str | Sequence[float]) -> float:
     if not rect > 0.0:
         return 0.0
     area = 0.0
-    for m, mask in zip(scene.meshes, _bottom_faces(scene, u)):
-        if mask.any():
-            t = m.positions.astype(np.float64)[m.indices[mask]]
+    for positions, tri, mask, _ in _bottom_faces(scene, u):
+        if mask is not None and mask.any():
+            t = positions.astype(np.float64)[tri[mask]]
             area += 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
     return area / rect
 
@@ -345,18 +392,21 @@ def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None
     """The bounds of what stands on a base (see BASE_RATIO), to frame instead of the whole scene, or
     None when the scene has no base that much wider than the rest."""
     u = up_vector(up)
-    masks = _bottom_faces(scene, u)
-    if not any(m.any() for m in masks):
+    parts = _bottom_faces(scene, u)
+    if not any(mask is not None and mask.any() for _, _, mask, _ in parts):
         return None
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     blo, bhi = np.full(3, np.inf), np.full(3, -np.inf)
-    for m, mask in zip(scene.meshes, masks):
-        if not len(m.indices):
+    for positions, tri, mask, box in parts:
+        if not len(tri):
             continue
-        p = m.positions.astype(np.float32).astype(np.float64)
+        if box is not None:             # a placement wholly above the base
+            lo[:], hi[:] = np.minimum(lo, box[0]), np.maximum(hi, box[1])
+            continue
+        p = positions.astype(np.float32).astype(np.float64)
         for sel, (a, z) in ((~mask, (lo, hi)), (mask, (blo, bhi))):
             if sel.any():
-                q = p[m.indices[sel].reshape(-1)]
+                q = p[tri[sel].reshape(-1)]
                 a[:] = np.minimum(a, q.min(0))
                 z[:] = np.maximum(z, q.max(0))
     if len(scene.spheres):

@@ -9,7 +9,7 @@ Nothing in this module imports Warp.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, make_dataclass, replace
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -124,7 +124,9 @@ class ObjData:
 
 @dataclass
 class MeshData:
-    """The triangles of one OBJ file, in world space, ready for one ``wp.Mesh``."""
+    """The triangles of one OBJ file, in world space, ready for one ``wp.Mesh``; or, with
+    ``transforms``, a mesh in its own object space placed once per transform (instances: uploaded once,
+    docs/formats.md "Instances")."""
 
     name: str
     positions: np.ndarray       # (V, 3) float64 (or float32), world space; see Scene.rounded
@@ -132,6 +134,74 @@ class MeshData:
     corner_uv: np.ndarray       # (F, 3, 2) float32, zeros where the OBJ gave none
     corner_normal: np.ndarray | None  # (F, 3, 3) float32 unit vectors, or None: flat shading
     face_material: np.ndarray   # (F,) int32 into Scene.materials
+    # (I, 4, 4) float64 object-to-world affine maps, one per instance (invertible linear part); None:
+    # the positions are world space (one placement, no transform)
+    transforms: np.ndarray | None = None
+
+    def world_bounds(self, rounded: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower, upper) float64 bounds of the used vertices in world space, every placement
+        included (``rounded``: of the positions rounded to float32, as the engine stores them); None
+        for a mesh without triangles."""
+        b = self.placement_bounds(rounded)
+        return None if b is None else (b[:, 0].min(0), b[:, 1].max(0))
+
+    def placement_bounds(self, rounded: bool = True) -> np.ndarray | None:
+        """(I, 2, 3) float64: each placement's world bounds (one row without transforms), or None for
+        a mesh without triangles. From one matrix product per batch of placements (each placement's
+        rows against every used vertex), not from copies."""
+        if not len(self.indices):
+            return None
+        mask = np.zeros(len(self.positions), dtype=bool)
+        mask[self.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
+        used = self.positions[mask]
+        used = _as_float32(used) if rounded else used.astype(np.float64)
+        if self.transforms is None:
+            return np.stack([used.min(0), used.max(0)])[None]
+        out = np.empty((len(self.transforms), 2, 3))
+        batch = max(1, (1 << 22) // (3 * len(used)))          # at most ~32 MB of projections at a time
+        for k in range(0, len(self.transforms), batch):
+            x = self.transforms[k:k + batch]
+            proj = used @ x[:, :3, :3].reshape(-1, 3).T            # (V, 3 * batch): row r of placement j
+            out[k:k + batch, 0] = proj.min(0).reshape(-1, 3) + x[:, :3, 3]
+            out[k:k + batch, 1] = proj.max(0).reshape(-1, 3) + x[:, :3, 3]
+        return out
+
+    def world_part(self, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, triangles) of placement ``k`` in world space, positions only (no per-corner
+        data): what host-side geometry cues read. A mirroring placement reverses the winding."""
+        if self.transforms is None:
+            return self.positions, self.indices
+        x = self.transforms[k]
+        tri = self.indices[:, ::-1] if np.linalg.det(x[:3, :3]) < 0 else self.indices
+        return np.asarray(self.positions, dtype=np.float64) @ x[:3, :3].T + x[:3, 3], tri
+
+    @property
+    def placements(self) -> int:
+        """How many times the mesh is placed (1 without transforms)."""
+        return 1 if self.transforms is None else len(self.transforms)
+
+    def placed(self) -> Iterator["MeshData"]:
+        """This mesh as world-space copies, one per placement (itself when it has no transforms).
+        Host-side geometry code (bounds, framing cues) walks these; a copy holds its own positions
+        only, so at most one instance's positions exist at a time."""
+        if self.transforms is None:
+            yield self
+            return
+        p = np.asarray(self.positions, dtype=np.float64)
+        for x in self.transforms:
+            linear = x[:3, :3]
+            normals = self.corner_normal
+            if normals is not None:           # normals map by A^-T (as row vectors: n @ A^-1)
+                n = normals.astype(np.float64) @ np.linalg.inv(linear)
+                normals = (n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)).astype(np.float32)
+            tri, uv = self.indices, self.corner_uv
+            if np.linalg.det(linear) < 0:
+                # a mirroring transform reverses the winding, so that the winding normal stays A^-T n;
+                # the per-corner data follows its corners
+                tri, uv = tri[:, ::-1].copy(), uv[:, ::-1].copy()
+                normals = None if normals is None else normals[:, ::-1].copy()
+            yield replace(self, positions=p @ linear.T + x[:3, 3], indices=tri, corner_uv=uv, corner_normal=normals,
+                          transforms=None)
 
 
 def _table_post_init(self) -> None:
@@ -255,6 +325,23 @@ class Scene:
     def num_triangles(self) -> int:
         return int(sum(len(m.indices) for m in self.meshes))
 
+    @property
+    def instanced(self) -> bool:
+        """Some mesh is placed by transforms (MeshData.transforms)."""
+        return any(m.transforms is not None for m in self.meshes)
+
+    def placed_meshes(self) -> Iterator[MeshData]:
+        """Every mesh in world space, instances as copies made one at a time (MeshData.placed)."""
+        for m in self.meshes:
+            yield from m.placed()
+
+    def flattened(self) -> "Scene":
+        """This scene with every instance copied into a world-space mesh of its own (what a renderer
+        without instances would upload; the reference instancing is checked against)."""
+        if not self.instanced:
+            return self
+        return replace(self, meshes=list(self.placed_meshes()))
+
     def rounded(self) -> "Scene":
         """This scene as the float32 engine sees it: positions and spheres rounded to float32.
 
@@ -276,12 +363,10 @@ class Scene:
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
         for m in self.meshes:
-            if len(m.indices):
-                mask = np.zeros(len(m.positions), dtype=bool)
-                mask[m.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-                used = _as_float32(m.positions[mask])
-                lo = np.minimum(lo, used.min(0))
-                hi = np.maximum(hi, used.max(0))
+            b = m.world_bounds()
+            if b is not None:
+                lo = np.minimum(lo, b[0])
+                hi = np.maximum(hi, b[1])
         if len(self.spheres):
             s = _as_float32(self.spheres)
             c, r = s[:, :3], s[:, 3:4]

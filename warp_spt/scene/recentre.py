@@ -72,6 +72,7 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
     if centre is None:
         return scene, camera, np.zeros(3)
     meshes = [replace(m, positions=(m.positions.astype(np.float64) - centre).astype(np.float32))
+              if m.transforms is None else replace(m, transforms=_moved_transforms(m.transforms, centre))
               for m in scene.meshes]
     spheres = scene.spheres.astype(np.float32)
     if len(spheres):
@@ -81,6 +82,13 @@ def recentre(scene: Scene, camera: Camera | None = None, *, ratio: float = RECEN
                     interiors={k: _moved_medium(v, centre) for k, v in scene.interiors.items()})
     cam = replace(camera, position=tuple(float(v) for v in np.asarray(camera.position, np.float64) - centre))
     return moved, cam, centre
+
+
+def _moved_transforms(transforms: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Instances moved by ``-centre``: their translations only (the shared mesh stays in its own frame)."""
+    out = np.array(transforms, dtype=np.float64)
+    out[:, :3, 3] -= centre
+    return out
 
 
 def _moved_medium(medium, centre: np.ndarray):

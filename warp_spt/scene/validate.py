@@ -100,6 +100,23 @@ def _check_mesh(k: int, m: MeshData, n_materials: int) -> None:
             _fail(f"{name}.corner_normal holds vectors that are not unit length")
     _check_index(_check_array(m.face_material, f"{name}.face_material", np.int32, (f,)), f"{name}.face_material",
                  n_materials)
+    if m.transforms is not None:
+        x = np.asarray(m.transforms)
+        if x.ndim != 3 or x.shape[1:] != (4, 4) or len(x) == 0:
+            _fail(f"{name}.transforms must have shape (I, 4, 4) with I >= 1, got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            _fail(f"{name}.transforms holds a non-finite value")
+        det = np.linalg.det(x[:, :3, :3].astype(np.float64))
+        if np.any(np.abs(det) < 1e-30):
+            _fail(f"{name}.transforms[{int(np.argmin(np.abs(det)))}]: the linear part must be invertible")
+        # the world-space limits of a flattened copy: an edge grows at most by the largest singular value
+        stretch = float(np.linalg.norm(x[:, :3, :3].astype(np.float64), ord=2, axis=(1, 2)).max())
+        if f and not edges.max() * stretch <= MAX_TRIANGLE_EDGE:
+            _fail(f"{name} as placed by its transforms: {edge_problem(float(edges.max()) * stretch)}")
+        b = m.world_bounds(rounded=False)
+        if b is not None and not np.abs(np.asarray(b)).max() <= MAX_COORDINATE:
+            _fail(f"{name} as placed by its transforms reaches {np.abs(np.asarray(b)).max():g}, beyond the supported "
+                  f"range of +-{MAX_COORDINATE:g}")
 
 
 def _check_materials(t: MaterialTable, n_textures: int, n_procedural: int = 0) -> None:

@@ -167,7 +167,8 @@ def warm(jobs: list) -> None:
         f"{sum(each):.1f} s)" + (f"; {len(failed)} retried in {time.perf_counter() - t1:.1f} s" if failed else ""))
 
 
-def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu: str, stand_in: bool = False) -> list:
+def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu: str, stand_in: bool = False,
+              media: bool = True) -> list:
     """[(kernel, device)] of every kernel the run needs; ``stand_in``: the GPU's kernels built from
     CPU scenes with the GPU's features (see :func:`device_scene`), for :func:`compile_ptx`."""
     import warp_spt.rendering.aux_buffers  # noqa: F401  (registers the "aov" kind)
@@ -206,6 +207,8 @@ def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu:
         # the light tree, volpath's media), on both devices
         for k, build in enumerate(KIND_SCENES.values()):
             host, _, kw, _ = build(folder / f"kind{k}")
+            if not media and (host.fog is not None or host.interiors):
+                continue
             for device in (gpu, "cpu"):
                 dev = device_scene(host, device, None, stand_in)
                 jobs.append((unloaded_kernel(dev, settings("cpu" if stand_in else device, kw)), device))
@@ -238,12 +241,13 @@ def compile_ptx(jobs: list, gpu: str, arch: int) -> int:
 # The tests
 
 
-def run_tests(timeout: float, gpu: str) -> int:
+def run_tests(timeout: float, gpu: str, media: bool = True) -> int:
     env = dict(os.environ, WARP_SPT_TEST_DEVICE=gpu, PYTHONPATH=os.pathsep.join(
         [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
     t = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, "-m", "pytest", *TEST_FILES, "-q", "-rs", "-p", "no:cacheprovider"],
+        out = subprocess.run([sys.executable, "-m", "pytest", *TEST_FILES, "-q", "-rs", "-p", "no:cacheprovider",
+                              *([] if media else ["-k", "not media"])],
                              cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as err:
         say(f"{' '.join(TEST_FILES)}: TIMED OUT after {timeout:.0f} s")
@@ -321,6 +325,9 @@ def main() -> int:
     ap.add_argument("--test-timeout", type=float, default=300.0)
     ap.add_argument("--device", default="cuda", help="the GPU (cuda:N); 'cpu' rehearses the script where there "
                     "is no GPU")
+    ap.add_argument("--no-media", action="store_true",
+                    help="leave out the scenes with participating media: their CUDA kernels take many minutes of "
+                         "NVRTC each (compile them ahead with --compile-ptx)")
     ap.add_argument("--compile-ptx", type=int, metavar="ARCH", default=None,
                     help="on any machine (no GPU needed): compile the check's CUDA kernels to PTX for sm_ARCH "
                          "(90 for an H100/H200) into Warp's kernel cache, then stop; carry the cache to the "
@@ -336,7 +343,7 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp)
             return compile_ptx(warm_jobs(bench_scenes(folder), size, spp, not args.no_tests, folder, args.device,
-                                         stand_in=True), args.device, args.compile_ptx)
+                                         stand_in=True, media=not args.no_media), args.device, args.compile_ptx)
     try:
         check_device(args.device)
     except ValueError as err:
@@ -349,10 +356,10 @@ def main() -> int:
         folder = Path(tmp)
         scenes = bench_scenes(folder)
         say("\n## Kernel cache")
-        warm(warm_jobs(scenes, size, spp, not args.no_tests, folder, args.device))
+        warm(warm_jobs(scenes, size, spp, not args.no_tests, folder, args.device, media=not args.no_media))
         if not args.no_tests:
             say("\n## Tests")
-            status = run_tests(args.test_timeout, args.device)
+            status = run_tests(args.test_timeout, args.device, media=not args.no_media)
         say("")
         table(scenes, size, spp, args.repeat, args.device)
     say(f"\ngpu_check: {time.perf_counter() - t0:.0f} s in all")

@@ -139,9 +139,9 @@ KIND_SCENES = {
     "pbr spheres under an environment map": _pbr_under_a_map,
     "sun, point and spot lights": _punctual,
     "the light tree over 96 lamps": _many_lamps,
-    "volpath, a chromatic homogeneous medium": _homogeneous,
-    "volpath, a density grid": _grid,
-    "volpath, fog and an area light": _fog,
+    "media: volpath in a chromatic homogeneous medium": _homogeneous,
+    "media: volpath in a density grid": _grid,
+    "media: volpath in fog under an area light": _fog,
 }
 
 

@@ -13,10 +13,13 @@ depths of these scenes (h d <= 0.3). Each reference is also required to be resol
 error under RESOLVED of the largest component of its parameter's gradient), so that a wrong gradient
 cannot pass by noise alone.
 
-Scenes: a lit floor in chromatic fog (the scene's medium); an index-matched box of chromatic
-medium on a floor in a thin fog (an interior medium: shadow rays cross its boundary, and the
-floor's light samples pass through it); the same box filled with a density grid (its density scale
-and sigma_s). The refusals of what is not supported are checked too.
+Scenes: a floor lit by an area light in chromatic fog (the scene's medium); an index-matched box of
+chromatic medium on a floor in a thin fog under a point light (an interior medium: shadow rays
+cross its boundary, and the floor's light samples pass through it); the same box filled with a
+density grid (its density scale and sigma_s). Analytic: in a furnace (an index-matched ball of
+non-absorbing medium under a uniform sky of 1, every pixel 1 for any g and sigma_s) the gradients
+of g and sigma_s are 0 within their standard errors. The refusals of what is not supported are
+checked too.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.scene.camera import Camera
+from warp_spt.scene.lights import PointLight
 from warp_spt.scene.media import Medium
 from warp_spt.scene.sky import Sky
 
@@ -118,9 +122,13 @@ def test_fog_gradients(scene_dir):
 
 
 def _box_scene(scene_dir, name, medium):
+    """The box of medium on the floor in a thin fog, lit by a point light (see the module docs: with
+    an area light, light sampling's MIS against phase sampling leaves part of the derivative to rare
+    phase-sampled hits of the light, docs/volumes.md, Gradients)."""
     box = box_obj(lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 0.6), material="cloud")
-    objs, mtls = write_scene_files(scene_dir, name, FLOOR + LAMP + box, MTL + "newmtl cloud\nindex_matched\n")
+    objs, mtls = write_scene_files(scene_dir, name, FLOOR + box, MTL + "newmtl cloud\nindex_matched\n")
     scene = load_scene(objs, mtls)
+    scene.lights = [PointLight(position=(0.3, -0.5, 1.6), intensity=(6.0, 6.0, 6.0))]
     scene.interiors = {"cloud": medium}
     scene.fog = Medium(sigma_s=0.02, sigma_a=0.01)
     return DeviceScene(scene)
@@ -173,3 +181,26 @@ def test_unsupported_media_gradients_are_refused(scene_dir):
     with pytest.raises(ValueError, match="volpath"):
         render_gradients(params, RenderSettings(width=4, height=4, spp=1, integrator="nee"), adjoint=ones,
                          wrt=["cloud.medium_g"], mode="prb")
+
+
+def test_furnace_gradients_vanish(scene_dir):
+    """Albedo 1 under a uniform sky: the image is 1 whatever g and sigma_s (test_volumes' furnace), so
+    their gradients are 0: per seed, the mean over seeds within T_PAIRED standard errors, and the
+    standard error small against the gradients of an absorbing ball (so the test can fail)."""
+    from .test_volumes import BALL_CAM, UNIFORM, _ball
+    dev = _ball(scene_dir, "furnace", (1.0, 3.0, 0.3), g=0.5)
+    params = parameters(dev, BALL_CAM, UNIFORM)
+    ones = np.ones((SIZE, SIZE, 3))
+    names = ["m.medium_g", "m.medium_sigma_s", "m.medium_sigma_a"]
+    runs = []
+    for seed in range(1, SEEDS + 1):
+        rs = RenderSettings(width=SIZE, height=SIZE, spp=64, max_depth=64, seed=seed, integrator="volpath", sky=UNIFORM)
+        g = render_gradients(params, rs, adjoint=ones, wrt=names).grads
+        runs.append(np.concatenate([[float(g[names[0]])], g[names[1]], g[names[2]]]))
+    runs = np.asarray(runs)
+    mean, se = runs.mean(0), runs.std(0, ddof=1) / math.sqrt(SEEDS)
+    print("\nfurnace gradients (g, sigma_s, sigma_a):", mean, "+-", se)
+    assert np.all(np.abs(mean[:4]) < T_PAIRED * se[:4]), (mean, se)
+    # absorption darkens the ball: clearly negative, and the zero tests above are resolved against it
+    assert np.all(mean[4:] < -T_PAIRED * se[4:]), (mean, se)
+    assert np.all(se[:4] < 0.25 * np.abs(mean[4:]).min()), (mean, se)

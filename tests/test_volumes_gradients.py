@@ -14,11 +14,11 @@ error under RESOLVED of the largest component of its parameter's gradient), so t
 cannot pass by noise alone.
 
 Scenes: a floor lit by an area light in chromatic fog (the scene's medium); an index-matched box of
-chromatic medium on a floor in a thin fog under a point light (an interior medium: shadow rays
-cross its boundary, and the floor's light samples pass through it); the same box filled with a
-density grid (its density scale and sigma_s). Analytic: in a furnace (an index-matched ball of
-non-absorbing medium under a uniform sky of 1, every pixel 1 for any g and sigma_s) the gradients
-of g and sigma_s are 0 within their standard errors. The refusals of what is not supported are
+chromatic medium on a floor in a thin fog (an interior medium: shadow rays cross its boundary, and
+the floor's light samples pass through it) and the same box filled with a density grid (its
+density scale and sigma_s): these two are strict expected failures (KNOWN_MIS below). Analytic: in
+a furnace (an index-matched ball of non-absorbing medium under a uniform sky of 1, every pixel 1
+for any g and sigma_s) the gradients of g and sigma_s are 0 within their standard errors. The refusals of what is not supported are
 checked too.
 """
 
@@ -36,7 +36,6 @@ from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.scene.camera import Camera
-from warp_spt.scene.lights import PointLight
 from warp_spt.scene.media import Medium
 from warp_spt.scene.sky import Sky
 
@@ -122,24 +121,30 @@ def test_fog_gradients(scene_dir):
 
 
 def _box_scene(scene_dir, name, medium):
-    """The box of medium on the floor in a thin fog, lit by a point light (see the module docs: with
-    an area light, light sampling's MIS against phase sampling leaves part of the derivative to rare
-    phase-sampled hits of the light, docs/volumes.md, Gradients)."""
     box = box_obj(lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 0.6), material="cloud")
-    objs, mtls = write_scene_files(scene_dir, name, FLOOR + box, MTL + "newmtl cloud\nindex_matched\n")
+    objs, mtls = write_scene_files(scene_dir, name, FLOOR + LAMP + box, MTL + "newmtl cloud\nindex_matched\n")
     scene = load_scene(objs, mtls)
-    scene.lights = [PointLight(position=(0.3, -0.5, 1.6), intensity=(6.0, 6.0, 6.0))]
     scene.interiors = {"cloud": medium}
     scene.fog = Medium(sigma_s=0.02, sigma_a=0.01)
     return DeviceScene(scene)
 
 
+# Known to fail (docs/volumes.md, Gradients, "Not yet right"): in these denser media the light
+# sample's MIS weight against phase sampling is far from 1 at medium vertices, and path replay holds
+# the weights still; the part of the derivative that the phase-sampled hits of the lamp must then
+# carry comes from rare samples. Measured here: g 27.4 against FD -1.2 +- 1.3, sigma_s low by 1.5 to
+# 5.8. Strict: the day they pass, the marker must go.
+KNOWN_MIS = pytest.mark.xfail(strict=True, reason="MIS at medium vertices with an area light (docs/volumes.md)")
+
+
+@KNOWN_MIS
 def test_interior_medium_gradients(scene_dir):
     """A chromatic medium inside an index-matched box in a thin fog: its sigma_a, sigma_s and g."""
     dev = _box_scene(scene_dir, "cloudbox", Medium(sigma_a=(0.1, 0.3, 0.5), sigma_s=(0.8, 0.5, 0.3), g=-0.3))
     _check(dev, ["cloud.medium_sigma_a", "cloud.medium_sigma_s", "cloud.medium_g"])
 
 
+@KNOWN_MIS
 def test_grid_gradients(scene_dir):
     """The box filled with a density ramp: its density scale and its sigma_s (per unit density)."""
     x = np.linspace(0.2, 1.0, 10, dtype=np.float32)

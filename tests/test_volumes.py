@@ -352,15 +352,16 @@ def test_nee_refuses_media(scene_dir):
         R.render_scene(dev, BALL_CAM, RenderSettings(width=4, height=4, spp=1, integrator="nee", sky=UNIFORM))
 
 
-@pytest.mark.parametrize("integrator", ["nee", "volpath"])
-@pytest.mark.parametrize("mode", ["prb", "tape"])
+@pytest.mark.parametrize("integrator, mode", [("nee", "prb"), ("nee", "tape"), ("volpath", "tape")])
 def test_gradients_refuse_media(scene_dir, mode, integrator):
-    """Gradients through media are not implemented: refused, not rendered as if the media were absent."""
+    """Gradients of a scene with media through an integrator that ignores them, or through the tape
+    (volpath's are path replay's, tests/test_volumes_gradients.py): refused, not rendered as if the
+    media were absent."""
     from warp_spt.diff.gradients import render_gradients
     from warp_spt.diff.params import parameters
     dev = _ball(scene_dir, "ball_grad", (1.0, 1.0, 1.0))
     p = parameters(dev, BALL_CAM, UNIFORM)
-    with pytest.raises(ValueError, match="participating media|integrator 'volpath'"):
+    with pytest.raises(ValueError, match="participating media|integrator 'volpath'|tape"):
         render_gradients(p, RenderSettings(width=4, height=4, spp=1, integrator=integrator), mode=mode,
                          adjoint=np.ones((4, 4, 3)), wrt=["sky.color"])
 

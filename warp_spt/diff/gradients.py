@@ -50,6 +50,7 @@ from warp_spt.core.lights import (
     alias_parameters,
     parameter_arrays,
 )
+from warp_spt.core.media.table import Media, media_of
 from warp_spt.core.material_table import with_gradients
 from warp_spt.core.textures import tile_view
 from warp_spt.diff.params import (
@@ -58,6 +59,7 @@ from warp_spt.diff.params import (
     ENVIRONMENT,
     ENVIRONMENT_TEXELS,
     MATERIAL_FIELDS,
+    MEDIUM,
     REPLAYABLE_FIELDS,
     ParamInfo,
     SceneParameters,
@@ -110,7 +112,7 @@ def replayable(p: ParamInfo) -> bool:
     that replay holds still: the tape's)."""
     if p.kind in PARAMETER_KINDS:
         return p.field not in PATHWISE_FIELDS[p.kind]
-    return p.kind == "proc" or (p.kind, p.field) in REPLAYABLE
+    return p.kind in ("proc", MEDIUM) or (p.kind, p.field) in REPLAYABLE
 
 
 # deltas[k] shift values passed by value in structs (the camera's frame); zero, they exist for
@@ -177,6 +179,22 @@ def _check_estimator(integrator: str, sampler: str) -> None:
     does not change, so it was exact); the vertex now updates a copy (docs/gradients.md, NEE)."""
     check_integrator(integrator)
     get_sampler(sampler)
+
+
+def _check_media(params: SceneParameters, infos: list[ParamInfo]) -> None:
+    """Refuse a medium's coefficients where their derivative is not estimated: a channel whose
+    extinction is 0 (its majorant is 0: no collision is ever drawn to carry the derivative) for
+    every coefficient, and a channel whose scattering is 0 for ``sigma_s`` (a scattering sets that
+    channel's throughput to 0, and path replay recovers what arrives beyond a vertex from the ratio
+    to the throughput). Their gradients would be biased, not noisy (docs/volumes.md, Gradients)."""
+    for p in infos:
+        if p.kind != MEDIUM or p.field == "g":
+            continue
+        m = params._medium(p)
+        if min(m.sigma_t) <= 0.0 or (p.field == "sigma_s" and min(m.sigma_s) <= 0.0):
+            what = "scattering" if min(m.sigma_t) > 0.0 else "extinction"
+            raise ValueError(f"{p.name}: the medium's {what} is 0 in a channel ({m.sigma_s if what == 'scattering' else m.sigma_t}); "
+                             f"its gradient there is not estimated (docs/volumes.md, Gradients)")
 
 
 def _check_depth(max_depth: int) -> None:
@@ -256,6 +274,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     infos = [params.info(n) for n in names]
     mode = choose_mode(mode, infos, rs.integrator)
     _check_estimator(rs.integrator, rs.sampler)
+    _check_media(params, infos)
     if mode == "tape":
         _check_depth(rs.max_depth)
     dev, sky, camera = params.scene, params.sky, params.camera
@@ -309,6 +328,7 @@ class _Backward:
         self.wants_proc = "proc" in wants
         # the environment map's texels: a gradient buffer of the map's size per tile, only when asked
         self.wants_env = (ENVIRONMENT, ENVIRONMENT_TEXELS) in wants
+        self.wants_media = MEDIUM in wants
         n = rs.width * rs.height
         self.tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
         self.nbytes = 0
@@ -340,7 +360,23 @@ class _Backward:
         lights = alias_parameters(self.bound.lights, self._grad_alias)     # the sky's colours, as m's
         if self.wants_env:
             lights = alias_field(lights, ENVIRONMENT, ENVIRONMENT_TEXELS, self._grad_alias)
-        return m, t, lights, deltas, scratch
+        geo = None
+        if self.wants_media:
+            geo = self._geometry_alias(self.dev.geometry)
+        return m, t, lights, deltas, scratch, geo
+
+    def _geometry_alias(self, geo: Geometry) -> Geometry:
+        """A copy of ``geo`` whose media table's coefficients and g carry this tile's gradient buffers."""
+        media = Media()
+        for k in Media.vars:
+            setattr(media, k, getattr(geo.media, k))
+        for k in MEDIUM_ARRAYS:
+            setattr(media, k, self._grad_alias(getattr(geo.media, k)))
+        out = Geometry()
+        for k in Geometry.vars:
+            setattr(out, k, getattr(geo, k))
+        out.media = media
+        return out
 
     def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
         """The reduced gradient buffers by name; with ``want_image`` (path replay only) also
@@ -353,8 +389,8 @@ class _Backward:
 
         def work(k: int) -> None:
             lo, hi = self.tiles[k]
-            m, t, lights, deltas, scratch = inputs[k]
-            args = self.bound.scene_args(self.bound.params(lo), materials=m, textures=t, lights=lights)
+            m, t, lights, deltas, scratch, geo = inputs[k]
+            args = self.bound.scene_args(self.bound.params(lo), materials=m, textures=t, lights=lights, geometry=geo)
             kernel = self.bound.kernel
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
                 wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=replay_inputs(
@@ -368,7 +404,7 @@ class _Backward:
         run_jobs(list(range(len(self.tiles))), lambda k, stop, done: work(k), self.threads, lambda units: None)
         # reduce in tile order, in float64: independent of threads
         sums: dict = {}
-        for m, t, lights, deltas, _ in inputs:
+        for m, t, lights, deltas, _, geo in inputs:
             parts = {f: getattr(m, f).grad for f in MATERIAL_FIELDS}
             parts.update({kind: a.grad for kind, a in parameter_arrays(lights).items()})
             parts["deltas"] = deltas.grad
@@ -378,6 +414,8 @@ class _Backward:
                 parts["proc"] = t.proc_params.grad
             if self.wants_env:
                 parts[ENV_TEXELS_KEY] = getattr(getattr(lights, ENVIRONMENT), ENVIRONMENT_TEXELS).grad
+            if self.wants_media:
+                parts.update({f"medium.{k}": getattr(geo.media, k).grad for k in MEDIUM_ARRAYS})
             for key, g in parts.items():
                 v = g.numpy().astype(np.float64)
                 sums[key] = sums[key] + v if key in sums else v
@@ -401,9 +439,30 @@ def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -
         return sums["proc"][p.index][off:off + size].reshape(p.shape).copy()
     if (p.kind, p.field) == (ENVIRONMENT, ENVIRONMENT_TEXELS):
         return sums[ENV_TEXELS_KEY].reshape(p.shape).copy()
+    if p.kind == MEDIUM:
+        return _medium_gradient(p, sums, dev)
     if p.kind in PARAMETER_KINDS:            # a light's parameter (the sky's colours): a row of its array
         return sums[p.kind][p.index].copy()
     raise ValueError(f"no gradient buffer holds {p.name}")
+
+
+MEDIUM_ARRAYS = ("sigma_a", "sigma_s", "g")     # the media table's arrays path replay differentiates
+
+
+def _medium_gradient(p: ParamInfo, sums: dict, dev: DeviceScene) -> np.ndarray:
+    """A medium's gradient from those of its row of the media table, which holds a grid's
+    coefficients times its density scale (and a majorant that moves with them)."""
+    row = p.index
+    if p.field == "g":
+        return np.asarray(sums["medium.g"][row], dtype=np.float64).reshape(())
+    ga, gs = sums["medium.sigma_a"][row], sums["medium.sigma_s"][row]
+    m = media_of(dev.scene)[0][row]
+    scale = m.density_scale if m.density is not None else 1.0
+    if p.field == "sigma_a":
+        return ga * scale
+    if p.field == "sigma_s":
+        return gs * scale
+    return np.asarray(np.dot(m.sigma_a, ga) + np.dot(m.sigma_s, gs), dtype=np.float64).reshape(())
 
 
 # ------------------------------------------------------------------------------------------------

@@ -20,6 +20,11 @@
 * ``"<light>.direction"`` and ``"<light>.color"`` (3,) for a sun (towards it; its irradiance),
   ``"<light>.position"`` and ``"<light>.intensity"`` (3,) for a point or spot light, ``<light>`` its
   name (``scene.lights.unique_names``); positions and directions by the tape only;
+* ``"fog.sigma_a"``, ``"fog.sigma_s"`` (3,) and ``"fog.g"`` () for the scene's medium, and
+  ``"<material>.medium_sigma_a"``, ``.medium_sigma_s``, ``.medium_g`` for a material's interior
+  medium (materials whose media are equal share one: setting one sets all); a density grid adds
+  ``.density_scale`` / ``.medium_density_scale`` (), and its ``sigma_a``/``sigma_s`` are per unit
+  density (docs/volumes.md, Gradients);
 * ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
   points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
   see docs/gradients.md).
@@ -43,6 +48,7 @@ from warp_spt.core.device_scene import DeviceScene
 from warp_spt.core.proctex import get_texture
 from warp_spt.core.textures import tile_view
 from warp_spt.scene.camera import Camera
+from warp_spt.core.media.table import media_of
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_RADIANCE
 from warp_spt.scene.material_schema import (
@@ -52,6 +58,7 @@ from warp_spt.scene.material_schema import (
     SLOT_COLUMNS,
     range_text,
 )
+from warp_spt.scene.media import MAX_SIGMA, Medium
 from warp_spt.scene.lights import KIND_SUN, PUNCTUAL_TYPES, punctual_lights, unique_names
 from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
@@ -62,6 +69,11 @@ from warp_spt.scene.validate import check_procedural_colours
 ENVIRONMENT = "environment"
 ENVIRONMENT_FIELDS = ("strength", "rotate")
 ENVIRONMENT_TEXELS = "texels"       # the map itself: not a row of that array (EnvLight.texels)
+
+# a participating medium's parameters (kind MEDIUM; index its row of the media table), in order; the
+# last only for a density grid
+MEDIUM = "medium"
+MEDIUM_FIELDS = ("sigma_a", "sigma_s", "g", "density_scale")
 
 # the material schema's differentiable columns (warp_spt.scene.material_schema), in its order
 MATERIAL_FIELDS = tuple(c.name for c in DIFFERENTIABLE)
@@ -74,7 +86,7 @@ _SLOT_NAMES = {c.slot: c.name for c in SLOT_COLUMNS}
 @dataclass(frozen=True)
 class ParamInfo:
     """Where a named parameter lives: ``kind`` is "material", "texture", "proc" (a procedural
-    texture's parameter), "sky", "punctual" (a sun, point or spot light) or "camera"; ``field`` the material field / texture key / sky or
+    texture's parameter), "sky", "punctual" (a sun, point or spot light), "medium" or "camera"; ``field`` the material field / texture key / sky or
     camera attribute; ``index`` the material row, texture index, procedural instance or row of the
     sky's colour array (``Sky.colour_fields`` order)."""
 
@@ -141,6 +153,8 @@ class SceneParameters:
             return np.array(getattr(self.sky, p.field), dtype=np.float32)
         if p.kind == "punctual":
             return np.array(getattr(self._light(p)[1], p.field), dtype=np.float32)
+        if p.kind == MEDIUM:
+            return np.array(getattr(self._medium(p), p.field), dtype=np.float32)
         return np.array(getattr(self.camera, p.field), dtype=np.float32)
 
     def _light(self, p: ParamInfo):
@@ -175,6 +189,8 @@ class SceneParameters:
             self.sky = replace(self.sky, env=replace(self.sky.env, image=v.astype(np.float32)))
         elif p.kind == ENVIRONMENT:
             self.sky = replace(self.sky, **{p.field: float(v)})
+        elif p.kind == MEDIUM:
+            self._set_medium(p, v)
         elif p.kind == "punctual":      # validated by the light's record; its table is rebuilt
             k, light = self._light(p)
             self.scene.scene.lights[k] = replace(light, **{p.field: tuple(float(x) for x in v)})
@@ -236,6 +252,41 @@ class SceneParameters:
         dev.proc_params.assign(host)
         self._refresh()
 
+    def _medium(self, p: ParamInfo) -> Medium:
+        """The host Medium ``p`` names (the fog's, or its material's interior)."""
+        scene = self.scene.scene
+        if p.name == f"fog.{p.field}":
+            return scene.fog
+        return scene.interiors[p.name[:-len(f".medium_{p.field}")]]
+
+    def _set_medium(self, p: ParamInfo, v: np.ndarray) -> None:
+        """Validate (``Medium.check``), then write the host Medium (the fog, or every interior holding
+        it) and its row of the device's media table (coefficients times the grid's scale, the majorant)."""
+        scene = self.scene.scene
+        old = self._medium(p)
+        value = tuple(float(x) for x in v) if p.shape else float(v)
+        try:
+            new = replace(old, **{p.field: value}).check(p.name)
+        except ValueError as err:
+            raise ValueError(str(err)) from None
+        if getattr(scene, "fog", None) is old:
+            scene.fog = new
+        for name, m in list((getattr(scene, "interiors", None) or {}).items()):
+            if m is old:
+                scene.interiors[name] = new
+        md = self.scene.geometry.media
+        scale = new.density_scale if new.density is not None else 1.0
+        rows = {"sigma_a": np.asarray(new.sigma_a) * scale, "sigma_s": np.asarray(new.sigma_s) * scale,
+                "majorant": np.asarray(new.sigma_t) * scale * new.majorant}
+        for name, row in rows.items():
+            host = getattr(md, name).numpy()
+            host[p.index] = row
+            getattr(md, name).assign(host)
+        host = md.g.numpy()
+        host[p.index] = new.g
+        md.g.assign(host)
+        self._refresh()
+
     def _refresh(self) -> None:
         """Features and light table follow the new values."""
         self.scene.refresh_features()
@@ -287,6 +338,13 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
             if n in info:           # a material of the same name
                 n = f"light:{n}"
             info[n] = ParamInfo(n, "punctual", f, 2 * j + row, (3,))
+    media, outer, rows = media_of(scene)
+    owners = [("fog.", outer)] if outer >= 0 else []
+    owners += [(f"{mt.names[k]}.medium_", int(r)) for k, r in enumerate(rows) if r >= 0]
+    for prefix, row in owners:
+        for f in MEDIUM_FIELDS if media[row].density is not None else MEDIUM_FIELDS[:3]:
+            n = prefix + f
+            info[n] = ParamInfo(n, MEDIUM, f, row, (3,) if f.startswith("sigma") else ())
     for f in ("position", "direction"):
         info[f"camera.{f}"] = ParamInfo(f"camera.{f}", "camera", f, 0, (3,))
     return info
@@ -340,6 +398,8 @@ def value_range(p: ParamInfo) -> tuple[float | None, float | None]:
         return 0.0, MAX_RADIANCE
     if p.kind == "proc" and p.shape == (3,):
         return 0.0, None
+    if p.kind == MEDIUM:              # Medium.check has the exact (open) bounds
+        return {"g": (-0.999, 0.999), "density_scale": (0.0, MAX_SIGMA)}.get(p.field, (0.0, MAX_SIGMA))
     return None, None
 
 

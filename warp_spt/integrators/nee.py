@@ -301,6 +301,8 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
                 if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
                     seen = vis
                     tr = wp.vec3(1.0, 1.0, 1.0)
+                    if wp.static(media is not None):
+                        seen = VIS_TRACE      # a transmittance, not only a visibility: traced again in replay
                     if seen == VIS_TRACE:
                         seen = VIS_VISIBLE
                         so, sd, st_max = shadow_ray(sf, x, ls, geo.extent)

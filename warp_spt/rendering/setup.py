@@ -22,6 +22,7 @@ import warp as wp
 from warp_spt.core.camera_rays import CameraParams, camera_params
 from warp_spt.core.device_scene import DeviceScene, Features, Textures
 from warp_spt.core.lights import Lights, light_table, sky_features
+from warp_spt.core.media.table import interface_media
 from warp_spt.integrators import Integrator, RenderParams, get_integrator, get_kernel
 from warp_spt.rendering.settings import RenderSettings, check_args, check_rows
 from warp_spt.scene.camera import Camera
@@ -116,11 +117,11 @@ class Bound:
         p.seed = wp.uint32((rs.seed if seed is None else seed) & SEED_MASK)
         return p
 
-    def scene_args(self, rp: RenderParams, *, materials=None, textures=None, lights=None) -> list:
+    def scene_args(self, rp: RenderParams, *, materials=None, textures=None, lights=None, geometry=None) -> list:
         """The inputs every path kernel (fast, replay, tape) starts with, in their order: geometry,
-        materials, textures, lights, camera, render parameters. ``materials``/``textures``/``lights``
-        replace the scene's (the gradients' per-tile aliases carrying ``.grad``)."""
-        return [self.dev.geometry, self.dev.materials if materials is None else materials,
+        materials, textures, lights, camera, render parameters. ``materials``/``textures``/``lights``/
+        ``geometry`` replace the scene's (the gradients' per-tile aliases carrying ``.grad``)."""
+        return [self.dev.geometry if geometry is None else geometry, self.dev.materials if materials is None else materials,
                 self.tex if textures is None else textures, self.lights if lights is None else lights,
                 self.cam, rp]
 
@@ -196,9 +197,8 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     if b.features.media and mode == "fast" and not b.integrator.media:
         raise ValueError(f"the scene has participating media (a fog or an interior medium): integrator "
                          f"{b.integrator.name!r} ignores them; render it with integrator 'volpath'")
-    if b.features.media and mode in ("tape", "replay"):     # their kernels would ignore the media
-        raise ValueError("the scene has participating media (a fog or an interior medium): gradients "
-                         "through media are not implemented yet (docs/volumes.md)")
+    if b.features.media and mode in ("tape", "replay"):
+        check_media_gradients(dev, b.integrator, mode)
     b.kernel = kind.build(b)
     b.cam = camera_params(camera, rs.width, rs.height)
     b.lights = light_table(dev, sky, camera.up) if kind.lights else None
@@ -206,6 +206,21 @@ def bind(scene: Scene | DeviceScene, camera: Camera | None = None, settings: Ren
     if b.integrator.prepare is not None:
         b.data = b.integrator.prepare(b)
     return b
+
+
+def check_media_gradients(dev: DeviceScene, integrator: Integrator, mode: str) -> None:
+    """ValueError for a gradient render of a scene with media that would be wrong: through the tape
+    (``volpath``'s trackers have no unrolled form), through an integrator that ignores media, or with
+    two media behind pass-through boundaries (a shadow ray's derivatives follow two media, the one it
+    starts in and one across such boundaries; docs/volumes.md, Gradients)."""
+    where = "the scene has participating media (a fog or an interior medium)"
+    if not integrator.media:
+        raise ValueError(f"{where}: integrator {integrator.name!r} ignores them; use integrator 'volpath'")
+    if mode != "replay":
+        raise ValueError(f"{where}: their gradients are path replay's (mode='prb' or 'auto'), not the tape's")
+    if len(interface_media(dev.scene)) > 1:
+        raise ValueError(f"{where}: gradients with more than one medium behind pass-through (index_matched) "
+                         f"boundaries are not supported (docs/volumes.md, Gradients)")
 
 
 def device_kernel(dev: DeviceScene, rs: RenderSettings, mode: str = "fast") -> wp.Kernel:

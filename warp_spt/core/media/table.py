@@ -75,3 +75,9 @@ def media_features(scene) -> tuple[str, ...]:
     if (interface_rows(scene.materials) & (rows >= 0)).any():
         kinds.append("interface")          # shadow rays cross pass-through medium boundaries
     return tuple(kinds)
+
+
+def interface_media(scene) -> set[int]:
+    """The media rows behind pass-through (``index_matched``) boundaries."""
+    _, _, rows = media_of(scene)
+    return {int(r) for r in rows[interface_rows(scene.materials) & (rows >= 0)]}

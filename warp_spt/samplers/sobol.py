@@ -79,6 +79,11 @@ Limits:
   * Cost: per 2D request 17 hashes (3 for the key, 2 of them per pixel and shared by a sample's requests
     through ``pixel_key`` and the ``*_keyed`` functions, 2 for the component seeds, 4 for the index
     shuffle, 4 per component), several times a PCG draw; benchmarks/bench_sampler.py prints both.
+    Seven of a request's fifteen own hashes depend only on (pixel, dimension) below index 2**15, but
+    a path's vertex cannot keep them across samples without per-thread storage for every dimension;
+    instead ``make_batch`` computes a vertex's requests as the lanes of one call (the same values),
+    which clang packs into vector registers (docs/performance.md, "A vertex's Sobol' requests as one
+    batch").
 """
 
 from __future__ import annotations

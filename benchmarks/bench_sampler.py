@@ -11,6 +11,16 @@ does today. Slopes are least-squares fits of log RMSE against log N over N >= 4 
 sampling: -0.5; scrambled nets: -1.5 for smooth 2D integrands, about -0.75 for a 2D discontinuity),
 at powers of two; a second table shows the gain at N = 3 * 2**k, between powers of two.
 The timing kernel only draws the numbers and sums them (single-threaded CPU launch; minimum of 3).
+
+    python benchmarks/bench_sampler.py --render   # whole renders: a vertex's Sobol' requests one by one
+                                                  # against one batch (Sampler.make_batch), same bits
+
+``--render``: nee + sobol's fast kernel built twice, the vertex drawing its requests one at a time
+(the sampler without ``make_batch``) and as one batch (the product), on bench_vs_mitsuba's Cornell
+box (diffuse, black sky) and the tests' Cornell box (glossy and glass balls, gradient sky), roulette
+from 3 hits. Each run is one single-threaded launch over every pixel, timed by the launching
+thread's CPU time, the two builds alternated ``--repeat`` times (the machine may be loaded: the
+median is printed with the spread); the films must be bit-identical.
 """
 
 from __future__ import annotations
@@ -139,10 +149,77 @@ def time_draws(draw_only, dims: int, pixels: int, n: int) -> float:
     return best / (pixels * n) * 1e9
 
 
+def render_scenes(folder: Path) -> list:
+    """(name, DeviceScene, Camera, Sky) of the --render scenes."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_rays import SKY, mitsuba_cornell
+    from tests.stability_scenes import cornell_camera, cornell_files
+
+    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.io.loader import load_scene
+    room = DeviceScene(load_scene(*cornell_files(folder), warn=lambda message: None))
+    return [mitsuba_cornell(folder), ("Cornell box (tests), glossy and glass balls", room, cornell_camera(), SKY)]
+
+
+def render_table(size: int, spp: int, repeat: int) -> None:
+    """Per-request against batched Sobol' requests in nee's fast kernel: CPU us per sample, same film."""
+    import dataclasses
+    import statistics
+    import tempfile
+
+    from warp_spt.core.lights import light_table, sky_emits
+    from warp_spt.integrators import RenderParams, camera_params, nee
+    from warp_spt.integrators.common import make_kernel, make_start_path
+    from warp_spt.samplers import get_sampler
+
+    batched = get_sampler("sobol")
+    variants = {"one by one": dataclasses.replace(batched, make_batch=None), "one batch": batched}
+    n = size * size
+    print(f"\nnee + sobol, {size}x{size}, {spp} spp, depth 6, roulette from 3 hits: CPU us per sample "
+          f"(one single-threaded launch, builds alternated, median [min-max] of {repeat})")
+    print("| scene | requests | us per sample | over one by one | film |")
+    print("|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, dev, cam, sky in render_scenes(Path(tmp)):
+            feats = dataclasses.replace(dev.features, sky=sky_emits(sky))
+            kernels = {}
+            for label, sampler in variants.items():
+                k = make_kernel(nee.make_path_step(feats, sampler, light_sampling=True), make_start_path(sampler))
+                wp.load_module(k.module, device="cpu")
+                kernels[label] = k
+            rp = RenderParams()
+            rp.width, rp.pixel_start, rp.sample_start, rp.sample_count = size, 0, 0, spp
+            rp.max_depth, rp.roulette_depth, rp.seed = 6, 3, wp.uint32(1)
+            fixed = [dev.geometry, dev.materials, dev.textures(), light_table(dev, sky), camera_params(cam, size, size),
+                     rp]
+            films = {label: wp.zeros(n, dtype=wp.vec3d) for label in kernels}
+            times = {label: [] for label in kernels}
+            for _ in range(repeat):
+                for label, k in kernels.items():
+                    films[label].zero_()
+                    t = time.thread_time()
+                    wp.launch(k, dim=n, inputs=[*fixed, films[label], wp.zeros((n, 2), dtype=wp.int64), None])
+                    times[label].append(time.thread_time() - t)
+            ref = films["one by one"].numpy()
+            base = statistics.median(times["one by one"])
+            for label, ts in times.items():
+                med = statistics.median(ts)
+                same = "bit-identical" if np.array_equal(films[label].numpy(), ref) else "DIFFERS"
+                print(f"| {name} | {label} | {med / (n * spp) * 1e6:.3f} [{min(ts) / (n * spp) * 1e6:.3f}-"
+                      f"{max(ts) / (n * spp) * 1e6:.3f}] | {base / med:.3f}x | {same} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--render", action="store_true", help="only the whole-render timing (see above)")
+    ap.add_argument("--size", type=int, default=128, help="--render: pixels per side")
+    ap.add_argument("--spp", type=int, default=8, help="--render: samples per pixel")
+    ap.add_argument("--repeat", type=int, default=7, help="--render: alternated runs of each build")
     args = ap.parse_args()
+    if args.render:
+        render_table(args.size, args.spp, args.repeat)
+        return
     pixels, n_max = (512, 1024) if args.quick else (2048, 4096)
     kernels = {s: make_kernels(s) for s in ("independent", "sobol")}
     for estimate, draw_only in kernels.values():       # compile outside the timings

@@ -258,3 +258,38 @@ def test_a_slice_of_indices_equals_that_part_of_the_whole_run():
     parts_mean = (sequence(17, 31, 4, 1000).sum(axis=0, dtype=np.float64)
                   + sequence(17, 31, 4, 3096, 1000).sum(axis=0, dtype=np.float64)) / 4096
     np.testing.assert_array_equal(parts_mean, whole.sum(axis=0, dtype=np.float64) / 4096)
+
+
+@pytest.mark.parametrize("offsets", [(3,), (1, 4, 5), (0, 1, 3, 4, 5, 7), (7, 2, 9, 0, 11)])
+def test_a_batch_equals_its_requests_one_by_one(offsets):
+    """make_batch's lanes (padded to a power of two) are sobol_2d's numbers at base + offset (so a 1-D
+    request's, its x), bit for bit as the numpy reference gives them, for indices on both sides of
+    the exactly scrambled 2**15 and keys of the whole range."""
+    batch = S.make_batch(offsets)
+    lanes = len(offsets) if len(offsets) > 1 else 2
+    lanes = 1 << (lanes - 1).bit_length()
+
+    @wp.kernel(module="unique")
+    def run(seeds: wp.array(dtype=wp.uint32), pixels: wp.array(dtype=int), indices: wp.array(dtype=int),
+            bases: wp.array(dtype=int), out: wp.array2d(dtype=float)):
+        t = wp.tid()
+        st = S.sampler_state(seeds[t], pixels[t], indices[t], S.pixel_key(seeds[t], pixels[t]))
+        v = batch(st, bases[t])
+        for j in range(wp.static(2 * lanes)):
+            out[t, j] = v[j]
+
+    rng = np.random.default_rng(11)
+    n = 4000
+    seed = rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32)
+    pixel = rng.integers(0, 2**31, n).astype(np.int32)
+    index = np.where(rng.random(n) < 0.5, rng.integers(0, 2**15, n), rng.integers(0, 2**31, n)).astype(np.int32)
+    base = rng.integers(0, 1000, n).astype(np.int32)
+    out = wp.empty((n, 2 * lanes), dtype=float, device=DEVICE)
+    wp.launch(run, n, inputs=[wp.array(seed, dtype=wp.uint32), wp.array(pixel, dtype=int), wp.array(index, dtype=int),
+                              wp.array(base, dtype=int), out], device=DEVICE)
+    got = out.numpy().reshape(n, 2, lanes)
+    padded = tuple(offsets) + (offsets[-1],) * (lanes - len(offsets))
+    for k, off in enumerate(padded):
+        want = R.sobol_2d(seed.astype(np.uint64), pixel.astype(np.int64), index.astype(np.int64), base + off)
+        np.testing.assert_array_equal(got[:, 0, k], want[:, 0], err_msg=f"offset {off}: x")
+        np.testing.assert_array_equal(got[:, 1, k], want[:, 1], err_msg=f"offset {off}: y")

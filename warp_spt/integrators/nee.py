@@ -30,8 +30,11 @@ from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_
 from warp_spt.integrators.common import (
     DIM_BOUNCE,
     FULL_STRIDE,
+    OFF_DIR,
+    OFF_FRESNEL,
     OFF_LIGHT,
     OFF_LIGHT_POS,
+    OFF_LOBE,
     OFF_ROULETTE,
     SEED_STRIDE,
     Integrator,
@@ -40,7 +43,7 @@ from warp_spt.integrators.common import (
     continue_path,
     make_bsdf_dims,
 )
-from warp_spt.samplers import Sampler, SamplerState
+from warp_spt.samplers import Sampler, SamplerState, batch_lanes
 
 STRIDE = FULL_STRIDE
 # the ``vis`` argument of ``vertex``: the shadow ray's answer when the caller knows it (path replay's
@@ -86,32 +89,43 @@ INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE,
                         summary="next-event estimation: a light sample at every vertex, MIS with the BSDF")
 
 
-def make_light_sample(sampler: Sampler, light, inline: bool | None = None):
+def make_light_sample(sampler: Sampler, light, inline: bool | None = None, drawn: bool = False):
     """``light_sample(geo, lights, state, sf, base) -> (light sample, shadow ray origin, state)``: the
     light sample of a vertex at ``sf`` whose bounce's dimensions start at ``base`` (the light choice
     and the point on it, from ``light.sample_li``); shared by ``nee``'s vertex and ``volpath``'s
-    medium vertex."""
+    medium vertex. ``drawn`` (random-access samplers): ``light_sample(geo, lights, state, sf, base,
+    u)`` takes the 2-D request at ``base + OFF_LIGHT_POS`` already drawn (a batch) as ``u``."""
+
+    @wp.func(inline=inline)
+    def light_sample_drawn(geo: Geometry, lights: Lights, state: SamplerState, sf: Surface, base: int,
+                           u: wp.vec2):
+        # one 2D request chooses the light and the point on it (the choice's leftover bits become
+        # the point's first coordinate), saving a request per vertex; the light dimension is drawn
+        # only where a light is too unlikely to leave enough bits
+        st = state
+        u_pos = u
+        u_pick = u_pos[0]
+        if lights.num_entries > 1:
+            rest = reuse_pick(lights, u_pick)
+            if rest < 0.0:
+                rest, st = sampler.next_1d(st, base + OFF_LIGHT)
+            u_pos = wp.vec2(rest, u_pos[1])
+        x = offset_origin(sf.p, sf.ng, 0, geo.extent)
+        return light.sample_li(geo, lights, x, u_pick, u_pos), x, st
+
+    if drawn:
+        return light_sample_drawn
 
     @wp.func(inline=inline)
     def light_sample(geo: Geometry, lights: Lights, state: SamplerState, sf: Surface, base: int):
+        if wp.static(sampler.random_access):
+            u_pos, st = sampler.next_2d(state, base + OFF_LIGHT_POS)
+            return light_sample_drawn(geo, lights, st, sf, base, u_pos)
         st = state
         u_pick = float(0.0)
-        u_pos = wp.vec2(0.0, 0.0)
-        if wp.static(sampler.random_access):
-            # one 2D request chooses the light and the point on it (the choice's leftover bits
-            # become the point's first coordinate), saving a request per vertex; the light
-            # dimension is drawn only where a light is too unlikely to leave enough bits
-            u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
-            u_pick = u_pos[0]
-            if lights.num_entries > 1:
-                rest = reuse_pick(lights, u_pick)
-                if rest < 0.0:
-                    rest, st = sampler.next_1d(st, base + OFF_LIGHT)
-                u_pos = wp.vec2(rest, u_pos[1])
-        else:
-            if lights.num_entries > 1:
-                u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
-            u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
+        if lights.num_entries > 1:
+            u_pick, st = sampler.next_1d(st, base + OFF_LIGHT)
+        u_pos, st = sampler.next_2d(st, base + OFF_LIGHT_POS)
         x = offset_origin(sf.p, sf.ng, 0, geo.extent)
         return light.sample_li(geo, lights, x, u_pick, u_pos), x, st
 
@@ -167,7 +181,8 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     # the fast kernel inlines the step and its vertex: called out of line, each bounce copied the scene
     # structs they take by value (about 2 KB); the tape kernel, unrolled, keeps the compiler's choice
     inline = None if differentiable else True
-    vertex = make_path_vertex(features, sampler, light_sampling, inline=inline, hooks=hooks)
+    vertex = make_path_vertex(features, sampler, light_sampling, inline=inline, hooks=hooks,
+                              batched=not differentiable)
     if hooks is not None:
         Aux = hooks.Aux
 
@@ -227,7 +242,7 @@ class VertexHooks:
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
-                     replay: bool = False, media=None, hooks: VertexHooks | None = None):
+                     replay: bool = False, media=None, hooks: VertexHooks | None = None, batched: bool = False):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
@@ -242,7 +257,10 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     ``blocked`` and returns the transmittance of the media it crosses (0: occluded), which weighs the
     light sample; None (every other integrator) compiles none of it. ``hooks``: an integrator's changes
     (:class:`VertexHooks`: direction sampling, continuation, recording); the vertex's last argument
-    is then its ``Aux`` data and it returns ``hooks.finish(path, out)``; None compiles none of it."""
+    is then its ``Aux`` data and it returns ``hooks.finish(path, out)``; None compiles none of it.
+    ``batched`` (forward kernels): where the sampler has ``make_batch``, the vertex's BSDF and light
+    point requests are drawn as one batch at its start: the same numbers at a fraction of the cost
+    (the light point is drawn for nothing at a vertex without a smooth lobe; the lanes make it cheap)."""
     surface_at = make_surface(features)
     if replay:
         detach_surface(surface_at)
@@ -262,6 +280,24 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     Aux = hooks.Aux if hooked else int
 
     light_sample = make_light_sample(sampler, light, inline=inline_callees)
+
+    # the batch's lanes (offset in the bounce's dimensions -> lane): the requests of every vertex that
+    # scatters; the rare ones (the light's 1-D number when the pick leaves too few bits, roulette,
+    # off by default) stay single requests, drawn only when needed
+    lanes = {}
+    if batched and sampler.random_access and sampler.make_batch is not None and media is None:
+        wanted = [OFF_LOBE] if features.needs("dims.lobe") else []
+        wanted.append(OFF_DIR)
+        if features.needs("dims.fresnel"):
+            wanted.append(OFF_FRESNEL)
+        if sample_lights:
+            wanted.append(OFF_LIGHT_POS)
+        lanes = {off: k for k, off in enumerate(wanted)}
+    batch = sampler.make_batch(tuple(lanes)) if lanes else None
+    width = batch_lanes(len(lanes))      # the batch's y values start at entry ``width``
+    L_LOBE, L_DIR = lanes.get(OFF_LOBE, 0), lanes.get(OFF_DIR, 0)
+    L_FRESNEL, L_POS = lanes.get(OFF_FRESNEL, 0), lanes.get(OFF_LIGHT_POS, 0)
+    light_sample_drawn = make_light_sample(sampler, light, inline=inline_callees, drawn=True) if lanes else None
 
     @wp.func
     def mis_weight(pa: float, pb: float) -> float:
@@ -284,17 +320,21 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
 
     @wp.func(inline=inline_callees)
     def direct(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, p: PathState, sf: Surface,
-               base: int, vis: int, share: float):
+               base: int, vis: int, share: float, u_light: wp.vec2):
         """Light sampling at this vertex: (radiance to add, sampler state, visibility of the light
         sample: VIS_VISIBLE/VIS_OCCLUDED, VIS_TRACE if no shadow ray was needed). ``vis`` other than
         VIS_TRACE is taken as the shadow ray's answer instead of tracing it. ``share`` (hooked
-        vertices only): the material's fraction of the direction's density, which MIS weighs."""
+        vertices only): the material's fraction of the direction's density, which MIS weighs.
+        ``u_light`` (batched vertices only): the 2-D request at ``base + OFF_LIGHT_POS``."""
         contrib = wp.vec3(0.0, 0.0, 0.0)
         seen = int(VIS_TRACE)
         st = p.sampler
         if (mat.lobes(mats, tex, sf) & LOBE_SMOOTH) != 0:    # light sampling needs a lobe with a density
             # light.sample in two halves, the geometric one having no adjoint in path replay
-            ls, x, st = light_sample(geo, lights, st, sf, base)
+            if wp.static(batch is not None):
+                ls, x, st = light_sample_drawn(geo, lights, st, sf, base, u_light)
+            else:
+                ls, x, st = light_sample(geo, lights, st, sf, base)
             if ls.pdf > 0.0:
                 f = mat.eval(mats, tex, sf, ls.dir)
                 le = wp.cw_mul(f, light.le(geo, mats, tex, lights, ls, x))
@@ -361,16 +401,29 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             else:
                 return p
         base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
-        u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
+        u_light = wp.vec2(0.0, 0.0)
+        if wp.static(batch is not None):
+            u = batch(p.sampler, base)
+            u_lobe = float(0.0)
+            if wp.static(OFF_LOBE in lanes):
+                u_lobe = u[L_LOBE]
+            u_dir = wp.vec2(u[L_DIR], u[L_DIR + wp.static(width)])
+            u_fresnel = float(0.0)
+            if wp.static(OFF_FRESNEL in lanes):
+                u_fresnel = u[L_FRESNEL]
+            if wp.static(OFF_LIGHT_POS in lanes):
+                u_light = wp.vec2(u[L_POS], u[L_POS + wp.static(width)])
+        else:
+            u_lobe, u_dir, u_fresnel, p = bsdf_dims(p)       # dims in increasing order: bsdf, light, roulette
         share = float(1.0)
         if wp.static(directed):
             gv = hooks.guide(vis, mats, tex, sf)
             share = hooks.share(gv)
         if wp.static(sample_lights):
             if wp.static(hooked):      # ``vis`` is the hook's data: the shadow ray is traced
-                contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, VIS_TRACE, share)
+                contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, VIS_TRACE, share, u_light)
             else:
-                contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, vis, share)
+                contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, vis, share, u_light)
             # a copy, not p's own fields: Warp assigns struct fields in place, and the adjoint of
             # ``direct`` (gradients) replays it with ``p`` as it is at that point; an updated
             # p.sampler there drew other light samples (independent sampler: gradients off by up to 4x)

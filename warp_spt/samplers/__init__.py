@@ -15,9 +15,9 @@ from __future__ import annotations
 
 from warp_spt.runtime import kernel_cache
 from warp_spt.samplers import independent, sobol
-from warp_spt.samplers.base import Sampler, SamplerState, detach_requests, sampler_state
+from warp_spt.samplers.base import Sampler, SamplerState, batch_lanes, detach_requests, sampler_state
 
-__all__ = ["SAMPLERS", "DEFAULT_SAMPLER", "Sampler", "SamplerState", "check_sampler", "detach_requests",
+__all__ = ["SAMPLERS", "DEFAULT_SAMPLER", "Sampler", "SamplerState", "batch_lanes", "check_sampler", "detach_requests",
            "get_sampler", "sampler_state"]
 
 

@@ -21,7 +21,13 @@ class SamplerState:
 @dataclass(frozen=True)
 class Sampler:
     """A sampler's three Warp functions: ``start(seed, pixel, index) -> state``,
-    ``next_1d(state, dim) -> (float, state)``, ``next_2d(state, dim) -> (vec2, state)``."""
+    ``next_1d(state, dim) -> (float, state)``, ``next_2d(state, dim) -> (vec2, state)``.
+
+    ``make_batch`` (optional, random-access samplers whose ``next_1d(d)`` is ``next_2d(d)``'s x):
+    ``make_batch(offsets) -> batch``, ``batch(state, base) -> vector`` of ``2 * lanes`` floats
+    (``lanes = batch_lanes(len(offsets))``): entry k and entry ``lanes + k`` are ``next_2d(state, base +
+    offsets[k])``'s x and y, bit for bit, all computed in one call (a vertex's requests as the lanes
+    of one batch). Forward kernels only: it has no adjoint."""
 
     name: str
     start: object
@@ -29,6 +35,13 @@ class Sampler:
     next_2d: object
     random_access: bool = False    # any dimension costs the same, so unused ones are simply not drawn
     summary: str = ""              # one line for --help and the docs
+    make_batch: object = None
+
+
+def batch_lanes(n: int) -> int:
+    """The lanes of a batch of ``n`` requests: a power of two (at least 2), which clang's vectoriser
+    packs whole into vector registers."""
+    return 1 << max(1, (n - 1).bit_length())
 
 
 @wp.func

@@ -79,13 +79,18 @@ Limits:
   * Cost: per 2D request 17 hashes (3 for the key, 2 of them per pixel and shared by a sample's requests
     through ``pixel_key`` and the ``*_keyed`` functions, 2 for the component seeds, 4 for the index
     shuffle, 4 per component), several times a PCG draw; benchmarks/bench_sampler.py prints both.
+    Seven of a request's fifteen own hashes depend only on (pixel, dimension) below index 2**15, but
+    a path's vertex cannot keep them across samples without per-thread storage for every dimension;
+    instead ``make_batch`` computes a vertex's requests as the lanes of one call (the same values),
+    which clang packs into vector registers (docs/performance.md, "A vertex's Sobol' requests as one
+    batch").
 """
 
 from __future__ import annotations
 
 import warp as wp
 
-from warp_spt.samplers.base import Sampler, SamplerState, detach_requests, sampler_state
+from warp_spt.samplers.base import Sampler, SamplerState, batch_lanes, detach_requests, sampler_state
 
 # Python-int spellings of the constants, shared with the numpy reference in the tests.
 LOWBIAS_MUL1 = 0x7FEB352D
@@ -252,6 +257,46 @@ def sobol_2d(seed: wp.uint32, pixel: int, index: int, dim: int) -> wp.vec2:
     return sobol_2d_keyed(pixel_key(seed, pixel), index, dim)
 
 
+def make_batch(offsets: tuple) -> object:
+    """``batch(state, base) -> vector``: the 2-D requests at ``base + offsets[k]`` as the lanes of
+    one call (``Sampler.make_batch``), bit for bit ``sobol_2d_keyed``'s values. The lanes are padded
+    to a power of two (``batch_lanes``; repeating the last offset) so that clang packs them whole into xmm / ymm
+    integer instructions: each lane's hashes are the same straight-line code, so the batch costs
+    about what one or two scalar requests do (benchmarks/bench_sampler_lanes.py: 3.3x the scalar
+    rate for 4 lanes, 5.3x for 8). Built once per offsets (the kernel cache)."""
+    from warp_spt.runtime import kernel_cache
+
+    return kernel_cache.cached("sobol batch", tuple(offsets), lambda: _build_batch(tuple(offsets)))
+
+
+def _build_batch(offsets: tuple) -> object:
+    if not offsets:
+        raise ValueError("a Sobol' batch needs at least one dimension offset")
+    lanes = batch_lanes(len(offsets))
+    padded = offsets + (offsets[-1],) * (lanes - len(offsets))
+    vi = wp.types.vector(length=lanes, dtype=wp.int32)
+    vf = wp.types.vector(length=2 * lanes, dtype=wp.float32)
+    offs = wp.constant(vi(*padded))
+
+    # out of line: a function of its own keeps the lanes together for clang's vectoriser, and the
+    # path kernel calls it once per vertex
+    @wp.func(inline=False)
+    def lanes_2d(pkey: wp.uint32, index: int, base: int):
+        out = vf()
+        for j in range(wp.static(lanes)):
+            key = mix32(pkey ^ (wp.uint32(base + offs[j]) * _DIM_MUL))
+            i = shuffled_index(key, index)
+            out[j] = to_unit(owen_scramble(reverse_bits(i), mix32(key ^ _X_SALT)))
+            out[j + wp.static(lanes)] = to_unit(owen_scramble(sobol_dim1(i), mix32(key ^ _Y_SALT)))
+        return out
+
+    @wp.func
+    def batch(state: SamplerState, base: int):
+        return lanes_2d(state.rng, state.index, base)
+
+    return batch
+
+
 # ---------------------------------------------------------------------------------------------
 # The sampler record (warp_spt.samplers.SAMPLERS["sobol"])
 
@@ -273,4 +318,4 @@ def make():
 
     detach_requests(next_1d, next_2d)
     return Sampler("sobol", start, next_1d, next_2d, random_access=True,
-                   summary="Owen-scrambled Sobol' points, a (0,2)-sequence per pixel")
+                   summary="Owen-scrambled Sobol' points, a (0,2)-sequence per pixel", make_batch=make_batch)

@@ -155,6 +155,35 @@ def test_first_hit_in_a_loaded_scene(tmp_path):
     assert first_hit(scene, (0.0, -5.0, 3.0), (0.0, 1.0, 0.0)) is None
 
 
+def test_first_hit_through_instances_equals_the_flattened_scene(tmp_path):
+    """A double-click on an instanced mesh (glTF nodes sharing a mesh) finds the placed copy: the same
+    distance as in the scene with every placement copied into world space (Scene.flattened)."""
+    from dataclasses import replace
+
+    objs, mtls = write_scene_files(tmp_path, "box", box_obj((-1, -1, -1), (1, 1, 1), "wall", subdivide=2),
+                                   material("wall", Kd=(0.5, 0.5, 0.5)))
+    scene = warp_spt.load_scene(objs, mtls)
+    c, s_ = math.cos(0.6), math.sin(0.6)
+    moved = np.array([[c, -s_, 0.0, 3.0], [s_, c, 0.0, 0.5], [0.0, 0.0, 1.0, 0.2], [0.0, 0.0, 0.0, 1.0]])
+    squashed = np.diag([0.5, 2.0, 0.25, 1.0])
+    squashed[:3, 3] = (-3.0, 1.0, 0.0)
+    inst = replace(scene, meshes=[replace(scene.meshes[0], transforms=np.stack([moved, squashed]))])
+    assert inst.instanced
+    flat = inst.flattened()
+    rng = np.random.default_rng(3)
+    hits = 0
+    for _ in range(200):
+        o = np.array([rng.choice([-3.0, 3.0]) + rng.uniform(-1.5, 1.5), -8.0, rng.uniform(-1.0, 1.0)])
+        d = np.array([rng.uniform(-0.3, 0.3), 1.0, rng.uniform(-0.1, 0.1)])
+        d /= np.linalg.norm(d)
+        a, b = first_hit(inst, o, d), first_hit(flat, o, d)
+        assert (a is None) == (b is None)
+        if a is not None:
+            hits += 1
+            assert a == pytest.approx(b, rel=1e-9)
+    assert hits >= 50
+
+
 # ------------------------------------------------------------------ command line
 
 def test_the_command_names_the_view_in_the_readmes_order():

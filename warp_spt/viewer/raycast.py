@@ -54,7 +54,23 @@ def first_hit(scene, origin, direction) -> float | None:
     for mesh in scene.meshes:
         pos = np.asarray(mesh.positions, dtype=np.float64)
         idx = np.asarray(mesh.indices)
-        for lo in range(0, len(idx), CHUNK):
-            tri = idx[lo:lo + CHUNK]
-            best = min(best, triangles_hit(o, d, pos[tri[:, 0]], pos[tri[:, 1]], pos[tri[:, 2]]))
+        for oo, dd in _placed_rays(mesh, o, d):
+            for lo in range(0, len(idx), CHUNK):
+                tri = idx[lo:lo + CHUNK]
+                best = min(best, triangles_hit(oo, dd, pos[tri[:, 0]], pos[tri[:, 1]], pos[tri[:, 2]]))
     return None if not np.isfinite(best) else best
+
+
+def _placed_rays(mesh, o: np.ndarray, d: np.ndarray):
+    """The ray in the object space of each placement of an instanced mesh (``MeshData.transforms``),
+    or the ray itself: the direction is mapped, not renormalised, so a hit's parameter t is the
+    world distance along the unit ``d``."""
+    if getattr(mesh, "transforms", None) is None:
+        yield o, d
+        return
+    for x in np.asarray(mesh.transforms, dtype=np.float64):
+        try:
+            inv = np.linalg.inv(x)
+        except np.linalg.LinAlgError:      # a placement scaled to nothing is not drawn
+            continue
+        yield inv[:3, :3] @ o + inv[:3, 3], inv[:3, :3] @ d

@@ -419,4 +419,4 @@ INTEGRATOR = Integrator("guided", make, None, STRIDE, tape=False, make_kernel=ma
                         render_passes=render_passes, params=PARAMS,
                         summary="path guiding: NEE + MIS with BSDF directions mixed with a learnt SD-tree (lower "
                                 "error per sample on indirect light, but no faster than nee at equal error: "
-                                "not a speed option, docs/performance.md#path-guiding)")
+                                "not a speed option; see docs/performance.md, Path guiding)")

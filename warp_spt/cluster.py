@@ -607,7 +607,11 @@ def local_client(n_workers: int = 2, *, threads_per_worker: int = 1, **cluster_k
     options = dict(n_workers=n_workers, threads_per_worker=threads_per_worker, processes=True,
                    host="127.0.0.1", dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     options.update(cluster_kwargs)
-    cluster = distributed.LocalCluster(**options)
+    try:
+        cluster = distributed.LocalCluster(**options)
+    except BaseException:          # Ctrl-C while the workers start: their processes go with it, quietly
+        _kill_children()
+        raise
     try:
         client = distributed.Client(cluster)
     except BaseException:
@@ -623,6 +627,20 @@ def local_client(n_workers: int = 2, *, threads_per_worker: int = 1, **cluster_k
 
 
 ABANDON_SECONDS = 2.0     # what closing a cluster whose workers were killed may take, at most
+
+
+def _kill_children() -> None:
+    """Kill this process's multiprocessing children at once. A worker still unpickling its start-up
+    state when this process exits finds its semaphores gone and prints a traceback after the
+    command's one line (a Ctrl-C 1.5 s into ``--workers 2``, under load: CI of 2026-11-27)."""
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
+        try:
+            child.kill()
+            child.join(1.0)
+        except Exception:                   # already gone, or not ours to join
+            pass
 
 
 def _abandon(cluster, client=None) -> None:

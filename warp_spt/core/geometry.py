@@ -107,6 +107,24 @@ def sphere_hit(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_max: float) -> float:
     return NO_HIT
 
 
+def make_object_ray(wide: bool):
+    """The ray in instance ``item``'s object space (the module's docstring: t stays a world distance),
+    for the closest hit and the any-hit test alike; ``wide``: set up by ``mesh_ray`` for the wide traversal."""
+
+    @wp.func(inline=True)
+    def object_ray(s: Geometry, item: int, r: MeshRay) -> MeshRay:
+        a = s.inst_to_object[item]
+        ro = MeshRay()
+        if wp.static(wide):
+            ro = mesh_ray(a * r.o + s.inst_to_object_offset[item], a * r.d)
+        else:
+            ro.o = a * r.o + s.inst_to_object_offset[item]
+            ro.d = a * r.d
+        return ro
+
+    return object_ray
+
+
 def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differentiable: bool = False):
     """The closest-hit function for scenes with these features.
 
@@ -126,6 +144,7 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
     mesh_closest = make_closest_query(max(features.bvh_stack, 1))
     wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
     instanced = features.instances and features.meshes
+    object_ray = make_object_ray(wide)
 
     # inline: called, it would copy the Geometry struct (~2 KB) at every call (measured: +25% time)
     @wp.func(inline=True)
@@ -159,13 +178,7 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
     @wp.func(inline=True)
     def mesh_hit(s: Geometry, item: int, r: MeshRay, hit: Hit) -> Hit:
         if wp.static(instanced):
-            a = s.inst_to_object[item]
-            ro = MeshRay()
-            if wp.static(wide):
-                ro = mesh_ray(a * r.o + s.inst_to_object_offset[item], a * r.d)
-            else:
-                ro.o = a * r.o + s.inst_to_object_offset[item]
-                ro.d = a * r.d
+            ro = object_ray(s, item, r)
             # mesh_query sets the index only when it finds a closer hit: -1 marks "not found here"
             before = hit.index
             hit.index = -1
@@ -302,6 +315,7 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
     wide_any_hit = make_any_hit_query(max(features.bvh_stack, 1))
     wide, warp_bvh = features.bvh_stack > 0, features.warp_meshes
     instanced = features.instances and features.meshes
+    object_ray = make_object_ray(wide)
 
     @wp.func(inline=True)
     def mesh_blocks(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
@@ -315,14 +329,7 @@ def make_occluded(features: Features, small_scene: int = SMALL_SCENE):
     @wp.func(inline=True)
     def mesh_any_hit(s: Geometry, item: int, r: MeshRay, t_max: float) -> bool:
         if wp.static(instanced):
-            a = s.inst_to_object[item]
-            ro = MeshRay()
-            if wp.static(wide):
-                ro = mesh_ray(a * r.o + s.inst_to_object_offset[item], a * r.d)
-            else:
-                ro.o = a * r.o + s.inst_to_object_offset[item]
-                ro.d = a * r.d
-            return mesh_blocks(s, s.inst_mesh[item], ro, t_max)
+            return mesh_blocks(s, s.inst_mesh[item], object_ray(s, item, r), t_max)
         return mesh_blocks(s, item, r, t_max)
 
     @wp.func(inline=True)

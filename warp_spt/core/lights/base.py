@@ -16,6 +16,7 @@ import warp as wp
 
 from warp_spt.core.structs import Features
 from warp_spt.core.geometry import Hit
+from warp_spt.core.surface import offset_eps
 from warp_spt.core.textures import checker_np, sample_texture_np
 from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import Sky
@@ -36,6 +37,32 @@ class LightSample:
     t_max: float
     h: Hit            # the point on the emitter (kind KIND_MISS: an infinite light), where ``le`` looks
 
+
+
+@wp.func
+def sample_at(h: Hit, pl: wp.vec3, x: wp.vec3, spherical: bool, sel_solid: float, omega: float, sel_area: float,
+              area2: float, extent: float) -> LightSample:
+    """The sample of point ``pl`` of an emitting triangle (``h``: its hit, but for ``t``) seen from
+    ``x``, drawn by solid angle (density ``sel_solid / omega``) or by area (``sel_area`` per twice the
+    area ``area2``, turned into solid angle): ``sel_*`` are the choice probabilities, the
+    triangle's and any part's within it. Density 0 where the point is x itself or seen edge-on."""
+    ls = LightSample()
+    ls.pdf = 0.0
+    dist = wp.length(pl - x)
+    if dist <= 0.0:
+        return ls
+    ls.dir = (pl - x) / dist
+    cos_l = wp.abs(wp.dot(h.normal, ls.dir))
+    if cos_l < 1.0e-7:
+        return ls
+    ls.h = h
+    ls.h.t = dist
+    if spherical:
+        ls.pdf = sel_solid / omega
+    else:
+        ls.pdf = sel_area / (0.5 * area2) * dist * dist / cos_l
+    ls.t_max = dist - offset_eps(pl, extent) / wp.max(cos_l, 0.05)
+    return ls
 
 @dataclass(frozen=True)
 class Weighed:

@@ -31,10 +31,9 @@ import numpy as np
 import warp as wp
 
 from warp_spt.core.geometry import KIND_TRIANGLE, Hit
-from warp_spt.core.lights.base import LightSample, device_array
+from warp_spt.core.lights.base import LightSample, device_array, sample_at
 from warp_spt.core.sampling import spherical_triangle_sample, triangle_solid_angle
 from warp_spt.core.structs import Geometry
-from warp_spt.core.surface import offset_eps
 from warp_spt.core.textures import sample_texture_np
 from warp_spt.scene.model import SLOT_EMISSION, Scene
 
@@ -178,21 +177,7 @@ def make(Lights, use_solid_angle, sample_plain, pdf_plain):
         h.normal = nrm
         h.u = wp.clamp(wp.dot(wp.cross(p1 - pl, p2 - pl), nrm) / area2, 0.0, 1.0)
         h.v = wp.clamp(wp.dot(wp.cross(p2 - pl, p0 - pl), nrm) / area2, 0.0, 1.0 - h.u)
-        dist = wp.length(pl - x)
-        if dist <= 0.0:
-            return ls
-        ls.dir = (pl - x) / dist
-        h.t = dist
-        cos_l = wp.abs(wp.dot(nrm, ls.dir))
-        if cos_l < 1.0e-7:
-            return ls
-        ls.h = h
-        if spherical:
-            ls.pdf = prob * pc / omega
-        else:
-            ls.pdf = prob * pc * float(n * n) / (0.5 * area2) * dist * dist / cos_l
-        ls.t_max = dist - offset_eps(pl, geo.extent) / wp.max(cos_l, 0.05)
-        return ls
+        return sample_at(h, pl, x, spherical, prob * pc, omega, prob * pc * float(n * n), area2, geo.extent)
 
     @wp.func(inline=True)
     def pdf_li(geo: Geometry, lights: Lights, h: Hit, o: wp.vec3, d: wp.vec3) -> float:

@@ -29,12 +29,12 @@ from warp_spt.core.lights.base import (
     Weighed,
     device_array,
     mean_emission,
+    sample_at,
 )
 from warp_spt.core.lights import emissive_texels
 from warp_spt.core.lights.emissive_texels import TexelLights
 from warp_spt.core.lights.light_tree import MIN_TREE_LIGHTS, LightTree, build_tree, leaf_prob, pick_leaf, upload_tree
 from warp_spt.core.sampling import spherical_triangle_sample, triangle_solid_angle
-from warp_spt.core.surface import offset_eps
 from warp_spt.scene.model import SLOT_EMISSION, Scene
 from warp_spt.scene.sky import Sky
 
@@ -126,21 +126,7 @@ def make(Lights, features: Features):
             h.u = 1.0 - su                     # uniform on the triangle
             h.v = u[1] * su
         pl = p2 + (p0 - p2) * h.u + (p1 - p2) * h.v
-        dist = wp.length(pl - x)
-        if dist <= 0.0:
-            return ls
-        ls.dir = (pl - x) / dist
-        h.t = dist
-        cos_l = wp.abs(wp.dot(n, ls.dir))
-        if cos_l < 1.0e-7:
-            return ls
-        ls.h = h
-        if spherical:
-            ls.pdf = prob / omega
-        else:
-            ls.pdf = prob / (0.5 * area2) * dist * dist / cos_l
-        ls.t_max = dist - offset_eps(pl, geo.extent) / wp.max(cos_l, 0.05)
-        return ls
+        return sample_at(h, pl, x, spherical, prob, omega, prob, area2, geo.extent)
 
     @wp.func(inline=True)     # into the dispatch's pdf_li, one function as before: no call level of its own
     def pdf_li(geo: Geometry, lights: Lights, h: Hit, o: wp.vec3, d: wp.vec3) -> float:

@@ -26,15 +26,16 @@ default kernel and the small kernels also for sm_90:
   the general one switch every feature on and off: every registered procedural texture compiled in
   (``general()`` compiles none); meshes only, traced by Warp's BVH alone (the default on CUDA),
   diffuse, lit by emitters, one material kind (no dispatch); spheres only, specular, lit by the
-  sky, the last material kind (no diffuse lobe, so no light sampling);
+  sky, the last material kind (no diffuse lobe, so no light sampling); and the meshes-only set with
+  every medium kind (emitting, behind pass-through boundaries) for ``volpath``, the only integrator
+  that reads media (its trackers and shadow path are called, not inlined: inlined, NVRTC ran past an
+  hour on this kernel; called, 35 CPU s);
 * the small kernels outside the renderers: the procedural-texture probe (every registered texture)
   and the first view's probes (``rendering/first_view``: the CLI's, the viewer's, the API's). The
   viewer has no kernels of its own: it renders through the same set-up (``rendering/setup.bind``).
 
-**The full matrix** (``WARP_SPT_CUDA_FULL=1``): the representative set's feature sets and the
-meshes-only set with every medium kind (emitting, behind pass-through boundaries) for ``volpath``,
-the only integrator that reads media (not in the representative set: its NVRTC compile alone ran
-past 5 minutes here); the fast kernel of every integrator x every sampler,
+**The full matrix** (``WARP_SPT_CUDA_FULL=1``): the representative set's feature sets; the fast
+kernel of every integrator x every sampler,
 every other kind with every integrator (the kinds that refuse ``guided`` and ``ears``, ``replay``
 and ``tape``, reported as skipped), every variant for every architecture in ``ARCHS`` (sm_75 and
 sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides). Run it before a release and on a GPU machine
@@ -48,7 +49,7 @@ Warp's kernel cache keeps each PTX file by the module's hash, so a second run co
 Cost, measured on the 2-core development machine: a general fast kernel takes 30-80 s of NVRTC per
 architecture with the pbr kind compiled in, the adjoint kernels (NVRTC optimising replay's and the
 tape's adjoints) several CPU-minutes each. The full matrix (about 40 compiles) ran past an hour of CI's
-2 cores with Warp's cache cold, which is why CI compiles the representative set (16 compiles).
+2 cores with Warp's cache cold, which is why CI compiles the representative set (the fixture prints its count of compiles).
 With Warp's cache warm (the modules unchanged since the last run): seconds.
 """
 
@@ -99,10 +100,9 @@ FEATURE_SETS = {
                                 material_flags=("dims.fresnel", "dims.lobe", "frame", "pbr.thin", "pbr.transmission")),
 }
 # participating media: every medium kind, emitting, behind pass-through boundaries (volpath alone reads
-# them), on the meshes-only set; in the full matrix only: NVRTC ran past 10 minutes on this kernel for
-# Features.general() and past 5 on the meshes-only set (the trackers are inlined at every call site)
+# them), on the meshes-only set (the media's functions do not depend on the surface features)
 FEATURE_SETS["media"] = replace(FEATURE_SETS["meshes-warp-bvh"], media=tuple(sorted(MEDIUM_KINDS)) + ("emission", "interface"))
-FULL_ONLY_SETS = ("media",)
+FULL_ONLY_SETS: tuple[str, ...] = ()     # feature sets compiled by the full matrix only
 # the integrator of each extra feature set (the default one unless the set's code is another's)
 SET_INTEGRATOR = {"media": "volpath"}
 

@@ -156,7 +156,7 @@ def _make_vertex(features: Features, sampler: Sampler, inline: bool | None, repl
     material_of = make_material_of(features)
     crosses = "interface" in features.media
 
-    @wp.func
+    @wp.func(inline=False)     # called, not inlined: see core.media's free_flight (NVRTC's cost)
     def shadow_path(geo: Geometry, mats: Materials, tex: Textures, medium: int, o: wp.vec3, d: wp.vec3,
                     t_max: float, rng: wp.uint32):
         """Transmittance from ``o`` (in ``medium``) to ``t_max`` along ``d``, 0 when a surface blocks

@@ -138,7 +138,13 @@ def make_media(features, diff: bool = False) -> SimpleNamespace:
                 return second.segment(media, m, o, d, t, t_max)
             return first.segment(media, m, o, d, t, t_max)
 
-    @wp.func
+    # free_flight and transmittance (and volpath's shadow_path) are called, not inlined: inlined at each
+    # call site, NVRTC optimised one function of several thousand lines and the media kernel's CUDA
+    # compile ran past an hour on 2 cores; called, it takes 35 CPU s (sm_75, every medium kind,
+    # pass-through boundaries), and the CPU renders the same bits at the same speed (volpath, a chromatic
+    # fog on the demo, 64x64 x 8 spp: 0.151-0.160 s inlined against 0.152-0.159 s called, CPU s, medians
+    # of three alternated runs of 9)
+    @wp.func(inline=False)
     def free_flight(media: Media, m: int, o: wp.vec3, d: wp.vec3, t_max: float, hero: int, beta: wp.vec3,
                     w: wp.vec3, rng: wp.uint32):
         t = float(0.0)
@@ -238,7 +244,7 @@ def make_media(features, diff: bool = False) -> SimpleNamespace:
         else:
             return EVENT_ABSORB, t, zero, mis, emitted, r
 
-    @wp.func
+    @wp.func(inline=False)
     def transmittance(media: Media, m: int, o: wp.vec3, d: wp.vec3, t_max: float, rng: wp.uint32):
         t = float(0.0)
         T = wp.vec3(1.0, 1.0, 1.0)

@@ -29,9 +29,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import platform
 import sys
-import tempfile
 
 INDEX_FOLDER = "wp_spt_index"     # "wp_" first: wp.clear_kernel_cache() removes it with the kernels
 PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -76,7 +74,7 @@ def own_key(kind: str, spec: tuple, root: str = PACKAGE) -> str:
     from warp_spt.runtime import kernel_cache
 
     digest = kernel_cache.cached("source digest", root, lambda: source_digest(root))
-    text = "\n".join([digest, wp.__version__, sys.version.split()[0], platform.machine(), kind, repr(spec),
+    text = "\n".join([digest, wp.__version__, sys.version.split()[0], os.uname().machine if hasattr(os, "uname") else os.name, kind, repr(spec),
                       config_state(wp)])
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -104,13 +102,16 @@ def _default_options(context) -> dict:
 
 
 def remember(key: str, kernel, device: str = "cpu") -> None:
-    """Record where Warp put ``kernel``'s compiled module (loaded on ``device``) under ``key``;
-    nothing when it is recorded already, not a CPU load, or the cache folder cannot be written."""
+    """Record where Warp put ``kernel``'s compiled module (loaded on ``device``) under ``key``,
+    replacing a record that says otherwise (one :func:`load` declined); nothing when the same record
+    is there, for a load that is not on the CPU, or when the cache folder cannot be written."""
+    import tempfile
+
     import warp as wp
     from warp._src import context
 
     path = _record_path(wp, key)
-    if path is None or os.path.exists(path) or not wp.get_device(device).is_cpu:
+    if path is None or not wp.get_device(device).is_cpu:
         return
     m = kernel.module
     cpu = [bd for context_, bd in m.execs if context_ is None]      # a CPU load's variant: its block_dim
@@ -129,6 +130,13 @@ def remember(key: str, kernel, device: str = "cpu") -> None:
               "kernel_dim": kernel.adj.kernel_dim, "uses_tid": bool(getattr(kernel.adj, "uses_tid", True)),
               "module_options": module_options, "binary": os.path.relpath(exe.binary_path, cache),
               "meta": os.path.relpath(meta, cache)}
+    try:
+        text = json.dumps(record)
+        with open(path) as f:
+            if f.read() == text:
+                return
+    except (OSError, TypeError, ValueError):     # none yet (or options JSON cannot hold: below)
+        pass
     try:
         text = json.dumps(record)
         os.makedirs(os.path.dirname(path), exist_ok=True)

@@ -107,3 +107,17 @@ def test_a_record_whose_object_is_gone_falls_back_to_warps_look_up(tmp_path):
         assert kernel_index.load(records[0].stem, make_kernel(None, None, decorate=False)) is None
     finally:
         wp.config.kernel_cache_dir = saved
+
+
+def test_no_own_key_for_code_from_outside_the_package(monkeypatch):
+    from warp_spt.integrators import INTEGRATORS, _own_code, get_integrator
+    from warp_spt.samplers import SAMPLERS
+
+    assert _own_code("nee", "sobol", Features())
+    nee = get_integrator("nee")
+    monkeypatch.setitem(INTEGRATORS, "outside", replace(nee, name="outside", make_step=lambda *a, **k: nee.make_step(*a, **k)))
+    assert not _own_code("outside", "sobol", Features())          # a step built by a user's module
+    assert not _own_code("guided", "sobol", Features())           # a kernel of its own
+    assert not _own_code("nee", "sobol", replace(Features(), procedural=(("user_tex", "0" * 16),)))
+    monkeypatch.setitem(SAMPLERS, "outside", lambda: SAMPLERS["sobol"]())
+    assert not _own_code("nee", "outside", Features())

@@ -308,7 +308,8 @@ def cached_against(other: str, repeat: int) -> None:
     sys.path.insert(0, str(REPO / "benchmarks"))
     import bench_vs_mitsuba as mb
     desc = mb.SCENES["cornell"]
-    trees = {"other (" + other + ")": str(Path(other).resolve()), "this checkout": os.environ.get("PYTHONPATH", str(REPO))}
+    trees = {f"other ({other})": str(Path(other).resolve()),
+             "this checkout": os.environ.get("PYTHONPATH", str(REPO))}
     with tempfile.TemporaryDirectory() as folder:
         obj, mtl = Path(folder) / "scene.obj", Path(folder) / "scene.mtl"
         obj.write_text(mb.obj_text(desc["shapes"]))

@@ -115,9 +115,14 @@ def test_no_own_key_for_code_from_outside_the_package(monkeypatch):
 
     assert _own_code("nee", "sobol", Features())
     nee = get_integrator("nee")
-    monkeypatch.setitem(INTEGRATORS, "outside", replace(nee, name="outside", make_step=lambda *a, **k: nee.make_step(*a, **k)))
+    outside = replace(nee, name="outside", make_step=lambda *a, **k: nee.make_step(*a, **k))
+    monkeypatch.setitem(INTEGRATORS, "outside", outside)
     assert not _own_code("outside", "sobol", Features())          # a step built by a user's module
     assert not _own_code("guided", "sobol", Features())           # a kernel of its own
     assert not _own_code("nee", "sobol", replace(Features(), procedural=(("user_tex", "0" * 16),)))
     monkeypatch.setitem(SAMPLERS, "outside", lambda: SAMPLERS["sobol"]())
     assert not _own_code("nee", "outside", Features())
+
+
+def test_no_key_without_sources_to_read(tmp_path):
+    assert kernel_index.own_key("fast", ("nee", "sobol", Features()), str(tmp_path / "missing")) is None

@@ -43,9 +43,11 @@ def enabled() -> bool:
     return os.environ.get("WARP_SPT_KERNEL_INDEX", "1") != "0"
 
 
-def source_digest(root: str = PACKAGE) -> str:
-    """sha256 of every ``.py`` file under ``root`` (path and bytes, in sorted order)."""
+def source_digest(root: str = PACKAGE) -> str | None:
+    """sha256 of every ``.py`` file under ``root`` (path and bytes, in sorted order); None when
+    there are none to read (a package imported from a zip file: no key then)."""
     h = hashlib.sha256()
+    count = 0
     for folder, dirs, files in os.walk(root):
         dirs[:] = sorted(d for d in dirs if d != "__pycache__")
         for name in sorted(files):
@@ -55,27 +57,31 @@ def source_digest(root: str = PACKAGE) -> str:
                     data = f.read()
                 rel = os.path.relpath(path, root).encode()
                 h.update(len(rel).to_bytes(4, "little") + rel + len(data).to_bytes(8, "little") + data)
-    return h.hexdigest()
+                count += 1
+    return h.hexdigest() if count else None
 
 
 def config_state(wp) -> str:
     """The simple values of ``wp.config`` that can change code, as one sorted text."""
     items = sorted((k, v) for k, v in vars(wp.config).items()
-                   if not k.startswith("_") and k not in _NOT_CODE and isinstance(v, (bool, int, float, str, type(None))))
+                   if not k.startswith("_") and k not in _NOT_CODE
+                   and isinstance(v, (bool, int, float, str, type(None))))
     return repr(items)
 
 
-def own_key(kind: str, spec: tuple, root: str = PACKAGE) -> str:
+def own_key(kind: str, spec: tuple, root: str = PACKAGE) -> str | None:
     """The key of kernel ``kind`` specialised by ``spec`` (its ``repr`` must name every choice the
     kernel's code depends on) for the sources under ``root`` (this package), Warp and its
-    configuration."""
+    configuration; None when the sources cannot be read."""
     import warp as wp
 
     from warp_spt.runtime import kernel_cache
 
     digest = kernel_cache.cached("source digest", root, lambda: source_digest(root))
-    text = "\n".join([digest, wp.__version__, sys.version.split()[0], os.uname().machine if hasattr(os, "uname") else os.name, kind, repr(spec),
-                      config_state(wp)])
+    if digest is None:
+        return None
+    machine = os.uname().machine if hasattr(os, "uname") else os.name
+    text = "\n".join([digest, wp.__version__, sys.version.split()[0], machine, kind, repr(spec), config_state(wp)])
     return hashlib.sha256(text.encode()).hexdigest()
 
 

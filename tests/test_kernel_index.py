@@ -58,13 +58,15 @@ _CHILD = """
 import hashlib, json, sys
 from warp_spt import RenderSettings, load_scene, render_scene
 from warp_spt.demo import demo_files
-from warp_spt.runtime import kernel_cache
+from warp_spt.runtime import kernel_cache, kernel_index
 objs, mtls = demo_files()
 res = render_scene(load_scene(objs, mtls), settings=RenderSettings(width=24, height=16, spp=2, max_depth=4, threads=1))
 print(json.dumps({"image": hashlib.sha256(res.image.tobytes()).hexdigest(),
                   "steps built": len(kernel_cache.entries("step")),
                   "by own key": [k is not None for (kind, _), k in kernel_cache._built.items()
-                                 if kind == "fast, by own key"]}))
+                                 if kind == "fast, by own key"],
+                  "keys": [kernel_index.own_key("fast", spec) for kind, spec in kernel_cache._built
+                           if kind == "fast, by own key"]}))
 """
 
 
@@ -126,3 +128,15 @@ def test_no_own_key_for_code_from_outside_the_package(monkeypatch):
 
 def test_no_key_without_sources_to_read(tmp_path):
     assert kernel_index.own_key("fast", ("nee", "sobol", Features()), str(tmp_path / "missing")) is None
+
+
+def test_a_record_that_does_not_load_is_replaced():
+    first = _render({})
+    assert len(first["keys"]) == 1
+    path = Path(_records()[0]).parent / (first["keys"][0] + ".json")
+    path.write_text("{")                 # a record that cannot be read: Warp's look-up, then a new record
+    again = _render({})
+    assert again["by own key"] == [False] and again["steps built"] > 0
+    assert json.loads(path.read_text())["kernel"]
+    last = _render({})
+    assert last["by own key"] == [True] and last["steps built"] == 0 and last["image"] == first["image"]

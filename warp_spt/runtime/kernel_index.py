@@ -110,48 +110,62 @@ def _default_options(context) -> dict:
 def remember(key: str, kernel, device: str = "cpu") -> None:
     """Record where Warp put ``kernel``'s compiled module (loaded on ``device``) under ``key``,
     replacing a record that says otherwise (one :func:`load` declined); nothing when the same record
-    is there, for a load that is not on the CPU, or when the cache folder cannot be written."""
+    is there, for a load that is not on the CPU, when Warp's module does not look as expected, or
+    when the cache folder cannot be written: a record only saves time."""
     import tempfile
 
     import warp as wp
-    from warp._src import context
 
     path = _record_path(wp, key)
     if path is None or not wp.get_device(device).is_cpu:
         return
-    m = kernel.module
-    cpu = [bd for context_, bd in m.execs if context_ is None]      # a CPU load's variant: its block_dim
-    if len(cpu) != 1:
-        return
-    bd = cpu[0]
-    hasher, exe = m.hashers.get(bd), m.execs[(None, bd)]
-    if hasher is None or kernel not in hasher.kernel_hashes or len(hasher.kernel_hashes) != 1:
-        return
-    defaults = _default_options(context)
-    module_options = {k: v for k, v in m.options.items() if defaults.get(k) != v}
-    cache = wp.config.kernel_cache_dir
-    meta = os.path.join(cache, m.get_module_identifier(bd), m._get_meta_name(block_dim=bd))
-    record = {"module": m.name, "module_hash": hasher.get_hash().hex(), "kernel": kernel.key,
-              "kernel_hash": hasher.kernel_hashes[kernel].hex(), "kernel_options": kernel.options, "block_dim": bd,
-              "kernel_dim": kernel.adj.kernel_dim, "uses_tid": bool(getattr(kernel.adj, "uses_tid", True)),
-              "module_options": module_options, "binary": os.path.relpath(exe.binary_path, cache),
-              "meta": os.path.relpath(meta, cache)}
     try:
-        text = json.dumps(record)
+        record = _describe(wp, kernel)
+        text = json.dumps(record) if record is not None else None
+    except Exception:       # Warp's internals read here changed, or options JSON cannot hold
+        return
+    if text is None:
+        return
+    try:
         with open(path) as f:
             if f.read() == text:
                 return
-    except (OSError, TypeError, ValueError):     # none yet (or options JSON cannot hold: below)
+    except OSError:         # none yet
         pass
+    tmp = None
     try:
-        text = json.dumps(record)
         os.makedirs(os.path.dirname(path), exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
         with os.fdopen(fd, "w") as f:
             f.write(text)
         os.replace(tmp, path)       # a reader sees a whole record or none
-    except (OSError, TypeError, ValueError):     # a read-only cache, or options JSON cannot hold
-        return
+    except OSError:                 # a read-only or full cache
+        if tmp is not None and os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _describe(wp, kernel) -> dict | None:
+    """What :func:`load` needs of ``kernel``'s module, loaded on the CPU (None: not one CPU variant
+    holding this one kernel)."""
+    from warp._src import context
+
+    m = kernel.module
+    cpu = [bd for context_, bd in m.execs if context_ is None]      # a CPU load's variant: its block_dim
+    if len(cpu) != 1:
+        return None
+    bd = cpu[0]
+    hasher, exe = m.hashers.get(bd), m.execs[(None, bd)]
+    if hasher is None or kernel not in hasher.kernel_hashes or len(hasher.kernel_hashes) != 1:
+        return None
+    defaults = _default_options(context)
+    module_options = {k: v for k, v in m.options.items() if defaults.get(k) != v}
+    cache = wp.config.kernel_cache_dir
+    meta = os.path.join(cache, m.get_module_identifier(bd), m._get_meta_name(block_dim=bd))
+    return {"module": m.name, "module_hash": hasher.get_hash().hex(), "kernel": kernel.key,
+            "kernel_hash": hasher.kernel_hashes[kernel].hex(), "kernel_options": kernel.options, "block_dim": bd,
+            "kernel_dim": kernel.adj.kernel_dim, "uses_tid": bool(getattr(kernel.adj, "uses_tid", True)),
+            "module_options": module_options, "binary": os.path.relpath(exe.binary_path, cache),
+            "meta": os.path.relpath(meta, cache)}
 
 
 def load(key: str, function, device: str = "cpu"):

@@ -156,7 +156,8 @@ import warp_spt.core.device_scene as ds
 import warp_spt.rendering.setup as setup
 from warp._src import context
 c3 = time.process_time()
-spent = {{"upload (DeviceScene)": 0.0, "step and kernel built, hashed": 0.0, "module loaded": 0.0}}
+spent = {{"upload (DeviceScene)": 0.0, "get_kernel (built and hashed, or found by own key)": 0.0,
+         "module loaded": 0.0}}
 def timed(owner, name, key):
     orig = getattr(owner, name)
     def wrapper(*a, **k):
@@ -167,7 +168,7 @@ def timed(owner, name, key):
             spent[key] += time.process_time() - c
     setattr(owner, name, wrapper)
 timed(ds.DeviceScene, "__init__", "upload (DeviceScene)")
-timed(setup, "get_kernel", "step and kernel built, hashed")
+timed(setup, "get_kernel", "get_kernel (built and hashed, or found by own key)")
 timed(context.Module, "load", "module loaded")
 scene = load_scene([{obj!r}], [{mtl!r}])
 c4 = time.process_time()
@@ -299,6 +300,52 @@ def start_times(repeat: int) -> None:
               f"{med[5]:.2f} s |")
 
 
+def cached_against(other: str, repeat: int) -> None:
+    """A cached start of --start-only's Cornell box with another checkout's warp_spt (``other``, a
+    folder holding ``warp_spt``: the code before a change) and with this one, alternating, each on a
+    kernel cache of its own filled first (fresh processes, bytecode cached as in --start-only);
+    medians of ``repeat`` CPU seconds: the two figures are taken under the same load."""
+    import statistics
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_vs_mitsuba as mb
+    desc = mb.SCENES["cornell"]
+    trees = {f"other ({other})": str(Path(other).resolve()),
+             "this checkout": os.environ.get("PYTHONPATH", str(REPO))}
+    with tempfile.TemporaryDirectory() as folder:
+        obj, mtl = Path(folder) / "scene.obj", Path(folder) / "scene.mtl"
+        obj.write_text(mb.obj_text(desc["shapes"]))
+        mtl.write_text(mb.mtl_text(desc["materials"]))
+        code = _START_CHILD.format(obj=str(obj), mtl=str(mtl))
+        base = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        envs = {}
+        for i, (label, path) in enumerate(trees.items()):
+            cache = Path(folder) / f"cache{i}"
+            envs[label] = dict(base, PYTHONPATH=path, WARP_CACHE_PATH=str(cache),
+                               PYTHONPYCACHEPREFIX=str(Path(folder) / f"pycache{i}"))
+            subprocess.run([sys.executable, "-c", code], env=envs[label], check=True, cwd=folder, capture_output=True)
+        runs: dict[str, list[list[float]]] = {label: [] for label in trees}
+        bare = []
+        for _ in range(repeat):
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "pass"], check=True)
+            bare.append(time.perf_counter() - t)
+            for label in trees:
+                out = subprocess.run([sys.executable, "-c", code], env=envs[label], capture_output=True, text=True,
+                                     cwd=folder)
+                if out.returncode != 0:
+                    raise RuntimeError(out.stderr[-2000:])
+                runs[label].append([float(x) for x in out.stdout.split()[-4:]])
+    interpreter = statistics.median(bare)
+    print(f"\n## A cached start, alternating two checkouts (Cornell box, median of {repeat} CPU s, load average "
+          f"{os.getloadavg()[0]:.1f}; python -c pass: {interpreter:.2f} s wall)")
+    print("| code | imports | load_scene | bind | first render | until the first launch |")
+    print("|---|---|---|---|---|---|")
+    for label, rows in runs.items():
+        med = [statistics.median(col) for col in zip(*rows)]
+        print(f"| {label} | " + " | ".join(f"{x:.3f}" for x in med) +
+              f" | {interpreter + sum(med[:3]):.3f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="128x128, 4 spp")
@@ -308,7 +355,13 @@ def main() -> None:
     ap.add_argument("--start-parts", action="store_true",
                     help="only where a cached start's CPU time goes, part by part (fresh processes)")
     ap.add_argument("--repeat", type=int, default=3, help="--start-only, --start-parts: runs (default 3)")
+    ap.add_argument("--cached-against", metavar="DIR",
+                    help="only a cached start, alternating the warp_spt under DIR (e.g. a git archive of the code "
+                         "before a change) and this checkout's, --repeat times")
     args = ap.parse_args()
+    if args.cached_against:
+        cached_against(args.cached_against, args.repeat)
+        return
     if args.start_only:
         start_times(args.repeat)
         return

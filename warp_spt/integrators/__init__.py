@@ -32,7 +32,7 @@ from warp_spt.integrators.common import (
     make_kernel,
     make_start_path,
 )
-from warp_spt.runtime import kernel_cache
+from warp_spt.runtime import kernel_cache, kernel_index
 from warp_spt.samplers import DEFAULT_SAMPLER, get_sampler
 
 
@@ -147,15 +147,40 @@ def get_kernel(features: Features, device: str = "cpu", integrator: str | None =
     (defaults: DEFAULT_INTEGRATOR, DEFAULT_SAMPLER)."""
     integrator = integrator or DEFAULT_INTEGRATOR
     sampler = sampler or DEFAULT_SAMPLER
+    spec = (integrator, sampler, features)
+    own = kernel_index.enabled() and _own_code(integrator, sampler, features)
+    key = kernel_index.own_key("fast", spec) if own else None
+    if key is not None and device == "cpu" and ("fast", spec) not in kernel_cache.entries("fast"):
+        found = kernel_cache.cached("fast, by own key", spec,
+                                    lambda: kernel_index.load(key, make_kernel(None, None, decorate=False), device))
+        if found is not None:
+            return found
     step, start = get_step(integrator, sampler, features)
     build = get_integrator(integrator).make_kernel or make_kernel
-    k = kernel_cache.cached("fast", (integrator, sampler, features), lambda: build(step, start))
+    k = kernel_cache.cached("fast", spec, lambda: build(step, start))
     try:
-        return kernel_cache.load(k, device)
+        kernel_cache.load(k, device)
     except Exception as err:       # a user's procedural texture is the likely culprit: name it
         if not features.procedural:
             raise
         raise explain_compile_failure(features.procedural, err, device) from None
+    if key is not None:
+        kernel_index.remember(key, k, device)
+    return k
+
+
+def _own_code(integrator: str, sampler: str, features: Features) -> bool:
+    """Whether the fast kernel of (integrator, sampler, features) is this package's code alone, the
+    common kernel around an integrator and a sampler of its own and no procedural texture: what
+    ``kernel_index``'s key covers (a plugin's source is not in its digest)."""
+    from warp_spt.core.media.registry import KINDS as MEDIA_KINDS
+    from warp_spt.samplers import SAMPLERS
+
+    rec = get_integrator(integrator)
+    make = SAMPLERS.get(sampler)
+    ours = [rec.make_step, make, *MEDIA_KINDS.values()]
+    return (rec.make_kernel is None and not features.procedural and make is not None
+            and all(getattr(x, "__module__", getattr(x, "__name__", "")).startswith("warp_spt.") for x in ours))
 
 
 __all__ = ["INTEGRATORS", "DEFAULT_INTEGRATOR", "Integrator", "CameraParams", "Param", "PathState", "RenderParams",

@@ -344,9 +344,11 @@ def add_to_pixel(film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.i
     counters[pix, 1] = counters[pix, 1] + wp.int64(bad)
 
 
-def make_kernel(step, start_path):
+def make_kernel(step, start_path, *, decorate: bool = True):
     """The fast forward kernel: each thread renders some samples of one pixel, summed in float64 and
-    added to the film, so a large sample count never drifts.
+    added to the film, so a large sample count never drifts. ``decorate`` False: its plain Python
+    function, which :mod:`warp_spt.runtime.kernel_index` turns into the kernel of a compiled object
+    it found by its own key (``step`` and ``start_path`` are then never read).
 
     Which pixel and samples: with an empty (None) ``work``, thread t renders ``rp.sample_count``
     samples from index ``rp.sample_start`` of pixel ``rp.pixel_start + t`` (a run of pixels); else
@@ -354,7 +356,6 @@ def make_kernel(step, start_path):
     count (adaptive passes: one launch covers the active pixels of a whole image). One kernel serves
     both, so adaptive sampling compiles no variant of its own."""
 
-    @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
               rp: RenderParams, film: wp.array(dtype=wp.vec3d), counters: wp.array2d(dtype=wp.int64),
               work: wp.array(dtype=wp.vec3i)):
@@ -381,4 +382,6 @@ def make_kernel(step, start_path):
                 bad += 1           # counted and reported in RenderResult.stats; tests require zero
         add_to_pixel(film, counters, pix, acc, rays, bad)
 
-    return trace
+    if not decorate:
+        return trace
+    return wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)(trace)

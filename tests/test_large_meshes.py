@@ -48,3 +48,75 @@ def test_the_vectorised_scanner_reads_a_heightfield_as_the_line_reader():
     assert len(a.faces) == 2 * 39 * 39
     for key in ("positions", "faces", "face_material"):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
+
+
+def test_the_box_shortcut_of_the_edge_check_never_passes_a_longer_edge():
+    """box_bounds_edges may only say True where every edge really is within the limit (the
+    per-triangle lengths, computed independently, decide), and it says True for ordinary models."""
+    from warp_spt.scene.validate import box_bounds_edges, longest_edges
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        p = rng.normal(size=(rng.integers(3, 40), 3)) * 10.0 ** rng.uniform(-3, 3)
+        f = rng.integers(0, len(p), size=(30, 3)).astype(np.int32)
+        longest = float(longest_edges(p, f).max())
+        for limit in (longest * 0.999, longest, longest * 1.5, longest * 100.0):
+            if box_bounds_edges(p, limit):
+                assert longest <= limit
+    unit = rng.uniform(size=(100, 3))
+    assert box_bounds_edges(unit, 2.0) and not box_bounds_edges(unit, 1.0)
+
+
+def test_a_long_edge_behind_a_large_box_is_still_refused():
+    """Where the box proves nothing (vertices far apart), the exact lengths decide: small triangles
+    far apart pass, one long triangle fails with its own length in the message."""
+    from dataclasses import replace
+
+    import pytest
+
+    from warp_spt.io.loader import load_scene
+    from warp_spt.scene.errors import SceneError
+    from warp_spt.scene.limits import MAX_TRIANGLE_EDGE
+    from warp_spt.scene.validate import validate_scene
+
+    e = MAX_TRIANGLE_EDGE
+    apart = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.9 * e, 0, 0], [0.9 * e + 1, 0, 0], [0.9 * e, 1, 0]])
+    text = "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in apart)
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "apart.obj"
+        path.write_text(text + "f 1 2 3\nf 4 5 6\n")
+        scene = load_scene([str(path)])                      # the box is 0.9e across: no shortcut; passes
+        validate_scene(scene)
+        mesh = scene.meshes[0]
+        validate_scene(replace(scene, meshes=[replace(mesh, positions=mesh.positions * 1.2)]))  # box > e, edges ~1
+        path.write_text(text + "f 1 2 3\nf 4 5 6\nf 1 6 2\n")     # an edge of about 0.9e: within e
+        scene = load_scene([str(path)])
+        validate_scene(scene)
+        mesh = scene.meshes[0]
+        with pytest.raises(SceneError, match="edge of 1.08e\\+09 is longer"):
+            validate_scene(replace(scene, meshes=[replace(mesh, positions=mesh.positions * 1.2)]))
+
+
+def test_mesh_bounds_are_the_rounded_extremes_of_the_used_vertices():
+    """placement_bounds (no transforms) against the definition: float32-rounded used vertices' min
+    and max, with an unused far vertex that must not count."""
+    from warp_spt.scene.model import MeshData
+
+    rng = np.random.default_rng(5)
+    p = rng.normal(size=(500, 3)) * 1e3 + 1e-3 * rng.normal(size=(500, 3))
+    p[7] = (1e6, -1e6, 1e6)                                   # unused
+    f = rng.integers(0, 500, size=(800, 3)).astype(np.int32)
+    f[f == 7] = 8
+    m = MeshData("m", p, f, np.zeros((800, 3, 2), np.float32), None, np.zeros(800, np.int32))
+    used = np.unique(f)
+    r = p[used].astype(np.float32).astype(np.float64)
+    b = m.placement_bounds()
+    assert np.array_equal(b[0], np.stack([r.min(0), r.max(0)]))
+    b = m.placement_bounds(rounded=False)
+    assert np.array_equal(b[0], np.stack([p[used].min(0), p[used].max(0)]))
+    full = MeshData("m", p[used], np.arange(len(used), dtype=np.int32)[:len(used) // 3 * 3].reshape(-1, 3),
+                    np.zeros((len(used) // 3, 3, 2), np.float32), None, np.zeros(len(used) // 3, np.int32))
+    q = p[used][:len(used) // 3 * 3].astype(np.float32).astype(np.float64)
+    assert np.array_equal(full.placement_bounds()[0], np.stack([q.min(0), q.max(0)]))

@@ -39,7 +39,13 @@ from warp_spt.scene.model import CHECKER_NAME, ObjData
 # Geometry within +-MAX_COORDINATE: the ray-triangle test forms products of two coordinates in float32
 # (1e30, far below 3.4e38) and a sphere's box must be finite in float32; no triangle's edge longer than
 # MAX_TRIANGLE_EDGE (scene.limits says why).
-from warp_spt.scene.validate import MAX_COORDINATE, MAX_TRIANGLE_EDGE, edge_problem, longest_edges
+from warp_spt.scene.validate import (
+    MAX_COORDINATE,
+    MAX_TRIANGLE_EDGE,
+    box_bounds_edges,
+    edge_problem,
+    longest_edges,
+)
 
 
 def load_obj(path: str | os.PathLike[str]) -> ObjData:
@@ -80,8 +86,8 @@ def resolve(raw: RawObj, path: str) -> ObjData:
     faces, ftex, fnrm = cv[tri], ct[tri], cn[tri]
     tri_line = np.repeat(raw.poly_line, raw.poly_size - 2)
     keep = _nonzero_area(raw.positions, faces)
-    edges = longest_edges(raw.positions, faces)
-    if (keep & ~(edges <= MAX_TRIANGLE_EDGE)).any():
+    edges = None if box_bounds_edges(raw.positions, MAX_TRIANGLE_EDGE) else longest_edges(raw.positions, faces)
+    if edges is not None and (keep & ~(edges <= MAX_TRIANGLE_EDGE)).any():
         k = int(np.argmax(keep & ~(edges <= MAX_TRIANGLE_EDGE)))
         raise SceneError(path, int(tri_line[k]), edge_problem(float(edges[k])))
     names, lines, event_index = _material_names(raw.usemtl)

@@ -153,10 +153,12 @@ class MeshData:
             return None
         mask = np.zeros(len(self.positions), dtype=bool)
         mask[self.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-        used = self.positions[mask]
-        used = _as_float32(used) if rounded else used.astype(np.float64)
+        used = self.positions if mask.all() else self.positions[mask]
         if self.transforms is None:
-            return np.stack([used.min(0), used.max(0)])[None]
+            # rounding to float32 is monotonic: the rounded extremes are the extremes' rounding
+            b = np.stack([used.min(0), used.max(0)])[None]
+            return _as_float32(b) if rounded else b.astype(np.float64)
+        used = _as_float32(used) if rounded else used.astype(np.float64)
         out = np.empty((len(self.transforms), 2, 3))
         batch = max(1, (1 << 22) // (3 * len(used)))          # at most ~32 MB of projections at a time
         for k in range(0, len(self.transforms), batch):

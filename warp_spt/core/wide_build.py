@@ -123,10 +123,13 @@ def _build(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3), c: wp.array
                 # (an extent so small that the scale overflows cannot be binned: such centroids are equal)
                 if ext[a] > 0.0 and (count > ALL_AXES_ABOVE or a == longest) and float(NUM_BINS) / ext[a] < 1.0e30:
                     scale[a] = float(NUM_BINS) / ext[a]
-            for j in range(3 * NUM_BINS):
-                b_n[j] = 0
-                b_lo[j] = _up()
-                b_hi[j] = _down()
+            for a in range(3):
+                if scale[a] > 0.0:          # only the axes binned (a small range bins one)
+                    for t in range(NUM_BINS):
+                        j = a * NUM_BINS + t
+                        b_n[j] = 0
+                        b_lo[j] = _up()
+                        b_hi[j] = _down()
             for i in range(start, start + count):
                 ci = c[i]
                 tl = lo[i]

@@ -14,7 +14,8 @@ Every render is a fresh Python process, as a user's command runs: imports, parsi
 building the acceleration structures, the render, the image as a numpy array. Printed per size and
 renderer: wall seconds (of the whole child process, measured by this script), its CPU seconds (all
 threads: steadier than wall time on a shared machine) and the child's peak resident memory (``ru_maxrss``, its own report at exit), then the ratios warp_spt / Mitsuba. A first
-round at the smallest size fills both renderers' kernel caches and is not counted. warp_spt renders
+round at the smallest size fills both renderers' kernel caches (and a Python bytecode cache in the
+temporary folder, as an installed package has one) and is not counted. warp_spt renders
 with its defaults (``nee`` + ``sobol``), Mitsuba with ``path`` and its default ``independent``
 sampler, both on ``--threads`` threads.
 
@@ -145,7 +146,10 @@ def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, vari
               ) -> tuple[float, int, float, float]:
     """(wall seconds, peak RSS bytes, image mean, CPU seconds of all threads) of one render in a fresh process
     (``pythonpath``: where that process imports warp_spt from)."""
-    env = dict(os.environ)
+    # bytecode cached as an installed package has it, even where PYTHONDONTWRITEBYTECODE is set (this VM):
+    # compiling warp_spt's sources is not part of a user's start (the uncounted first round fills it)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
     if pythonpath:
         env["PYTHONPATH"] = pythonpath
     code = _CHILD.format(folder=str(folder), mesh=str(mesh), threads=threads, camera=CAMERA, ours=ours, size=SIZE,

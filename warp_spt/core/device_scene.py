@@ -202,10 +202,8 @@ class DeviceScene:
                 tangents.append(corner_tangents(m.positions, m.indices, m.corner_uv, _corner_normals(m)).reshape(-1, 4))
         s.num_meshes = len(self._meshes)
         s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
-        self._upload_wide(s, scene, device)
-        if cache is None:
-            # the device arrays hold the trees now; without a cache nothing reads the host copies again
-            self._wide = [None if w is None else _Uploaded(w.stack_bound) for w in self._wide]
+        # without a cache nothing reads the host trees again once the device arrays hold them
+        self._upload_wide(s, scene, device, release=cache is None)
         s.face_offset = _arr(offsets, wp.int32, device, np.int32)
         # several meshes' arrays are concatenated into fresh arrays: those become the device arrays
         fresh = len(scene.meshes) > 1
@@ -216,41 +214,69 @@ class DeviceScene:
         s.corner_tangent = _arr(_cat(tangents, (0, 4), np.float32), wp.vec4, device, np.float32)
         s.has_corner_tangents = int(bool(tangents))
 
-    def _upload_wide(self, s: Geometry, scene: Scene, device: str) -> None:
+    def _upload_wide(self, s: Geometry, scene: Scene, device: str, release: bool = False) -> None:
         """Concatenate the meshes' wide BVHs (node and triangle numbers offset per mesh), size the
-        traversal stack (Features.bvh_stack) for the deepest, and note meshes left to Warp's BVH."""
-        boxes, children, roots, corners, faces = [], [], [], [], []
-        nodes = tris = 0
-        bound = 0
-        for m, wide in zip(scene.meshes, self._wide):
-            if wide is None:
-                roots.append(-1)
-                continue
-            boxes.append(wide.box.reshape(-1, WIDTH))
-            children.append(wide.child_shifted(nodes, tris))
-            roots.append(nodes)
-            corners.append((m, wide.order, tris))
-            faces.append(wide.order)
-            nodes += len(wide.child)
-            tris += len(wide.order)
-            bound = max(bound, wide.stack_bound)
+        traversal stack (Features.bvh_stack) for the deepest, and note meshes left to Warp's BVH.
+        ``release``: drop each host tree once copied (a scene without a mesh cache)."""
+        wides = [(k, w) for k, w in enumerate(self._wide) if w is not None]
+        bound = max((w.stack_bound for _, w in wides), default=0)
         stack = 0 if bound == 0 else next((n for n in BVH_STACKS if n >= bound), None)
         if stack is None:       # wide_bvh.DEPTH_BUDGET keeps stack_bound <= 337
             raise ValueError(f"a mesh's BVH is too deep: its traversal needs {bound} stack entries, more than "
                              f"{BVH_STACKS[-1]}")
-        self.features = replace(self.features, bvh_stack=stack, warp_meshes=any(w is None for w in self._wide))
+        self.features = replace(self.features, bvh_stack=stack, warp_meshes=len(wides) < len(self._wide))
+        roots = np.full(len(self._wide), -1, dtype=np.int32)
+        corners = []
+        if not wides:
+            box, child, faces = np.zeros((0, WIDTH), np.float32), np.zeros((0, WIDTH), np.int32), np.zeros(0, np.int32)
+        elif len(wides) == 1:             # one tree: its own arrays become the device arrays
+            k, w = wides.pop()
+            roots[k] = 0
+            box, child, faces = w.box.reshape(-1, WIDTH), w.child, w.order
+            corners.append((scene.meshes[k], w.order, 0))
+            del w
+        else:
+            # the trees' nodes copied into place one by one, each host tree dropped after its copy (with
+            # ``release``), and before the corners are gathered: the scene's node arrays exist twice
+            # for one tree at a time, not for all of them on top of the corners
+            n_nodes = sum(len(w.child) for _, w in wides)
+            n_tris = sum(len(w.order) for _, w in wides)
+            box = np.empty((6 * n_nodes, WIDTH), dtype=np.float32)
+            child = np.empty((n_nodes, WIDTH), dtype=np.int32)
+            faces = np.empty(n_tris, dtype=np.int32)
+            nodes = tris = 0
+            for i in range(len(wides)):
+                k, w = wides[i]
+                wides[i] = None
+                n, t = len(w.child), len(w.order)
+                roots[k] = nodes
+                box[6 * nodes:6 * (nodes + n)] = w.box.reshape(-1, WIDTH)
+                child[nodes:nodes + n] = w.child_shifted(nodes, tris)
+                faces[tris:tris + t] = w.order
+                corners.append((scene.meshes[k], faces[tris:tris + t], tris))
+                if release:
+                    self._wide[k] = _Uploaded(w.stack_bound)
+                del w
+                nodes += n
+                tris += t
+        if release:
+            self._wide = [None if w is None else _Uploaded(w.stack_bound) for w in self._wide]
         # every mesh's leaf-ordered corners gathered straight into one array (no per-mesh copies to join)
+        tris = len(faces)
         v = np.empty((max(tris, 1), 3, 3), dtype=np.float32) if tris else np.zeros((0, 3, 3), np.float32)
         for m, order, first in corners:
-            np.take(np.asarray(m.positions, dtype=np.float32), np.asarray(m.indices)[order], axis=0,
-                    out=v[first:first + len(order)])
+            p, idx = np.asarray(m.positions, dtype=np.float32), np.asarray(m.indices)
+            # in blocks, and mode="clip" (the indices were validated): with the default mode="raise",
+            # np.take fills a temporary copy of ``out`` and copies it over (36 MB at a million triangles)
+            for k in range(0, len(order), _GATHER_BLOCK):
+                np.take(p, idx[order[k:k + _GATHER_BLOCK]], axis=0, mode="clip",
+                        out=v[first + k:first + min(k + _GATHER_BLOCK, len(order))])
         # On the CPU these device arrays are the host arrays themselves (nothing else writes them): the
         # trees' own arrays, fresh corner copies and concatenations are not copied a second time.
-        _set_arrays(s, device, alias=True, bvh_box=(_cat(boxes, (0, WIDTH), np.float32), vec_wide_f),
-                    bvh_child=(_cat(children, (0, WIDTH), np.int32), vec_wide_i),
-                    mesh_root=(np.asarray(roots, dtype=np.int32), wp.int32),
+        _set_arrays(s, device, alias=True, bvh_box=(box, vec_wide_f), bvh_child=(child, vec_wide_i),
+                    mesh_root=(roots, wp.int32),
                     tri_v0=(v[:, 0], wp.vec3), tri_v1=(v[:, 1], wp.vec3), tri_v2=(v[:, 2], wp.vec3),
-                    tri_face=(_cat(faces, (0,), np.int32), wp.int32))
+                    tri_face=(faces, wp.int32))
 
     def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
         lowers, uppers = self._upload_instances(s, scene, device)
@@ -419,11 +445,31 @@ def _corner_normals(m) -> np.ndarray:
     return np.repeat(n[:, None, :], 3, axis=1).astype(np.float32)
 
 
+_GATHER_BLOCK = 1 << 16      # triangles per block of the leaf-ordered corner gather
+
+
 def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.ndarray:
-    """The parts end to end (a single part as it is: no copy of a large mesh's array)."""
+    """The parts end to end (a single part as it is: no copy of a large mesh's array).
+
+    Parts whose bits are all zero (the uv of a mesh without texture coordinates) are not copied: a
+    fresh large array is zero pages that take no memory until written (24 MB at a million triangles)."""
     if len(parts) == 1:
         return parts[0].astype(dtype, copy=False)
-    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(empty_shape, dtype)
+    if not parts:
+        return np.zeros(empty_shape, dtype)
+    out = np.zeros((sum(len(p) for p in parts), *parts[0].shape[1:]), dtype)
+    k = 0
+    for p in parts:
+        if _any_bit(p):
+            out[k:k + len(p)] = p
+        k += len(p)
+    return out
+
+
+def _any_bit(a: np.ndarray) -> bool:
+    """Whether any bit of ``a`` is set (-0.0 counts: it is not +0.0's bits)."""
+    a = np.ascontiguousarray(a)
+    return bool(a.size) and bool(a.reshape(-1).view(np.uint8 if a.dtype.itemsize == 1 else f"u{a.dtype.itemsize}").any())
 
 
 def _set_arrays(s, device: str, alias: bool = False, **fields: tuple) -> None:

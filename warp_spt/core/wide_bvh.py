@@ -99,10 +99,15 @@ class WideBvh:
         """``child`` for this tree stored after ``nodes`` nodes and ``triangles`` leaf-order triangles
         of other trees (one concatenated array for every mesh of a scene): interior children move by
         ``nodes``, leaves by ``triangles``, in the same leaf encoding (int32)."""
-        child = self.child.astype(np.int64)
-        code = -child - 1
-        shifted = np.where(child < 0, -((code >> 3) + triangles) * 8 - (code & 7) - 1, child + nodes)
-        return shifted.astype(np.int32)
+        # -(first * 8 + count) - 1 moved by ``triangles`` is the code minus 8 * triangles; in int32 (no
+        # int64 copies of a large tree) while the last leaf's code fits, as build_wide's limit keeps it
+        if 8 * (triangles + len(self.order)) > 2**31 - 8 or nodes + len(self.child) > 2**31 - 1:
+            raise ValueError(f"wide BVHs of more than {MAX_TRIANGLES} triangles in all do not fit the int32 leaf code")
+        shifted = self.child.astype(np.int32, copy=True)
+        leaf = shifted < 0
+        shifted[leaf] -= np.int32(8 * triangles)
+        shifted[~leaf] += np.int32(nodes)
+        return shifted
 
 
 # --------------------------------------------------------------------------------------------

@@ -120,3 +120,43 @@ def test_mesh_bounds_are_the_rounded_extremes_of_the_used_vertices():
                     np.zeros((len(used) // 3, 3, 2), np.float32), None, np.zeros(len(used) // 3, np.int32))
     q = p[used][:len(used) // 3 * 3].astype(np.float32).astype(np.float64)
     assert np.array_equal(full.placement_bounds()[0], np.stack([q.min(0), q.max(0)]))
+
+
+def _binary_ply(points: np.ndarray, faces: np.ndarray, index_type: str) -> bytes:
+    kinds = {"char": "i1", "uchar": "u1", "short": "<i2", "ushort": "<u2", "int": "<i4", "uint": "<u4"}
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\n"
+              "property float x\nproperty float y\nproperty float z\n"
+              f"element face {len(faces)}\nproperty list uchar {index_type} vertex_indices\nend_header\n").encode()
+    rows = np.empty(len(faces), dtype=[("n", "u1"), ("v", kinds[index_type], (3,))])
+    rows["n"] = 3
+    rows["v"] = faces
+    return header + points.astype("<f4").tobytes() + rows.tobytes()
+
+
+def test_binary_ply_indices_of_every_integer_type_read_as_written():
+    """The reader keeps small signed index types as they are and widens the others: the faces are
+    the ones written, whatever the type, and a mesh without uv or normals says -1 at every corner."""
+    import pytest
+
+    from warp_spt.io.ply import parse_ply_bytes
+    from warp_spt.scene.errors import SceneError
+
+    rng = np.random.default_rng(7)
+    points = rng.uniform(size=(100, 3))
+    faces = np.array([rng.permutation(100)[:3] for _ in range(60)])
+    for kind in ("char", "uchar", "short", "ushort", "int", "uint"):
+        d = parse_ply_bytes(_binary_ply(points, faces, kind), "t.ply")
+        assert d.faces.dtype == np.int32 and np.array_equal(d.faces, faces), kind
+        assert np.all(d.face_texcoords == -1) and np.all(d.face_normals == -1) and d.face_normals.shape == faces.shape
+    bad = faces.copy()
+    bad[5, 1] = 2**32 - 1                       # wraps to -1 as int32: must be reported as the value it is
+    with pytest.raises(SceneError, match="face 5: vertex index 4294967295 is out of range"):
+        parse_ply_bytes(_binary_ply(points, bad, "uint"), "t.ply")
+    bad[5, 1] = -3
+    with pytest.raises(SceneError, match="face 5: vertex index -3 is out of range"):
+        parse_ply_bytes(_binary_ply(points, bad, "int"), "t.ply")
+    for value in (np.nan, np.inf, -np.inf, 2e15):
+        p = points.copy()
+        p[17, 2] = value
+        with pytest.raises(SceneError, match="vertex 17: coordinate .* is not finite or beyond"):
+            parse_ply_bytes(_binary_ply(p, faces, "int"), "t.ply")

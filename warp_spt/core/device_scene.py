@@ -82,6 +82,8 @@ class UploadedMesh:
     @classmethod
     def of(cls, m, device: str, wide: bool = True) -> "UploadedMesh":
         """``m`` uploaded, with its wide BVH built if ``wide``."""
+        # the tree first: its build's peak (binary and wide nodes at once) then holds no wp.Mesh arrays
+        tree = _wide_tree(m) if wide else None
         points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
         idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
         used = np.zeros(len(m.positions), dtype=bool)
@@ -89,7 +91,7 @@ class UploadedMesh:
         p = m.positions[used] if not used.all() else m.positions
         leaf = MESH_LEAF_SIZE if not wide else WIDE_MESH_LEAF_SIZE
         mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah" if not wide else "median", bvh_leaf_size=leaf)
-        return cls(mesh, _wide_tree(m) if wide else None, p.min(0).astype(np.float64), p.max(0).astype(np.float64),
+        return cls(mesh, tree, p.min(0).astype(np.float64), p.max(0).astype(np.float64),
                    leaf)
 
 

@@ -503,7 +503,7 @@ def build_wide(points: np.ndarray, tris: np.ndarray, width: int = WIDTH, max_lea
         from warp_spt.core.wide_build import build_binary, collapse
         del p, t
         start, count, left, right, nlo, nhi, order = build_binary(lo, hi, max_leaf, DEPTH_BUDGET)
-        del lo, hi
+        del lo, hi, right           # the collapse reads left only (right = left + 1)
         box, child, depth, stack_bound = collapse(start, count, left, nlo, nhi, width)
         return WideBvh(box=box, child=child, order=order.astype(np.int32, copy=False), depth=depth,
                        stack_bound=stack_bound)

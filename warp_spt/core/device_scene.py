@@ -40,7 +40,7 @@ from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.lights import punctual_lights
-from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
+from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene, column_range
 from warp_spt.scene.validate import validate_scene
 
 # Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
@@ -91,8 +91,8 @@ class UploadedMesh:
         p = m.positions[used] if not used.all() else m.positions
         leaf = MESH_LEAF_SIZE if not wide else WIDE_MESH_LEAF_SIZE
         mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah" if not wide else "median", bvh_leaf_size=leaf)
-        return cls(mesh, tree, p.min(0).astype(np.float64), p.max(0).astype(np.float64),
-                   leaf)
+        lo, hi = column_range(p)
+        return cls(mesh, tree, lo.astype(np.float64), hi.astype(np.float64), leaf)
 
 
 class DeviceScene:

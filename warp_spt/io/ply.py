@@ -36,7 +36,7 @@ import numpy as np
 from warp_spt.io.tokens import read_file
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.errors import SceneError
-from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef
+from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef, column_range
 from warp_spt.scene.validate import MAX_COORDINATE
 
 __all__ = ["load_ply", "parse_ply_bytes", "vertex_colour_texture", "VERTEX_COLOUR_MATERIAL"]
@@ -436,10 +436,11 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
     positions = np.empty((nv, 3))
     for k, a in enumerate(("x", "y", "z")):
         positions[:, k] = vert[a]
-    # a NaN row's max is NaN and an infinite one's beyond the limit: both fail the comparison
-    bad = ~(np.maximum(positions.max(axis=1, initial=-np.inf), -positions.min(axis=1, initial=np.inf))
-            <= MAX_COORDINATE)
-    if bad.any():
+    # columns' extremes first (NaN propagates, infinities exceed the limit), rows only to name a bad one
+    lo, hi = column_range(positions) if nv else (np.zeros(3), np.zeros(3))
+    if not np.all(np.maximum(-lo, hi) <= MAX_COORDINATE):
+        a = np.abs(positions)
+        bad = ~(np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2]) <= MAX_COORDINATE)
         k = int(np.argmax(bad))
         raise SceneError(path, 0, f"vertex {k}: coordinate {positions[k].tolist()} is not finite or beyond the "
                          f"supported range of +-{MAX_COORDINATE:g}")

@@ -33,6 +33,7 @@ from warp_spt.scene.model import (
     MaterialTable,
     MeshData,
     Scene,
+    column_range,
 )
 
 _WHERE = "<scene>"
@@ -85,7 +86,8 @@ def box_bounds_edges(positions: np.ndarray, limit: float) -> bool:
     triangles) is skipped; the margin covers the rounding of both computations."""
     if len(positions) == 0:
         return True
-    ext = positions.max(axis=0).astype(np.float64) - positions.min(axis=0).astype(np.float64)
+    lo, hi = column_range(positions)
+    ext = hi.astype(np.float64) - lo.astype(np.float64)
     return float(np.sqrt(ext @ ext)) * (1.0 + 1e-9) <= limit
 
 

@@ -160,3 +160,32 @@ def test_binary_ply_indices_of_every_integer_type_read_as_written():
         p[17, 2] = value
         with pytest.raises(SceneError, match="vertex 17: coordinate .* is not finite or beyond"):
             parse_ply_bytes(_binary_ply(p, faces, "int"), "t.ply")
+
+
+def test_the_blocked_zero_area_test_is_the_cross_product_test():
+    """nonzero_area (blocks, a component at a time; OBJ and PLY) against np.cross(...) != 0 on the
+    whole array, on triangles built to be degenerate in every way (repeated corners, collinear,
+    tiny and huge coordinates within MAX_COORDINATE)."""
+    from warp_spt.io.ply import nonzero_area
+    from warp_spt.scene.limits import MAX_COORDINATE
+
+    rng = np.random.default_rng(11)
+    n = 70_000                                    # more than one block
+    p = rng.normal(size=(3000, 3)) * 10.0 ** rng.integers(-12, 14, size=(3000, 1))
+    p = np.clip(p, -MAX_COORDINATE, MAX_COORDINATE)
+    p[:1000] = np.round(p[:1000])                 # integer grids: exact collinear triples
+    p[1000:1500, 2] = 0.0
+    f = rng.integers(0, 3000, size=(n, 3))
+    f[::5, 1] = f[::5, 0]                         # repeated corner
+    line = rng.integers(0, 1000, size=(n // 5, 1)) + np.array([0, 1, 2]) * 0
+    f[1::5] = line
+    pp = p.copy()
+    a, b = pp[f[2::5, 0]], pp[f[2::5, 1]]
+    mid = 2 * b - a                               # b - a = mid - b exactly for integers: collinear
+    pp = np.concatenate([pp, mid])
+    f[2::5, 2] = 3000 + np.arange(len(mid))
+    p0 = pp[f[:, 0]]
+    expected = np.any(np.cross(pp[f[:, 1]] - p0, pp[f[:, 2]] - p0) != 0.0, axis=1)
+    got = nonzero_area(pp, f)
+    assert np.array_equal(got, expected)
+    assert 0.2 * n < np.count_nonzero(~got) < 0.8 * n         # the degenerate cases are there

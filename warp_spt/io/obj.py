@@ -150,13 +150,11 @@ def _fan(poly_size: np.ndarray) -> np.ndarray:
 
 
 def _nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Mask of triangles whose area is not exactly zero (computed in float64)."""
-    if len(faces) == 0:
-        return np.ones(0, dtype=bool)
-    p = positions.astype(np.float64)
-    p0 = p[faces[:, 0]]
-    cross = np.cross(p[faces[:, 1]] - p0, p[faces[:, 2]] - p0)
-    return np.any(cross != 0.0, axis=1)
+    """Mask of triangles whose area is not exactly zero (computed in float64): the PLY reader's test,
+    in blocks and a component at a time (for coordinates within MAX_COORDINATE the products are finite,
+    and a finite a - b is 0 exactly when a == b, so this is np.cross(...) != 0 without its temporaries)."""
+    from warp_spt.io.ply import nonzero_area
+    return nonzero_area(positions, faces)
 
 
 def _material_names(usemtl: list[tuple[int, str]]) -> tuple[list[str], list[int], np.ndarray]:

@@ -591,9 +591,9 @@ def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     # in blocks: the float64 edges of a whole large mesh would be its largest temporaries (120 B per triangle)
     for k in range(0, len(faces), _AREA_BLOCK):
         f = faces[k:k + _AREA_BLOCK]
-        p0 = p[f[:, 0]]
-        e1 = p[f[:, 1]] - p0
-        e2 = p[f[:, 2]] - p0
+        p0 = np.take(p, f[:, 0], axis=0)             # (2-3x faster than p[f[:, 0]])
+        e1 = np.take(p, f[:, 1], axis=0) - p0
+        e2 = np.take(p, f[:, 2], axis=0) - p0
         x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
         x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
         x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]

@@ -189,3 +189,17 @@ def test_the_blocked_zero_area_test_is_the_cross_product_test():
     got = nonzero_area(pp, f)
     assert np.array_equal(got, expected)
     assert 0.2 * n < np.count_nonzero(~got) < 0.8 * n         # the degenerate cases are there
+
+
+def test_joining_per_mesh_arrays_skips_zero_parts_but_keeps_every_bit():
+    """device_scene._cat leaves all-zero parts unwritten (fresh zero pages): the result must still be
+    np.concatenate's, bit for bit (a -0.0 is not a zero part)."""
+    from warp_spt.core.device_scene import _cat
+
+    rng = np.random.default_rng(2)
+    parts = [np.zeros((5, 2), np.float32), rng.normal(size=(3, 2)).astype(np.float32),
+             np.array([[0.0, -0.0]], np.float32), np.zeros((0, 2), np.float32), np.zeros((4, 2), np.float32)]
+    got = _cat(parts, (0, 2), np.float32)
+    assert got.dtype == np.float32 and np.array_equal(got.view(np.uint32), np.concatenate(parts).view(np.uint32))
+    ints = [np.zeros(4, np.int32), np.arange(3, dtype=np.int32)]
+    assert np.array_equal(_cat(ints, (0,), np.int32), np.concatenate(ints))

@@ -471,7 +471,7 @@ def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.nda
 def _any_bit(a: np.ndarray) -> bool:
     """Whether any bit of ``a`` is set (-0.0 counts: it is not +0.0's bits)."""
     a = np.ascontiguousarray(a)
-    return bool(a.size) and bool(a.reshape(-1).view(np.uint8 if a.dtype.itemsize == 1 else f"u{a.dtype.itemsize}").any())
+    return bool(a.size) and bool(a.reshape(-1).view(f"u{a.dtype.itemsize}").any())
 
 
 def _set_arrays(s, device: str, alias: bool = False, **fields: tuple) -> None:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from warp_spt.io.obj import nonzero_area  # noqa: F401 (glTF's reader imports it from here)
 from warp_spt.io.tokens import read_file
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.errors import SceneError
@@ -578,28 +579,6 @@ def _strips(values: dict, e: _Element, nv: int, path: str) -> tuple[np.ndarray, 
     tri = np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1)[same]
     join = (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
     return tri[~join].astype(np.int32), int(np.count_nonzero(join))
-
-
-_AREA_BLOCK = 1 << 16        # triangles per block of nonzero_area
-
-
-def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Mask of triangles whose area is not exactly zero, in float64 (as OBJ's reader decides), with
-    the cross product's components formed one at a time (np.cross is 3x slower on large arrays)."""
-    p = np.asarray(positions, np.float64)
-    out = np.ones(len(faces), dtype=bool)
-    # in blocks: the float64 edges of a whole large mesh would be its largest temporaries (120 B per triangle)
-    for k in range(0, len(faces), _AREA_BLOCK):
-        f = faces[k:k + _AREA_BLOCK]
-        p0 = np.take(p, f[:, 0], axis=0)             # (2-3x faster than p[f[:, 0]])
-        e1 = np.take(p, f[:, 1], axis=0) - p0
-        e2 = np.take(p, f[:, 2], axis=0) - p0
-        x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
-        x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
-        x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]
-        out[k:k + len(f)] = x
-    return out
-
 
 
 # --------------------------------------------------------------------------------------- vertex colours

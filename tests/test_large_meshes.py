@@ -203,3 +203,18 @@ def test_joining_per_mesh_arrays_skips_zero_parts_but_keeps_every_bit():
     assert got.dtype == np.float32 and np.array_equal(got.view(np.uint32), np.concatenate(parts).view(np.uint32))
     ints = [np.zeros(4, np.int32), np.arange(3, dtype=np.int32)]
     assert np.array_equal(_cat(ints, (0,), np.int32), np.concatenate(ints))
+
+
+def test_a_tree_array_grows_in_place_only_into_its_own_allocation():
+    """device_scene._grown: a view of the array a tree's rows start, with more rows, only where that
+    array is C-contiguous and long enough; else None (the caller copies)."""
+    from warp_spt.core.device_scene import _grown
+
+    full = np.arange(40, dtype=np.int32).reshape(10, 4)
+    head = full[:3]
+    g = _grown(head, 7)
+    assert g is not None and g.shape == (7, 4) and np.shares_memory(g, full) and np.array_equal(g[:3], head)
+    assert _grown(head, 11) is None                       # longer than the allocation
+    assert _grown(full[2:5], 4) is None                   # not its start
+    assert _grown(full[:, :2], 3) is None                 # not contiguous
+    assert _grown(np.zeros((3, 4), np.int32), 4) is None  # owns its memory: no room known

@@ -80,12 +80,18 @@ class UploadedMesh:
     leaf_size: int = 0          # of the wp.Mesh's own BVH
 
     @classmethod
-    def of(cls, m, device: str, wide: bool = True) -> "UploadedMesh":
-        """``m`` uploaded, with its wide BVH built if ``wide``."""
+    def of(cls, m, device: str, wide: bool = True, alias: bool = False) -> "UploadedMesh":
+        """``m`` uploaded, with its wide BVH built if ``wide``. ``alias``: on the CPU the wp.Mesh's
+        points and indices are ``m``'s own float32 / int32 arrays, not copies (18 MB at a million
+        triangles), for an upload that no cache keeps beyond its scene (nothing writes them: a mesh
+        changed in place needs a new upload anyway, as its wide BVH does)."""
         # the tree first: its build's peak (binary and wide nodes at once) then holds no wp.Mesh arrays
         tree = _wide_tree(m) if wide else None
-        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
-        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+        share = alias and wp.get_device(device).is_cpu
+        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device,
+                          copy=not share)
+        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device,
+                       copy=not share)
         used = np.zeros(len(m.positions), dtype=bool)
         used[m.indices.reshape(-1)] = True        # the used vertices' bounds without a per-corner copy
         p = m.positions[used] if not used.all() else m.positions
@@ -185,7 +191,7 @@ class DeviceScene:
             if uploaded is not None and not wide and uploaded.leaf_size != MESH_LEAF_SIZE:
                 uploaded = None             # built for the wide BVH: Warp's tree is too coarse to trace
             if uploaded is None:
-                uploaded = UploadedMesh.of(m, device, wide)
+                uploaded = UploadedMesh.of(m, device, wide, alias=cache is None)
                 if cache is not None:
                     cache[key] = uploaded
             elif wide and uploaded.wide is None:        # cached by a scene that traced it with Warp's BVH
@@ -238,13 +244,24 @@ class DeviceScene:
             corners.append((scene.meshes[k], w.order, 0))
             del w
         else:
-            # the trees' nodes copied into place one by one, each host tree dropped after its copy (with
-            # ``release``), and before the corners are gathered: the scene's node arrays exist twice
-            # for one tree at a time, not for all of them on top of the corners
+            # The largest tree is stored first, in its own arrays where they have room for the others
+            # (the collapse allocates its worst case, and pages it never wrote take no memory) and
+            # belong to this scene alone (``release``): only the small trees are copied, after it. Where there is no room, every tree is copied into
+            # place, each host tree dropped after its copy (with ``release``) and before the corners
+            # are gathered. Node and triangle numbers are offsets only: the hits do not depend on the
+            # order the trees are stored in.
+            wides.sort(key=lambda kw: -len(kw[1].child))
             n_nodes = sum(len(w.child) for _, w in wides)
             n_tris = sum(len(w.order) for _, w in wides)
-            box = np.empty((6 * n_nodes, WIDTH), dtype=np.float32)
-            child = np.empty((n_nodes, WIDTH), dtype=np.int32)
+            first = wides[0][1]
+            # (never a cached tree: other scenes share its arrays, with other trees after it)
+            box = _grown(first.box.reshape(-1, WIDTH), 6 * n_nodes) if release else None
+            child = _grown(first.child, n_nodes) if release else None
+            own = box is not None and child is not None
+            if not own:
+                box = np.empty((6 * n_nodes, WIDTH), dtype=np.float32)
+                child = np.empty((n_nodes, WIDTH), dtype=np.int32)
+            del first
             faces = np.empty(n_tris, dtype=np.int32)
             nodes = tris = 0
             for i in range(len(wides)):
@@ -252,8 +269,9 @@ class DeviceScene:
                 wides[i] = None
                 n, t = len(w.child), len(w.order)
                 roots[k] = nodes
-                box[6 * nodes:6 * (nodes + n)] = w.box.reshape(-1, WIDTH)
-                child[nodes:nodes + n] = w.child_shifted(nodes, tris)
+                if not (own and i == 0):        # the first tree at offset 0 is where it is already
+                    box[6 * nodes:6 * (nodes + n)] = w.box.reshape(-1, WIDTH)
+                    child[nodes:nodes + n] = w.child_shifted(nodes, tris)
                 faces[tris:tris + t] = w.order
                 corners.append((scene.meshes[k], faces[tris:tris + t], tris))
                 if release:
@@ -445,6 +463,22 @@ def _corner_normals(m) -> np.ndarray:
     n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     return np.repeat(n[:, None, :], 3, axis=1).astype(np.float32)
+
+
+def _grown(a: np.ndarray, rows: int) -> np.ndarray | None:
+    """``a``'s first ``rows`` rows of the array it is the start of (a view, ``rows`` >= len(a)), or
+    None when ``a`` is not the start of a C-contiguous array that long."""
+    base = a.base
+    while isinstance(base, np.ndarray) and base.base is not None and isinstance(base.base, np.ndarray):
+        base = base.base
+    if not isinstance(base, np.ndarray) or not base.flags.c_contiguous or not a.flags.c_contiguous:
+        return None
+    if base.dtype != a.dtype or base.__array_interface__["data"][0] != a.__array_interface__["data"][0]:
+        return None
+    row = a.itemsize * int(np.prod(a.shape[1:]))
+    if row == 0 or base.nbytes < rows * row or not base.flags.writeable:
+        return None
+    return base.reshape(-1)[:rows * (row // a.itemsize)].reshape(rows, *a.shape[1:])
 
 
 _GATHER_BLOCK = 1 << 16      # triangles per block of the leaf-ordered corner gather

@@ -375,8 +375,9 @@ def collapse(start, count, left, nlo, nhi, width: int):
     dev = "cpu"
     interior = int((left >= 0).sum())
     m = max(interior, 1)
-    i32 = (lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=dev))
-    v3 = (lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float32), dtype=wp.vec3, device=dev))
+    # the binary tree's arrays as they are (wp.array copies by default: 39 MB at a million triangles)
+    i32 = (lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=dev, copy=False))
+    v3 = (lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float32), dtype=wp.vec3, device=dev, copy=False))
     box = wp.empty((m, 6, width), dtype=wp.float32, device=dev)
     child = wp.empty((m, width), dtype=wp.int32, device=dev)
     queue, acc, level = (wp.empty(m, dtype=wp.int32, device=dev) for _ in range(3))

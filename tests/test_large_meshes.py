@@ -218,3 +218,19 @@ def test_a_tree_array_grows_in_place_only_into_its_own_allocation():
     assert _grown(full[2:5], 4) is None                   # not its start
     assert _grown(full[:, :2], 3) is None                 # not contiguous
     assert _grown(np.zeros((3, 4), np.int32), 4) is None  # owns its memory: no room known
+
+
+def test_invisible_characters_are_still_found_after_the_ascii_shortcut():
+    """tokens._check_invisible skips its searches for pure ASCII text: a file with one of the
+    invisible characters (each has a byte >= 0x80) is still refused at its line, by name."""
+    import pytest
+
+    from warp_spt.scene.errors import SceneError
+
+    base = b"v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+    assert len(parse_obj_bytes(base + b"f 1 2 3\n", "a.obj").faces) == 1
+    for junk, name in ((b"\xe2\x80\x8b", "zero-width space"), (b"\xc2\xa0", "no-break space"),
+                       (b"\xef\xbb\xbf", "byte-order mark")):
+        with pytest.raises(SceneError, match=name) as err:
+            parse_obj_bytes(base + b"f 1 2" + junk + b" 3\n", "a.obj")
+        assert err.value.line == 4

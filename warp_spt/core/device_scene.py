@@ -246,10 +246,10 @@ class DeviceScene:
         else:
             # The largest tree is stored first, in its own arrays where they have room for the others
             # (the collapse allocates its worst case, and pages it never wrote take no memory) and
-            # belong to this scene alone (``release``): only the small trees are copied, after it. Where there is no room, every tree is copied into
-            # place, each host tree dropped after its copy (with ``release``) and before the corners
-            # are gathered. Node and triangle numbers are offsets only: the hits do not depend on the
-            # order the trees are stored in.
+            # belong to this scene alone (``release``): only the small trees are copied, after it.
+            # Where there is no room, every tree is copied into place, each host tree dropped after
+            # its copy (with ``release``) and before the corners are gathered. Node and triangle
+            # numbers are offsets only: the hits do not depend on the order the trees are stored in.
             wides.sort(key=lambda kw: -len(kw[1].child))
             n_nodes = sum(len(w.child) for _, w in wides)
             n_tris = sum(len(w.order) for _, w in wides)

@@ -102,7 +102,8 @@ class WideBvh:
         # -(first * 8 + count) - 1 moved by ``triangles`` is the code minus 8 * triangles; in int32 (no
         # int64 copies of a large tree) while the last leaf's code fits, as build_wide's limit keeps it
         if 8 * (triangles + len(self.order)) > 2**31 - 8 or nodes + len(self.child) > 2**31 - 1:
-            raise ValueError(f"wide BVHs of more than {MAX_TRIANGLES} triangles in all do not fit the int32 leaf code")
+            raise ValueError(f"wide BVHs of more than {MAX_TRIANGLES} triangles in all do not fit the int32 "
+                             "leaf code")
         shifted = self.child.astype(np.int32, copy=True)
         leaf = shifted < 0
         shifted[leaf] -= np.int32(8 * triangles)

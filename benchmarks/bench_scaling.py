@@ -14,11 +14,13 @@ Every render is a fresh Python process, as a user's command runs: imports, parsi
 building the acceleration structures, the render, the image as a numpy array. Printed per size and
 renderer: wall seconds (of the whole child process, measured by this script), its CPU seconds (all
 threads: steadier than wall time on a shared machine) and the child's peak resident memory (``ru_maxrss``, its own report at exit), then the ratios warp_spt / Mitsuba. A first
-round at the smallest size fills both renderers' kernel caches and is not counted. warp_spt renders
+round at the smallest size fills both renderers' kernel caches (and a Python bytecode cache in the
+temporary folder, as an installed package has one) and is not counted. warp_spt renders
 with its defaults (``nee`` + ``sobol``), Mitsuba with ``path`` and its default ``independent``
 sampler, both on ``--threads`` threads.
 
-``--parse`` only times reading each size's file, binary PLY and OBJ (MB/s), and says whether the
+``--phases`` only prints where one warp_spt render's CPU seconds go, step by step, with the peak
+memory after each. ``--parse`` only times reading each size's file, binary PLY and OBJ (MB/s), and says whether the
 OBJ went through the vectorised scanner. ``--plot FILE`` draws time and memory against triangles for both renderers (matplotlib, optional).
 """
 
@@ -141,11 +143,93 @@ print("RESULT", r.ru_maxrss * 1024, float(image.mean()), r.ru_utime + r.ru_stime
 """
 
 
+# --phases: one warp_spt render in a fresh process, its CPU seconds and peak memory step by step (the
+# steps are timed by wrapping the functions named here, in this child only: nothing else changes)
+_PHASES_CHILD = """
+import resource, sys, time
+def hwm():
+    return int(open("/proc/self/status").read().split("VmHWM:")[1].split()[0]) // 1024
+cpu = time.process_time
+import warp as wp
+wp.config.log_level = wp.LOG_WARNING
+from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
+from warp_spt.runtime.warp_init import init_warp
+import warp_spt.core.device_scene as ds
+import warp_spt.rendering.setup as setup
+init_warp()
+rows = [("Python, numpy, Warp and warp_spt imports, wp.init", cpu(), hwm())]
+spent = {{}}
+def timed(owner, name, label):
+    f = getattr(owner, name)
+    def g(*a, **k):
+        t = cpu()
+        try:
+            return f(*a, **k)
+        finally:
+            spent[label] = spent.get(label, 0.0) + cpu() - t
+            spent[label + " peak"] = hwm()
+    setattr(owner, name, g)
+timed(ds, "build_wide", "wide BVH build")
+timed(ds.DeviceScene, "_upload_wide", "wide BVH upload, leaf-ordered corners")
+timed(setup, "upload", "DeviceScene")
+timed(setup, "light_table", "light table")
+t = cpu()
+scene = load_scene([{mesh!r}, {light!r}], [{mtl!r}], default_material="clay", warn=lambda m: None)
+rows.append(("read the file, build the host Scene (load_scene)", cpu() - t, hwm()))
+cam = {camera!r}
+d = [a - b for a, b in zip(cam["target"], cam["position"])]
+camera = Camera(position=cam["position"], direction=d, fov=cam["fov"], aperture=0.0, focus=10.0)
+rs = RenderSettings(width={size}, height={size}, spp={spp}, max_depth={depth}, sky=Sky.constant(*{sky!r}),
+                    threads={threads}, seed=1)
+t = cpu()
+render_scene(scene, camera, rs)
+total = cpu() - t
+up = spent["DeviceScene"]
+rows.append(("DeviceScene (validation, meshes, BVHs, materials)", up, spent["DeviceScene peak"]))
+rows.append(("  of it: the wide BVH build", spent["wide BVH build"], spent["wide BVH build peak"]))
+rows.append(("  of it: the wide BVH upload", spent["wide BVH upload, leaf-ordered corners"],
+             spent["wide BVH upload, leaf-ordered corners peak"]))
+rows.append(("light table", spent["light table"], spent["light table peak"]))
+rows.append(("kernel from the cache, the render, the image", total - up - spent["light table"], hwm()))
+r = resource.getrusage(resource.RUSAGE_SELF)
+rows.append(("whole process", r.ru_utime + r.ru_stime, r.ru_maxrss // 1024))
+print("PHASES", repr(rows))
+"""
+
+
+def phases(sizes: list[int], threads: int) -> None:
+    """Where one warp_spt render's CPU seconds go, and the peak memory after each step (fresh
+    processes, after an uncounted round that fills the caches)."""
+    import ast
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+        for i, k in enumerate(sizes):
+            mesh, tris = write_scene(folder, k, "ply")
+            code = _PHASES_CHILD.format(mesh=str(mesh), light=str(folder / "light.obj"), mtl=str(folder / "light.mtl"),
+                                        camera=CAMERA, size=SIZE, spp=SPP, depth=DEPTH, sky=SKY, threads=threads)
+            for _ in range(2 if i == 0 else 1):
+                out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=folder, env=env)
+                if out.returncode != 0:
+                    raise RuntimeError(out.stderr[-3000:])
+            rows = ast.literal_eval(next(x for x in out.stdout.splitlines() if x.startswith("PHASES"))[7:])
+            print(f"\n{tris:,} triangles (load average {os.getloadavg()[0]:.1f})\n")
+            print("| step | CPU s | peak RSS so far, MB |")
+            print("|---|---|---|")
+            for name, sec, peak in rows:
+                print(f"| {name} | {sec:.2f} | {peak} |")
+            mesh.unlink()
+
+
 def run_child(ours: bool, folder: Path, mesh: Path, fmt: str, threads: int, variant: str, pythonpath: str | None = None
               ) -> tuple[float, int, float, float]:
     """(wall seconds, peak RSS bytes, image mean, CPU seconds of all threads) of one render in a fresh process
     (``pythonpath``: where that process imports warp_spt from)."""
-    env = dict(os.environ)
+    # bytecode cached as an installed package has it, even where PYTHONDONTWRITEBYTECODE is set (this VM):
+    # compiling warp_spt's sources is not part of a user's start (the uncounted first round fills it)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
     if pythonpath:
         env["PYTHONPATH"] = pythonpath
     code = _CHILD.format(folder=str(folder), mesh=str(mesh), threads=threads, camera=CAMERA, ours=ours, size=SIZE,
@@ -244,12 +328,18 @@ def main() -> int:
                     help="also render with the warp_spt of another checkout (its root), as 'before', in turn with the others")
     ap.add_argument("--plot", default=None, metavar="FILE", help="draw the curve into FILE (matplotlib)")
     ap.add_argument("--parse", action="store_true", help="only the reading speed of each size, PLY and OBJ (MB/s)")
+    ap.add_argument("--phases", action="store_true",
+                    help="only warp_spt's CPU seconds and peak memory step by step (load, upload, BVH, light table, "
+                         "render)")
     ap.add_argument("--json", default=None, metavar="FILE", help="also write the figures as JSON")
     args = ap.parse_args()
     sizes = [parse_size(s) for s in args.sizes.split(",")]
     paths = {"warp_spt": None, "Mitsuba": None, "before": args.before}
     if args.parse:
         parse_speed(sizes)
+        return 0
+    if args.phases:
+        phases(sizes, args.threads)
         return 0
     who = [args.only] if args.only else ["warp_spt", "Mitsuba"]
     variant = ""

@@ -40,7 +40,7 @@ from warp_spt.core.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.scene.lights import punctual_lights
-from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene
+from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene, column_range
 from warp_spt.scene.validate import validate_scene
 
 # Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
@@ -80,17 +80,25 @@ class UploadedMesh:
     leaf_size: int = 0          # of the wp.Mesh's own BVH
 
     @classmethod
-    def of(cls, m, device: str, wide: bool = True) -> "UploadedMesh":
-        """``m`` uploaded, with its wide BVH built if ``wide``."""
-        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device)
-        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+    def of(cls, m, device: str, wide: bool = True, alias: bool = False) -> "UploadedMesh":
+        """``m`` uploaded, with its wide BVH built if ``wide``. ``alias``: on the CPU the wp.Mesh's
+        points and indices are ``m``'s own float32 / int32 arrays, not copies (18 MB at a million
+        triangles), for an upload that no cache keeps beyond its scene (nothing writes them: a mesh
+        changed in place needs a new upload anyway, as its wide BVH does)."""
+        # the tree first: its build's peak (binary and wide nodes at once) then holds no wp.Mesh arrays
+        tree = _wide_tree(m) if wide else None
+        share = alias and wp.get_device(device).is_cpu
+        points = wp.array(np.ascontiguousarray(m.positions, dtype=np.float32), dtype=wp.vec3, device=device,
+                          copy=not share)
+        idx = wp.array(np.ascontiguousarray(m.indices, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device,
+                       copy=not share)
         used = np.zeros(len(m.positions), dtype=bool)
         used[m.indices.reshape(-1)] = True        # the used vertices' bounds without a per-corner copy
         p = m.positions[used] if not used.all() else m.positions
         leaf = MESH_LEAF_SIZE if not wide else WIDE_MESH_LEAF_SIZE
         mesh = wp.Mesh(points=points, indices=idx, bvh_constructor="sah" if not wide else "median", bvh_leaf_size=leaf)
-        return cls(mesh, _wide_tree(m) if wide else None, p.min(0).astype(np.float64), p.max(0).astype(np.float64),
-                   leaf)
+        lo, hi = column_range(p)
+        return cls(mesh, tree, lo.astype(np.float64), hi.astype(np.float64), leaf)
 
 
 class DeviceScene:
@@ -183,7 +191,7 @@ class DeviceScene:
             if uploaded is not None and not wide and uploaded.leaf_size != MESH_LEAF_SIZE:
                 uploaded = None             # built for the wide BVH: Warp's tree is too coarse to trace
             if uploaded is None:
-                uploaded = UploadedMesh.of(m, device, wide)
+                uploaded = UploadedMesh.of(m, device, wide, alias=cache is None)
                 if cache is not None:
                     cache[key] = uploaded
             elif wide and uploaded.wide is None:        # cached by a scene that traced it with Warp's BVH
@@ -202,10 +210,8 @@ class DeviceScene:
                 tangents.append(corner_tangents(m.positions, m.indices, m.corner_uv, _corner_normals(m)).reshape(-1, 4))
         s.num_meshes = len(self._meshes)
         s.mesh_ids = _arr([mm.id for mm in self._meshes], wp.uint64, device, np.uint64)
-        self._upload_wide(s, scene, device)
-        if cache is None:
-            # the device arrays hold the trees now; without a cache nothing reads the host copies again
-            self._wide = [None if w is None else _Uploaded(w.stack_bound) for w in self._wide]
+        # without a cache nothing reads the host trees again once the device arrays hold them
+        self._upload_wide(s, scene, device, release=cache is None)
         s.face_offset = _arr(offsets, wp.int32, device, np.int32)
         # several meshes' arrays are concatenated into fresh arrays: those become the device arrays
         fresh = len(scene.meshes) > 1
@@ -216,41 +222,81 @@ class DeviceScene:
         s.corner_tangent = _arr(_cat(tangents, (0, 4), np.float32), wp.vec4, device, np.float32)
         s.has_corner_tangents = int(bool(tangents))
 
-    def _upload_wide(self, s: Geometry, scene: Scene, device: str) -> None:
+    def _upload_wide(self, s: Geometry, scene: Scene, device: str, release: bool = False) -> None:
         """Concatenate the meshes' wide BVHs (node and triangle numbers offset per mesh), size the
-        traversal stack (Features.bvh_stack) for the deepest, and note meshes left to Warp's BVH."""
-        boxes, children, roots, corners, faces = [], [], [], [], []
-        nodes = tris = 0
-        bound = 0
-        for m, wide in zip(scene.meshes, self._wide):
-            if wide is None:
-                roots.append(-1)
-                continue
-            boxes.append(wide.box.reshape(-1, WIDTH))
-            children.append(wide.child_shifted(nodes, tris))
-            roots.append(nodes)
-            corners.append((m, wide.order, tris))
-            faces.append(wide.order)
-            nodes += len(wide.child)
-            tris += len(wide.order)
-            bound = max(bound, wide.stack_bound)
+        traversal stack (Features.bvh_stack) for the deepest, and note meshes left to Warp's BVH.
+        ``release``: drop each host tree once copied (a scene without a mesh cache)."""
+        wides = [(k, w) for k, w in enumerate(self._wide) if w is not None]
+        bound = max((w.stack_bound for _, w in wides), default=0)
         stack = 0 if bound == 0 else next((n for n in BVH_STACKS if n >= bound), None)
         if stack is None:       # wide_bvh.DEPTH_BUDGET keeps stack_bound <= 337
             raise ValueError(f"a mesh's BVH is too deep: its traversal needs {bound} stack entries, more than "
                              f"{BVH_STACKS[-1]}")
-        self.features = replace(self.features, bvh_stack=stack, warp_meshes=any(w is None for w in self._wide))
+        self.features = replace(self.features, bvh_stack=stack, warp_meshes=len(wides) < len(self._wide))
+        roots = np.full(len(self._wide), -1, dtype=np.int32)
+        corners = []
+        if not wides:
+            box, child, faces = np.zeros((0, WIDTH), np.float32), np.zeros((0, WIDTH), np.int32), np.zeros(0, np.int32)
+        elif len(wides) == 1:             # one tree: its own arrays become the device arrays
+            k, w = wides.pop()
+            roots[k] = 0
+            box, child, faces = w.box.reshape(-1, WIDTH), w.child, w.order
+            corners.append((scene.meshes[k], w.order, 0))
+            del w
+        else:
+            # The largest tree is stored first, in its own arrays where they have room for the others
+            # (the collapse allocates its worst case, and pages it never wrote take no memory) and
+            # belong to this scene alone (``release``): only the small trees are copied, after it.
+            # Where there is no room, every tree is copied into place, each host tree dropped after
+            # its copy (with ``release``) and before the corners are gathered. Node and triangle
+            # numbers are offsets only: the hits do not depend on the order the trees are stored in.
+            wides.sort(key=lambda kw: -len(kw[1].child))
+            n_nodes = sum(len(w.child) for _, w in wides)
+            n_tris = sum(len(w.order) for _, w in wides)
+            first = wides[0][1]
+            # (never a cached tree: other scenes share its arrays, with other trees after it)
+            box = _grown(first.box.reshape(-1, WIDTH), 6 * n_nodes) if release else None
+            child = _grown(first.child, n_nodes) if release else None
+            own = box is not None and child is not None
+            if not own:
+                box = np.empty((6 * n_nodes, WIDTH), dtype=np.float32)
+                child = np.empty((n_nodes, WIDTH), dtype=np.int32)
+            del first
+            faces = np.empty(n_tris, dtype=np.int32)
+            nodes = tris = 0
+            for i in range(len(wides)):
+                k, w = wides[i]
+                wides[i] = None
+                n, t = len(w.child), len(w.order)
+                roots[k] = nodes
+                if not (own and i == 0):        # the first tree at offset 0 is where it is already
+                    box[6 * nodes:6 * (nodes + n)] = w.box.reshape(-1, WIDTH)
+                    child[nodes:nodes + n] = w.child_shifted(nodes, tris)
+                faces[tris:tris + t] = w.order
+                corners.append((scene.meshes[k], faces[tris:tris + t], tris))
+                if release:
+                    self._wide[k] = _Uploaded(w.stack_bound)
+                del w
+                nodes += n
+                tris += t
+        if release:
+            self._wide = [None if w is None else _Uploaded(w.stack_bound) for w in self._wide]
         # every mesh's leaf-ordered corners gathered straight into one array (no per-mesh copies to join)
+        tris = len(faces)
         v = np.empty((max(tris, 1), 3, 3), dtype=np.float32) if tris else np.zeros((0, 3, 3), np.float32)
         for m, order, first in corners:
-            np.take(np.asarray(m.positions, dtype=np.float32), np.asarray(m.indices)[order], axis=0,
-                    out=v[first:first + len(order)])
+            p, idx = np.asarray(m.positions, dtype=np.float32), np.asarray(m.indices)
+            # in blocks, and mode="clip" (the indices were validated): with the default mode="raise",
+            # np.take fills a temporary copy of ``out`` and copies it over (36 MB at a million triangles)
+            for k in range(0, len(order), _GATHER_BLOCK):
+                np.take(p, idx[order[k:k + _GATHER_BLOCK]], axis=0, mode="clip",
+                        out=v[first + k:first + min(k + _GATHER_BLOCK, len(order))])
         # On the CPU these device arrays are the host arrays themselves (nothing else writes them): the
         # trees' own arrays, fresh corner copies and concatenations are not copied a second time.
-        _set_arrays(s, device, alias=True, bvh_box=(_cat(boxes, (0, WIDTH), np.float32), vec_wide_f),
-                    bvh_child=(_cat(children, (0, WIDTH), np.int32), vec_wide_i),
-                    mesh_root=(np.asarray(roots, dtype=np.int32), wp.int32),
+        _set_arrays(s, device, alias=True, bvh_box=(box, vec_wide_f), bvh_child=(child, vec_wide_i),
+                    mesh_root=(roots, wp.int32),
                     tri_v0=(v[:, 0], wp.vec3), tri_v1=(v[:, 1], wp.vec3), tri_v2=(v[:, 2], wp.vec3),
-                    tri_face=(_cat(faces, (0,), np.int32), wp.int32))
+                    tri_face=(faces, wp.int32))
 
     def _upload_spheres_and_tlas(self, s: Geometry, scene: Scene, device: str) -> None:
         lowers, uppers = self._upload_instances(s, scene, device)
@@ -419,11 +465,47 @@ def _corner_normals(m) -> np.ndarray:
     return np.repeat(n[:, None, :], 3, axis=1).astype(np.float32)
 
 
+def _grown(a: np.ndarray, rows: int) -> np.ndarray | None:
+    """``a``'s first ``rows`` rows of the array it is the start of (a view, ``rows`` >= len(a)), or
+    None when ``a`` is not the start of a C-contiguous array that long."""
+    base = a.base
+    while isinstance(base, np.ndarray) and base.base is not None and isinstance(base.base, np.ndarray):
+        base = base.base
+    if not isinstance(base, np.ndarray) or not base.flags.c_contiguous or not a.flags.c_contiguous:
+        return None
+    if base.dtype != a.dtype or base.__array_interface__["data"][0] != a.__array_interface__["data"][0]:
+        return None
+    row = a.itemsize * int(np.prod(a.shape[1:]))
+    if row == 0 or base.nbytes < rows * row or not base.flags.writeable:
+        return None
+    return base.reshape(-1)[:rows * (row // a.itemsize)].reshape(rows, *a.shape[1:])
+
+
+_GATHER_BLOCK = 1 << 16      # triangles per block of the leaf-ordered corner gather
+
+
 def _cat(parts: list[np.ndarray], empty_shape: tuple[int, ...], dtype) -> np.ndarray:
-    """The parts end to end (a single part as it is: no copy of a large mesh's array)."""
+    """The parts end to end (a single part as it is: no copy of a large mesh's array).
+
+    Parts whose bits are all zero (the uv of a mesh without texture coordinates) are not copied: a
+    fresh large array is zero pages that take no memory until written (24 MB at a million triangles)."""
     if len(parts) == 1:
         return parts[0].astype(dtype, copy=False)
-    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(empty_shape, dtype)
+    if not parts:
+        return np.zeros(empty_shape, dtype)
+    out = np.zeros((sum(len(p) for p in parts), *parts[0].shape[1:]), dtype)
+    k = 0
+    for p in parts:
+        if _any_bit(p):
+            out[k:k + len(p)] = p
+        k += len(p)
+    return out
+
+
+def _any_bit(a: np.ndarray) -> bool:
+    """Whether any bit of ``a`` is set (-0.0 counts: it is not +0.0's bits)."""
+    a = np.ascontiguousarray(a)
+    return bool(a.size) and bool(a.reshape(-1).view(f"u{a.dtype.itemsize}").any())
 
 
 def _set_arrays(s, device: str, alias: bool = False, **fields: tuple) -> None:

@@ -99,10 +99,16 @@ class WideBvh:
         """``child`` for this tree stored after ``nodes`` nodes and ``triangles`` leaf-order triangles
         of other trees (one concatenated array for every mesh of a scene): interior children move by
         ``nodes``, leaves by ``triangles``, in the same leaf encoding (int32)."""
-        child = self.child.astype(np.int64)
-        code = -child - 1
-        shifted = np.where(child < 0, -((code >> 3) + triangles) * 8 - (code & 7) - 1, child + nodes)
-        return shifted.astype(np.int32)
+        # -(first * 8 + count) - 1 moved by ``triangles`` is the code minus 8 * triangles; in int32 (no
+        # int64 copies of a large tree) while the last leaf's code fits, as build_wide's limit keeps it
+        if 8 * (triangles + len(self.order)) > 2**31 - 8 or nodes + len(self.child) > 2**31 - 1:
+            raise ValueError(f"wide BVHs of more than {MAX_TRIANGLES} triangles in all do not fit the int32 "
+                             "leaf code")
+        shifted = self.child.astype(np.int32, copy=True)
+        leaf = shifted < 0
+        shifted[leaf] -= np.int32(8 * triangles)
+        shifted[~leaf] += np.int32(nodes)
+        return shifted
 
 
 # --------------------------------------------------------------------------------------------
@@ -153,9 +159,10 @@ def _round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def _triangle_boxes(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(K, 3) float32 lower/upper of each triangle, exact (outward-rounded) bounds of its float64 vertices
     (float32 vertices need no rounding)."""
-    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    # np.take along axis 0 gathers rows 2-3x faster than fancy indexing (p[t[:, 0]])
+    a, b, c = (np.take(p, t[:, j], axis=0) for j in range(3))
     lo = np.minimum(np.minimum(a, b, out=a), c, out=a)
-    hi = np.maximum(np.maximum(b, c, out=b), p[t[:, 0]], out=b)
+    hi = np.maximum(np.maximum(b, c, out=b), np.take(p, t[:, 0], axis=0), out=b)
     if p.dtype == np.float32:         # float32 vertices: their bounds are exact already
         return lo, hi
     return _round_outward(lo, hi)
@@ -498,7 +505,7 @@ def build_wide(points: np.ndarray, tris: np.ndarray, width: int = WIDTH, max_lea
         from warp_spt.core.wide_build import build_binary, collapse
         del p, t
         start, count, left, right, nlo, nhi, order = build_binary(lo, hi, max_leaf, DEPTH_BUDGET)
-        del lo, hi
+        del lo, hi, right           # the collapse reads left only (right = left + 1)
         box, child, depth, stack_bound = collapse(start, count, left, nlo, nhi, width)
         return WideBvh(box=box, child=child, order=order.astype(np.int32, copy=False), depth=depth,
                        stack_bound=stack_bound)

@@ -33,10 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from warp_spt.io.obj import nonzero_area  # noqa: F401 (glTF's reader imports it from here)
 from warp_spt.io.tokens import read_file
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.errors import SceneError
-from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef
+from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef, column_range
 from warp_spt.scene.validate import MAX_COORDINATE
 
 __all__ = ["load_ply", "parse_ply_bytes", "vertex_colour_texture", "VERTEX_COLOUR_MATERIAL"]
@@ -232,7 +233,8 @@ def _binary_lists(data: bytes, pos: int, order: str, e: _Element, path: str, wan
                     else:
                         n = int(rows[f"n{k}"][0])
                         flat = rows[f"p{k}"].reshape(-1) if n else np.zeros(0, p.kind)
-                        values[p.name] = (flat, np.full(e.count, n, np.int64))
+                        # every row's length is n: one broadcast value, not an array of them
+                        values[p.name] = (flat, np.broadcast_to(np.int64(n), (e.count,)))
             return values, pos + e.count * dtype.itemsize
     return _walk_lists(data, pos, order, e, path, wanted)
 
@@ -431,10 +433,15 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
     for axis in ("x", "y", "z"):
         if axis not in vert or isinstance(vert[axis], tuple):
             raise SceneError(path, ve.line, f"element 'vertex' has no scalar property {axis!r}")
-    positions = np.stack([np.asarray(vert[a], np.float64) for a in ("x", "y", "z")], axis=1)
-    nv = len(positions)
-    bad = ~np.isfinite(positions).all(axis=1) | (np.abs(positions).max(axis=1, initial=0) > MAX_COORDINATE)
-    if bad.any():
+    nv = len(vert["x"])
+    positions = np.empty((nv, 3))
+    for k, a in enumerate(("x", "y", "z")):
+        positions[:, k] = vert[a]
+    # columns' extremes first (NaN propagates, infinities exceed the limit), rows only to name a bad one
+    lo, hi = column_range(positions) if nv else (np.zeros(3), np.zeros(3))
+    if not np.all(np.maximum(-lo, hi) <= MAX_COORDINATE):
+        a = np.abs(positions)
+        bad = ~(np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2]) <= MAX_COORDINATE)
         k = int(np.argmax(bad))
         raise SceneError(path, 0, f"vertex {k}: coordinate {positions[k].tolist()} is not finite or beyond the "
                          f"supported range of +-{MAX_COORDINATE:g}")
@@ -453,8 +460,10 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
         faces.append(strips)
     tri = np.concatenate(faces) if faces else np.zeros((0, 3), np.int32)
     keep = nonzero_area(positions, tri)
-    tri = tri[keep]
-    has = lambda a: tri if a is not None else np.full_like(tri, -1)      # noqa: E731
+    if not keep.all():
+        tri = tri[keep]
+    # "no such corner data" (-1 everywhere) is one broadcast value, not two more (F, 3) arrays
+    has = lambda a: tri if a is not None else np.broadcast_to(np.int32(-1), tri.shape)      # noqa: E731
     names = [CHECKER_NAME]
     materials: dict[str, Material] = {}
     texcoords = uv.astype(np.float32) if uv is not None else np.zeros((0, 2), np.float32)
@@ -476,8 +485,8 @@ def _assemble(values: _Values, elements: list[_Element], path: str) -> ObjData:
     return ObjData(
         path=path, positions=positions, texcoords=texcoords,
         normals=normals.astype(np.float32) if normals is not None else np.zeros((0, 3), np.float32),
-        faces=tri.astype(np.int32), face_texcoords=face_tex.astype(np.int32),
-        face_normals=has(normals).astype(np.int32),
+        faces=tri.astype(np.int32, copy=False), face_texcoords=face_tex.astype(np.int32, copy=False),
+        face_normals=has(normals).astype(np.int32, copy=False),
         face_material=np.full(len(tri), len(names) - 1, np.int32),
         spheres=np.zeros((0, 4)), sphere_material=np.zeros(0, np.int32),
         material_names=names, material_lines=[0] * len(names),
@@ -511,7 +520,12 @@ def _index_list(values: dict, e: _Element, path: str) -> tuple[np.ndarray, np.nd
             if prop.kind[0] == "f":
                 raise SceneError(path, prop.line, f"element {e.name!r}: list {name!r} has a float type; vertex indices "
                                  "must be integers")
-            return np.asarray(flat, np.int64), np.asarray(lengths, np.int64)
+            flat = np.asarray(flat)
+            # signed types up to int32 compare and convert as they are (no int64 copy of a large
+            # mesh's indices); unsigned and wider ones as int64, so that a huge value is not wrapped
+            if not (flat.dtype.kind == "i" and flat.dtype.itemsize <= 4):
+                flat = flat.astype(np.int64)
+            return flat, np.asarray(lengths, np.int64)
     raise SceneError(path, e.line, f"element {e.name!r} has no list property 'vertex_indices'")
 
 
@@ -534,7 +548,7 @@ def _polygons(values: dict, e: _Element, nv: int, path: str) -> np.ndarray:
         raise SceneError(path, _row_line(values, row), f"face {row}: vertex index {flat[k]} is out of range: the "
                          f"file has {nv} vertices")
     if np.all(n == 3):
-        return flat.reshape(-1, 3).astype(np.int32)
+        return flat.reshape(-1, 3).astype(np.int32, copy=not flat.flags.writeable)
     from warp_spt.io.obj import _fan
     return flat[_fan(n)].astype(np.int32)
 
@@ -565,28 +579,6 @@ def _strips(values: dict, e: _Element, nv: int, path: str) -> tuple[np.ndarray, 
     tri = np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1)[same]
     join = (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
     return tri[~join].astype(np.int32), int(np.count_nonzero(join))
-
-
-_AREA_BLOCK = 1 << 16        # triangles per block of nonzero_area
-
-
-def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Mask of triangles whose area is not exactly zero, in float64 (as OBJ's reader decides), with
-    the cross product's components formed one at a time (np.cross is 3x slower on large arrays)."""
-    p = np.asarray(positions, np.float64)
-    out = np.ones(len(faces), dtype=bool)
-    # in blocks: the float64 edges of a whole large mesh would be its largest temporaries (120 B per triangle)
-    for k in range(0, len(faces), _AREA_BLOCK):
-        f = faces[k:k + _AREA_BLOCK]
-        p0 = p[f[:, 0]]
-        e1 = p[f[:, 1]] - p0
-        e2 = p[f[:, 2]] - p0
-        x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
-        x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
-        x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]
-        out[k:k + len(f)] = x
-    return out
-
 
 
 # --------------------------------------------------------------------------------------- vertex colours

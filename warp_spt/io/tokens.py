@@ -264,6 +264,8 @@ INVISIBLE = {b"\xef\xbb\xbf": "a byte-order mark (U+FEFF)", b"\xe2\x80\x8b": "a 
 
 def _check_invisible(data: bytes, path: str, kind: str) -> None:
     """A SceneError at the first invisible character (see INVISIBLE), naming it and its line."""
+    if data.isascii():          # each of them has a byte >= 0x80: one fast pass instead of 8 searches
+        return
     found = [(at, name) for junk, name in INVISIBLE.items() if (at := data.find(junk)) >= 0]
     if found:
         at, name = min(found)

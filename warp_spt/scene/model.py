@@ -153,10 +153,12 @@ class MeshData:
             return None
         mask = np.zeros(len(self.positions), dtype=bool)
         mask[self.indices.reshape(-1)] = True          # O(F), unlike np.unique's sort
-        used = self.positions[mask]
-        used = _as_float32(used) if rounded else used.astype(np.float64)
+        used = self.positions if mask.all() else self.positions[mask]
         if self.transforms is None:
-            return np.stack([used.min(0), used.max(0)])[None]
+            # rounding to float32 is monotonic: the rounded extremes are the extremes' rounding
+            b = np.stack(column_range(used))[None]
+            return _as_float32(b) if rounded else b.astype(np.float64)
+        used = _as_float32(used) if rounded else used.astype(np.float64)
         out = np.empty((len(self.transforms), 2, 3))
         batch = max(1, (1 << 22) // (3 * len(used)))          # at most ~32 MB of projections at a time
         for k in range(0, len(self.transforms), batch):
@@ -373,6 +375,16 @@ class Scene:
             lo = np.minimum(lo, (c - r).min(0))
             hi = np.maximum(hi, (c + r).max(0))
         return np.stack([lo, hi])
+
+
+def column_range(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) of each column of a non-empty (N, C) array, NaN propagating as in ``a.min(0)``.
+
+    One column at a time: numpy reduces a C-ordered (N, 3) array along axis 0 row by row, about 30 ms
+    for 500k float64 rows where a column's reduction takes under 1 ms."""
+    lo = np.array([a[:, k].min() for k in range(a.shape[1])], dtype=a.dtype)
+    hi = np.array([a[:, k].max() for k in range(a.shape[1])], dtype=a.dtype)
+    return lo, hi
 
 
 def _as_float32(a: np.ndarray) -> np.ndarray:

@@ -1,0 +1,55 @@
+"""A numpy reference for warp_spt.samplers.sobol_affine, from the definitions, not from the kernel.
+
+Sobol' points from the generator matrices of tests/sobol_reference.py; a 0.32 fraction's digits
+reversed one bit at a time; the scramble (r + a) * (m | 1) mod 2**32 on the reversed digits; the
+index shuffle the same scramble of the index's bits read from the top. Only the hash, the seed chain
+and the salts are shared with the module: they are its specification.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from warp_spt.samplers import sobol_affine as A
+
+from . import sobol_reference as R
+
+M32 = np.uint64(0xFFFFFFFF)
+
+
+def reverse(v) -> np.ndarray:
+    """The 32 bits of each v in reverse order, bit by bit."""
+    v = np.asarray(v, dtype=np.uint64)
+    out = np.zeros_like(v)
+    for k in range(32):
+        out |= ((v >> np.uint64(k)) & np.uint64(1)) << np.uint64(31 - k)
+    return out
+
+
+def scramble(v, a, m) -> np.ndarray:
+    """The affine nested scramble of 0.32 fractions v (digits reversed, mapped, reversed back)."""
+    r = reverse(v)
+    s = ((r + np.asarray(a, dtype=np.uint64)) & M32) * (np.asarray(m, dtype=np.uint64) | np.uint64(1))
+    return reverse(s & M32)
+
+
+def _request(seed, pixel, index, dim):
+    seed, pixel, index, dim = np.broadcast_arrays(seed, pixel, index, dim)
+    key = R.request_seed(seed, pixel, dim)
+    # the index as a fraction (its bit 31 the first digit): scrambled, it is the Sobol' index
+    i = scramble(np.asarray(index, dtype=np.uint64), key, R.mix32(key ^ np.uint64(A.SHUFFLE_MUL_SALT)))
+    return key, i
+
+
+def affine_2d(seed, pixel, index, dim) -> np.ndarray:
+    """[..., 2] float32 points, as sobol_affine.affine_2d for broadcast (seed, pixel, index, dim)."""
+    key, i = _request(seed, pixel, index, dim)
+    x = scramble(R.sobol_u32(i, 0), R.mix32(key ^ np.uint64(A.X_ADD_SALT)), R.mix32(key ^ np.uint64(A.X_MUL_SALT)))
+    y = scramble(R.sobol_u32(i, 1), R.mix32(key ^ np.uint64(A.Y_ADD_SALT)), R.mix32(key ^ np.uint64(A.Y_MUL_SALT)))
+    return np.stack([R.to_unit(x), R.to_unit(y)], axis=-1)
+
+
+def affine_1d(seed, pixel, index, dim) -> np.ndarray:
+    key, i = _request(seed, pixel, index, dim)
+    x = scramble(R.sobol_u32(i, 0), R.mix32(key ^ np.uint64(A.X_ADD_SALT)), R.mix32(key ^ np.uint64(A.X_MUL_SALT)))
+    return R.to_unit(x)

@@ -293,3 +293,41 @@ def test_a_batch_equals_its_requests_one_by_one(offsets):
         want = R.sobol_2d(seed.astype(np.uint64), pixel.astype(np.int64), index.astype(np.int64), base + off)
         np.testing.assert_array_equal(got[:, 0, k], want[:, 0], err_msg=f"offset {off}: x")
         np.testing.assert_array_equal(got[:, 1, k], want[:, 1], err_msg=f"offset {off}: y")
+
+
+@pytest.mark.parametrize("offsets", [(1, 5), (0, 1, 3, 5)])
+def test_a_cached_batch_equals_the_batch(offsets):
+    """make_cache's batches (the per-pixel words filled once, each bounce handed its slot) are
+    make_batch's at first + stride * slot, bit for bit as the numpy reference gives them: slots filled
+    and not, indices below 2**15 (cached) and above (computed whole)."""
+    first, stride, slots = 4, 8, 3
+    cache = S.make_cache(offsets, first, stride, slots)
+    lanes = 1 << (len(offsets) - 1).bit_length()
+
+    @wp.kernel(module="unique")
+    def run(seeds: wp.array(dtype=wp.uint32), pixels: wp.array(dtype=int), indices: wp.array(dtype=int),
+            filled: wp.array(dtype=int), ks: wp.array(dtype=int), out: wp.array2d(dtype=float)):
+        t = wp.tid()
+        st = S.sampler_state(seeds[t], pixels[t], indices[t], S.pixel_key(seeds[t], pixels[t]))
+        c = cache.fill(S.sampler_state(seeds[t], pixels[t], 0, S.pixel_key(seeds[t], pixels[t])), filled[t])
+        v = cache.batch(cache.slot(c, ks[t]), st, ks[t])
+        for j in range(wp.static(2 * lanes)):
+            out[t, j] = v[j]
+
+    rng = np.random.default_rng(14)
+    n = 3000
+    seed = rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32)
+    pixel = rng.integers(0, 2**31, n).astype(np.int32)
+    index = np.where(rng.random(n) < 0.8, rng.integers(0, 2**15, n), rng.integers(0, 2**31, n)).astype(np.int32)
+    filled = rng.integers(0, slots + 1, n).astype(np.int32)
+    k = rng.integers(0, slots + 2, n).astype(np.int32)
+    out = wp.empty((n, 2 * lanes), dtype=float, device=DEVICE)
+    wp.launch(run, n, inputs=[wp.array(seed, dtype=wp.uint32), wp.array(pixel, dtype=int), wp.array(index, dtype=int),
+                              wp.array(filled, dtype=int), wp.array(k, dtype=int), out], device=DEVICE)
+    got = out.numpy().reshape(n, 2, lanes)
+    assert ((k < filled) & (index < 2**15)).mean() > 0.2       # both branches are taken often
+    padded = tuple(offsets) + (offsets[-1],) * (lanes - len(offsets))
+    for j, off in enumerate(padded):
+        want = R.sobol_2d(seed.astype(np.uint64), pixel.astype(np.int64), index.astype(np.int64),
+                          first + stride * k + off)
+        np.testing.assert_array_equal(got[:, :, j], want, err_msg=f"offset {off}")

@@ -499,7 +499,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
 
 # the per-pixel sampler cache (make_path_vertex's ``cached``): the bounces it covers (the default
 # max_depth 6 draws at 5), and the fewest samples per pixel and launch that use it
-CACHE_SLOTS = 5
+CACHE_SLOTS = 3
 CACHE_MIN_SAMPLES = 2
 
 

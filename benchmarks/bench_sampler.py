@@ -177,8 +177,7 @@ def render_table(size: int, spp: int, repeat: int) -> None:
     from warp_spt.samplers import get_sampler
 
     batched = get_sampler("sobol")
-    variants = {"one by one": dataclasses.replace(batched, make_batch=None, make_cache=None),
-                "one batch": dataclasses.replace(batched, make_cache=None), "one batch, per-pixel cache": batched,
+    variants = {"one by one": dataclasses.replace(batched, make_batch=None), "one batch": batched,
                 "sobol-affine, one batch": get_sampler("sobol-affine")}
     n = size * size
     print(f"\nnee + sobol, {size}x{size}, {spp} spp, depth 6, roulette from 3 hits: CPU us per sample "

@@ -352,13 +352,7 @@ def make_kernel(step, start_path):
     samples from index ``rp.sample_start`` of pixel ``rp.pixel_start + t`` (a run of pixels); else
     ``work[t]`` = (pixel, first sample index, samples), a compacted list of any pixels each with its own
     count (adaptive passes: one launch covers the active pixels of a whole image). One kernel serves
-    both, so adaptive sampling compiles no variant of its own.
-
-    A step with ``per_pixel`` and ``per_step`` functions (``nee``'s with a sampler cache) takes one
-    more argument, ``per_step(data, path.depth)``, ``data = per_pixel(seed, pixel, samples,
-    max_depth)`` being made once per thread before its sample loop."""
-    per_pixel = getattr(step, "per_pixel", None)
-    per_step = getattr(step, "per_step", None)
+    both, so adaptive sampling compiles no variant of its own."""
 
     @wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
     def trace(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
@@ -375,15 +369,10 @@ def make_kernel(step, start_path):
         acc = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0))
         bad = int(0)
         rays = int(0)
-        if wp.static(per_pixel is not None):
-            aux = per_pixel(rp.seed, pix, count, rp.max_depth)
         for j in range(count):
             path = start_path(cam, pix, rp.width, rp.seed, first + j)
             while path.alive != 0:
-                if wp.static(per_pixel is not None):
-                    path = step(geo, mats, tex, lights, rp, path, per_step(aux, path.depth))
-                else:
-                    path = step(geo, mats, tex, lights, rp, path)
+                path = step(geo, mats, tex, lights, rp, path)
             rays += path.rays
             L = path.radiance
             if wp.isfinite(L):

@@ -182,7 +182,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     # structs they take by value (about 2 KB); the tape kernel, unrolled, keeps the compiler's choice
     inline = None if differentiable else True
     vertex = make_path_vertex(features, sampler, light_sampling, inline=inline, hooks=hooks,
-                              batched=not differentiable, cached=not differentiable and hooks is None)
+                              batched=not differentiable)
     if hooks is not None:
         Aux = hooks.Aux
 
@@ -195,21 +195,6 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
             return vertex(geo, mats, tex, lights, rp, p, h, aux)
 
         return hooked_step
-
-    per_pixel = getattr(vertex, "per_pixel", None)
-    if per_pixel is not None:
-        # the sampler's per-pixel cache, made once per pixel by the kernel (make_kernel's per_pixel)
-        @wp.func(inline=True)
-        def cached_step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
-                        path: PathState, aux: vertex.Aux):
-            p = path
-            h = hit(geo, mats, tex, p.o, p.d)
-            p.rays += 1
-            return vertex(geo, mats, tex, lights, rp, p, h, aux)
-
-        cached_step.per_pixel = per_pixel
-        cached_step.per_step = vertex.per_step
-        return cached_step
 
     @wp.func(inline=inline)
     def step(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, rp: RenderParams,
@@ -257,8 +242,7 @@ class VertexHooks:
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
-                     replay: bool = False, media=None, hooks: VertexHooks | None = None, batched: bool = False,
-                     cached: bool = False):
+                     replay: bool = False, media=None, hooks: VertexHooks | None = None, batched: bool = False):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
@@ -276,12 +260,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     is then its ``Aux`` data and it returns ``hooks.finish(path, out)``; None compiles none of it.
     ``batched`` (forward kernels): where the sampler has ``make_batch``, the vertex's BSDF and light
     point requests are drawn as one batch at its start: the same numbers at a fraction of the cost
-    (the light point is drawn for nothing at a vertex without a smooth lobe; the lanes make it cheap).
-    ``cached`` (with ``batched``, no hooks): where the sampler has ``make_cache``, the batches of the
-    first ``CACHE_SLOTS`` bounces read what depends on the pixel alone from a per-pixel cache: the
-    vertex's last argument is then ``vertex.Aux`` (the visibility and the cache; it traces its shadow
-    rays): ``vertex.per_pixel(seed, pixel, samples, max_depth) -> cache`` fills the cache once per
-    pixel, ``vertex.per_step(cache, depth) -> Aux`` hands a bounce its slot."""
+    (the light point is drawn for nothing at a vertex without a smooth lobe; the lanes make it cheap)."""
     surface_at = make_surface(features)
     if replay:
         detach_surface(surface_at)
@@ -319,10 +298,6 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     L_LOBE, L_DIR = lanes.get(OFF_LOBE, 0), lanes.get(OFF_DIR, 0)
     L_FRESNEL, L_POS = lanes.get(OFF_FRESNEL, 0), lanes.get(OFF_LIGHT_POS, 0)
     light_sample_drawn = make_light_sample(sampler, light, inline=inline_callees, drawn=True) if lanes else None
-    cache = None
-    if lanes and cached and not hooked and sampler.make_cache is not None:
-        cache = sampler.make_cache(tuple(lanes), DIM_BOUNCE, stride, CACHE_SLOTS)
-        Aux = _vis_cache(cache.Slot)
 
     @wp.func
     def mis_weight(pa: float, pb: float) -> float:
@@ -428,10 +403,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         base = DIM_BOUNCE + wp.static(stride) * (p.depth - 1)
         u_light = wp.vec2(0.0, 0.0)
         if wp.static(batch is not None):
-            if wp.static(cache is not None):
-                u = cache.batch(vis.slot, p.sampler, p.depth - 1)
-            else:
-                u = batch(p.sampler, base)
+            u = batch(p.sampler, base)
             u_lobe = float(0.0)
             if wp.static(OFF_LOBE in lanes):
                 u_lobe = u[L_LOBE]
@@ -448,7 +420,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             gv = hooks.guide(vis, mats, tex, sf)
             share = hooks.share(gv)
         if wp.static(sample_lights):
-            if wp.static(hooked or cache is not None):  # ``vis`` is other data: the shadow ray is traced
+            if wp.static(hooked):      # ``vis`` is the hook's data: the shadow ray is traced
                 contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, VIS_TRACE, share, u_light)
             else:
                 contrib, st, seen = direct(geo, mats, tex, lights, p, sf, base, vis, share, u_light)
@@ -476,43 +448,4 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         else:
             return p
 
-    if cache is not None:
-        @wp.func
-        def per_pixel(seed: wp.uint32, pixel: int, samples: int, max_depth: int):
-            slots = int(0)
-            if samples >= CACHE_MIN_SAMPLES:       # one sample of a pixel would pay for the cache alone
-                slots = wp.min(max_depth - 1, CACHE_SLOTS)
-            return cache.fill(sampler.start(seed, pixel, 0), slots)
-
-        @wp.func(inline=True)     # a call would copy the whole cache at every bounce
-        def per_step(c: cache.Cache, depth: int):
-            a = Aux()
-            a.vis = VIS_TRACE
-            a.slot = cache.slot(c, depth)
-            return a
-
-        vertex.Aux = Aux
-        vertex.per_pixel = per_pixel
-        vertex.per_step = per_step
     return vertex
-
-
-# the per-pixel sampler cache (make_path_vertex's ``cached``): the bounces it covers (the default
-# max_depth 6 draws at 5), and the fewest samples per pixel and launch that use it
-CACHE_SLOTS = 3
-CACHE_MIN_SAMPLES = 2
-
-
-def _vis_cache(slot_type):
-    """The cached vertex's last argument: the shadow ray's visibility and the bounce's cache slot."""
-    from warp_spt.runtime import kernel_cache
-
-    def build():
-        @wp.struct
-        class VisCache:
-            vis: int
-            slot: slot_type
-
-        return VisCache
-
-    return kernel_cache.cached("nee vis cache", slot_type, build)

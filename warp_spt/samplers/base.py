@@ -27,14 +27,7 @@ class Sampler:
     ``make_batch(offsets) -> batch``, ``batch(state, base) -> vector`` of ``2 * lanes`` floats
     (``lanes = batch_lanes(len(offsets))``): entry k and entry ``lanes + k`` are ``next_2d(state, base +
     offsets[k])``'s x and y, bit for bit, all computed in one call (a vertex's requests as the lanes
-    of one batch). Forward kernels only: it has no adjoint.
-
-    ``make_cache`` (optional, with ``make_batch``): ``make_cache(offsets, first, stride, slots)`` ->
-    a record with the types ``Cache`` and ``Slot``, ``fill(state, n) -> Cache`` (``state``:
-    ``start``'s, any index; n <= slots), ``slot(cache, k) -> Slot`` and ``batch(slot, state, k) ->
-    vector``, bit for bit ``make_batch(offsets)``'s batch at ``first + stride * k``: what of a path's
-    batches depends on the pixel alone, computed once per pixel by the kernel, each bounce handed
-    its slot (``samplers.sobol.make_cache``)."""
+    of one batch). Forward kernels only: it has no adjoint."""
 
     name: str
     start: object
@@ -43,7 +36,6 @@ class Sampler:
     random_access: bool = False    # any dimension costs the same, so unused ones are simply not drawn
     summary: str = ""              # one line for --help and the docs
     make_batch: object = None
-    make_cache: object = None
 
 
 def batch_lanes(n: int) -> int:

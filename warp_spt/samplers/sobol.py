@@ -86,6 +86,8 @@ Limits:
     batch").
 """
 
+from __future__ import annotations
+
 import warp as wp
 
 from warp_spt.samplers.base import Sampler, SamplerState, batch_lanes, detach_requests, sampler_state
@@ -296,127 +298,6 @@ def _build_batch(offsets: tuple) -> object:
 
 
 # ---------------------------------------------------------------------------------------------
-# The per-pixel cache of a path's batches (Sampler.make_cache)
-
-CACHE_WORDS = 7   # per 2-D request: the words of its hashes that depend on (seed, pixel, dimension) only
-
-
-@wp.func
-def exact_flips_h0(v: wp.uint32, seed: wp.uint32, h0: wp.uint32) -> wp.uint32:
-    """``exact_flips(v, seed)`` with its first subtree's hash given: ``h0 = mix32(seed ^ 1)`` (the root's
-    prefix is empty, so that hash depends on the seed alone)."""
-    flips = _subtree_flips(v, h0)
-    for c in range(1, wp.static(EXACT_LEVELS // CHUNK_LEVELS)):
-        top = c * CHUNK_LEVELS
-        prefix = v >> wp.uint32(32 - top)
-        h = mix32((prefix | (wp.uint32(1) << wp.uint32(top))) ^ seed)
-        flips = flips | (_subtree_flips(v << wp.uint32(top), h) >> wp.uint32(top))
-    return flips
-
-
-@wp.func
-def owen_scramble_h0(v: wp.uint32, seed: wp.uint32, h0: wp.uint32) -> wp.uint32:
-    """``owen_scramble(v, seed)`` with ``h0 = mix32(seed ^ 1)`` given."""
-    tail = mix32(((v >> wp.uint32(17)) | wp.uint32(0x8000)) ^ seed)
-    flips = exact_flips_h0(v, seed, h0) | ((tail >> wp.uint32(23)) << wp.uint32(8))
-    return (v ^ flips) & _TOP_24
-
-
-class SampleCache:
-    """What ``make_cache`` builds (see ``Sampler.make_cache``)."""
-
-    def __init__(self, cache_type, slot_type, fill, slot, batch):
-        self.Cache, self.Slot, self.fill, self.slot, self.batch = cache_type, slot_type, fill, slot, batch
-
-
-def make_cache(offsets: tuple, first: int, stride: int, slots: int) -> SampleCache:
-    """The per-pixel cache of the batches at ``first + stride * k + offsets`` for k < ``slots`` (a
-    path's bounces): for each 2-D request, the seven words of its fifteen hashes that depend on
-    (seed, pixel, dimension) alone below sample index 2**15 (its key's high bits, its index
-    shuffle's block seed and first subtree hash, each component's seed and first subtree hash).
-    A kernel fills it once per pixel, before its sample loop, and hands each bounce its slot; a
-    batch then hashes only what depends on the index (eight hashes per request). Slots not filled,
-    and indices from 2**15 on, take the uncached batch: the same numbers."""
-    from warp_spt.runtime import kernel_cache
-
-    key = (tuple(offsets), first, stride, slots)
-    return kernel_cache.cached("sobol cache", key, lambda: _build_cache(*key))
-
-
-def _build_cache(offsets: tuple, first: int, stride: int, slots: int) -> SampleCache:
-    uncached = make_batch(offsets)
-    lanes = batch_lanes(len(offsets))
-    padded = offsets + (offsets[-1],) * (lanes - len(offsets))
-    vi = wp.types.vector(length=lanes, dtype=wp.int32)
-    vf = wp.types.vector(length=2 * lanes, dtype=wp.float32)
-    slot_words = CACHE_WORDS * lanes
-    # the cache: slot k, word w, lane j at (k * CACHE_WORDS + w) * lanes + j, then the slots filled
-    # (0: none; the batches are then computed whole). A bare vector, not a struct: Warp reads a
-    # struct's vector field by copying the whole field, at every element read.
-    size = slots * slot_words
-    Cache = wp.types.vector(length=size + 1, dtype=wp.uint32)
-    offs = wp.constant(vi(*padded))
-
-    # a bounce's slot: word w of lane j at w * lanes + j, then 1 if they are this bounce's (0: not
-    # cached; the batch is computed whole)
-    Slot = wp.types.vector(length=slot_words + 1, dtype=wp.uint32)
-
-    @wp.func
-    def fill(state: SamplerState, n: int) -> Cache:
-        w = Cache()
-        w[wp.static(size)] = wp.uint32(n)
-        for k in range(n):
-            for j in range(wp.static(lanes)):
-                at = k * wp.static(slot_words) + j
-                key = mix32(state.rng ^ (wp.uint32(wp.static(first) + wp.static(stride) * k + offs[j]) * _DIM_MUL))
-                block = mix32(key ^ _BLOCK_SALT)
-                xs = mix32(key ^ _X_SALT)
-                ys = mix32(key ^ _Y_SALT)
-                w[at] = key & _HIGH_17
-                w[at + wp.static(lanes)] = block
-                w[at + wp.static(2 * lanes)] = mix32(block ^ wp.uint32(1))
-                w[at + wp.static(3 * lanes)] = xs
-                w[at + wp.static(4 * lanes)] = mix32(xs ^ wp.uint32(1))
-                w[at + wp.static(5 * lanes)] = ys
-                w[at + wp.static(6 * lanes)] = mix32(ys ^ wp.uint32(1))
-        return w
-
-    # inlined: a call would copy the whole cache (its argument, by value) at every bounce
-    @wp.func(inline=True)
-    def slot(cache: Cache, k: int) -> Slot:
-        s = Slot()
-        if k < int(cache[wp.static(size)]):
-            s[wp.static(slot_words)] = wp.uint32(1)
-            at = k * wp.static(slot_words)
-            for q in range(wp.static(slot_words)):
-                s[q] = cache[at + q]
-        return s
-
-    # out of line, as the uncached batch: the lanes' code together for clang's vectoriser
-    @wp.func(inline=False)
-    def lanes_cached(w: Slot, index: int):
-        out = vf()
-        i = wp.uint32(index)
-        for j in range(wp.static(lanes)):
-            low = exact_flips_h0(i << wp.uint32(32 - EXACT_LEVELS), w[j + wp.static(lanes)],
-                                 w[j + wp.static(2 * lanes)]) >> wp.uint32(32 - EXACT_LEVELS)
-            si = i ^ w[j] ^ low
-            x = owen_scramble_h0(reverse_bits(si), w[j + wp.static(3 * lanes)], w[j + wp.static(4 * lanes)])
-            y = owen_scramble_h0(sobol_dim1(si), w[j + wp.static(5 * lanes)], w[j + wp.static(6 * lanes)])
-            out[j] = to_unit(x)
-            out[j + wp.static(lanes)] = to_unit(y)
-        return out
-
-    @wp.func(inline=True)
-    def batch(s: Slot, state: SamplerState, k: int):
-        if s[wp.static(slot_words)] != wp.uint32(0) and state.index < 32768:   # below 2**15: one index block
-            return lanes_cached(s, state.index)
-        return uncached(state, wp.static(first) + wp.static(stride) * k)
-
-    return SampleCache(Cache, Slot, fill, slot, batch)
-
-
-# ---------------------------------------------------------------------------------------------
 # The sampler record (warp_spt.samplers.SAMPLERS["sobol"])
 
 
@@ -437,5 +318,4 @@ def make():
 
     detach_requests(next_1d, next_2d)
     return Sampler("sobol", start, next_1d, next_2d, random_access=True,
-                   summary="Owen-scrambled Sobol' points, a (0,2)-sequence per pixel", make_batch=make_batch,
-                   make_cache=make_cache)
+                   summary="Owen-scrambled Sobol' points, a (0,2)-sequence per pixel", make_batch=make_batch)

@@ -131,15 +131,17 @@ def rmse_table(kernels, pixels: int, n_max: int, seed: int):
     ns = np.array(sorted({2**k for k in range(int(math.log2(n_max)) + 1)}
                          | {3 * 2**k for k in range(int(math.log2(n_max))) if 3 * 2**k <= n_max}))
     checkpoints = wp.array(ns.astype(np.int32), dtype=int)
-    result = {}
+    result, spread = {}, {}
     for kind, (name, dims, exact) in enumerate(INTEGRANDS):
-        result[name] = {}
+        result[name], spread[name] = {}, {}
         for sampler, (estimate, _) in kernels.items():
             sums = wp.zeros((pixels, ns.size), dtype=wp.float64)
             wp.launch(estimate, pixels, inputs=[wp.uint32(seed), kind, dims, checkpoints, sums])
-            est = sums.numpy() / ns
-            result[name][sampler] = np.sqrt(np.mean((est - exact) ** 2, axis=0))
-    return ns, result
+            sq = (sums.numpy() / ns - exact) ** 2
+            result[name][sampler] = np.sqrt(sq.mean(axis=0))
+            # the RMSE's relative standard error at N = n_max, from the spread of the squared errors
+            spread[name][sampler] = 0.5 * sq[:, -1].std() / math.sqrt(pixels) / sq[:, -1].mean()
+    return ns, result, spread
 
 
 def time_draws(draw_only, dims: int, pixels: int, n: int) -> float:
@@ -220,6 +222,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--render", action="store_true", help="only the whole-render timing (see above)")
+    ap.add_argument("--pixels", type=int, default=0, help="estimates per N (default 2048; --quick 512)")
     ap.add_argument("--size", type=int, default=128, help="--render: pixels per side")
     ap.add_argument("--spp", type=int, default=8, help="--render: samples per pixel")
     ap.add_argument("--repeat", type=int, default=7, help="--render: alternated runs of each build")
@@ -228,16 +231,18 @@ def main() -> None:
         render_table(args.size, args.spp, args.repeat)
         return
     pixels, n_max = (512, 1024) if args.quick else (2048, 4096)
+    pixels = args.pixels or pixels
     kernels = {s: make_kernels(s) for s in ("independent", "sobol", "sobol-affine")}
     for estimate, draw_only in kernels.values():       # compile outside the timings
         wp.launch(estimate, 1, inputs=[wp.uint32(0), 0, 2, wp.array([1], dtype=int), wp.zeros((1, 1), dtype=wp.float64)])
         wp.launch(draw_only, 1, inputs=[wp.uint32(0), 2, 1, wp.zeros(1, dtype=float)])
 
-    ns, table = rmse_table(kernels, pixels, n_max, seed=12345)
+    ns, table, spread = rmse_table(kernels, pixels, n_max, seed=12345)
     print(f"RMSE of {pixels} independent estimates against the exact integral")
     shown = [n for n in ns if n in (1, 4, 16, 64, 256, 1024, 4096)]
-    print("| integrand | sampler | " + " | ".join(f"N={n}" for n in shown) + " | slope | RMSE ratio at N=max |")
-    print("|---|---|" + "---|" * (len(shown) + 2))
+    print("| integrand | sampler | " + " | ".join(f"N={n}" for n in shown)
+          + " | slope | RMSE ratio at N=max | +- at N=max |")
+    print("|---|---|" + "---|" * (len(shown) + 3))
     powers = (ns & (ns - 1)) == 0
     fit = powers & (ns >= 4)
     for name, rows in table.items():
@@ -245,7 +250,7 @@ def main() -> None:
             slope = np.polyfit(np.log(ns[fit]), np.log(err[fit]), 1)[0]
             ratio = rows["independent"][-1] / err[-1]
             cells = " | ".join(f"{err[list(ns).index(n)]:.2e}" for n in shown)
-            print(f"| {name} | {sampler} | {cells} | {slope:.2f} | {ratio:.1f}x |")
+            print(f"| {name} | {sampler} | {cells} | {slope:.2f} | {ratio:.1f}x | {100 * spread[name][sampler]:.1f}% |")
 
     around = [n for n in (32, 48, 64, 96, 128, 192, 256) if n <= n_max]
     print("\nNon-power-of-two N: RMSE(independent) / RMSE(sobol) (a power of two is a whole net)")

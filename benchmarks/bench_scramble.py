@@ -13,8 +13,9 @@ one seed are not). Per pixel, the sample variance over the seeds (averaged over 
 channels) estimates it without bias; the table's RMSE is the square root of its mean over pixels,
 and its error (+-) is one standard error of that mean over pixels (which includes the estimate's
 own noise), carried through the square root. The ratio to the first sampler's RMSE is estimated
-pixel by pixel (``rmse_ratio``), which cancels the spread of the pixels' own variances. Bias check: the images' means over seeds, against
-``sobol``'s, in units of the difference's standard error (|z| above ~4 would be suspect).
+pixel by pixel (``rmse_ratio``), which cancels the spread of the pixels' own variances. Bias check:
+the images' means over seeds, against the first sampler's, in units of the difference's standard error
+(|z| above ~4 would be suspect).
 
 Speed: every render single-threaded (threads=1), wall time, the samplers alternated per seed, the
 first render of each scene and sampler (the kernel's compile) left out; median per render. The

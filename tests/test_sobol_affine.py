@@ -194,7 +194,8 @@ def test_dims_pixels_and_seeds_are_decorrelated_across_pixels():
     for index in (0, 5, 2**30 + 3):
         base, _ = evaluate(8, pixels, index, 0)
         others = {"dim pair 2": evaluate(8, pixels, index, 2)[0], "seed 9": evaluate(9, pixels, index, 0)[0],
-                  "pixel + M": evaluate(8, pixels + m, index, 0)[0], "overlapping pair 1": evaluate(8, pixels, index, 1)[0]}
+                  "pixel + M": evaluate(8, pixels + m, index, 0)[0],
+                  "overlapping pair 1": evaluate(8, pixels, index, 1)[0]}
         checks = {"x vs y": (base[:, 0], base[:, 1])}
         for name, o in others.items():
             checks[f"x vs {name} x"] = (base[:, 0], o[:, 0])

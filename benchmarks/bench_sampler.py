@@ -16,7 +16,8 @@ The timing kernel only draws the numbers and sums them (single-threaded CPU laun
                                                   # against one batch (Sampler.make_batch), same bits
 
 ``--render``: nee + sobol's fast kernel built twice, the vertex drawing its requests one at a time
-(the sampler without ``make_batch``) and as one batch (the product), on bench_vs_mitsuba's Cornell
+(the sampler without ``make_batch``) and as one batch (the product), and nee + sobol-affine (its own
+numbers, so its film is not sobol's: its mean is printed), on bench_vs_mitsuba's Cornell
 box (diffuse, black sky) and the tests' Cornell box (glossy and glass balls, gradient sky), roulette
 from 3 hits. Each run is one single-threaded launch over every pixel, timed by the launching
 thread's CPU time, the two builds alternated ``--repeat`` times (the machine may be loaded: the
@@ -41,6 +42,7 @@ wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.
 
 from warp_spt.core.sampling import stream_state  # noqa: E402
 from warp_spt.samplers.sobol import sobol_2d  # noqa: E402
+from warp_spt.samplers.sobol_affine import affine_2d  # noqa: E402
 
 vec8 = wp.types.vector(length=8, dtype=float)
 HALF_PI = math.pi / 2
@@ -73,12 +75,14 @@ def integrand(kind: int, u: vec8) -> float:
 
 def make_draw(sampler: str):
     """The wp.func that fills the first ``dims`` entries of a vec8 for (seed, pixel, sample)."""
-    if sampler == "sobol":
+    if sampler in ("sobol", "sobol-affine"):
+        two_d = sobol_2d if sampler == "sobol" else affine_2d
+
         @wp.func
         def draw(seed: wp.uint32, pixel: int, j: int, dims: int) -> vec8:
             u = vec8()
             for k in range(dims // 2):
-                v = sobol_2d(seed, pixel, j, 2 * k)
+                v = two_d(seed, pixel, j, 2 * k)
                 u[2 * k] = v[0]
                 u[2 * k + 1] = v[1]
             return u
@@ -127,15 +131,17 @@ def rmse_table(kernels, pixels: int, n_max: int, seed: int):
     ns = np.array(sorted({2**k for k in range(int(math.log2(n_max)) + 1)}
                          | {3 * 2**k for k in range(int(math.log2(n_max))) if 3 * 2**k <= n_max}))
     checkpoints = wp.array(ns.astype(np.int32), dtype=int)
-    result = {}
+    result, spread = {}, {}
     for kind, (name, dims, exact) in enumerate(INTEGRANDS):
-        result[name] = {}
+        result[name], spread[name] = {}, {}
         for sampler, (estimate, _) in kernels.items():
             sums = wp.zeros((pixels, ns.size), dtype=wp.float64)
             wp.launch(estimate, pixels, inputs=[wp.uint32(seed), kind, dims, checkpoints, sums])
-            est = sums.numpy() / ns
-            result[name][sampler] = np.sqrt(np.mean((est - exact) ** 2, axis=0))
-    return ns, result
+            sq = (sums.numpy() / ns - exact) ** 2
+            result[name][sampler] = np.sqrt(sq.mean(axis=0))
+            # the RMSE's relative standard error at N = n_max, from the spread of the squared errors
+            spread[name][sampler] = 0.5 * sq[:, -1].std() / math.sqrt(pixels) / sq[:, -1].mean()
+    return ns, result, spread
 
 
 def time_draws(draw_only, dims: int, pixels: int, n: int) -> float:
@@ -173,7 +179,8 @@ def render_table(size: int, spp: int, repeat: int) -> None:
     from warp_spt.samplers import get_sampler
 
     batched = get_sampler("sobol")
-    variants = {"one by one": dataclasses.replace(batched, make_batch=None), "one batch": batched}
+    variants = {"one by one": dataclasses.replace(batched, make_batch=None), "one batch": batched,
+                "sobol-affine, one batch": get_sampler("sobol-affine")}
     n = size * size
     print(f"\nnee + sobol, {size}x{size}, {spp} spp, depth 6, roulette from 3 hits: CPU us per sample "
           f"(one single-threaded launch, builds alternated, median [min-max] of {repeat})")
@@ -205,6 +212,8 @@ def render_table(size: int, spp: int, repeat: int) -> None:
             for label, ts in times.items():
                 med = statistics.median(ts)
                 same = "bit-identical" if np.array_equal(films[label].numpy(), ref) else "DIFFERS"
+                if label.startswith("sobol-affine"):     # another sampler: its own numbers, the same mean
+                    same = f"mean {films[label].numpy().mean() / ref.mean():.4f}x sobol's"
                 print(f"| {name} | {label} | {med / (n * spp) * 1e6:.3f} [{min(ts) / (n * spp) * 1e6:.3f}-"
                       f"{max(ts) / (n * spp) * 1e6:.3f}] | {base / med:.3f}x | {same} |")
 
@@ -213,6 +222,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--render", action="store_true", help="only the whole-render timing (see above)")
+    ap.add_argument("--pixels", type=int, default=0, help="estimates per N (default 2048; --quick 512)")
     ap.add_argument("--size", type=int, default=128, help="--render: pixels per side")
     ap.add_argument("--spp", type=int, default=8, help="--render: samples per pixel")
     ap.add_argument("--repeat", type=int, default=7, help="--render: alternated runs of each build")
@@ -221,16 +231,18 @@ def main() -> None:
         render_table(args.size, args.spp, args.repeat)
         return
     pixels, n_max = (512, 1024) if args.quick else (2048, 4096)
-    kernels = {s: make_kernels(s) for s in ("independent", "sobol")}
+    pixels = args.pixels or pixels
+    kernels = {s: make_kernels(s) for s in ("independent", "sobol", "sobol-affine")}
     for estimate, draw_only in kernels.values():       # compile outside the timings
         wp.launch(estimate, 1, inputs=[wp.uint32(0), 0, 2, wp.array([1], dtype=int), wp.zeros((1, 1), dtype=wp.float64)])
         wp.launch(draw_only, 1, inputs=[wp.uint32(0), 2, 1, wp.zeros(1, dtype=float)])
 
-    ns, table = rmse_table(kernels, pixels, n_max, seed=12345)
+    ns, table, spread = rmse_table(kernels, pixels, n_max, seed=12345)
     print(f"RMSE of {pixels} independent estimates against the exact integral")
     shown = [n for n in ns if n in (1, 4, 16, 64, 256, 1024, 4096)]
-    print("| integrand | sampler | " + " | ".join(f"N={n}" for n in shown) + " | slope | RMSE ratio at N=max |")
-    print("|---|---|" + "---|" * (len(shown) + 2))
+    print("| integrand | sampler | " + " | ".join(f"N={n}" for n in shown)
+          + " | slope | RMSE ratio at N=max | +- at N=max |")
+    print("|---|---|" + "---|" * (len(shown) + 3))
     powers = (ns & (ns - 1)) == 0
     fit = powers & (ns >= 4)
     for name, rows in table.items():
@@ -238,24 +250,26 @@ def main() -> None:
             slope = np.polyfit(np.log(ns[fit]), np.log(err[fit]), 1)[0]
             ratio = rows["independent"][-1] / err[-1]
             cells = " | ".join(f"{err[list(ns).index(n)]:.2e}" for n in shown)
-            print(f"| {name} | {sampler} | {cells} | {slope:.2f} | {ratio:.1f}x |")
+            print(f"| {name} | {sampler} | {cells} | {slope:.2f} | {ratio:.1f}x | {100 * spread[name][sampler]:.1f}% |")
 
     around = [n for n in (32, 48, 64, 96, 128, 192, 256) if n <= n_max]
     print("\nNon-power-of-two N: RMSE(independent) / RMSE(sobol) (a power of two is a whole net)")
-    print("| integrand | " + " | ".join(f"N={n}" for n in around) + " |")
-    print("|---|" + "---|" * len(around))
+    print("| integrand | sampler | " + " | ".join(f"N={n}" for n in around) + " |")
+    print("|---|---|" + "---|" * len(around))
     for name, rows in table.items():
-        gain = rows["independent"] / rows["sobol"]
-        print(f"| {name} | " + " | ".join(f"{gain[list(ns).index(n)]:.1f}" for n in around) + " |")
+        for sampler in ("sobol", "sobol-affine"):
+            gain = rows["independent"] / rows[sampler]
+            print(f"| {name} | {sampler} | " + " | ".join(f"{gain[list(ns).index(n)]:.1f}" for n in around) + " |")
 
     n_time = 256 if args.quick else 1024
     print(f"\nns per sample (draws only, {pixels} x {n_time} samples, one thread, min of 3)")
-    print("| dims | independent ns | sobol ns | sobol / independent |")
-    print("|---|---|---|---|")
+    print("| dims | independent ns | sobol ns | sobol-affine ns | sobol / independent | sobol / sobol-affine |")
+    print("|---|---|---|---|---|---|")
     for dims in (2, 4, 8):
         t_ind = time_draws(kernels["independent"][1], dims, pixels, n_time)
         t_sob = time_draws(kernels["sobol"][1], dims, pixels, n_time)
-        print(f"| {dims} | {t_ind:.1f} | {t_sob:.1f} | {t_sob / t_ind:.1f} |")
+        t_aff = time_draws(kernels["sobol-affine"][1], dims, pixels, n_time)
+        print(f"| {dims} | {t_ind:.1f} | {t_sob:.1f} | {t_aff:.1f} | {t_sob / t_ind:.1f} | {t_sob / t_aff:.2f} |")
 
 
 if __name__ == "__main__":

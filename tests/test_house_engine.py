@@ -32,7 +32,7 @@ def box(scene_dir):
 
 def test_the_public_registries_keep_their_names():
     assert sorted(warp_spt.INTEGRATORS) == ["ears", "guided", "nee", "seed", "volpath"]
-    assert sorted(warp_spt.SAMPLERS) == ["independent", "sobol"]
+    assert sorted(warp_spt.SAMPLERS) == ["independent", "sobol", "sobol-affine"]
     assert warp_spt.INTEGRATORS["seed"].replayable and warp_spt.INTEGRATORS["nee"].stride == 8
 
 

@@ -226,6 +226,15 @@ def _sky_index(text: str) -> int:
     return int(text)
 
 
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Help wrapped at spaces only, so that a hyphenated name (``--sampler sobol-affine``, a
+    document's anchor) is never split across lines."""
+
+    def _split_lines(self, text, width):
+        import textwrap
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+
 def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentParser:
     """The argument parser; single-dash multi-letter flags are the seed's, ``--`` flags are new.
 
@@ -234,7 +243,7 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
     Warp-free: the names are checked against the registries after Warp starts."""
     plugins = plugins or {}
     p = Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
-                formatter_class=argparse.RawDescriptionHelpFormatter,
+                formatter_class=_HelpFormatter,
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
                             "and the OBJ/MTL dialect of the seed, SimplePathTracer, and standard OBJ/MTL.")
     seed = p.add_argument_group("the seed's flags")

@@ -7,6 +7,8 @@ with the dimensions in increasing order; the integrators assign them (``integrat
 
 * ``independent`` (:mod:`warp_spt.samplers.independent`): dimension d is the d-th draw of a PCG chain.
 * ``sobol`` (:mod:`warp_spt.samplers.sobol`): Owen-scrambled Sobol' points per pixel.
+* ``sobol-affine`` (:mod:`warp_spt.samplers.sobol_affine`): the same points with a cheaper nested scramble
+  of the same error.
 
 A new sampler is one module with a ``make() -> Sampler`` function plus one line in ``SAMPLERS``.
 """
@@ -14,7 +16,7 @@ A new sampler is one module with a ``make() -> Sampler`` function plus one line 
 from __future__ import annotations
 
 from warp_spt.runtime import kernel_cache
-from warp_spt.samplers import independent, sobol
+from warp_spt.samplers import independent, sobol, sobol_affine
 from warp_spt.samplers.base import Sampler, SamplerState, batch_lanes, detach_requests, sampler_state
 
 __all__ = ["SAMPLERS", "DEFAULT_SAMPLER", "Sampler", "SamplerState", "batch_lanes", "check_sampler", "detach_requests",
@@ -24,6 +26,7 @@ __all__ = ["SAMPLERS", "DEFAULT_SAMPLER", "Sampler", "SamplerState", "batch_lane
 SAMPLERS = {
     "independent": independent.make,
     "sobol": sobol.make,
+    "sobol-affine": sobol_affine.make,
 }
 # sobol: on bench_light's Cornell box, nee + sobol reaches a given whole-image error sooner than
 # nee + independent at 256^2 and 512^2 (docs/performance.md, Light transport).

@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from warp_spt.core.geometry import safe_inverse, safe_inverse_from
 from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL, sampled_solid_angle
 from warp_spt.core.sampling import triangle_solid_angle
+from warp_spt.core.wide_traversal import mesh_ray
 
 
 @wp.kernel(enable_backward=False)
@@ -84,3 +86,29 @@ def test_sampled_solid_angle_makes_the_same_choice_and_value():
     near = np.abs(full / np.float32(MIN_SPHERICAL) - 1) < 1e-3
     assert near.sum() > 100 and (near & chosen).any() and (near & ~chosen).any()
 
+
+
+@wp.kernel(enable_backward=False)
+def _inverses(d: wp.array(dtype=wp.vec3), full: wp.array(dtype=wp.vec3), reused: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    full[i] = safe_inverse(d[i])
+    reused[i] = safe_inverse_from(mesh_ray(wp.vec3(0.0, 0.0, 0.0), d[i]).inv, d[i])
+
+
+def test_safe_inverse_from_the_mesh_ray_is_safe_inverse():
+    """The top-level box tests take 1/d from the mesh ray's (which replaces only exact zeros, by 1e-20)
+    instead of dividing again (safe_inverse replaces |d| <= 1e-30 by +-1e-30): the same bits, zeros,
+    signed zeros, subnormals and the components at and around 1e-30 included."""
+    rng = np.random.default_rng(11)
+    special = np.array([0.0, -0.0, 1e-45, -1e-45, 1e-38, 1e-31, -1e-31, 1e-30, -1e-30, 1e-29, -1e-29,
+                        1.0, -1.0, 3e38, np.nan], dtype=np.float32)
+    edge = np.float32(1e-30)
+    around = [np.nextafter(edge, np.float32(0)), np.nextafter(edge, np.float32(1))]
+    special = np.concatenate([special, around, np.negative(around)]).astype(np.float32)
+    d = rng.choice(special, size=(4000, 3)).astype(np.float32)
+    d[:1000] = rng.normal(size=(1000, 3)).astype(np.float32)
+    full, reused = wp.zeros(len(d), dtype=wp.vec3), wp.zeros(len(d), dtype=wp.vec3)
+    wp.launch(_inverses, dim=len(d), inputs=[wp.array(d, dtype=wp.vec3), full, reused])
+    a, b = full.numpy(), reused.numpy()
+    assert np.array_equal(a.view(np.uint32), b.view(np.uint32))
+    assert (np.abs(d) <= np.float32(1e-30)).sum() > 1000      # the replaced components are exercised

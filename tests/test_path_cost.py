@@ -1,7 +1,9 @@
-"""Shortcuts in the path kernel that must not change a bit (docs/performance.md, "Cheaper vertices").
+"""Cheaper forms of the path kernel's computations that must not change a bit (docs/performance.md,
+"Cheaper vertices, same bits").
 
-Each shortcut skips work whose result a decision or a value would not use; these tests compare the
-shortcut with the full computation on many inputs, concentrated where the decision flips.
+Each one skips work whose result no decision or value uses, or computes the same bits another way;
+these tests compare it with the full computation on many inputs, concentrated where a decision flips
+and on the special values (zeros, subnormals, infinities, NaN).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from warp_spt.core.geometry import safe_inverse, safe_inverse_from
 from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL, sampled_solid_angle
 from warp_spt.core.sampling import triangle_solid_angle
 from warp_spt.core.wide_traversal import mesh_ray
+from warp_spt.integrators.common import FAST_KERNEL_OPTIONS, finite3
 
 
 @wp.kernel(enable_backward=False)
@@ -112,3 +115,26 @@ def test_safe_inverse_from_the_mesh_ray_is_safe_inverse():
     a, b = full.numpy(), reused.numpy()
     assert np.array_equal(a.view(np.uint32), b.view(np.uint32))
     assert (np.abs(d) <= np.float32(1e-30)).sum() > 1000      # the replaced components are exercised
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=FAST_KERNEL_OPTIONS)
+def _finite(v: wp.array(dtype=wp.vec3), warp_says: wp.array(dtype=int), ours: wp.array(dtype=int)):
+    i = wp.tid()
+    warp_says[i] = wp.where(wp.isfinite(v[i]), 1, 0)
+    ours[i] = wp.where(finite3(v[i]), 1, 0)
+
+
+def test_finite3_is_isfinite():
+    """The inline test of the path kernel's guards agrees with wp.isfinite on every special value, in a
+    kernel compiled with the path kernel's flags (a fast-math flag would fold it to True)."""
+    f32 = np.finfo(np.float32)
+    special = np.array([0.0, -0.0, 1.0, -2.5, f32.max, -f32.max, f32.tiny, 1e-45, -1e-45, np.inf, -np.inf, np.nan,
+                        np.nextafter(f32.max, np.float32(0))], dtype=np.float32)
+    rng = np.random.default_rng(5)
+    v = rng.choice(special, size=(3000, 3)).astype(np.float32)
+    a, b = wp.zeros(len(v), dtype=int), wp.zeros(len(v), dtype=int)
+    wp.launch(_finite, dim=len(v), inputs=[wp.array(v, dtype=wp.vec3), a, b])
+    expected = np.isfinite(v).all(axis=1).astype(int)
+    assert np.array_equal(a.numpy(), expected)
+    assert np.array_equal(b.numpy(), expected)
+    assert 0 < expected.sum() < len(v)

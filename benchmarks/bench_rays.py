@@ -70,7 +70,7 @@ from warp_spt.integrators import (  # noqa: E402
 from warp_spt.integrators.common import FAST_KERNEL_OPTIONS, make_kernel, make_start_path  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.rendering.settings import TILE_PIXELS  # noqa: E402
-from warp_spt.samplers import Sampler, SamplerState, get_sampler  # noqa: E402
+from warp_spt.samplers import Sampler, SamplerState, batch_lanes, get_sampler  # noqa: E402
 from warp_spt.scene.camera import Camera  # noqa: E402
 from warp_spt.scene.sky import Sky  # noqa: E402
 
@@ -427,7 +427,32 @@ def tapped_sampler(sampler: Sampler, taps: Taps, mode: str) -> Sampler:
             wp.array(ptr=S, shape=(NV,), dtype=SamplerState)[k] = st
         return v, st
 
-    return Sampler(sampler.name, sampler.start, next_1d, next_2d, sampler.random_access)
+    def make_batch(offsets):
+        """The batch of ``sampler.make_batch(offsets)`` tapped too: its ``lanes`` (x, y) pairs are
+        counted, recorded and replayed as that many requests, in lane order."""
+        real = sampler.make_batch(offsets)
+        lanes = batch_lanes(len(offsets))
+        vf = wp.types.vector(length=2 * lanes, dtype=wp.float32)
+
+        @wp.func
+        def batch(state: SamplerState, base: int):
+            k = wp.atomic_add(wp.array(ptr=C, shape=(4,), dtype=wp.int32), 2, wp.static(lanes))
+            values = wp.array(ptr=V, shape=(NV,), dtype=wp.vec2)
+            if wp.static(replay):
+                out = vf()
+                for j in range(wp.static(lanes)):
+                    out[j] = values[k + j][0]
+                    out[j + wp.static(lanes)] = values[k + j][1]
+                return out
+            u = real(state, base)
+            if wp.static(record):
+                for j in range(wp.static(lanes)):
+                    values[k + j] = wp.vec2(u[j], u[j + wp.static(lanes)])
+            return u
+        return batch
+
+    return Sampler(sampler.name, sampler.start, next_1d, next_2d, sampler.random_access,
+                   make_batch=make_batch if sampler.make_batch is not None else None)
 
 
 def tapped_start(sampler: Sampler, taps: Taps, mode: str):
@@ -452,21 +477,23 @@ def tapped_start(sampler: Sampler, taps: Taps, mode: str):
 def path_build(features: Features, taps: Taps | None = None, **modes) -> wp.Kernel:
     """The fast kernel of INTEGRATOR + SAMPLER rebuilt, with the pieces named in ``modes`` (hits,
     shadow, sampler, camera: "count", "record" or "replay") instrumented; no modes: the product's."""
+    from warp_spt.core import cutout
     from warp_spt.integrators import nee
     sampler = get_sampler(SAMPLER)
     if not modes:
         return get_kernel(features, integrator=INTEGRATOR, sampler=SAMPLER)
     if "sampler" in modes:
         sampler = tapped_sampler(sampler, taps, modes["sampler"])
-    saved = nee.make_closest_hit, nee.make_occluded
+    # the vertex reaches the queries through core.cutout (make_hit, make_blocked)
+    saved = cutout.make_closest_hit, cutout.make_occluded
     try:
         if "hits" in modes:
-            nee.make_closest_hit = tapped_rays(make_closest_hit, taps, 0, modes["hits"])
+            cutout.make_closest_hit = tapped_rays(make_closest_hit, taps, 0, modes["hits"])
         if "shadow" in modes:
-            nee.make_occluded = tapped_rays(make_occluded, taps, 1, modes["shadow"])
+            cutout.make_occluded = tapped_rays(make_occluded, taps, 1, modes["shadow"])
         step = nee.make_path_step(features, sampler, light_sampling=INTEGRATOR == "nee")
     finally:
-        nee.make_closest_hit, nee.make_occluded = saved
+        cutout.make_closest_hit, cutout.make_occluded = saved
     start = tapped_start(sampler, taps, modes["camera"]) if "camera" in modes else make_start_path(sampler)
     k = make_kernel(step, start)
     wp.load_module(k.module)

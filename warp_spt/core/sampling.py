@@ -88,6 +88,15 @@ def triangle_solid_angle(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, x: wp.vec3) -> f
     |e0 . (e1 x e2)| / (l0 l1 l2 + (e0.e1) l2 + (e1.e2) l0 + (e2.e0) l1) with e_i = p_i - x, l_i = |e_i|).
     The triple product is taken as e0 . ((p1 - p0) x (p2 - p0)), from the triangle's own edges: well
     conditioned for a small or distant triangle, where the three e_i are nearly parallel."""
+    num, den = solid_angle_terms(p0, p1, p2, x)
+    return wp.abs(2.0 * wp.atan2(num, den))
+
+
+@wp.func
+def solid_angle_terms(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, x: wp.vec3):
+    """(num, den) of :func:`triangle_solid_angle`: the triangle subtends ``|2 atan2(num, den)|``. A
+    caller that only compares the angle with a threshold can often decide from the ratio of the two
+    without the arctangent (``lights.triangle.sampled_solid_angle``)."""
     e0 = p0 - x
     e1 = p1 - x
     e2 = p2 - x
@@ -96,7 +105,7 @@ def triangle_solid_angle(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, x: wp.vec3) -> f
     l2 = wp.length(e2)
     num = wp.dot(e0, wp.cross(p1 - p0, p2 - p0))
     den = l0 * l1 * l2 + wp.dot(e0, e1) * l2 + wp.dot(e1, e2) * l0 + wp.dot(e2, e0) * l1
-    return wp.abs(2.0 * wp.atan2(num, den))
+    return num, den
 
 
 @wp.func

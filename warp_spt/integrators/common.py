@@ -300,6 +300,18 @@ def make_bsdf_dims(sampler: Sampler, stride: int, features: Features):
     return bsdf_dims
 
 
+# the largest finite float32: |x| <= FLT_MAX is false for an infinity and for NaN alone
+FLT_MAX = wp.constant(3.4028234663852886e38)
+
+
+@wp.func
+def finite3(v: wp.vec3) -> bool:
+    """``wp.isfinite(v)``, inline. On the CPU Warp's isfinite calls its runtime library once per
+    component (``_wp_isfinite``); the path kernel asked at every hit (is the emission finite?) and
+    every sample, and each call made the compiler save the vertex's vector registers around it."""
+    return wp.abs(v[0]) <= FLT_MAX and wp.abs(v[1]) <= FLT_MAX and wp.abs(v[2]) <= FLT_MAX
+
+
 @wp.func
 def continue_path(path: PathState, sf: Surface, bs: BsdfSample, extent: float) -> PathState:
     """Follow a sampled direction: weigh the throughput, move off the surface; absorbed paths end."""
@@ -376,7 +388,7 @@ def make_kernel(step, start_path, *, decorate: bool = True):
                 path = step(geo, mats, tex, lights, rp, path)
             rays += path.rays
             L = path.radiance
-            if wp.isfinite(L):
+            if finite3(L):
                 acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
             else:
                 bad += 1           # counted and reported in RenderResult.stats; tests require zero

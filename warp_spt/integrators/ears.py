@@ -68,6 +68,7 @@ from warp_spt.integrators.common import (
     PathState,
     RenderParams,
     add_to_pixel,
+    finite3,
 )
 from warp_spt.integrators.guiding_tree import box_of
 from warp_spt.integrators.nee import VertexHooks, make_path_step
@@ -263,7 +264,7 @@ def make_kernel(step, start_path):
                     path = rec.stack[tid, top]
                 else:
                     more = 0
-            if wp.isfinite(L):
+            if finite3(L):
                 acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
                 if rec.on != 0:
                     total = mean3(L)

@@ -96,6 +96,7 @@ from warp_spt.integrators.common import (
     PathState,
     RenderParams,
     add_to_pixel,
+    finite3,
 )
 from warp_spt.integrators.nee import VertexHooks, make_path_step
 from warp_spt.integrators.passes import run_pass
@@ -337,7 +338,7 @@ def make_kernel(step, start_path):
                         recorded = 1
             rays += path.rays
             L = path.radiance
-            if wp.isfinite(L):
+            if finite3(L):
                 acc += wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
                 total = L[0] + L[1] + L[2]
                 for i in range(n):

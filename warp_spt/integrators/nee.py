@@ -41,6 +41,7 @@ from warp_spt.integrators.common import (
     PathState,
     RenderParams,
     continue_path,
+    finite3,
     make_bsdf_dims,
 )
 from warp_spt.samplers import Sampler, SamplerState, batch_lanes
@@ -338,7 +339,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
             if ls.pdf > 0.0:
                 f = mat.eval(mats, tex, sf, ls.dir)
                 le = wp.cw_mul(f, light.le(geo, mats, tex, lights, ls, x))
-                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):   # NaN: the guard reports it
+                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not finite3(le):   # NaN: the guard reports it
                     seen = vis
                     tr = wp.vec3(1.0, 1.0, 1.0)
                     if wp.static(media is not None):
@@ -388,7 +389,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
         sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
         if wp.static(features.emitters):
             le = mat.emission(mats, tex, sf)
-            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):       # NaN: the guard reports it
+            if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not finite3(le):       # NaN: the guard reports it
                 w = mis_bsdf(p, light.pdf_li(geo, lights, h, p.o, p.d))
                 hit_le = wp.cw_mul(p.throughput, le) * w
                 p.radiance += hit_le

@@ -33,7 +33,8 @@ from warp_spt.core.media import EVENT_ABSORB, EVENT_SCATTER, hg, hg_eval, hg_sam
 from warp_spt.core.sampling import hash_u32, stream_state
 from warp_spt.core.structs import Features, Geometry, Materials, Textures
 from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
-from warp_spt.integrators.common import DIM_BOUNCE, OFF_DIR, OFF_ROULETTE, Integrator, PathState, RenderParams
+from warp_spt.integrators.common import (DIM_BOUNCE, OFF_DIR, OFF_ROULETTE, Integrator, PathState, RenderParams,
+                                         finite3)
 from warp_spt.integrators.nee import (
     STRIDE,
     VIS_TRACE,
@@ -313,7 +314,7 @@ def _make_vertex(features: Features, sampler: Sampler, inline: bool | None, repl
             if ls.pdf > 0.0:
                 ph = hg_eval(d_in, ls.dir, g)
                 le = light.le(geo, mats, tex, lights, ls, xo) * ph
-                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not wp.isfinite(le):
+                if wp.max(wp.max(le[0], le[1]), le[2]) > 0.0 or not finite3(le):
                     T = transmitted(geo, mats, tex, p.medium, xo, ls.dir, ls.t_max,
                                     tracking_stream(p, _SALT_MEDIUM_SHADOW))
                     w = light.mis_li(ls, mis_weight(ls.pdf, ph))

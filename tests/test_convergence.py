@@ -29,7 +29,8 @@ def test_config_names():
     assert parse_config("nee/sobol+adaptive") == ("nee", "sobol", {"adaptive"})
     assert parse_config("uniform") == (DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, set())
     assert parse_config("denoised") == (DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, {"denoised"})
-    assert default_configs() == ["nee/independent", "nee/sobol", "seed/independent", "seed/sobol",
+    assert default_configs() == ["nee/independent", "nee/sobol", "nee/sobol-affine",
+                                 "seed/independent", "seed/sobol", "seed/sobol-affine",
                                  f"{DEFAULT_INTEGRATOR}/{DEFAULT_SAMPLER}+adaptive"]
     for bad in ("nee", "nee/halton", "fancy/sobol", "seed/sobol+blurred"):
         with pytest.raises(ValueError):

@@ -140,3 +140,18 @@ def test_a_record_that_does_not_load_is_replaced():
     assert json.loads(path.read_text())["kernel"]
     last = _render({})
     assert last["by own key"] == [True] and last["steps built"] == 0 and last["image"] == first["image"]
+
+
+def test_a_kernel_built_for_cuda_is_neither_recorded_nor_looked_up(tmp_path):
+    """The CUDA compile test builds kernels for "cuda" on machines without a GPU, where Warp raises
+    for the name: the index stays out of it (it raised there, and every CUDA compile errored)."""
+    import warp as wp
+
+    from warp_spt.runtime.warp_init import init_warp
+
+    init_warp()
+    if wp.is_cuda_available():
+        pytest.skip("this machine has a CUDA device: the name resolves")
+    key = "0" * 64
+    assert kernel_index.remember(key, object(), "cuda") is None
+    assert kernel_index.load(key, lambda: None, "cuda") is None

@@ -103,6 +103,15 @@ class _RecordedHashes:
         return self.module_hash
 
 
+def _is_cpu(wp, device) -> bool:
+    """Whether ``device`` is the CPU; False for a device this machine lacks (the CUDA compile test
+    builds kernels for "cuda" on machines without a GPU, and Warp raises for the name there)."""
+    try:
+        return wp.get_device(device).is_cpu
+    except RuntimeError:
+        return False
+
+
 def _default_options(context) -> dict:
     return dict(context.Module("_", None).options)
 
@@ -117,7 +126,7 @@ def remember(key: str, kernel, device: str = "cpu") -> None:
     import warp as wp
 
     path = _record_path(wp, key)
-    if path is None or not wp.get_device(device).is_cpu:
+    if path is None or not _is_cpu(wp, device):
         return
     try:
         record = _describe(wp, kernel)
@@ -179,7 +188,7 @@ def load(key: str, function, device: str = "cpu"):
 
     init_warp()
     path = _record_path(wp, key)
-    if path is None or not wp.get_device(device).is_cpu:
+    if path is None or not _is_cpu(wp, device):
         return None
     try:
         with open(path) as f:

@@ -457,7 +457,8 @@ def print_table(rows: list) -> None:
     """The markdown efficiency table, ratios against Mitsuba's best sampler of the same row, and the targets."""
     ours = [f"{i}+{s}" for i, s in ours_pairs()]
     print("\n| scene | spp | threads | " + " | ".join(f"Mitsuba {s}" for s in MITSUBA_SAMPLERS)
-          + " | " + " | ".join(f"warp_spt {o}" for o in ours) + " | " + " | ".join(f"ratio {o} / best" for o in ours) + " |")
+          + " | " + " | ".join(f"warp_spt {o}" for o in ours)
+          + " | " + " | ".join(f"ratio {o} / best" for o in ours) + " |")
     print("|" + "---|" * (3 + len(MITSUBA_SAMPLERS) + 2 * len(ours)))
     per_scene: dict[str, list[float]] = {}
     for r in rows:

@@ -49,8 +49,8 @@ Warp's kernel cache keeps each PTX file by the module's hash, so a second run co
 Cost, measured on the 2-core development machine: a general fast kernel takes 30-80 s of NVRTC per
 architecture with the pbr kind compiled in, the adjoint kernels (NVRTC optimising replay's and the
 tape's adjoints) several CPU-minutes each. The full matrix (about 40 compiles) ran past an hour of CI's
-2 cores with Warp's cache cold, which is why CI compiles the representative set (the fixture prints its count of compiles).
-With Warp's cache warm (the modules unchanged since the last run): seconds.
+2 cores with Warp's cache cold, which is why CI compiles the representative set (the fixture prints
+its count of compiles). With Warp's cache warm (the modules unchanged since the last run): seconds.
 """
 
 from __future__ import annotations

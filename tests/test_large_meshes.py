@@ -166,7 +166,7 @@ def test_the_blocked_zero_area_test_is_the_cross_product_test():
     """nonzero_area (blocks, a component at a time; OBJ and PLY) against np.cross(...) != 0 on the
     whole array, on triangles built to be degenerate in every way (repeated corners, collinear,
     tiny and huge coordinates within MAX_COORDINATE)."""
-    from warp_spt.io.ply import nonzero_area
+    from warp_spt.scene.validate import nonzero_area
     from warp_spt.scene.limits import MAX_COORDINATE
 
     rng = np.random.default_rng(11)

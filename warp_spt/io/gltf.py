@@ -1064,7 +1064,7 @@ class _Reader:
 
     def _object(self, parts: list[tuple], names: list[str], materials: dict[str, Material], extras: GltfExtras
                 ) -> ObjData:
-        from warp_spt.io.ply import nonzero_area
+        from warp_spt.scene.validate import nonzero_area
 
         positions, faces, ftex, fnrm, fmat, uvs, nrms, cols = [], [], [], [], [], [], [], []
         nv = nt = nn = 0

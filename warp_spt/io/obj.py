@@ -45,6 +45,7 @@ from warp_spt.scene.validate import (
     box_bounds_edges,
     edge_problem,
     longest_edges,
+    nonzero_area,
 )
 
 
@@ -147,29 +148,6 @@ def _fan(poly_size: np.ndarray) -> np.ndarray:
     c0 = np.repeat(first, ntri)
     step = np.arange(len(c0), dtype=np.int64) - np.repeat(tri_first, ntri)
     return np.stack([c0, c0 + step + 1, c0 + step + 2], axis=1)
-
-
-_AREA_BLOCK = 1 << 16        # triangles per block of nonzero_area
-
-
-def nonzero_area(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Mask of triangles whose area is not exactly zero, in float64 (OBJ, PLY and glTF), with the cross
-    product's components formed one at a time: np.cross is 3x slower on large arrays, and for
-    coordinates within MAX_COORDINATE the products are finite, where a - b is 0 exactly when a == b,
-    so this is np.cross(...) != 0 without its temporaries."""
-    p = np.asarray(positions, np.float64)
-    out = np.ones(len(faces), dtype=bool)
-    # in blocks: the float64 edges of a whole large mesh would be its largest temporaries (120 B per triangle)
-    for k in range(0, len(faces), _AREA_BLOCK):
-        f = faces[k:k + _AREA_BLOCK]
-        p0 = np.take(p, f[:, 0], axis=0)             # (2-3x faster than p[f[:, 0]])
-        e1 = np.take(p, f[:, 1], axis=0) - p0
-        e2 = np.take(p, f[:, 2], axis=0) - p0
-        x = e1[:, 1] * e2[:, 2] != e1[:, 2] * e2[:, 1]
-        x |= e1[:, 2] * e2[:, 0] != e1[:, 0] * e2[:, 2]
-        x |= e1[:, 0] * e2[:, 1] != e1[:, 1] * e2[:, 0]
-        out[k:k + len(f)] = x
-    return out
 
 
 def _material_names(usemtl: list[tuple[int, str]]) -> tuple[list[str], list[int], np.ndarray]:

@@ -33,12 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from warp_spt.io.obj import nonzero_area  # noqa: F401 (glTF's reader imports it from here)
 from warp_spt.io.tokens import read_file
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef, column_range
-from warp_spt.scene.validate import MAX_COORDINATE
+from warp_spt.scene.validate import MAX_COORDINATE, nonzero_area
 
 __all__ = ["load_ply", "parse_ply_bytes", "vertex_colour_texture", "VERTEX_COLOUR_MATERIAL"]
 

@@ -17,7 +17,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from warp_spt.core.textures import pack_atlas  # noqa: E402
+from warp_spt.device.textures import pack_atlas  # noqa: E402
 
 
 def row(label: str, sizes: list[tuple[int, int]]) -> None:

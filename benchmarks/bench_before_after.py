@@ -25,7 +25,7 @@ WORKER = r'''
 import sys, time
 import warp as wp
 wp.config.log_level = wp.LOG_WARNING
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings

@@ -43,7 +43,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt import Camera, Sky, load_scene  # noqa: E402
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.rendering.progressive import render_progressive  # noqa: E402
 from warp_spt.rendering.result import relative_error  # noqa: E402

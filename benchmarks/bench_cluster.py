@@ -156,7 +156,7 @@ def animation_uploads(objs: list[str], mtls: list[str]) -> dict[str, float]:
 
     from warp_spt.animation import ObjSequence
     from warp_spt.cluster import _array_key
-    from warp_spt.core.device_scene import DeviceScene, mesh_key
+    from warp_spt.upload.device_scene import DeviceScene, mesh_key
 
     seq = ObjSequence(objs, mtls)
     scenes = [seq.scene(k) for k in range(4)]

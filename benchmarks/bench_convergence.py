@@ -25,7 +25,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt import Sky, load_scene, render  # noqa: E402
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 
 

@@ -1,4 +1,4 @@
-"""Emissive textures drawn by their texels (``core/lights/emissive_texels.py``) against today's
+"""Emissive textures drawn by their texels (``emitters/emissive_texels.py``) against today's
 selection before it (each textured triangle weighed by its mean, a point on it uniform by area or
 solid angle), at equal error.
 

@@ -65,7 +65,7 @@ def vs_mitsuba(spp: int, runs: int) -> None:
 
     import warp_spt as ws
     from tests import mitsuba_envmap_scene as ES
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from tests.data.make_mitsuba_envmap_refs import synthetic
     from warp_spt.rendering.result import relative_error
 

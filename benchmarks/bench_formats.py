@@ -6,7 +6,7 @@ is read ``--repeat`` times by our reader and by ``trimesh.load(..., process=Fals
 wall time is printed. ``--first-pixel`` also times ``warp-spt -obj MODEL -res 8 8 -sr 1`` (a child
 process: parsing, validation, BVH builds, kernel from the cache, one tiny image).
 
-``--instances N`` measures instancing instead (MeshData.transforms, through core/instances.py): N
+``--instances N`` measures instancing instead (MeshData.transforms, through upload/instances.py): N
 instances of a ``--mesh-triangles`` mesh (a lumpy sphere) on a grid, uploaded once and instanced,
 against the same scene flattened into world-space meshes (``--flat-instances`` of them, as far as
 memory allows): device bytes of the geometry, upload time, closest-hit rays per second on the same
@@ -121,7 +121,7 @@ def bench_instances(args) -> None:
     import warp as wp
 
     from tests.test_instances import _cast_flat, _cast_inst, bumpy_sphere, flattened
-    from warp_spt.core.instances import geometry_bytes, upload_instances
+    from warp_spt.upload.instances import geometry_bytes, upload_instances
     from warp_spt.rendering.settings import RenderSettings
     from warp_spt.rendering.tiles import render_scene
     from warp_spt.scene.camera import Camera
@@ -205,7 +205,7 @@ def bench_instances(args) -> None:
 
 def bench_rigid(args) -> None:
     from warp_spt.animation import ObjSequence
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
 
     pos, faces = grid(args.rigid)
     g = GltfBuilder()

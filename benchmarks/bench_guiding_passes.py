@@ -9,7 +9,7 @@ machine is shared), kernels compiled before; ``guided``'s per-pass CPU ms per sp
 ``WARP_SPT_GUIDE_TRACE`` lines. Printed, as medians over the rounds and as ratios to ``nee`` per
 spp: guided's total, its last pass (no recording), its training passes from the third (guide and
 recording), and the host's time outside the passes (tree refinement, alpha, uploads). Ablations
-(docs/performance.md, Path guiding) are one-line edits of ``integrators/guided.py`` measured so.
+(docs/performance.md, Path guiding) are one-line edits of ``integrators/guided/__init__.py`` measured so.
 """
 
 from __future__ import annotations

@@ -41,7 +41,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene  # noqa: E402
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
 
 S = 32.0
 COMBOS = [("seed", "independent", 0), ("seed", "sobol", 0), ("nee", "independent", 0), ("nee", "sobol", 0),

@@ -40,7 +40,7 @@ WORKER = r"""
 import json, sys, time
 import numpy as np
 from warp_spt.io.loader import load_scene
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.rendering.tiles import render_scene
 from warp_spt.scene.camera import Camera

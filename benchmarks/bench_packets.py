@@ -1,9 +1,9 @@
 """Issue 33: filling the vector lanes on the CPU. Packets or a wavefront, measured against today's
 scalar traversal on the same rays (a prototype: nothing here is used by the renderer).
 
-Ways to trace the same rays through the same 8-wide BVH (``core.wide_bvh.build_wide``):
+Ways to trace the same rays through the same 8-wide BVH (``accel.wide_bvh.build_wide``):
 
-    scalar      today's traversal: one ray per Warp thread, ``core.wide_traversal.make_closest_query``
+    scalar      today's traversal: one ray per Warp thread, ``accel.wide_traversal.make_closest_query``
                 exactly as the path kernel calls it (its 8 slab tests of a node are one AVX op each)
     scalar W-wide, arrays
                 the same traversal re-typed for W = 8 or 16 children per node (boxes and children
@@ -67,9 +67,9 @@ import warp as wp  # noqa: E402
 
 wp.config.log_level = wp.LOG_WARNING
 
-from warp_spt.core.structs import BVH_STACKS, Geometry, vec_wide_f, vec_wide_i  # noqa: E402
-from warp_spt.core.wide_bvh import WIDTH, build_wide  # noqa: E402
-from warp_spt.core.wide_traversal import (  # noqa: E402
+from warp_spt.device.structs import BVH_STACKS, Geometry, vec_wide_f, vec_wide_i  # noqa: E402
+from warp_spt.accel.wide_bvh import WIDTH, build_wide  # noqa: E402
+from warp_spt.accel.wide_traversal import (  # noqa: E402
     _FAR_SLACK,
     NO_HIT,
     MeshRay,

@@ -25,8 +25,8 @@ import warp as wp  # noqa: E402
 
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
-from warp_spt.core.lights import sky_emits  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
+from warp_spt.emitters import sky_emits  # noqa: E402
 from warp_spt.integrators import get_kernel  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.rendering.settings import RenderSettings  # noqa: E402

@@ -54,10 +54,10 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 import warp_spt.rendering.tiles as R
-from warp_spt.core.device_scene import MESH_LEAF_SIZE, DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402
-from warp_spt.core.geometry import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded  # noqa: E402
-from warp_spt.core.lights import Lights, light_table, sky_emits  # noqa: E402
-from warp_spt.core.surface import make_surface  # noqa: E402
+from warp_spt.upload.device_scene import MESH_LEAF_SIZE, DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402
+from warp_spt.accel.ray_queries import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded  # noqa: E402
+from warp_spt.emitters import Lights, light_table, sky_emits  # noqa: E402
+from warp_spt.accel.surface import make_surface  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.integrators import (  # noqa: E402
     CameraParams,
@@ -477,14 +477,14 @@ def tapped_start(sampler: Sampler, taps: Taps, mode: str):
 def path_build(features: Features, taps: Taps | None = None, **modes) -> wp.Kernel:
     """The fast kernel of INTEGRATOR + SAMPLER rebuilt, with the pieces named in ``modes`` (hits,
     shadow, sampler, camera: "count", "record" or "replay") instrumented; no modes: the product's."""
-    from warp_spt.core import cutout
+    from warp_spt.bsdfs import cutout
     from warp_spt.integrators import nee
     sampler = get_sampler(SAMPLER)
     if not modes:
         return get_kernel(features, integrator=INTEGRATOR, sampler=SAMPLER)
     if "sampler" in modes:
         sampler = tapped_sampler(sampler, taps, modes["sampler"])
-    # the vertex reaches the queries through core.cutout (make_hit, make_blocked)
+    # the vertex reaches the queries through bsdfs.cutout (make_hit, make_blocked)
     saved = cutout.make_closest_hit, cutout.make_occluded
     try:
         if "hits" in modes:

@@ -34,7 +34,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 import warp_spt.rendering.tiles as R
-from warp_spt.core.device_scene import DeviceScene, Features  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene, Features  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.integrators import get_kernel  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
@@ -109,7 +109,7 @@ def compile_times() -> None:
     print("\n## Kernel compile (builtin demo's kernel), fresh processes")
     code = ("import time,warp as wp; wp.config.log_level=wp.LOG_WARNING; wp.init(); t=time.perf_counter();"
             "from warp_spt.demo import demo_files; from warp_spt.io.loader import load_scene;"
-            "from warp_spt.core.device_scene import DeviceScene; from warp_spt.integrators import get_kernel;"
+            "from warp_spt.upload.device_scene import DeviceScene; from warp_spt.integrators import get_kernel;"
             "o,m=demo_files(); s=DeviceScene(load_scene(o,m)); t=time.perf_counter();"
             "get_kernel(s.features); print(time.perf_counter()-t)")
     with tempfile.TemporaryDirectory() as cache:
@@ -152,7 +152,7 @@ from warp_spt.runtime.warp_init import init_warp
 init_warp()
 c2 = time.process_time()
 from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
-import warp_spt.core.device_scene as ds
+import warp_spt.upload.device_scene as ds
 import warp_spt.rendering.setup as setup
 from warp._src import context
 c3 = time.process_time()

@@ -40,7 +40,7 @@ import warp as wp  # noqa: E402
 
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
-from warp_spt.core.sampling import stream_state  # noqa: E402
+from warp_spt.device.sampling import stream_state  # noqa: E402
 from warp_spt.samplers.sobol import sobol_2d  # noqa: E402
 from warp_spt.samplers.sobol_affine import affine_2d  # noqa: E402
 
@@ -161,7 +161,7 @@ def render_scenes(folder: Path) -> list:
     from bench_rays import SKY, mitsuba_cornell
     from tests.stability_scenes import cornell_camera, cornell_files
 
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.io.loader import load_scene
     room = DeviceScene(load_scene(*cornell_files(folder), warn=lambda message: None))
     return [mitsuba_cornell(folder), ("Cornell box (tests), glossy and glass balls", room, cornell_camera(), SKY)]
@@ -173,7 +173,7 @@ def render_table(size: int, spp: int, repeat: int) -> None:
     import statistics
     import tempfile
 
-    from warp_spt.core.lights import light_table, sky_emits
+    from warp_spt.emitters import light_table, sky_emits
     from warp_spt.integrators import RenderParams, camera_params, nee
     from warp_spt.integrators.common import make_kernel, make_start_path
     from warp_spt.samplers import get_sampler

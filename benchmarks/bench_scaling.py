@@ -154,7 +154,7 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 from warp_spt import Camera, RenderSettings, Sky, load_scene, render_scene
 from warp_spt.runtime.warp_init import init_warp
-import warp_spt.core.device_scene as ds
+import warp_spt.upload.device_scene as ds
 import warp_spt.rendering.setup as setup
 init_warp()
 rows = [("Python, numpy, Warp and warp_spt imports, wp.init", cpu(), hwm())]

@@ -41,9 +41,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from tests.models import write_model                       # noqa: E402
-from warp_spt.core.device_scene import DeviceScene           # noqa: E402
-from warp_spt.core.lights import light_table                 # noqa: E402
-from warp_spt.core.lights.sky import sky_frame               # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene           # noqa: E402
+from warp_spt.emitters import light_table                 # noqa: E402
+from warp_spt.emitters.sky import sky_frame               # noqa: E402
 from warp_spt.io.loader import load_scene                    # noqa: E402
 from warp_spt.rendering.first_view import first_view, probe  # noqa: E402
 from warp_spt.rendering.settings import RenderSettings       # noqa: E402
@@ -54,7 +54,7 @@ from warp_spt.scene.sky import Sky                           # noqa: E402
 
 def texel_directions(h: int, up) -> np.ndarray:
     """(H, 2H, 3) the direction of each texel centre of an H x 2H map about ``up`` (rotation 0), as
-    ``core.lights.envmap`` maps them."""
+    ``emitters.envmap`` maps them."""
     t, b, u = sky_frame(up)
     theta = np.pi * (np.arange(h) + 0.5) / h
     psi = 2 * np.pi * (np.arange(2 * h) + 0.5) / (2 * h)

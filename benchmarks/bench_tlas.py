@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from warp_spt.core.bvh import build_tlas
+from warp_spt.accel.tlas import build_tlas
 
 
 def boxes(kind: str, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

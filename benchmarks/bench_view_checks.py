@@ -23,7 +23,7 @@ from bench_parse import best_time as best  # noqa: E402  (this folder is on sys.
 
 from tests.models import _sphere_grid  # noqa: E402
 from warp_spt.cli import view_checks  # noqa: E402
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
 from warp_spt.io.mtl import builtin_clay  # noqa: E402
 from warp_spt.scene.camera import Camera  # noqa: E402
 from warp_spt.scene.model import MaterialTable, MeshData, Scene  # noqa: E402

@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.rendering.settings import RenderSettings  # noqa: E402

@@ -196,7 +196,7 @@ def obj_text(shapes: list) -> str:
 def warp_scene(desc: dict, folder: Path):
     """Write the description as OBJ/MTL into ``folder`` and load it with warp_spt."""
     from warp_spt import load_scene
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     (folder / "scene.obj").write_text(obj_text(desc["shapes"]))
     (folder / "scene.mtl").write_text(mtl_text(desc["materials"]))
     return DeviceScene(load_scene([str(folder / "scene.obj")], [str(folder / "scene.mtl")]))
@@ -348,7 +348,7 @@ def env_scenes(folder: Path):
     import warp_spt as ws
     from tests import mitsuba_envmap_scene as ES
     from tests.data.make_mitsuba_envmap_refs import synthetic
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     objs, mtls = ES.write_files(folder)
     host = ws.load_scene(objs, mtls, warn=lambda message: None)
     host.materials.multiscatter[:] = False          # as the stored reference's comparison (test_envmap.py)

@@ -1,4 +1,4 @@
-"""Issue 24: host build time and tree statistics of warp_spt.core.wide_bvh.build_wide.
+"""Issue 24: host build time and tree statistics of warp_spt.accel.wide_bvh.build_wide.
 
 Meshes: random triangle soups (small triangles, uniform centres in a cube) of 10k..1M triangles,
 the built-in demo's triangles (51,242), and the demo subdivided 1:4 once and twice (205k, 820k:
@@ -21,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from warp_spt.core.wide_bvh import WideBvh, build_wide
+from warp_spt.accel.wide_bvh import WideBvh, build_wide
 
 
 def soup(k: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -1,12 +1,12 @@
 """Issue 24 prototype: can our own BVH traversal, written in Warp's Python DSL, beat wp.mesh_query_ray?
 
 Go/no-go experiment (not used by the renderer). Triangles are put in a binned-SAH binary BVH built in
-numpy (warp_spt.core.bvh.build_tlas over the triangles' boxes), which is then used either as it is
+numpy (warp_spt.accel.tlas.build_tlas over the triangles' boxes), which is then used either as it is
 (binary variants) or collapsed into 4- or 8-wide nodes whose child boxes are stored SoA, one
 ``vector(length=W)`` per coordinate, so that one node's W slab tests are a few vector operations
 (Clang may turn them into AVX instructions: see --asm).
 
-Every variant uses the renderer's triangle test (``core.wide_traversal.triangle_hit``: Warp's
+Every variant uses the renderer's triangle test (``accel.wide_traversal.triangle_hit``: Warp's
 watertight ``intersect_ray_tri_woop`` in the DSL, the per-ray part hoisted out of the leaf loop), so
 that t, u, v come out bit-identical to ``wp.mesh_query_ray``'s. Triangle vertices are copied
 into leaf order (three vec3 arrays), so a leaf reads them without the index indirection.
@@ -62,12 +62,12 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
-from warp_spt.core.bvh import build_tlas
-from warp_spt.core.device_scene import MESH_LEAF_SIZE
-from warp_spt.core.wide_bvh import build_wide
-from warp_spt.core.wide_traversal import MeshRay as Ray
-from warp_spt.core.wide_traversal import mesh_ray as make_ray
-from warp_spt.core.wide_traversal import triangle_hit as tri_test
+from warp_spt.accel.tlas import build_tlas
+from warp_spt.upload.device_scene import MESH_LEAF_SIZE
+from warp_spt.accel.wide_bvh import build_wide
+from warp_spt.accel.wide_traversal import MeshRay as Ray
+from warp_spt.accel.wide_traversal import mesh_ray as make_ray
+from warp_spt.accel.wide_traversal import triangle_hit as tri_test
 
 NO_HIT = 3.0e38
 STACK = 64
@@ -85,7 +85,7 @@ class Tree:
 
     def __init__(self, points: np.ndarray, tris: np.ndarray, leaf: int, width: int, builder: str = "sah"):
         """builder "sah": build_tlas's binned-SAH binary tree, collapsed in Python (the prototype);
-        "wide": warp_spt.core.wide_bvh.build_wide (Morton order + SAH cuts, vectorised collapse)."""
+        "wide": warp_spt.accel.wide_bvh.build_wide (Morton order + SAH cuts, vectorised collapse)."""
         t0 = time.perf_counter()
         p = points.astype(np.float32)
         v = p[tris]                                          # (K, 3, 3) float32
@@ -192,7 +192,7 @@ class Tree:
 
 
 # --------------------------------------------------------------------------------------------
-# The ray set-up and triangle test are the renderer's (core.wide_traversal: Warp's watertight test,
+# The ray set-up and triangle test are the renderer's (accel.wide_traversal: Warp's watertight test,
 # the per-ray shear hoisted); the "indexed" variant sets the ray up again per triangle, as Warp does.
 
 
@@ -557,7 +557,7 @@ def scene_data(tmp: Path):
     """[(name, points, tris (K, 3), camera rays (o, d) as wp arrays, scene box)]."""
     import bench_rays as br
 
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.demo import demo_files
     from warp_spt.io.loader import load_scene
     from warp_spt.scene.camera import Camera

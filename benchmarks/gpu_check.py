@@ -107,7 +107,7 @@ def bench_scenes(folder: Path) -> dict:
 def configs(gpu: str) -> tuple:
     """(label, device, wide_bvh_max_triangles) of the table's rows: the CPU, then the GPU with its
     default (Warp's BVH) and with our wide BVH."""
-    from warp_spt.core.device_scene import WIDE_BVH_MAX_TRIANGLES
+    from warp_spt.upload.device_scene import WIDE_BVH_MAX_TRIANGLES
 
     return (("cpu", "cpu", None), (gpu, gpu, None), (f"{gpu}, wide BVH", gpu, WIDE_BVH_MAX_TRIANGLES))
 
@@ -115,7 +115,7 @@ def configs(gpu: str) -> tuple:
 def device_scene(host, device: str, wide, stand_in: bool = False):
     """``host`` on ``device``; ``stand_in``: on the CPU with the features the GPU would give it (Warp's
     BVH unless ``wide`` says otherwise), so that its kernels can be compiled to PTX without a GPU."""
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
 
     if stand_in and device != "cpu":
         return DeviceScene(host, device="cpu", wide_bvh_max_triangles=0 if wide is None else wide)
@@ -172,7 +172,7 @@ def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu:
     """[(kernel, device)] of every kernel the run needs; ``stand_in``: the GPU's kernels built from
     CPU scenes with the GPU's features (see :func:`device_scene`), for :func:`compile_ptx`."""
     import warp_spt.rendering.aux_buffers  # noqa: F401  (registers the "aov" kind)
-    from warp_spt.core.device_scene import WIDE_BVH_MAX_TRIANGLES
+    from warp_spt.upload.device_scene import WIDE_BVH_MAX_TRIANGLES
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.rendering.settings import RenderSettings
     from warp_spt.samplers import SAMPLERS

@@ -27,7 +27,7 @@ import make_demo  # noqa: E402
 
 import warp_spt  # noqa: E402
 from warp_spt.animation import CameraPath, render_animation  # noqa: E402
-from warp_spt.io.images import save_gif  # noqa: E402
+from warp_spt.images.files import save_gif  # noqa: E402
 
 FRAMES = 24
 MAX_TWIST = 0.9            # radians of the rim against the foot, at the extremes of the loop

@@ -25,7 +25,7 @@ sys.path.insert(0, str(REPO))
 import warp  # noqa: E402
 
 from warp_spt.demo import PRESETS, demo_files  # noqa: E402
-from warp_spt.io.images import save_image, tonemap_seed  # noqa: E402
+from warp_spt.images.files import save_image, tonemap_seed  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.rendering.tiles import render  # noqa: E402
 from warp_spt.scene.camera import Camera  # noqa: E402  (after the path set-up, to use this checkout)

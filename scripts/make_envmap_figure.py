@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import warp_spt as ws  # noqa: E402
-from warp_spt.io.images import to_display  # noqa: E402
+from warp_spt.images.files import to_display  # noqa: E402
 from warp_spt.scene.environment import EnvironmentMap  # noqa: E402
 from tests import mitsuba_envmap_scene as ES  # noqa: E402  (the spheres of the Mitsuba comparison)
 

@@ -1,4 +1,4 @@
-"""Write ``warp_spt/core/ggx_tables.py``: the directional albedo of the GGX reflection lobe, split sum.
+"""Write ``warp_spt/bsdfs/ggx_tables.py``: the directional albedo of the GGX reflection lobe, split sum.
 
 For an isotropic GGX lobe (height-correlated Smith G2) with Schlick's Fresnel
 ``F = f0 + (1 - f0) (1 - c)^5`` (``c = wo . m``), the directional albedo is linear in ``f0``::
@@ -49,7 +49,7 @@ STRATA = 256            # strata per axis of u, per replicate
 REPLICATES = 4
 SEED = 20260529
 MU_MIN = 1e-6           # where the grazing row (mu = 0) is evaluated
-OUT = Path(__file__).resolve().parents[1] / "warp_spt" / "core" / "ggx_tables.py"
+OUT = Path(__file__).resolve().parents[1] / "warp_spt" / "bsdfs" / "ggx_tables.py"
 
 
 def mu_node(i: np.ndarray | float) -> np.ndarray:

@@ -41,9 +41,9 @@ import warp as wp  # noqa: E402
 
 wp.config.log_level = wp.LOG_WARNING
 
-from warp_spt.core.device_scene import DeviceScene  # noqa: E402
-from warp_spt.core.structs import Features  # noqa: E402
-from warp_spt.io.images import tonemap_srgb  # noqa: E402
+from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
+from warp_spt.device.structs import Features  # noqa: E402
+from warp_spt.images.files import tonemap_srgb  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.rendering import tiles as R  # noqa: E402
 from warp_spt.rendering.settings import RenderSettings  # noqa: E402

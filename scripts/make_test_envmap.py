@@ -50,10 +50,10 @@ def main(argv=None) -> int:
     if a.out.lower().endswith(".npy"):
         np.save(a.out, img)
     elif a.out.lower().endswith(".pfm"):
-        from warp_spt.io.images import save_image
+        from warp_spt.images.files import save_image
         save_image(a.out, img)
     else:
-        from warp_spt.io.hdr import write_hdr
+        from warp_spt.images.hdr import write_hdr
         write_hdr(a.out, img)
     print(f"wrote {a.out} ({img.shape[1]}x{img.shape[0]})")
     return 0

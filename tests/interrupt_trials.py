@@ -136,7 +136,7 @@ def output_is_complete(out: Path, res: int) -> bool:
         if out.suffix == ".npy":
             img = np.load(out)
         elif out.suffix == ".pfm":
-            from warp_spt.io.images import read_pfm
+            from warp_spt.images.files import read_pfm
             img = read_pfm(out)
         else:
             from PIL import Image

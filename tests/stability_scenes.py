@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_spt.core.device_scene import DeviceScene, Features
+from warp_spt.upload.device_scene import DeviceScene, Features
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings

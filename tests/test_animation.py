@@ -11,7 +11,7 @@ from PIL import Image
 
 import warp_spt
 from warp_spt.animation import CameraPath, ObjSequence, render_animation, slerp
-from warp_spt.io.images import save_gif
+from warp_spt.images.files import save_gif
 from warp_spt.io.templates import frame_path, parse_frames
 from warp_spt.scene.errors import SceneError
 
@@ -129,7 +129,7 @@ def test_unchanged_meshes_are_uploaded_once_and_render_the_same(tmp_path, monkey
     """Frames share a static mesh's wp.Mesh; a changed mesh is built anew; images equal fresh uploads."""
     import warp as wp
 
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
 
     from .scenes import box_obj, material
 

@@ -53,7 +53,7 @@ def test_normals_are_unit_or_zero_and_the_floor_faces_up(buffers):
 
 
 def test_bad_spp_is_rejected(buffers, tmp_path):
-    from warp_spt.core.device_scene import DeviceScene  # noqa: F401
+    from warp_spt.upload.device_scene import DeviceScene  # noqa: F401
 
     with pytest.raises(ValueError):
         feature_buffers(None, None, 4, 4, spp=0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt.core.bvh import Tlas, build_tlas, ray_query_reference
+from warp_spt.accel.tlas import Tlas, build_tlas, ray_query_reference
 
 
 def random_boxes(rng: np.random.Generator, k: int, flat_fraction: float = 0.2):
@@ -199,7 +199,7 @@ def test_depth_bounded_for_adversarial_inputs(kind):
 
 def test_depth_guard_switches_to_median_splits(monkeypatch):
     # the geometric chain above gives depth 41 with SAH alone; a budget of 20 must be honoured
-    import warp_spt.core.bvh as bvh
+    import warp_spt.accel.tlas as bvh
 
     monkeypatch.setattr(bvh, "DEPTH_BUDGET", 20)
     k = 20_000

@@ -19,7 +19,7 @@ from warp_spt.cli.main import main
 from warp_spt.cli.maps import LEGEND_MIN_WIDTH, false_colour, with_legend
 from warp_spt.cli.options import parse_args
 from warp_spt.cli.progressive import EXIT_SECONDS, finish_seconds
-from warp_spt.io.images import load_image
+from warp_spt.images.files import load_image
 
 from .scenes import material
 from .stability_scenes import quads_obj

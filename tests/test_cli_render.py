@@ -142,7 +142,7 @@ class FakeEngine:
         fakes = {
             "warp_spt.io.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),
             "warp_spt.rendering.tiles": fake_renderer(self._render),
-            "warp_spt.io.images": types.SimpleNamespace(save_image=self._save),
+            "warp_spt.images.files": types.SimpleNamespace(save_image=self._save),
         }
         for name, module in fakes.items():
             monkeypatch.setitem(sys.modules, name, module)
@@ -232,7 +232,7 @@ def test_scene_errors_are_one_line(tmp_path, monkeypatch, capsys):
 
 def test_real_interrupt_during_save_leaves_no_partial_file(tmp_path, monkeypatch):
     """With the real film writer: a Ctrl-C while the file is written leaves nothing behind."""
-    import warp_spt.io.images as film
+    import warp_spt.images.files as film
 
     real_save = film.save_image
     monkeypatch.setitem(sys.modules, "warp_spt.io.loader",

@@ -67,16 +67,16 @@ import warp as wp
 import warp_spt.diff.gradients  # noqa: F401  (registers the "tape" kernel kind)
 import warp_spt.diff.prb  # noqa: F401  (registers "replay")
 import warp_spt.rendering.aux_buffers  # noqa: F401  (registers "aov")
-from warp_spt.core import proctex
-from warp_spt.core.device_scene import Features
-from warp_spt.core.lobes import LOBE_DIFFUSE, LOBE_REFLECTION, LOBE_SPECULAR, LOBE_TRANSMISSION
+from warp_spt.device import proctex
+from warp_spt.upload.device_scene import Features
+from warp_spt.device.lobes import LOBE_DIFFUSE, LOBE_REFLECTION, LOBE_SPECULAR, LOBE_TRANSMISSION
 from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS, get_integrator
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.rendering.setup import KERNEL_KINDS, Bound
 from warp_spt.runtime import kernel_cache
 from warp_spt.runtime.warp_init import init_warp
 from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS
-from warp_spt.core.media.registry import KINDS as MEDIUM_KINDS
+from warp_spt.media.registry import KINDS as MEDIUM_KINDS
 from warp_spt.scene.material_schema import MATERIAL_KINDS
 from warp_spt.scene.sky import Sky
 

@@ -1,4 +1,4 @@
-"""Emissive textures drawn by their texels (issue 34, ``core/lights/emissive_texels.py``): a floor
+"""Emissive textures drawn by their texels (issue 34, ``emitters/emissive_texels.py``): a floor
 under a textured lamp rendered by NEE against Lambert's closed form summed over the texels; the
 sampled density against the one MIS evaluates and E[g / pdf] against a quadrature; the cells'
 subdivision and weights; and, at equal samples, a lower error than uniform area sampling on a
@@ -13,9 +13,9 @@ import pytest
 import warp as wp
 from PIL import Image
 
-from warp_spt.core.lights import light_table
-from warp_spt.core.lights.emissive_texels import FLOOR as CELL_FLOOR
-from warp_spt.core.lights.emissive_texels import cell_of_np, cells, fine_points, order
+from warp_spt.emitters import light_table
+from warp_spt.emitters.emissive_texels import FLOOR as CELL_FLOOR
+from warp_spt.emitters.emissive_texels import cell_of_np, cells, fine_points, order
 from warp_spt.scene.model import SLOT_EMISSION
 
 from .scenes import material
@@ -153,7 +153,7 @@ def test_cells_beat_uniform_sampling_on_a_bright_corner(scene_dir):
     # samples the cells' squared error against the closed form is lower (5.7x measured: the floor's
     # BSDF samples and the lamp's cos / r^2 keep some noise either way; 3x asserted). Without cells
     # a sample finds the bright block (4 of 64 texels, most of the light) once in 16 draws.
-    from warp_spt.core.lights import emissive_texels
+    from warp_spt.emitters import emissive_texels
     dev = lamp_scene(scene_dir, "texel_lamp_vs")
     w, h = 12, 10
     pts = floor_points(FLOOR_CAM, w, h, 8).reshape(-1, 3)

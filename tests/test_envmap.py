@@ -21,11 +21,11 @@ import pytest
 import warp as wp
 
 import warp_spt as ws
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.lights import Lights, env_pdf, env_radiance, light_table, sample_env
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.emitters import Lights, env_pdf, env_radiance, light_table, sample_env
 from warp_spt.integrators import INTEGRATORS
-from warp_spt.io.environment import load_environment, read_environment_image
-from warp_spt.io.hdr import HdrError, read_hdr, write_hdr
+from warp_spt.images.environment import load_environment, read_environment_image
+from warp_spt.images.hdr import HdrError, read_hdr, write_hdr
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.samplers import SAMPLERS
 from warp_spt.scene.camera import Camera

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_spt.io import images as film_mod
-from warp_spt.io.images import (
+from warp_spt.images import files as film_mod
+from warp_spt.images.files import (
     load_image,
     read_pfm,
     save_image,

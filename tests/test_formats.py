@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt.io.images import load_image, save_image, tonemap_srgb
+from warp_spt.images.files import load_image, save_image, tonemap_srgb
 
 
 def test_exr_holds_linear_float32_exactly(tmp_path):

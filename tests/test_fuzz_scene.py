@@ -95,7 +95,7 @@ def check_scene(obj: bytes, mtl: bytes, png: bytes, sky: float, capsys) -> str:
             assert len(lines) == 1 and lines[0].startswith("warp-spt: error: "), err
             assert any(lines[0].startswith(f"warp-spt: error: {f}") for f in files), err
             return "error"
-    from warp_spt.core.device_scene import Features
+    from warp_spt.upload.device_scene import Features
     from warp_spt.rendering.settings import RenderSettings
     from warp_spt.rendering.tiles import render_scene
 

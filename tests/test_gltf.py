@@ -313,7 +313,7 @@ def test_animation_static_files_and_the_api_read_gltf_and_ply(tmp_path):
 
 
 def test_vertex_colours_times_the_base_colour_factor_are_baked():
-    from warp_spt.core.textures import sample_texture_np
+    from warp_spt.device.textures import sample_texture_np
 
     g = GltfBuilder()
     tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)

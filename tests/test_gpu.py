@@ -27,7 +27,7 @@ import sys
 import numpy as np
 import pytest
 
-from warp_spt.core.device_scene import WIDE_BVH_MAX_TRIANGLES, DeviceScene
+from warp_spt.upload.device_scene import WIDE_BVH_MAX_TRIANGLES, DeviceScene
 from warp_spt.integrators import INTEGRATORS
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering.aux_buffers import feature_buffers

@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.rendering.tiles import render_scene

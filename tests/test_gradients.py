@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.diff.gradients import enable_material_gradients, render_differentiable
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R

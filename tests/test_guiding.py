@@ -21,8 +21,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.guiding import GuideTree, dir_to_square_np, guide_pdf, guide_sample, square_to_dir_np, upload_tree
-from warp_spt.integrators import guided, guiding_tree
+from warp_spt.integrators.guided.sd_tree import GuideTree, dir_to_square_np, guide_pdf, guide_sample, square_to_dir_np, upload_tree
+from warp_spt.integrators import guided
+from warp_spt.integrators.guided import tree as guiding_tree
 from warp_spt.rendering.settings import RenderSettings
 
 from .stability_scenes import R, assert_same_image, cornell_camera, cornell_files, load, sky

@@ -17,7 +17,7 @@ import warp_spt.io.tokens as tokens
 from warp_spt.cli.common import UsageError
 from warp_spt.cli.main import main
 from warp_spt.cli.options import parse_args
-from warp_spt.io.images import save_image
+from warp_spt.images.files import save_image
 from warp_spt.io.loader import load_scene
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.sky import SKY_CONSTANT, Sky
@@ -289,8 +289,8 @@ def thin_texture_scene(tmp_path: Path, n: int) -> Path:
 
 @pytest.mark.parametrize("n", [20000, 40000])
 def test_thin_textures_take_the_sum_of_their_areas_and_sample_right(tmp_path, n):
-    from warp_spt.core.device_scene import DeviceScene
-    from warp_spt.core.textures import Atlas, sample_texture_np
+    from warp_spt.upload.device_scene import DeviceScene
+    from warp_spt.device.textures import Atlas, sample_texture_np
 
     from .test_textures import run_sample
 

@@ -217,7 +217,7 @@ def test_a_texture_module_that_is_not_python_or_exits_is_one_error_line(tmp_path
 def test_a_side_output_that_fails_warns_and_the_render_goes_on(tmp_path, capsys, monkeypatch):
     import errno
 
-    import warp_spt.io.images as images
+    import warp_spt.images.files as images
 
     real = images.atomic_write
 
@@ -249,7 +249,7 @@ def test_api_type_misuse_is_a_type_error_naming_the_expected_type(call, message)
 
 # ---------------------------------------------------------------- values that skipped the limits
 
-from warp_spt.core import proctex  # noqa: E402
+from warp_spt.device import proctex  # noqa: E402
 
 
 @pytest.mark.parametrize("line,message", [("map_Kd proc:noise scale=1e39", "must lie in"),

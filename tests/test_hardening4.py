@@ -202,7 +202,7 @@ def test_out_of_memory_under_an_address_space_limit_is_the_documented_line(tmp_p
 def test_out_of_memory_while_rendering_a_device_scene_names_its_size(tmp_path, capsys, monkeypatch, error):
     import warp_spt.cli.render as cli_render
     import warp_spt.rendering.tiles as tiles
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
 
     def no_memory(scene, *a, **k):
         assert isinstance(scene, DeviceScene)       # whose textures are a method: the reporter crashed

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import warp_spt
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.io.loader import load_scene
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.sky import Sky
@@ -103,14 +103,14 @@ def test_the_cache_serves_a_plain_builder_too():
 
 
 def test_importing_the_engine_does_not_initialise_warp():
-    code = ("import warp_spt.core.textures, warp_spt.rendering.tiles, warp_spt.diff.gradients\n"
+    code = ("import warp_spt.device.textures, warp_spt.rendering.tiles, warp_spt.diff.gradients\n"
             "import warp._src.context as c\n"
             "assert c.runtime is None, 'Warp was initialised at import time'\n")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
 def test_one_camera_frame_feeds_the_kernel_and_the_jacobian():
-    from warp_spt.core.camera_rays import (
+    from warp_spt.device.camera_rays import (
         CAMERA_FIELDS,
         camera_frame,
         camera_params,
@@ -131,7 +131,7 @@ def test_one_camera_frame_feeds_the_kernel_and_the_jacobian():
 
 
 def test_device_scene_hands_out_its_caches_through_methods(box):
-    from warp_spt.core.lights import light_table
+    from warp_spt.emitters import light_table
 
     a = light_table(box, Sky.black())
     assert light_table(box, Sky.black()) is a

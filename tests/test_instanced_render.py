@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.io.gltf import quaternion_matrix
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.rendering.tiles import render_scene
@@ -148,7 +148,7 @@ def test_a_rigidly_moving_gltf_mesh_keeps_its_bvh_from_frame_to_frame(tmp_path):
     assert list(cache.values())[0].wide is not None
     assert not np.array_equal(first.geometry.inst_linear.numpy(), later.geometry.inst_linear.numpy())
     # what a cluster ships is keyed with the placements (a moved mesh is sent again); the BVH cache without
-    from warp_spt.core.device_scene import mesh_key
+    from warp_spt.upload.device_scene import mesh_key
 
     m0, m2 = seq.scene(0).meshes[0], seq.scene(2).meshes[0]
     assert mesh_key(m0) != mesh_key(m2) and mesh_key(m0, placements=False) == mesh_key(m2, placements=False)

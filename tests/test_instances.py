@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene, Features, Geometry
-from warp_spt.core.geometry import make_closest_hit, make_occluded
-from warp_spt.core.instances import upload_instances
+from warp_spt.upload.device_scene import DeviceScene, Features, Geometry
+from warp_spt.accel.ray_queries import make_closest_hit, make_occluded
+from warp_spt.upload.instances import upload_instances
 from warp_spt.io.gltf import quaternion_matrix
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
 

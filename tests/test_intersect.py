@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene, Features, Geometry
-from warp_spt.core.geometry import SMALL_SCENE, make_closest_hit, make_occluded
+from warp_spt.upload.device_scene import DeviceScene, Features, Geometry
+from warp_spt.accel.ray_queries import SMALL_SCENE, make_closest_hit, make_occluded
 from warp_spt.io.loader import load_scene
 
 from .scenes import box_obj, write_scene_files
@@ -218,7 +218,7 @@ def test_small_scene_loop_equals_the_tlas_traversal(scene_dir, mixed, which):
 
 @pytest.mark.parametrize("which", ["one mesh", "mesh and spheres", "a large mesh"])
 def test_wide_bvh_answers_as_warps_bvh(scene_dir, mixed, which):
-    # Meshes are traced through our wide BVHs (core.wide_traversal), or through Warp's when larger than
+    # Meshes are traced through our wide BVHs (accel.wide_traversal), or through Warp's when larger than
     # the scene's limit (0 here: all of them). Same triangle test, so every hit, normal and shadow-ray
     # answer must agree bit for bit; only exact ties in t between two triangles may pick another face.
     rng = np.random.default_rng(5)

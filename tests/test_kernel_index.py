@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 import warp as wp
 
-from warp_spt.core.structs import Features
+from warp_spt.device.structs import Features
 from warp_spt.runtime import kernel_index
 
 REPO = Path(__file__).resolve().parents[1]
@@ -32,7 +32,7 @@ def test_a_changed_wp_func_source_changes_the_key(tmp_path):
         shutil.copytree(kernel_index.PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     spec = ("nee", "sobol", Features())
     assert kernel_index.own_key("fast", spec, str(same)) == kernel_index.own_key("fast", spec)
-    target = changed / "core" / "sampling.py"
+    target = changed / "device" / "sampling.py"
     text = target.read_text()
     at = text.index("@wp.func\n")
     body = text.index("\n", text.index("def ", at)) + 1       # the first line after the def

@@ -194,7 +194,7 @@ def test_the_blocked_zero_area_test_is_the_cross_product_test():
 def test_joining_per_mesh_arrays_skips_zero_parts_but_keeps_every_bit():
     """device_scene._cat leaves all-zero parts unwritten (fresh zero pages): the result must still be
     np.concatenate's, bit for bit (a -0.0 is not a zero part)."""
-    from warp_spt.core.device_scene import _cat
+    from warp_spt.upload.device_scene import _cat
 
     rng = np.random.default_rng(2)
     parts = [np.zeros((5, 2), np.float32), rng.normal(size=(3, 2)).astype(np.float32),
@@ -208,7 +208,7 @@ def test_joining_per_mesh_arrays_skips_zero_parts_but_keeps_every_bit():
 def test_a_tree_array_grows_in_place_only_into_its_own_allocation():
     """device_scene._grown: a view of the array a tree's rows start, with more rows, only where that
     array is C-contiguous and long enough; else None (the caller copies)."""
-    from warp_spt.core.device_scene import _grown
+    from warp_spt.upload.device_scene import _grown
 
     full = np.arange(40, dtype=np.int32).reshape(10, 4)
     head = full[:3]

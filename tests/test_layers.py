@@ -12,13 +12,18 @@ from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "warp_spt"
 
-# Bottom up. io/ reads files into the host model without Warp, so it sits below core/ and may not
-# import it at all (an MTL ``proc:`` map is read against scene/proctex_registry.py's declarations).
+# Bottom up. io/ reads files into the host model without Warp, so it sits below the device families
+# and may not import them at all (an MTL ``proc:`` map is read against scene/proctex_registry.py's
+# declarations). device/ holds what every kernel reads; accel/ the ray queries on it; the plugin
+# families (bsdfs, emitters, media) share one floor and never import each other; upload/ fills them all.
 LAYERS = [
     {"runtime"},
     {"scene", "demo", "losses"},
-    {"io"},
-    {"core"},
+    {"io", "images"},
+    {"device"},
+    {"accel"},
+    {"bsdfs", "emitters", "media"},
+    {"upload"},
     {"samplers"},
     {"integrators"},
     {"rendering"},
@@ -26,6 +31,8 @@ LAYERS = [
     {"cluster", "animation", "notebook"},
     {"cli", "viewer", "__init__", "__main__"},
 ]
+# The plugin families of one floor: a module of one imports nothing of another (shared code lives below).
+FAMILIES = ("bsdfs", "emitters", "media")
 
 
 def _module(path: Path) -> str:
@@ -92,10 +99,33 @@ def test_no_import_circles():
 
 def test_the_host_side_imports_no_warp_at_module_level():
     offenders = []
-    for p in list((PKG / "scene").rglob("*.py")) + list((PKG / "io").rglob("*.py")):
+    for p in [q for room in ("scene", "io", "images") for q in (PKG / room).rglob("*.py")]:
         for node in ast.parse(p.read_text()).body:
             names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
                      [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
             if any(n == "warp" or n.startswith("warp.") for n in names):
                 offenders.append(str(p.relative_to(PKG)))
     assert not offenders, offenders
+
+
+def test_plugin_families_never_import_each_other():
+    def family(module: str) -> str | None:
+        top = module.split(".")[1] if module.count(".") else ""
+        return top if top in FAMILIES else None
+
+    crossing = [f"{m} imports {t}" for m, targets in _graph().items() for t in targets
+                if family(m) and family(t) and family(m) != family(t)]
+    assert not crossing, "\n".join(crossing)
+
+
+def test_no_room_holds_more_than_about_an_eighth_of_the_package():
+    """A room (a subpackage, or the flat modules together) of more than ~12% of the package's lines is a
+    drawer that has swallowed families: split it by what it holds."""
+    lines: dict[str, int] = {}
+    for p in PKG.rglob("*.py"):
+        rel = p.relative_to(PKG).parts
+        room = rel[0] if len(rel) > 1 else "(flat)"
+        lines[room] = lines.get(room, 0) + len(p.read_text().splitlines())
+    total = sum(lines.values())
+    big = {room: f"{n / total:.1%}" for room, n in lines.items() if n > 0.13 * total}
+    assert not big, big

@@ -22,11 +22,11 @@ import pytest
 import warp as wp
 from PIL import Image
 
-from warp_spt.core.device_scene import Geometry, Materials, Textures
-from warp_spt.core.geometry import KIND_MISS, NO_HIT, make_closest_hit
-from warp_spt.core.lights import Lights, light_table, make_lights
-from warp_spt.core.materials import make_materials
-from warp_spt.core.surface import Surface, make_surface
+from warp_spt.upload.device_scene import Geometry, Materials, Textures
+from warp_spt.accel.ray_queries import KIND_MISS, NO_HIT, make_closest_hit
+from warp_spt.emitters import Lights, light_table, make_lights
+from warp_spt.bsdfs import make_materials
+from warp_spt.accel.surface import Surface, make_surface
 from warp_spt.integrators import INTEGRATORS
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.samplers import SAMPLERS
@@ -313,7 +313,7 @@ POINTS = {"amid": (0.1, 0.2, -0.1), "near": (0.3, -0.2, 1.7), "far": (0.5, -0.3,
 @pytest.mark.parametrize("where", sorted(POINTS))
 @pytest.mark.parametrize("sky_", [Sky.gradient(), Sky.constant(0.0, 0.0, 0.0), Sky.gradient(up=(1, -2, 3))])
 def test_light_pdfs_integrate_to_one_and_match_sampling(light_scene, sky_, where):
-    from warp_spt.core.lights import MAX_SPHERICAL, MIN_SPHERICAL
+    from warp_spt.emitters import MAX_SPHERICAL, MIN_SPHERICAL
     k = _pdf_kernels()
     dev, x = light_scene, wp.vec3(*POINTS[where])
     omega = _solid_angles(dev, POINTS[where])            # the bright quad's two triangles, then the dim one's
@@ -475,7 +475,7 @@ def test_reused_pick_number_is_uniform_per_light(light_scene):
     # NEE with sobol picks the light and the point on it from one 2D request: what is left of the
     # pick's number must be uniform on [0, 1) given the chosen light (an independent check: sorted
     # leftovers of an even grid of picks against their uniform quantiles).
-    from warp_spt.core.lights import pick_entry, reuse_pick
+    from warp_spt.emitters import pick_entry, reuse_pick
 
     @wp.kernel(module="unique")
     def leftovers(lights: Lights, u: wp.array(dtype=float), entry: wp.array(dtype=int), rest: wp.array(dtype=float)):

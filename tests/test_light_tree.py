@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_spt.core.lights.light_tree import MIN_TREE_LIGHTS, build_tree
-from warp_spt.core.lights import light_table
+from warp_spt.emitters.light_tree import MIN_TREE_LIGHTS, build_tree
+from warp_spt.emitters import light_table
 
 from .scenes import material
 from .stability_scenes import GENERAL, quads_obj, scene_from_text, sky

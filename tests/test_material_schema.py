@@ -22,8 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_every_column_reaches_every_derived_place(tmp_path):
-    from warp_spt.core.device_scene import DeviceScene, Materials
-    from warp_spt.core.material_table import with_gradients
+    from warp_spt.upload.device_scene import DeviceScene, Materials
+    from warp_spt.device.material_table import with_gradients
     from warp_spt.diff.params import MATERIAL_FIELDS, parameters, value_range
     from warp_spt.io.loader import load_scene
 
@@ -81,7 +81,7 @@ PROBE = textwrap.dedent('''
     sys.modules[spec.name] = schema
     exec(compile(src[:end] + extra + src[end:], path, "exec"), schema.__dict__)
 
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.diff.gradients import _Backward
     from warp_spt.diff.optim import Adam
     from warp_spt.diff.params import parameters
@@ -110,7 +110,7 @@ PROBE = textwrap.dedent('''
     bw = _Backward.__new__(_Backward)                   # only what _tile_inputs reads
     bw.dev, bw.tex, bw.mode, bw.nbytes = dev, dev.textures(), "prb", 0
     from types import SimpleNamespace
-    from warp_spt.core.lights import light_table
+    from warp_spt.emitters import light_table
     from warp_spt.scene.sky import Sky
     bw.bound = SimpleNamespace(lights=light_table(dev, Sky.black()))
     bw.wants_texels = bw.wants_proc = bw.wants_env = bw.wants_media = False
@@ -143,10 +143,10 @@ KIND_MODULE = textwrap.dedent('''
     from types import SimpleNamespace
     import numpy as np
     import warp as wp
-    from warp_spt.core.lobes import LOBE_GLOSSY, LOBE_REFLECTION
-    from warp_spt.core.materials.common import BsdfSample, to_local, to_world, with_flags
-    from warp_spt.core.structs import Materials, Textures
-    from warp_spt.core.surface import INV_PI, INV_TWO_PI, Surface
+    from warp_spt.device.lobes import LOBE_GLOSSY, LOBE_REFLECTION
+    from warp_spt.bsdfs.common import BsdfSample, to_local, to_world, with_flags
+    from warp_spt.device.structs import Materials, Textures
+    from warp_spt.accel.surface import INV_PI, INV_TWO_PI, Surface
 
     LOBE = LOBE_GLOSSY | LOBE_REFLECTION
 
@@ -206,14 +206,14 @@ KIND_PROBE = textwrap.dedent('''
     sys.modules[spec.name] = schema
     exec(compile(src, path, "exec"), schema.__dict__)
     import warp as wp
-    import warp_spt.core.structs  # noqa: F401  (the kind module imports it)
-    kspec = importlib.util.spec_from_file_location("warp_spt.core.materials.probe", module_src)
+    import warp_spt.device.structs  # noqa: F401  (the kind module imports it)
+    kspec = importlib.util.spec_from_file_location("warp_spt.bsdfs.probe", module_src)
     kind = importlib.util.module_from_spec(kspec)
     sys.modules[kind.__name__] = kind         # what importlib finds for the registered name
     kspec.loader.exec_module(kind)            # from a file: Warp reads its functions' source
 
-    from warp_spt.core.device_scene import DeviceScene
-    from warp_spt.core.lobes import LOBE_GLOSSY
+    from warp_spt.upload.device_scene import DeviceScene
+    from warp_spt.device.lobes import LOBE_GLOSSY
     from warp_spt.io.loader import load_scene
     from warp_spt.rendering import tiles as R
     from warp_spt.scene.camera import Camera
@@ -255,7 +255,7 @@ def test_a_glossy_kind_is_one_module_and_a_registry_line(tmp_path):
 
 
 def test_kinds_are_registered():
-    from warp_spt.core.materials import KINDS
+    from warp_spt.bsdfs import KINDS
 
     assert tuple(KINDS) == schema.MATERIAL_KINDS and schema.COLUMN["kind"].high == len(KINDS) - 1
     for module in KINDS.values():

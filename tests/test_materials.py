@@ -21,10 +21,10 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.materials import make_materials
-from warp_spt.core.structs import Materials, Textures
-from warp_spt.core.surface import Surface
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.bsdfs import make_materials
+from warp_spt.device.structs import Materials, Textures
+from warp_spt.accel.surface import Surface
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings
@@ -73,7 +73,7 @@ def test_smooth_glass_furnace_is_exactly_one(scene_dir):
 
 def _ggx_albedo_numpy(alpha: float, mu: float, n: int = 2_000_000) -> float:
     """Single-scattering directional albedo of isotropic GGX with F = 1 and height-correlated Smith
-    masking, by Monte Carlo over uniformly sampled directions (independent of core.microfacet)."""
+    masking, by Monte Carlo over uniformly sampled directions (independent of bsdfs.microfacet)."""
     rng = np.random.default_rng(7)
     wo = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
     u = rng.random((n, 2))

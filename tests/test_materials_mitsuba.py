@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.structs import Features
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.device.structs import Features
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings

@@ -1,4 +1,4 @@
-"""The GGX lobes of warp_spt.core.microfacet, checked against things the code does not compute.
+"""The GGX lobes of warp_spt.bsdfs.microfacet, checked against things the code does not compute.
 
 * sampling against the pdf: a chi-square test over a sphere grid (as Mitsuba's and pbrt's test
   suites do): sampled directions are binned; each bin's expected count is the pdf integrated over
@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core import microfacet as mf
+from warp_spt.bsdfs import microfacet as mf
 
 wp.config.log_level = wp.LOG_WARNING
 DEVICE = "cpu"

@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_spt.core.geometry import safe_inverse, safe_inverse_from
-from warp_spt.core.lights.triangle import MAX_SPHERICAL, MIN_SPHERICAL, sampled_solid_angle
-from warp_spt.core.sampling import triangle_solid_angle
-from warp_spt.core.wide_traversal import mesh_ray
+from warp_spt.accel.ray_queries import safe_inverse, safe_inverse_from
+from warp_spt.emitters.triangle import MAX_SPHERICAL, MIN_SPHERICAL, sampled_solid_angle
+from warp_spt.device.sampling import triangle_solid_angle
+from warp_spt.accel.wide_traversal import mesh_ray
 from warp_spt.integrators.common import FAST_KERNEL_OPTIONS, finite3
 
 

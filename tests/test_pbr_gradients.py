@@ -1,7 +1,7 @@
 """Gradients of the pbr kind's parameters by name, against finite differences of the expected image.
 
 The pbr kind holds its sampled directions, densities and lobe-choice probabilities still
-(``core.materials.common.held``): a sample's derivative is f'/p, the detached-sampling estimator, so
+(``bsdfs.common.held``): a sample's derivative is f'/p, the detached-sampling estimator, so
 the gradient is the derivative of the *expected* image. Its lobe choice moves with the parameters,
 so finite differences with common random numbers are not smooth sample by sample, but their mean
 over seeds is the derivative of the expectation. The check: over 12 seeds, the mean gradient (path

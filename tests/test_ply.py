@@ -40,7 +40,7 @@ def test_strip_triangles_all_face_the_same_way():
 
 
 def test_vertex_colours_are_the_corners_and_bilinear_is_linear_inside():
-    from warp_spt.core.textures import sample_texture_np
+    from warp_spt.device.textures import sample_texture_np
 
     d = parse_ply_bytes(ply_bytes(), "p.ply")
     image = d.materials[f"p.ply: {VERTEX_COLOUR_MATERIAL}"].diffuse_map.image

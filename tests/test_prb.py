@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.lights import alias_parameters, light_table, table_key
+from warp_spt.emitters import alias_parameters, light_table, table_key
 from warp_spt.diff.gradients import render_gradients
 from warp_spt.diff.params import parameters
 from warp_spt.scene.sky import Sky

@@ -1,4 +1,4 @@
-"""Procedural textures (warp_spt.core.proctex): MTL syntax, analytic renders, the seed's checker through
+"""Procedural textures (warp_spt.device.proctex): MTL syntax, analytic renders, the seed's checker through
 the new path, user modules from the CLI, compile errors and NaN named, kernel specialisation."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import warp as wp
 
 import warp_spt
 from warp_spt.cli.main import main
-from warp_spt.core import proctex
-from warp_spt.core.device_scene import DeviceScene, Features
-from warp_spt.core.textures import checker_np
+from warp_spt.device import proctex
+from warp_spt.upload.device_scene import DeviceScene, Features
+from warp_spt.device.textures import checker_np
 from warp_spt.integrators import get_step, make_kernel
 from warp_spt.io.loader import load_scene
 from warp_spt.io.mtl import parse_mtl_bytes

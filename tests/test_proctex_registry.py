@@ -1,5 +1,5 @@
 """The procedural textures' two halves: the Warp-free declarations (scene/proctex_registry.py) that the
-MTL reader parses against, and the Warp functions registered beside them (core/proctex.py)."""
+MTL reader parses against, and the Warp functions registered beside them (device/proctex.py)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 import warp as wp
 
 import warp_spt
-from warp_spt.core import proctex
+from warp_spt.device import proctex
 from warp_spt.io.mtl import parse_mtl_bytes
 from warp_spt.scene import proctex_registry
 from warp_spt.scene.errors import SceneError

@@ -265,7 +265,7 @@ def test_one_result_type(open_scene):
 def test_a_host_scene_far_from_the_origin_is_recentred(tmp_path):
     # Budget renders given a host Scene get render_scene's recentring: bit-identical to rendering the
     # recentred scene (a DeviceScene is used as it is).
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.scene.recentre import recentre
 
     far = (1e5, -2e5, 3e4)

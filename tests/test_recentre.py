@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering.tiles import render
 from warp_spt.scene.recentre import recentre

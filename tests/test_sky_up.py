@@ -12,7 +12,7 @@ import pytest
 import warp as wp
 
 from warp_spt.cli.main import main
-from warp_spt.core.lights import Lights, sample_sky, sky_pdf, sky_radiance
+from warp_spt.emitters import Lights, sample_sky, sky_pdf, sky_radiance
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering.tiles import render
 from warp_spt.scene.camera import Camera
@@ -112,8 +112,8 @@ def _sky_kernel(lights: Lights, u: wp.array(dtype=wp.vec2), dirs: wp.array(dtype
 
 @pytest.mark.parametrize("up", [(0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (1.0, -2.0, 3.0)])
 def test_sky_sampling_density_and_radiance_follow_the_up_axis(tmp_path, up):
-    from warp_spt.core.device_scene import DeviceScene
-    from warp_spt.core.lights import light_table, sky_density, sky_frame
+    from warp_spt.upload.device_scene import DeviceScene
+    from warp_spt.emitters import light_table, sky_density, sky_frame
 
     objs, mtls = scene_files(tmp_path, "z", BALLS[1:])
     sky = Sky.gradient(up=up)

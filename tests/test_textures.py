@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.textures import (
+from warp_spt.device.textures import (
     checker,
     checker_np,
     pack_atlas,

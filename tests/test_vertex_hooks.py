@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.materials import make_materials
-from warp_spt.core.structs import Geometry, Materials, Textures
-from warp_spt.core.lights import Lights
-from warp_spt.core.surface import Surface
+from warp_spt.bsdfs import make_materials
+from warp_spt.device.structs import Geometry, Materials, Textures
+from warp_spt.emitters import Lights
+from warp_spt.accel.surface import Surface
 from warp_spt.integrators.common import PathState, RenderParams
 from warp_spt.integrators.nee import VertexHooks, make_path_step
 from warp_spt.rendering.settings import RenderSettings

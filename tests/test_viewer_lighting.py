@@ -148,7 +148,7 @@ def test_the_copied_command_renders_the_lit_and_foggy_view(session, tmp_path):
 
 
 def test_the_environment_background_is_set_by_message(tmp_path):
-    from warp_spt.io.hdr import write_hdr
+    from warp_spt.images.hdr import write_hdr
 
     from .scenes import box_obj, material, write_scene_files
 

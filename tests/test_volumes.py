@@ -24,9 +24,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.media import EVENT_SURFACE, Media, hg_sample, make_media, upload_media
-from warp_spt.core.structs import Features
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.media import EVENT_SURFACE, Media, hg_sample, make_media, upload_media
+from warp_spt.device.structs import Features
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
 from warp_spt.rendering.settings import RenderSettings

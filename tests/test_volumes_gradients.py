@@ -29,7 +29,7 @@ import math
 import numpy as np
 import pytest
 
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.diff.gradients import render_gradients
 from warp_spt.diff.params import parameters
 from warp_spt.io.loader import load_scene

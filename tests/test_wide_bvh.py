@@ -1,4 +1,4 @@
-"""Wide BVH builder (warp_spt.core.wide_bvh): structural invariants, exact containment, reachability,
+"""Wide BVH builder (warp_spt.accel.wide_bvh): structural invariants, exact containment, reachability,
 the stack bound, and input validation, on random soups and awkward meshes."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_spt.core.wide_bvh import WideBvh, build_wide
+from warp_spt.accel.wide_bvh import WideBvh, build_wide
 
 
 def soup(rng: np.random.Generator, k: int, size: float = 0.5, spread: float = 100.0):
@@ -252,15 +252,15 @@ def test_validation(points, tris, kwargs, match):
 
 
 # ---------------------------------------------------------------------------------------------
-# The compiled builder (core/wide_build.py) against the numpy one
+# The compiled builder (accel/wide_build.py) against the numpy one
 
 
 @pytest.mark.parametrize("width", [8, 4, 3])
 def test_kernel_collapse_equals_the_numpy_collapse(width):
     """The same binary tree collapsed by the kernel and by wide_bvh._collapse: the same wide tree,
     array for array (the kernel replaces the numpy collapse, whose rules are the reference)."""
-    from warp_spt.core.wide_build import build_binary, collapse
-    from warp_spt.core.wide_bvh import _collapse, _triangle_boxes
+    from warp_spt.accel.wide_build import build_binary, collapse
+    from warp_spt.accel.wide_bvh import _collapse, _triangle_boxes
     p, t = soup(np.random.default_rng(5), 3000)
     p = np.concatenate([p, np.repeat(p[:3], 20, axis=0)])          # a pile of coincident triangles
     t = np.concatenate([t, np.arange(3 * 3000, 3 * 3000 + 60).reshape(-1, 3)])

@@ -17,7 +17,7 @@ line); :class:`Film` holds float64 sums so renders of separate sample ranges mer
 and sampler chosen by name from ``INTEGRATORS`` and ``SAMPLERS``) and returns a
 :class:`RenderResult`, the one result type of every render (image, per-pixel standard error and sample
 counts, film, stats). :func:`texture` registers a procedural texture written as a Warp function
-(:mod:`warp_spt.core.proctex`), usable as ``map_Kd proc:NAME``. :func:`render_progressive` renders in
+(:mod:`warp_spt.device.proctex`), usable as ``map_Kd proc:NAME``. :func:`render_progressive` renders in
 passes until a sample count, a time budget or a target error, optionally adaptively, and returns a
 :class:`RenderResult` with a per-pixel standard error (``ProgressiveResult`` is another name for it);
 :func:`relative_error` is the one definition of an image's relative error (docs/error.md).
@@ -49,14 +49,14 @@ _EXPORTS = {
     "RenderStats": "rendering.result",
     "SAMPLERS": "samplers",
     "Material": "scene.model",
-    "ProcParams": "core.proctex",
+    "ProcParams": "device.proctex",
     "ProgressiveResult": "rendering.result",
     "ObjData": "scene.model",
     "Scene": "scene.model",
     "SceneParameters": "diff.params",
     "SceneError": "scene.errors",
     "Sky": "scene.sky",
-    "load_environment": "io.environment",
+    "load_environment": "images.environment",
     "SunLight": "scene.lights",
     "PointLight": "scene.lights",
     "SpotLight": "scene.lights",
@@ -66,8 +66,8 @@ _EXPORTS = {
     "load_ply": "io.ply",
     "load_scene": "io.loader",
     "parameters": "diff.params",
-    "proc_texture": "core.proctex",
-    "register_texture": "core.proctex",
+    "proc_texture": "device.proctex",
+    "register_texture": "device.proctex",
     "relative_error": "rendering.result",
     "render": "rendering.tiles",
     "render_film": "rendering.tiles",
@@ -77,11 +77,11 @@ _EXPORTS = {
     "quick_view": "rendering.tiles",
     "first_view": "rendering.first_view",
     "FirstView": "rendering.first_view",
-    "save_image": "io.images",
-    "texture": "core.proctex",
-    "tonemap_seed": "io.images",
-    "tonemap_srgb": "io.images",
-    "to_display": "io.images",
+    "save_image": "images.files",
+    "texture": "device.proctex",
+    "tonemap_seed": "images.files",
+    "tonemap_srgb": "images.files",
+    "to_display": "images.files",
     "up_axis": "scene.conventions",
 }
 
@@ -91,7 +91,7 @@ __all__ = sorted(_EXPORTS) + list(_SUBMODULES) + ["__version__"]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt import demo, losses
-    from warp_spt.core.proctex import (
+    from warp_spt.device.proctex import (
         ProcParams,
         proc_texture,
         register_texture,
@@ -100,8 +100,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.diff.gradients import GradientResult, render_gradients
     from warp_spt.diff.params import SceneParameters, parameters
     from warp_spt.integrators import INTEGRATORS
-    from warp_spt.io.images import save_image, to_display, tonemap_seed, tonemap_srgb
-    from warp_spt.io.environment import load_environment
+    from warp_spt.images.files import save_image, to_display, tonemap_seed, tonemap_srgb
+    from warp_spt.images.environment import load_environment
     from warp_spt.io.gltf import load_gltf
     from warp_spt.io.loader import load_scene
     from warp_spt.io.mtl import load_mtl

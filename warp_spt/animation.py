@@ -344,7 +344,7 @@ def frame_scene(seq: ObjSequence, frame: int, camera: Camera | CameraPath | None
 
 
 def _render_here(seq: ObjSequence, frames: list[int], camera, rs, progress, view):
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.rendering.tiles import render_scene
 
     frame_total = rs.width * rs.height * rs.spp

@@ -145,7 +145,7 @@ def check_settings(rs: RenderSettings) -> None:
 class SceneCache(WorkerPlugin):
     """Per-worker cache of uploaded scenes, keyed by content hash (least recently used goes first).
 
-    Meshes are cached apart, by their own content (:func:`warp_spt.core.device_scene.mesh_key`), so the
+    Meshes are cached apart, by their own content (:func:`warp_spt.upload.device_scene.mesh_key`), so the
     frames of an animation upload their static meshes once per worker. ``builds`` counts scene
     uploads and ``mesh_builds`` mesh uploads (tests check both); ``token`` tells one cache from its
     replacement.
@@ -179,7 +179,7 @@ class SceneCache(WorkerPlugin):
         Under one lock, so a worker running several task threads uploads once, and compiles or
         loads a kernel module from one thread at a time (Warp's concurrent module loads are unsafe).
         """
-        from warp_spt.core.device_scene import DeviceScene
+        from warp_spt.upload.device_scene import DeviceScene
         from warp_spt.rendering.setup import device_kernel
 
         with self._lock:
@@ -241,7 +241,7 @@ def share_scene(client, scene: Scene, shared: dict[str, object] | None = None) -
 
     A DeviceScene is accepted too: its host-side Scene is what travels.
     """
-    from warp_spt.core.device_scene import mesh_key
+    from warp_spt.upload.device_scene import mesh_key
 
     scene = getattr(scene, "scene", scene)
     shared = {} if shared is None else shared

@@ -24,7 +24,7 @@ from warp_spt.rendering.result import RenderResult
 def _png(image: np.ndarray, tonemap: str, zoom: int) -> bytes:
     from PIL import Image
 
-    from warp_spt.io.images import tonemap_seed, tonemap_srgb
+    from warp_spt.images.files import tonemap_seed, tonemap_srgb
 
     img8 = (tonemap_srgb if tonemap == "srgb" else tonemap_seed)(image)
     pil = Image.fromarray(img8)

@@ -17,7 +17,7 @@ from warp_spt.animation import CameraPath, ObjSequence, render_animation
 from warp_spt.cli.common import load_texture_modules, say_for
 from warp_spt.cli.options import settings_of
 from warp_spt.cli.view_checks import frame_view, media_integrator, with_flag_lights
-from warp_spt.io.images import save_gif
+from warp_spt.images.files import save_gif
 from warp_spt.io.templates import frame_path
 from warp_spt.runtime.signals import ignored_by_children
 
@@ -27,7 +27,7 @@ CONNECT_SECONDS = 5.0      # a scheduler on the network answers at once; waiting
 def _run_budgeted(opts, scene, say, started: float | None) -> int:
     """One image on the cluster until --time-budget or --target-error (-sr: the maximum) is met."""
     from warp_spt.cli.common import EXIT_OK
-    from warp_spt.io.images import save_image
+    from warp_spt.images.files import save_image
     from warp_spt.rendering.progressive import UNLIMITED_SPP
 
     b = opts.budget
@@ -129,7 +129,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
         init_warp,
         scene_files,
     )
-    from warp_spt.io.images import save_image, to_display
+    from warp_spt.images.files import save_image, to_display
     from warp_spt.runtime.progress import ProgressBar
 
     say = say_for(opts, err)

@@ -140,7 +140,7 @@ def say_for(opts, err: TextIO):
 def load_texture_modules(opts, say) -> None:
     """Import the ``--textures`` files (they register procedural textures) before any scene is read."""
     if opts.texture_modules:
-        from warp_spt.core.proctex import load_texture_module
+        from warp_spt.device.proctex import load_texture_module
         for module in opts.texture_modules:
             say(f"textures from {module}: {', '.join(load_texture_module(module)) or 'none registered'}")
 

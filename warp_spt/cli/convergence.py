@@ -92,7 +92,7 @@ def main(argv: Sequence[str]) -> int:
 
 def _run(ns, opts, configs: list[str], err) -> int:
     from warp_spt.cli.common import init_warp, scene_files
-    from warp_spt.io.images import load_image
+    from warp_spt.images.files import load_image
     from warp_spt.io.loader import load_scene
 
     say = (lambda msg: None) if opts.quiet else (lambda msg: print(f"{PROG}: {msg}", file=err))

@@ -104,7 +104,7 @@ def _save(path: str, linear: np.ndarray, scalar: np.ndarray, title: str, scale: 
     import numpy as np
     from PIL import Image
 
-    from warp_spt.io.images import atomic_write, save_image
+    from warp_spt.images.files import atomic_write, save_image
 
     if Path(path).suffix.lower() == ".png":
         vmax = float(np.max(scalar)) if scalar.size else 0.0

@@ -31,8 +31,8 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, 
     ``err`` is where ``say`` writes (default stderr): on a terminal the passes rewrite one line there.
     """
     from warp_spt.cli.maps import save_error_map, save_spp_map
-    from warp_spt.core.device_scene import DeviceScene
-    from warp_spt.io.images import save_image
+    from warp_spt.upload.device_scene import DeviceScene
+    from warp_spt.images.files import save_image
 
     b: BudgetOptions = opts.budget
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)   # the CLI hands it uploaded
@@ -101,7 +101,7 @@ def _render_passes(opts, dev, spp: int | None, render_budget: float | None, star
     from dataclasses import fields
 
     from warp_spt.cli.options import settings_of
-    from warp_spt.io.images import save_image
+    from warp_spt.images.files import save_image
     from warp_spt.rendering.progressive import render_progressive
 
     b: BudgetOptions = opts.budget
@@ -234,7 +234,7 @@ def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int,
 
     import numpy as np
 
-    from warp_spt.io.images import tonemap_seed, tonemap_srgb
+    from warp_spt.images.files import tonemap_seed, tonemap_srgb
 
     t = time.perf_counter()
     blank = np.random.default_rng(0).random((height, width, 3), dtype=np.float32)

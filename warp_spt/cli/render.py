@@ -39,7 +39,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     check_registry_names(opts)
     import numpy as np
 
-    from warp_spt.io.images import save_image
+    from warp_spt.images.files import save_image
     from warp_spt.io.loader import load_scene
     from warp_spt.rendering.tiles import render_scene
     from warp_spt.scene.recentre import describe_bounds

@@ -39,7 +39,7 @@ def prepare_view(opts, scene, say, notice: "CompileNotice | None" = None) -> tup
     :func:`warp_spt.cli.view_checks.should_frame`), checked for views that show nothing, and given the studio
     preset if asked. The probe's kernel may compile on a first run: ``notice`` announces it.
     """
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
 
     with notice or CompileNotice(say):
         scene, camera, sky = _view(opts, scene, say)
@@ -113,7 +113,7 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
 
 def _environment(opts, say) -> Sky:
     """The --env map as a sky (RunError naming the file if it cannot be read)."""
-    from warp_spt.io.environment import load_environment
+    from warp_spt.images.environment import load_environment
 
     e = opts.env
     try:

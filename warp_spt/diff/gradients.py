@@ -39,10 +39,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 import warp as wp
 
-from warp_spt.core.camera_rays import CameraParams
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.lights import (
+from warp_spt.device.camera_rays import CameraParams
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.emitters import (
     PARAMETER_KINDS,
     PATHWISE_FIELDS,
     Lights,
@@ -50,9 +50,9 @@ from warp_spt.core.lights import (
     alias_parameters,
     parameter_arrays,
 )
-from warp_spt.core.media.table import Media, media_of
-from warp_spt.core.material_table import with_gradients
-from warp_spt.core.textures import tile_view
+from warp_spt.device.media_table import Media, media_of
+from warp_spt.device.material_table import with_gradients
+from warp_spt.device.textures import tile_view
 from warp_spt.diff.params import (
     CAMERA_FIELDS,
     COLOR_FIELDS,

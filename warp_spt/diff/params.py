@@ -42,13 +42,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from warp_spt.core.camera_rays import CAMERA_FIELDS
-from warp_spt.core.camera_rays import camera_frame as kernel_camera_frame
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.proctex import get_texture
-from warp_spt.core.textures import tile_view
+from warp_spt.device.camera_rays import CAMERA_FIELDS
+from warp_spt.device.camera_rays import camera_frame as kernel_camera_frame
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.device.proctex import get_texture
+from warp_spt.device.textures import tile_view
 from warp_spt.scene.camera import Camera
-from warp_spt.core.media.table import media_of
+from warp_spt.device.media_table import media_of
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_RADIANCE
 from warp_spt.scene.material_schema import (
@@ -64,7 +64,7 @@ from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 from warp_spt.scene.validate import check_procedural_colours
 
-# the environment map's light kind (core.lights.envmap) and its parameters, in the order of the rows
+# the environment map's light kind (emitters.envmap) and its parameters, in the order of the rows
 # of its parameter array (EnvLight.params): Sky fields
 ENVIRONMENT = "environment"
 ENVIRONMENT_FIELDS = ("strength", "rotate")
@@ -353,7 +353,7 @@ def _describe(scene: Scene, sky: Sky) -> dict[str, ParamInfo]:
 # The kernel's camera frame (integrators.CameraParams), whose gradients render_gradients computes
 def camera_frame(camera: Camera, width: int, height: int) -> np.ndarray:
     """(6, 3) float64: the CameraParams vectors of ``camera`` in CAMERA_FIELDS order
-    (``core.camera_rays.camera_frame``, the kernels' own)."""
+    (``device.camera_rays.camera_frame``, the kernels' own)."""
     f = kernel_camera_frame(camera, width, height)
     return np.stack([f[k] for k in CAMERA_FIELDS])
 

@@ -32,7 +32,7 @@ parameters that change the integrand but not the sampled directions: colours, em
 procedural-texture parameters, the sky's colours (constant, or the gradient's zenith and nadir),
 and ``Roughness`` through the score term (``materials.lobe_weight``) and the diffuse density.
 The sampling itself carries no derivative either: the light sample's point, direction and density
-(``core.lights.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
+(``emitters.detach_lights``) and the MIS weights (``nee``'s ``mis_weight``). Held at their values, the
 two techniques' weights still sum to 1 at every point, so their derivatives would only add terms
 whose expectation is 0; dropping them keeps the gradient unbiased, and each vertex's adjoint is one
 call (the BSDF-side weight of the next vertex would otherwise need this vertex's density
@@ -57,11 +57,11 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_spt.core.camera_rays import CameraParams
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.cutout import make_hit
-from warp_spt.core.geometry import Hit
-from warp_spt.core.lights import Lights
+from warp_spt.device.camera_rays import CameraParams
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.bsdfs.cutout import make_hit
+from warp_spt.accel.ray_queries import Hit
+from warp_spt.emitters import Lights
 from warp_spt.integrators import PathState, RenderParams, get_vertex
 from warp_spt.integrators.nee import VIS_TRACE
 from warp_spt.rendering.setup import KernelKind, register_kind, render_features

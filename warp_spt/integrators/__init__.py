@@ -20,9 +20,9 @@ from collections.abc import MutableMapping
 
 import warp as wp
 
-from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray
-from warp_spt.core.structs import Features
-from warp_spt.core.proctex import explain_compile_failure
+from warp_spt.device.camera_rays import CameraParams, camera_params, camera_ray
+from warp_spt.device.structs import Features
+from warp_spt.device.proctex import explain_compile_failure
 from warp_spt.integrators.common import (
     Integrator,
     Param,
@@ -173,7 +173,7 @@ def _own_code(integrator: str, sampler: str, features: Features) -> bool:
     """Whether the fast kernel of (integrator, sampler, features) is this package's code alone, the
     common kernel around an integrator and a sampler of its own and no procedural texture: what
     ``kernel_index``'s key covers (a plugin's source is not in its digest)."""
-    from warp_spt.core.media.registry import KINDS as MEDIA_KINDS
+    from warp_spt.media.registry import KINDS as MEDIA_KINDS
     from warp_spt.samplers import SAMPLERS
 
     rec = get_integrator(integrator)

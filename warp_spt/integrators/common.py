@@ -22,11 +22,11 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import warp as wp
 
-from warp_spt.core.camera_rays import CameraParams, camera_params, camera_ray  # noqa: F401 (re-exported)
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.lights import Lights
-from warp_spt.core.materials import BsdfSample
-from warp_spt.core.surface import Surface, offset_origin
+from warp_spt.device.camera_rays import CameraParams, camera_params, camera_ray  # noqa: F401 (re-exported)
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.emitters import Lights
+from warp_spt.bsdfs import BsdfSample
+from warp_spt.accel.surface import Surface, offset_origin
 from warp_spt.scene.numbers import plain_float, plain_int
 from warp_spt.samplers import Sampler, SamplerState
 

@@ -57,8 +57,8 @@ from typing import Any, Mapping
 import numpy as np
 import warp as wp
 
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.lights import Lights
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.emitters import Lights
 from warp_spt.integrators.common import (
     FAST_KERNEL_OPTIONS,
     FULL_STRIDE,
@@ -70,7 +70,7 @@ from warp_spt.integrators.common import (
     add_to_pixel,
     finite3,
 )
-from warp_spt.integrators.guiding_tree import box_of
+from warp_spt.integrators.guided.tree import box_of
 from warp_spt.integrators.nee import VertexHooks, make_path_step
 from warp_spt.integrators.passes import run_pass
 from warp_spt.samplers import Sampler

@@ -2,7 +2,7 @@
 
 At every vertex whose material has a lobe with a density (diffuse or glossy: ``lobes &
 LOBE_SMOOTH``, the material contract's flags), one light is
-sampled from the light table (``warp_spt.core.lights``) and joined by an any-hit shadow ray; the BSDF
+sampled from the light table (``warp_spt.emitters``) and joined by an any-hit shadow ray; the BSDF
 sample that continues the path may hit an emitter too, and each of the two estimates is weighted by
 the power heuristic, so their sum counts each light path once. Specular lobes (the seed's fuzzy
 mirror and glass, smooth metal and glass) continue by sampling only and the emitter they hit counts in full. Camera rays count emitters in
@@ -19,14 +19,14 @@ from typing import Callable
 
 import warp as wp
 
-from warp_spt.core.adjoint import zero_adjoint
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.cutout import make_blocked, make_hit
-from warp_spt.core.geometry import KIND_MISS, Hit
-from warp_spt.core.lights import LightSample, Lights, detach_lights, make_lights, reuse_pick
-from warp_spt.core.lobes import LOBE_SMOOTH
-from warp_spt.core.materials import make_materials
-from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
+from warp_spt.device.adjoint import zero_adjoint
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.bsdfs.cutout import make_blocked, make_hit
+from warp_spt.accel.ray_queries import KIND_MISS, Hit
+from warp_spt.emitters import LightSample, Lights, detach_lights, make_lights, reuse_pick
+from warp_spt.device.lobes import LOBE_SMOOTH
+from warp_spt.bsdfs import make_materials
+from warp_spt.accel.surface import Surface, detach_surface, make_surface, offset_origin
 from warp_spt.integrators.common import (
     DIM_BOUNCE,
     FULL_STRIDE,
@@ -77,7 +77,7 @@ zero_adjoint(detached, (float,))
 def make(features: Features, sampler: Sampler, differentiable: bool = False):
     """The bounce step of NEE + MIS for scenes with these features (``differentiable``: for the tape's
     differentiable kernel, hits carry derivatives in the ray, ``geometry.make_closest_hit``; cut-outs:
-``core.cutout``)."""
+``bsdfs.cutout``)."""
     return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 

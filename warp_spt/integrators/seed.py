@@ -8,7 +8,7 @@ It is the NEE step with light sampling (and roulette) compiled out: MIS weights 
 
 from __future__ import annotations
 
-from warp_spt.core.structs import Features
+from warp_spt.device.structs import Features
 from warp_spt.integrators.common import SEED_STRIDE, Integrator
 from warp_spt.integrators.nee import make_path_step, make_path_vertex
 from warp_spt.samplers import Sampler

@@ -2,7 +2,7 @@
 
 Each step traces the path's ray to the next surface as ``nee`` does; where the ray travels in a
 medium (``PathState.medium``), a free flight (delta tracking with spectral MIS over the RGB channels,
-``core.media``) first decides whether it scatters in the medium before that surface. A scattering
+``media``) first decides whether it scatters in the medium before that surface. A scattering
 vertex counts as a bounce (depth, sample dimensions, roulette): it samples a light (a shadow ray whose
 transmittance ratio tracking estimates) with MIS against the phase function, then continues in a
 Henyey-Greenstein direction. A ray that reaches the surface, weighed by the flight, goes on to
@@ -24,15 +24,15 @@ from types import SimpleNamespace
 
 import warp as wp
 
-from warp_spt.core.adjoint import zero_adjoint
-from warp_spt.core.cutout import make_blocked, make_hit
-from warp_spt.core.geometry import KIND_MISS, KIND_TRIANGLE, Hit
-from warp_spt.core.lights import LightSample, Lights, detach_lights, make_lights
-from warp_spt.core.materials import make_materials
-from warp_spt.core.media import EVENT_ABSORB, EVENT_SCATTER, hg, hg_eval, hg_sample, make_media
-from warp_spt.core.sampling import hash_u32, stream_state
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.surface import Surface, detach_surface, make_surface, offset_origin
+from warp_spt.device.adjoint import zero_adjoint
+from warp_spt.bsdfs.cutout import make_blocked, make_hit
+from warp_spt.accel.ray_queries import KIND_MISS, KIND_TRIANGLE, Hit
+from warp_spt.emitters import LightSample, Lights, detach_lights, make_lights
+from warp_spt.bsdfs import make_materials
+from warp_spt.media import EVENT_ABSORB, EVENT_SCATTER, hg, hg_eval, hg_sample, make_media
+from warp_spt.device.sampling import hash_u32, stream_state
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.accel.surface import Surface, detach_surface, make_surface, offset_origin
 from warp_spt.integrators.common import (DIM_BOUNCE, OFF_DIR, OFF_ROULETTE, Integrator, PathState, RenderParams,
                                          finite3)
 from warp_spt.integrators.nee import (
@@ -157,7 +157,7 @@ def _make_vertex(features: Features, sampler: Sampler, inline: bool | None, repl
     material_of = make_material_of(features)
     crosses = "interface" in features.media
 
-    @wp.func(inline=False)     # called, not inlined: see core.media's free_flight (NVRTC's cost)
+    @wp.func(inline=False)     # called, not inlined: see media's free_flight (NVRTC's cost)
     def shadow_path(geo: Geometry, mats: Materials, tex: Textures, medium: int, o: wp.vec3, d: wp.vec3,
                     t_max: float, rng: wp.uint32):
         """Transmittance from ``o`` (in ``medium``) to ``t_max`` along ``d``, 0 when a surface blocks

@@ -35,7 +35,7 @@ standard tags it may also use map onto the seed's model as they always did:
   ``Fuzz = Pr``.
 
 Every other file is **standard**: its materials are of the physically based kind ``pbr``
-(``warp_spt.core.materials.pbr``; docs/materials.md), colour maps decoded from sRGB, data maps linear:
+(``warp_spt.bsdfs.pbr``; docs/materials.md), colour maps decoded from sRGB, data maps linear:
 
 * ``Kd`` / ``map_Kd``: base colour; ``Ke`` / ``map_Ke``: emission.
 * ``Pm`` / ``map_Pm``: metallic; ``Pr`` / ``map_Pr``: roughness (perceptual, alpha = Pr^2). Without
@@ -61,7 +61,7 @@ Every other file is **standard**: its materials are of the physically based kind
   options it read but does not support.
 
 ``map_* proc:NAME key=value ...`` names a procedural texture instead of a file (syntax and
-built-ins: :mod:`warp_spt.core.proctex`; read against the textures' Warp-free declarations,
+built-ins: :mod:`warp_spt.device.proctex`; read against the textures' Warp-free declarations,
 :mod:`warp_spt.scene.proctex_registry`); an unknown name or key is a SceneError with file and line.
 
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and

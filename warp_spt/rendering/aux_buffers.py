@@ -20,14 +20,14 @@ from dataclasses import replace
 import numpy as np
 import warp as wp
 
-from warp_spt.core.camera_rays import CameraParams, camera_ray
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.structs import Features, Geometry, Materials, Textures
-from warp_spt.core.cutout import make_hit
-from warp_spt.core.geometry import KIND_MISS
-from warp_spt.core.lobes import LOBE_SMOOTH
-from warp_spt.core.materials import make_materials
-from warp_spt.core.surface import make_surface, offset_origin
+from warp_spt.device.camera_rays import CameraParams, camera_ray
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.bsdfs.cutout import make_hit
+from warp_spt.accel.ray_queries import KIND_MISS
+from warp_spt.device.lobes import LOBE_SMOOTH
+from warp_spt.bsdfs import make_materials
+from warp_spt.accel.surface import make_surface, offset_origin
 from warp_spt.integrators.common import DIM_BOUNCE, DIM_LENS, DIM_PIXEL, RenderParams
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.rendering.setup import Bound, KernelKind, bind, register_kind

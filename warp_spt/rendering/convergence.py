@@ -106,7 +106,7 @@ def run_report(scene, camera, *, width: int, height: int, max_spp: int, referenc
                reference: np.ndarray | None = None, configs: Sequence[str] | None = None,
                seed: int = 0, say=lambda msg: None, **render_kw) -> tuple[list[Row], dict[str, Fit], dict]:
     """Render the reference (unless given) and every configuration at every level; fit the slopes."""
-    from warp_spt.core.device_scene import DeviceScene
+    from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.rendering.progressive import render_progressive
 
     dev = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
@@ -229,7 +229,7 @@ def timed(render):
 
 
 def write_csv(path: str | Path, rows: Sequence[Row]) -> None:
-    from warp_spt.io.images import atomic_write
+    from warp_spt.images.files import atomic_write
 
     buf = io.StringIO()
     w = csv.writer(buf)
@@ -240,7 +240,7 @@ def write_csv(path: str | Path, rows: Sequence[Row]) -> None:
 
 
 def write_json(path: str | Path, rows: Sequence[Row], fits: dict[str, Fit], meta: dict) -> None:
-    from warp_spt.io.images import atomic_write
+    from warp_spt.images.files import atomic_write
 
     doc = dict(meta, columns=list(COLUMNS), rows=[asdict(r) for r in rows],
                fits={k: asdict(v) for k, v in fits.items()})
@@ -258,7 +258,7 @@ def write_plot(path: str | Path, rows: Sequence[Row], fits: dict[str, Fit], titl
         from warp_spt.runtime.extras import install_hint
         raise RuntimeError(f"the PNG plot needs matplotlib: {install_hint('plot')} "
                            "(or use --no-plot; the CSV and JSON are written anyway)") from None
-    from warp_spt.io.images import atomic_write
+    from warp_spt.images.files import atomic_write
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     # small images render in milliseconds: label the time axis in them rather than in 2x10^-3 s

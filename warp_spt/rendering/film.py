@@ -6,7 +6,7 @@ different machines and merged with :meth:`Film.add`. Because every sample's rand
 only on (seed, pixel, sample index), the merged result is deterministic; it is bit-for-bit identical
 to a single film that accumulated the same partial sums in the same order (float64 addition is not
 associative, so merge in a fixed order, e.g. by increasing sample offset). Tone maps and image
-files are :mod:`warp_spt.io.images`.
+files are :mod:`warp_spt.images.files`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from warp_spt.io.images import atomic_write
+from warp_spt.images.files import atomic_write
 
 FILM_FORMAT_VERSION = 1
 

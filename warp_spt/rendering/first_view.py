@@ -113,7 +113,7 @@ def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | N
     """Cast one pinhole ray through each pixel centre of a small image (default 64 wide)."""
     import warp as wp
 
-    from warp_spt.core.camera_rays import pinhole_directions  # the kernels' camera frame
+    from warp_spt.device.camera_rays import pinhole_directions  # the kernels' camera frame
     from warp_spt.runtime.warp_init import init_warp
 
     init_warp()              # quietly, once (the viewer and the API reach here before any upload)

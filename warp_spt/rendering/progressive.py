@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene
+from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.integrators import check_sliceable, fast_inputs
 from warp_spt.rendering.result import (
     ERROR_FLOOR_FRACTION,

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from warp_spt.core.structs import Features
+from warp_spt.device.structs import Features
 from warp_spt.rendering.film import Film
 from warp_spt.rendering.settings import RenderSettings
 

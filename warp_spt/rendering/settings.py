@@ -11,7 +11,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from warp_spt.core.structs import Features
+from warp_spt.device.structs import Features
 from warp_spt.integrators import DEFAULT_INTEGRATOR, get_integrator
 from warp_spt.runtime.warp_init import check_device
 from warp_spt.samplers import DEFAULT_SAMPLER, check_sampler

@@ -19,10 +19,10 @@ from typing import Any, Callable
 
 import warp as wp
 
-from warp_spt.core.camera_rays import CameraParams, camera_params
-from warp_spt.core.device_scene import DeviceScene, Features, Textures
-from warp_spt.core.lights import Lights, light_table, sky_features
-from warp_spt.core.media.table import interface_media
+from warp_spt.device.camera_rays import CameraParams, camera_params
+from warp_spt.upload.device_scene import DeviceScene, Features, Textures
+from warp_spt.emitters import Lights, light_table, sky_features
+from warp_spt.device.media_table import interface_media
 from warp_spt.integrators import Integrator, RenderParams, get_integrator, get_kernel
 from warp_spt.rendering.settings import RenderSettings, check_args, check_rows
 from warp_spt.scene.camera import Camera

@@ -13,8 +13,8 @@ import warnings as _warnings
 import numpy as np
 import warp as wp
 
-from warp_spt.core.device_scene import DeviceScene
-from warp_spt.core.proctex import nonfinite_textures
+from warp_spt.upload.device_scene import DeviceScene
+from warp_spt.device.proctex import nonfinite_textures
 from warp_spt.integrators import fast_inputs
 from warp_spt.rendering.film import Film
 from warp_spt.rendering.result import RenderResult, RenderStats

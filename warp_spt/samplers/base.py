@@ -61,7 +61,7 @@ def detach_requests(next_1d, next_2d) -> None:
     sample, dimension), so no derivative flows through them. Without this, Warp's adjoint of a
     request re-runs its forward and then its callees' adjoints, each re-running their own forwards
     (a Sobol' request's hashes several times per differentiated vertex)."""
-    from warp_spt.core.adjoint import zero_adjoint
+    from warp_spt.device.adjoint import zero_adjoint
 
     zero_adjoint(next_1d, (float, SamplerState))
     zero_adjoint(next_2d, (wp.vec2, SamplerState))

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_spt.core.sampling import stream_state
+from warp_spt.device.sampling import stream_state
 from warp_spt.samplers.base import Sampler, SamplerState, detach_requests, sampler_state
 
 

@@ -1,10 +1,10 @@
 """An environment map on the host: an equirectangular (latitude-longitude) float32 radiance image,
-checked once when it is made (no Warp, no files: ``warp_spt.io.environment`` reads them).
+checked once when it is made (no Warp, no files: ``warp_spt.images.environment`` reads them).
 
 Orientation, Mitsuba 3's (its ``envmap`` emitter, Y up): row 0 is the zenith of the sky's up axis
 and the last row its nadir (polar angle theta = pi (row + 0.5) / height at a row's centre); the map's
 u = (c + 0.5) / width is psi / 2 pi with psi = atan2(-d.t, -d.b) in the sky frame (t, b, up)
-(``core.lights.sky.sky_frame``): for Y up, t = -X and b = +Z, so psi = atan2(x, -z) as Mitsuba's;
+(``emitters.sky.sky_frame``): for Y up, t = -X and b = +Z, so psi = atan2(x, -z) as Mitsuba's;
 for Z up, psi = atan2(-x, -y) (u = 1/2 straight along +Y). Seen from inside, u grows to the right,
 so the picture is not mirrored. A rotation of a degrees turns the map right-handedly about up (as
 Mitsuba's ``to_world`` rotation about its up axis): the direction at psi shows u = psi / 2 pi + a / 360.
@@ -119,7 +119,7 @@ def sampling_weights(image: np.ndarray, sampling: str = "importance") -> np.ndar
     weighs in full where light sampling cannot reach (falls back to the plain weights when that
     leaves nothing, a constant map)."""
     lum = texel_luminance(image)
-    # the radiance is linear between texel centres in azimuth (core.lights.envmap.env_radiance): a
+    # the radiance is linear between texel centres in azimuth (emitters.envmap.env_radiance): a
     # texel's mean over its area is 3/4 its own value and 1/8 of each neighbour's in its row, which
     # is also > 0 wherever the radiance is (else light sampling could never reach a bright texel's
     # spill into its dark neighbours: unbiased through BSDF sampling, but with wild variance)

@@ -14,7 +14,7 @@ the irradiance it gives a surface facing it. Angles are in degrees.
 
 None of them can be hit by a ray: they are sampled by next-event estimation only (the ``seed``
 integrator, pure path tracing, does not see them). ``Scene.lights`` holds them; the device side
-is ``warp_spt.core.lights.punctual``.
+is ``warp_spt.emitters.punctual``.
 """
 
 from __future__ import annotations

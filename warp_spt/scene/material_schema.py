@@ -7,14 +7,14 @@ reach it and its meaning. Everything else is derived from :data:`COLUMNS`, in it
 * ``warp_spt.scene.model``: the host :class:`Material` (fields and defaults) and :class:`MaterialTable`
   (one array per column), and the table's assembly from Materials (loader, studio);
 * ``warp_spt.scene.validate``: dtype, shape and range checks of the table;
-* ``warp_spt.core.material_table``: the device struct ``Materials``, its upload and its gradient aliases;
+* ``warp_spt.device.material_table``: the device struct ``Materials``, its upload and its gradient aliases;
 * ``warp_spt.diff.params`` and ``warp_spt.diff.optim``: parameter names, shapes, ranges and bounds.
 
 So adding a material field is one line here (then a material kind reads it in its kernel functions,
-``warp_spt.core.materials``). The order is the device struct's field order, which is in the kernels'
+``warp_spt.bsdfs``). The order is the device struct's field order, which is in the kernels'
 generated code: append new columns at the end.
 
-``MATERIAL_KINDS`` names the material models (``warp_spt.core.materials.<name>``), in the order of
+``MATERIAL_KINDS`` names the material models (``warp_spt.bsdfs.<name>``), in the order of
 their index in the ``kind`` column. Nothing here imports Warp.
 """
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from warp_spt.scene.limits import MAX_IOR, MAX_RADIANCE, MIN_IOR
 
-# Column types: what a row holds, on the host and on the device (warp_spt.core.material_table)
+# Column types: what a row holds, on the host and on the device (warp_spt.device.material_table)
 COLOR = "color"      # RGB: host (M, 3) float32, device vec3; Material: a tuple of 3 floats
 SCALAR = "scalar"    # host (M,) float32, device float32; Material: a float
 FLAG = "flag"        # host (M,) bool, device int32 (0/1); Material: a bool
@@ -32,7 +32,7 @@ INDEX = "index"      # host (M,) int32, device int32; Material: an int
 SLOTS = "slots"      # host (M, NUM_SLOTS) int32, device vec4i: the texture of each slot (model.TEX_*)
 
 # The material models, by index in the ``kind`` column: each is the module
-# warp_spt.core.materials.<name> (a new kind: that module and its name here). ``seed`` is the seed's
+# warp_spt.bsdfs.<name> (a new kind: that module and its name here). ``seed`` is the seed's
 # model (its dialect, the built-in demo, the studio's clay); ``pbr`` the physically based one
 # (glTF metallic-roughness and its extensions; standard MTL files).
 MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr")

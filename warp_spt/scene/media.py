@@ -20,7 +20,7 @@ import numpy as np
 
 from warp_spt.scene.numbers import plain_float
 
-MEDIUM_KINDS = ("homogeneous", "grid")      # the device kinds (warp_spt.core.media), by index
+MEDIUM_KINDS = ("homogeneous", "grid")      # the device kinds (warp_spt.media), by index
 MAX_GRID_VOXELS = 256 ** 3                  # a dense grid's voxels (the memory budget: 4 bytes each)
 MAX_SIGMA = 1.0e6                    # per unit length: beyond it a medium is a surface
 MAX_MAJORANT = 64.0
@@ -62,7 +62,7 @@ class Medium:
 
     def check(self, where: str = "medium") -> "Medium":
         """ValueError naming ``where`` and the field for a value a kernel must not see (a grid's
-        file is read, and its values checked, when it is uploaded: ``core.media.grid``)."""
+        file is read, and its values checked, when it is uploaded: ``media.grid``)."""
         if self.density is not None:
             _check_grid(self, where)
         for name in ("sigma_a", "sigma_s", "emission"):

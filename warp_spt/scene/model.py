@@ -2,7 +2,7 @@
 
 Data flows one way: ``obj``/``mtl`` parse text into :class:`ObjData` and :class:`Material`;
 :func:`load_scene` resolves materials and textures and assembles a :class:`Scene`; the engine
-(``warp_spt.core.device_scene``) turns a Scene into Warp meshes, a top-level BVH and a texture atlas.
+(``warp_spt.upload.device_scene``) turns a Scene into Warp meshes, a top-level BVH and a texture atlas.
 Nothing in this module imports Warp.
 """
 
@@ -31,7 +31,7 @@ from warp_spt.scene.material_schema import (
 # Texture slot values in MaterialTable.tex: an index >= 0 names Scene.textures[k].
 TEX_NONE = -1      # use the constant colour
 TEX_CHECKER = -2   # the built-in Inner_CheckerTexture pattern (SEMANTICS §10)
-TEX_PROC_BASE = -3  # -3 - k: procedural texture instance k (Scene.procedural, warp_spt.core.proctex)
+TEX_PROC_BASE = -3  # -3 - k: procedural texture instance k (Scene.procedural, warp_spt.device.proctex)
 
 # Columns of MaterialTable.tex (the texture slots of the schema's colours)
 SLOT_DIFFUSE, SLOT_REFLECT, SLOT_REFRACT, SLOT_EMISSION = (
@@ -349,7 +349,7 @@ class Scene:
 
         Positions stay float64 from the parser until the scene is recentred
         (:func:`warp_spt.scene.recentre.recentre`), so a scene far from the origin is shifted before
-        anything is rounded; the upload (:class:`warp_spt.core.device_scene.DeviceScene`) rounds once,
+        anything is rounded; the upload (:class:`warp_spt.upload.device_scene.DeviceScene`) rounds once,
         here. Returns ``self`` when nothing needs rounding.
         """
         meshes = [m if m.positions.dtype == np.float32 else replace(m, positions=m.positions.astype(np.float32))

@@ -3,7 +3,7 @@
 Python's ``int()`` and ``float()`` also take ``1_0``, ``inf``, ``nan``, Arabic-Indic and full-width
 digits, and ``int()`` raises its own error past 4,300 digits: none of that is a number here. The
 patterns are kept as text so the OBJ/MTL tokenizer (bytes) and the command line (str) compile the
-same ones. It lives in ``scene/`` (no imports), below ``core/``, so that a procedural texture's
+same ones. It lives in ``scene/`` (no imports), below the device families (``device/`` and above), so that a procedural texture's
 ``key=value`` numbers (``scene.proctex_registry.parse_proc_map``) take the same syntax.
 """
 

@@ -2,13 +2,13 @@
 references (:class:`ProcRef`) that MTL files and the API make to them. No Warp.
 
 A declaration is a name and a parameter layout (defaults and ranges); the texture's Warp function
-lives beside it in :mod:`warp_spt.core.proctex`, registered under the same name by
-:func:`warp_spt.core.proctex.texture`. Reading a scene needs only the declarations: an MTL line
+lives beside it in :mod:`warp_spt.device.proctex`, registered under the same name by
+:func:`warp_spt.device.proctex.texture`. Reading a scene needs only the declarations: an MTL line
 ``map_Kd proc:noise scale=2`` is checked and packed here, so the MTL reader (``io/mtl.py``) works
-without Warp and ``io/`` stays below ``core/``. The built-ins' declarations (:data:`BUILTINS`) are
+without Warp and ``io/`` stays below ``device/``. The built-ins' declarations (:data:`BUILTINS`) are
 the one home of their parameters; their Warp functions take them from here.
 
-Syntax and semantics of textures, parameters and ``proc:`` maps: :mod:`warp_spt.core.proctex`.
+Syntax and semantics of textures, parameters and ``proc:`` maps: :mod:`warp_spt.device.proctex`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_RADIANCE
 from warp_spt.scene.numbers import plain_float
 
-MAX_PARAMS = 16           # floats in a texture's parameter vector (core.proctex.ProcParams)
+MAX_PARAMS = 16           # floats in a texture's parameter vector (device.proctex.ProcParams)
 PREFIX = "proc:"
 MAX_PARAMETER = 1e15      # undeclared numbers: as far as a coordinate may go (scene.limits.MAX_COORDINATE)
 
@@ -42,7 +42,7 @@ class ProcParam:
 
 @dataclass(frozen=True)
 class ProcTexture:
-    """A texture's declaration: its name and parameter layout (its Warp function: core.proctex)."""
+    """A texture's declaration: its name and parameter layout (its Warp function: device.proctex)."""
 
     name: str
     params: tuple[tuple[str, tuple[float, ...]], ...]   # (key, default values) in layout order
@@ -81,7 +81,7 @@ class ProcTexture:
 
 def declare(name: str, **params) -> ProcTexture:
     """The declaration of texture ``name`` with these parameters (numbers, RGB triples or
-    :class:`ProcParam`), checked; it is registered with its Warp function (core.proctex), not here."""
+    :class:`ProcParam`), checked; it is registered with its Warp function (device.proctex), not here."""
     if not name or not all(c.isalnum() or c in "_-" for c in name):
         raise ValueError(f"procedural texture name {name!r}: use letters, digits, '_' or '-'")
     declared = {k: v if isinstance(v, ProcParam) else ProcParam(v) for k, v in params.items()}
@@ -102,7 +102,7 @@ def _default(name: str, key: str, value) -> tuple[float, ...]:
     return tuple(float(v) for v in vals)
 
 
-# The built-ins' parameters (their Warp functions in core.proctex read them from here).
+# The built-ins' parameters (their Warp functions in device.proctex read them from here).
 BUILTINS = MappingProxyType({t.name: t for t in (
     declare("checker"),
     declare("noise", scale=ProcParam(4.0, -1e6, 1e6), color1=(0.0, 0.0, 0.0), color2=(1.0, 1.0, 1.0)),
@@ -118,7 +118,7 @@ _REGISTRY: dict[str, ProcTexture] = dict(BUILTINS)   # a plugin registry, like I
 
 
 def register_declaration(tex: ProcTexture) -> None:
-    """Make ``tex`` the declaration of its name (replacing an earlier one); core.proctex's
+    """Make ``tex`` the declaration of its name (replacing an earlier one); device.proctex's
     ``register_texture`` calls it with the Warp function's registration, so the two agree."""
     _REGISTRY[tex.name] = tex
 
@@ -203,7 +203,7 @@ def colour_problem(tag: str, high: float, key: str, name: str, vals) -> str | No
 
 
 def instance_arrays(refs: list[ProcRef], key: tuple[tuple[str, str], ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-instance kind (index into ``key``, core.proctex.features_key) and (K, MAX_PARAMS) float32
+    """Per-instance kind (index into ``key``, device.proctex.features_key) and (K, MAX_PARAMS) float32
     parameters."""
     order = {name: i for i, (name, _) in enumerate(key)}
     kinds = np.array([order.get(r.name, -1) for r in refs], dtype=np.int32)

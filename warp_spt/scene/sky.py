@@ -34,7 +34,7 @@ class Sky:
     (0.75-0.25z, 0.85-0.15z, 1).
 
     ``up`` is that axis (any non-zero 3-vector, stored normalised), or None to follow the camera's
-    ``up`` (see :func:`warp_spt.core.lights.light_table`). A constant sky does not depend on it.
+    ``up`` (see :func:`warp_spt.emitters.light_table`). A constant sky does not depend on it.
 
     SKY_ENVIRONMENT is an environment map (``env``, see :meth:`environment`): its radiance
     times ``strength``, turned by ``rotate`` degrees about the up axis; ``background``, if given, is
@@ -128,7 +128,7 @@ class Sky:
 
     def colour_fields(self) -> tuple[str, ...]:
         """The colours this sky is made of, in the order of their rows in the device's colour array
-        (``warp_spt.core.lights.sky``) and of the parameters ``sky.<field>`` (``warp_spt.diff.params``)."""
+        (``warp_spt.emitters.sky``) and of the parameters ``sky.<field>`` (``warp_spt.diff.params``)."""
         if self.kind == SKY_ENVIRONMENT:
             return ()
         return ("color",) if self.kind != SKY_GRADIENT else ("zenith", "nadir")

@@ -19,7 +19,7 @@ ERROR_FLOOR_FRACTION = 0.1        # as warp_spt.relative_error: divide by max(va
 
 def tonemapped(image: np.ndarray, exposure: float = 0.0, tonemap: str = "seed") -> np.ndarray:
     """uint8 (H, W, 3): the image after exposure (stops) and warp_spt's tone map ``"srgb"`` or ``"seed"``
-    (:func:`warp_spt.io.images.to_display`, the CLI's --exposure too)."""
+    (:func:`warp_spt.images.files.to_display`, the CLI's --exposure too)."""
     import warp_spt
 
     return warp_spt.to_display(image, tonemap, exposure)

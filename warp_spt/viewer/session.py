@@ -827,7 +827,7 @@ class Session:
         """The page's lights or fog changed: upload the scene again with them (its meshes are
         reused; material edits are kept: they live in the uploaded scene's host copy)."""
         import warp_spt
-        from warp_spt.core.device_scene import DeviceScene
+        from warp_spt.upload.device_scene import DeviceScene
 
         with self._cond:
             s, params = self._settings, self._params
@@ -849,7 +849,7 @@ class Session:
         except Exception as err:
             self._fail(str(err) if _is_scene_error(err) else f"{type(err).__name__}: {err}", scene_lost=True)
             return
-        from warp_spt.core.device_scene import DeviceScene
+        from warp_spt.upload.device_scene import DeviceScene
         from warp_spt.scene.camera import AXES
 
         first = self._rig is None

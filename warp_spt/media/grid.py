@@ -1,0 +1,164 @@
+"""The grid medium kind: a density grid (NanoVDB through ``wp.Volume``) and its majorant grid.
+
+The density at a point is the grid's trilinear interpolation (0 outside it) in its index space, to
+which the medium's 4x4 ``to_grid`` takes scene points (the user's placement, then the grid's own
+transform); coefficients are the medium's per-unit-density ones times it. A coarse majorant grid,
+built on the host, holds the largest density that can be interpolated in each of its cells (every
+voxel counts in every cell within one voxel of it, the reach of trilinear interpolation); free
+flights and ratio tracking walk it cell by cell (``segment``: the majorant that holds from ``t``
+to the next cell wall, a 3-D DDA step recomputed from the position), so empty cells are crossed in
+one step and thin ones with few tentative collisions. Outside the grid's box the majorant is 0.
+"""
+
+from __future__ import annotations
+
+import os
+from types import SimpleNamespace
+
+import numpy as np
+import warp as wp
+
+from warp_spt.device.media_table import Media
+from warp_spt.scene.errors import SceneError
+from warp_spt.scene.media import MAX_GRID_VOXELS, Medium, check_densities
+
+NAME = "grid"
+_INF = wp.constant(1.0e30)
+
+
+def make(features) -> SimpleNamespace:
+    """``coefficients(media, m, x)``, ``segment(media, m, o, d, t, t_max) -> (t_end, majorant)``."""
+
+    @wp.func
+    def density(media: Media, m: int, x: wp.vec3) -> float:
+        q = wp.transform_point(media.to_grid[m], x)
+        return wp.volume_sample_f(media.volume[m], q, wp.Volume.LINEAR)
+
+    @wp.func
+    def coefficients(media: Media, m: int, x: wp.vec3):
+        rho = density(media, m, x)
+        return media.sigma_a[m] * rho, media.sigma_s[m] * rho
+
+    @wp.func
+    def segment(media: Media, m: int, o: wp.vec3, d: wp.vec3, t: float, t_max: float):
+        M = media.to_grid[m]
+        oi = wp.transform_point(M, o)
+        di = wp.transform_vector(M, d)
+        lo = media.mg_lo[m]
+        cs = media.mg_cell[m]
+        res = media.mg_res[m]
+        zero = wp.vec3(0.0, 0.0, 0.0)
+        # the ray's interval inside the majorant grid's box
+        t_in = float(0.0)
+        t_out = float(_INF)
+        for a in range(3):
+            hi_a = lo[a] + float(res[a]) * cs[a]
+            if wp.abs(di[a]) < 1.0e-20:
+                if oi[a] < lo[a] or oi[a] > hi_a:
+                    return t_max, zero
+            else:
+                ta = (lo[a] - oi[a]) / di[a]
+                tb = (hi_a - oi[a]) / di[a]
+                t_in = wp.max(t_in, wp.min(ta, tb))
+                t_out = wp.min(t_out, wp.max(ta, tb))
+        if t_in >= t_out or t >= t_out:
+            return t_max, zero
+        if t < t_in:
+            return wp.min(t_in, t_max), zero
+        # the cell a little past t (a wall at t itself belongs to the cell the ray leaves)
+        big = wp.max(wp.max(wp.abs(di[0]) / cs[0], wp.abs(di[1]) / cs[1]), wp.abs(di[2]) / cs[2])
+        nudge = 1.0e-4 / big
+        p = oi + di * (t + nudge)
+        t_exit = float(t_out)
+        cell = wp.vec3i(0, 0, 0)
+        for a in range(3):
+            c = wp.clamp(int(wp.floor((p[a] - lo[a]) / cs[a])), 0, res[a] - 1)
+            cell[a] = c
+            if di[a] > 1.0e-20:
+                t_exit = wp.min(t_exit, (lo[a] + float(c + 1) * cs[a] - oi[a]) / di[a])
+            elif di[a] < -1.0e-20:
+                t_exit = wp.min(t_exit, (lo[a] + float(c) * cs[a] - oi[a]) / di[a])
+        t_end = wp.min(wp.max(t_exit, t + nudge), t_max)
+        k = media.mg_offset[m] + (cell[2] * res[1] + cell[1]) * res[0] + cell[0]
+        return t_end, media.majorant[m] * media.mg_values[k]
+
+    return SimpleNamespace(coefficients=coefficients, segment=segment)
+
+
+@wp.kernel
+def _lookup(volume: wp.uint64, ijk: wp.array(dtype=wp.vec3i), out: wp.array(dtype=float)):
+    i = wp.tid()
+    c = ijk[i]
+    out[i] = wp.volume_lookup_f(volume, c[0], c[1], c[2])
+
+
+def load_grid(medium: Medium, device: str, where: str):
+    """(wp.Volume, active voxels' (N, 3) int ijk, their densities): from the medium's array or file.
+    SceneError naming the file (the command line's one line) for one Warp cannot read as a float
+    NanoVDB grid, too large, or with negative or non-finite densities (ValueError for an array's)."""
+    src = medium.density
+    if isinstance(src, (str, bytes)) or hasattr(src, "__fspath__"):
+        path = os.fsdecode(src)
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except OSError as err:
+            raise SceneError(path, 0, f"cannot read the density grid ({err.strerror or err})") from None
+        try:
+            vol = wp.Volume.load_from_nvdb(data, device=device)
+            kind = vol.get_grid_info().type_str
+        except Exception as err:            # Warp validates the tree: its message, on one line
+            text = " ".join(str(err).split()) or type(err).__name__
+            raise SceneError(path, 0, f"not a valid NanoVDB grid ({text})") from None
+        if kind != "float":
+            raise SceneError(path, 0, f"the density grid holds {kind!r} values; a float grid was expected")
+        ijk = vol.get_voxels().numpy().astype(np.int32)
+        if len(ijk) > MAX_GRID_VOXELS:
+            raise SceneError(path, 0, f"{len(ijk):,} active voxels are over the budget of {MAX_GRID_VOXELS:,}")
+        vals = wp.zeros(len(ijk), dtype=float, device=device)
+        if len(ijk):
+            wp.launch(_lookup, dim=len(ijk), inputs=[vol.id, wp.array(ijk, dtype=wp.vec3i, device=device), vals],
+                      device=device)
+        vals = vals.numpy()
+        try:
+            check_densities(vals, "densities")
+        except ValueError as err:
+            raise SceneError(path, 0, str(err)) from None
+        return vol, ijk, vals
+    a = np.ascontiguousarray(np.asarray(src, dtype=np.float32))
+    check_densities(a, where)
+    vol = wp.Volume.load_from_numpy(a, min_world=medium.origin, voxel_size=medium.voxel_size, bg_value=0.0,
+                                    device=device)
+    ijk = np.argwhere(a != 0).astype(np.int32)
+    return vol, ijk, a[a != 0]
+
+
+def grid_index_transform(vol: wp.Volume, medium: Medium) -> np.ndarray:
+    """The 4x4 matrix from scene points to the grid's index space: the inverse of the medium's
+    ``to_world`` (its own space to the scene), then the grid's world-to-index map."""
+    info = vol.get_grid_info()
+    m = np.asarray(info.transform_matrix, dtype=np.float64).reshape(3, 3)
+    t = np.asarray(info.translation, dtype=np.float64)
+    to_index = np.eye(4)
+    to_index[:3, :3] = np.linalg.inv(m)
+    to_index[:3, 3] = -np.linalg.inv(m) @ t
+    w = np.eye(4) if medium.to_world is None else np.asarray(medium.to_world, dtype=np.float64)
+    return to_index @ np.linalg.inv(w)
+
+
+def majorant_grid(ijk: np.ndarray, vals: np.ndarray, cells: int):
+    """(lower corner, cell size (both index space), resolution (3,), max density per cell, x fastest):
+    every voxel counts in each cell within one voxel of it."""
+    if len(ijk) == 0:
+        return np.zeros(3), np.ones(3), np.ones(3, np.int64), np.zeros(1, np.float32)
+    lo = ijk.min(0).astype(np.float64) - 1.0
+    hi = ijk.max(0).astype(np.float64) + 1.0
+    cs = np.full(3, max((hi - lo).max() / cells, 2.0))
+    res = np.maximum(np.ceil((hi - lo) / cs).astype(np.int64), 1)
+    values = np.zeros(tuple(res[::-1]), np.float32)           # (z, y, x)
+    first = np.clip(np.floor((ijk - 1.0 - lo) / cs).astype(np.int64), 0, res - 1)
+    last = np.clip(np.floor((ijk + 1.0 - lo) / cs).astype(np.int64), 0, res - 1)
+    for bits in range(8):          # a voxel's reach spans at most two cells per axis (cells >= 2 voxels)
+        c = np.where([(bits >> a) & 1 for a in range(3)], last, first)
+        np.maximum.at(values, (c[:, 2], c[:, 1], c[:, 0]), vals.astype(np.float32))
+    return lo, cs, res, values.reshape(-1)

@@ -50,8 +50,8 @@ from warp_spt.rendering.result import relative_error  # noqa: E402
 
 
 def scenes(tmp: Path):
-    from tests.scenes import material
-    from tests.stability_scenes import (
+    from tests.support.scenes import material
+    from tests.support.stability_scenes import (
         cornell_camera,
         cornell_files,
         quads_obj,

@@ -8,7 +8,7 @@ sampled); equal-error efficiency ratios are printed against uniform. Figures onl
     python benchmarks/bench_envmap.py [--res 64] [--spp 16] [--ref-spp 1024] [--runs 3]
     python benchmarks/bench_envmap.py --vs-mitsuba [--spp 64] [--runs 3]
 
-``--vs-mitsuba``: the scene of the Mitsuba comparison (tests/mitsuba_envmap_scene.py: a grey, a rough
+``--vs-mitsuba``: the scene of the Mitsuba comparison (tests/support/mitsuba_envmap_scene.py: a grey, a rough
 gold and a rough glass sphere under the synthetic map, 48 x 24, camera rays not seeing the map),
 ours (nee + sobol, no roulette) against Mitsuba 3 (``path``, its default roulette,
 ``independent`` sampler, its envmap importance sampling, ``scalar_rgb``) at equal spp, each error against the stored reference
@@ -64,7 +64,7 @@ def vs_mitsuba(spp: int, runs: int) -> None:
     import mitsuba as mi
 
     import warp_spt as ws
-    from tests import mitsuba_envmap_scene as ES
+    from tests.support import mitsuba_envmap_scene as ES
     from warp_spt.upload.device_scene import DeviceScene
     from tests.data.make_mitsuba_envmap_refs import synthetic
     from warp_spt.rendering.result import relative_error

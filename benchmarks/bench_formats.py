@@ -40,7 +40,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.format_files import GltfBuilder, binary_ply_mesh  # noqa: E402
+from tests.support.format_files import GltfBuilder, binary_ply_mesh  # noqa: E402
 
 
 def grid(triangles: int) -> tuple[np.ndarray, np.ndarray]:
@@ -120,7 +120,7 @@ def main() -> None:
 def bench_instances(args) -> None:
     import warp as wp
 
-    from tests.test_instances import _cast_flat, _cast_inst, bumpy_sphere, flattened
+    from tests.accel.test_instances import _cast_flat, _cast_inst, bumpy_sphere, flattened
     from warp_spt.upload.instances import geometry_bytes, upload_instances
     from warp_spt.rendering.settings import RenderSettings
     from warp_spt.rendering.tiles import render_scene

@@ -693,7 +693,7 @@ def scenes(folder: Path) -> list[tuple[str, DeviceScene, Camera]]:
     ]
     try:
         sys.path.insert(0, str(REPO))
-        from tests.stability_scenes import cornell_camera, cornell_files
+        from tests.support.stability_scenes import cornell_camera, cornell_files
         out.append(("Cornell box (tests), 1 mesh + 2 spheres",
                     DeviceScene(load_scene(*cornell_files(folder), **quiet)), cornell_camera()))
     except ImportError:                      # an installed package without the tests
@@ -725,7 +725,7 @@ def merged_mesh(dev: DeviceScene) -> wp.Mesh:
 def small_scene_table(folder: Path, size: int, repeat: int) -> None:
     """Where visiting every item beats the TLAS (geometry.SMALL_SCENE): the tests' Cornell box with
     0..13 extra spheres, closest hits by the item loop against the TLAS traversal, same rays."""
-    from tests.stability_scenes import cornell_camera, cornell_files
+    from tests.support.stability_scenes import cornell_camera, cornell_files
     objs, mtls = cornell_files(folder)
     rng = np.random.default_rng(3)
     loop, tlas = (make_closest_hit(Features.general(), small_scene=k) for k in (64, 0))

@@ -159,7 +159,7 @@ def render_scenes(folder: Path) -> list:
     """(name, DeviceScene, Camera, Sky) of the --render scenes."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_rays import SKY, mitsuba_cornell
-    from tests.stability_scenes import cornell_camera, cornell_files
+    from tests.support.stability_scenes import cornell_camera, cornell_files
 
     from warp_spt.upload.device_scene import DeviceScene
     from warp_spt.io.loader import load_scene

@@ -40,7 +40,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.models import write_model                       # noqa: E402
+from tests.support.models import write_model                       # noqa: E402
 from warp_spt.upload.device_scene import DeviceScene           # noqa: E402
 from warp_spt.emitters import light_table                 # noqa: E402
 from warp_spt.emitters.sky import sky_frame               # noqa: E402

@@ -1,6 +1,6 @@
 """What the CLI's view checks cost (issue 10): probe, camera-inside test, recentring, view_checks.
 
-For a closed, welded blob of about 10k, 100k and 1M triangles (tests/models.py), times each check
+For a closed, welded blob of about 10k, 100k and 1M triangles (tests/support/models.py), times each check
 the CLI runs before a render that has no ``-cam`` (the probe's kernel is compiled once beforehand)
 and, for scale, the scene upload (``DeviceScene``: BVH build) that every render pays anyway. The
 camera-inside test is timed with the camera inside the blob (its worst case: the winding-number
@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from bench_parse import best_time as best  # noqa: E402  (this folder is on sys.path when run as a script)
 
-from tests.models import _sphere_grid  # noqa: E402
+from tests.support.models import _sphere_grid  # noqa: E402
 from warp_spt.cli import view_checks  # noqa: E402
 from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
 from warp_spt.io.mtl import builtin_clay  # noqa: E402

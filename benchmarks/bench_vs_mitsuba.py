@@ -25,13 +25,13 @@ glass      ``Kt 1``, ``Kr 1``, ``Refractable``,        ``dielectric``, ``int_ior
 The sky is a constant colour (``Sky.constant`` / a ``constant`` emitter; none when black).
 
 The fourth scene, ``envmap``, is lit by an environment map alone: the scene of
-``bench_envmap.py --vs-mitsuba`` and tests/test_envmap.py (``tests/mitsuba_envmap_scene.py``: a grey,
+``bench_envmap.py --vs-mitsuba`` and tests/emitters/test_envmap.py (``tests/support/mitsuba_envmap_scene.py``: a grey,
 a rough gold and a rough glass sphere under the synthetic sun + sky map, 48 x 24 pixels whatever
 the size asked, depth 100, the map hidden from the camera), against its stored reference (Mitsuba
 ``path``, 8 x 4096 spp, ``tests/data/mitsuba_envmap_refs.npz``; its own error, at 512 times the
 samples of a 64 spp estimate, is left out). Its agreement line is per 4 x 4 block, Welch's t of 8
 renders of different seeds against the stored reference's 8 runs, with the bound of
-tests/test_envmap.py (Bonferroni over the blocks at dof 7). It is not in
+tests/emitters/test_envmap.py (Bonferroni over the blocks at dof 7). It is not in
 ``--whole-process`` or ``--check-reference``.
 
 Differences the descriptions work around, and the ones that remain:
@@ -154,7 +154,7 @@ SCENES = {
         shapes=room(front=False) + box("white", (14, 14, S - 0.25), (18, 18, S), light="bottom")
         + [("sphere", "glass", (10.0, 12.0, 7.0), 7.0),
                                     ("sphere", "mirror", (23.0, 20.0, 6.0), 6.0)]),
-    # lit by an environment map only (tests/mitsuba_envmap_scene.py; see the module docstring)
+    # lit by an environment map only (tests/support/mitsuba_envmap_scene.py; see the module docstring)
     "envmap": dict(env=True),
 }
 
@@ -346,7 +346,7 @@ def env_scenes(folder: Path):
     """The envmap scene: (our DeviceScene, our camera, Mitsuba's scene for a sampler and spp, the
     stored reference (mean, per-run 4 x 4 block means))."""
     import warp_spt as ws
-    from tests import mitsuba_envmap_scene as ES
+    from tests.support import mitsuba_envmap_scene as ES
     from tests.data.make_mitsuba_envmap_refs import synthetic
     from warp_spt.upload.device_scene import DeviceScene
     objs, mtls = ES.write_files(folder)
@@ -381,13 +381,13 @@ def run_env_scene(name: str, folder: Path, spps, check_spp: int) -> list:
     sub = folder / name
     sub.mkdir()
     wscene, cam, mitsuba, (ref, runs), ES = env_scenes(sub)
-    # as tests/test_envmap.py: 8 renders of different seeds, block means per render, Welch t against the
+    # as tests/emitters/test_envmap.py: 8 renders of different seeds, block means per render, Welch t against the
     # stored runs' (the sun's rare bright samples make one render's own error estimate too small)
     imgs = [render_scene(wscene, cam, RenderSettings(width=ES.WIDTH, height=ES.HEIGHT, spp=max(1, check_spp // 8),
                                                      max_depth=ES.MAX_DEPTH, seed=300 + k)).image.astype(np.float64)
             for k in range(8)]
     from tests.data.make_mitsuba_envmap_refs import block_means
-    from tests.stability_scenes import t_quantile
+    from tests.support.stability_scenes import t_quantile
     ob = np.stack([block_means(x) for x in imgs])
     t = (ob.mean(axis=0) - runs.mean(axis=0)) / np.maximum(
         np.sqrt(ob.var(axis=0, ddof=1) / len(ob) + runs.var(axis=0, ddof=1) / len(runs)), 1e-12)

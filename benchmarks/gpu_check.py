@@ -14,7 +14,7 @@ Steps, each printed with its time:
 1. The machine: GPU (name, architecture, memory; ``nvidia-smi``'s driver), CPU model and cores,
    Python, Warp and numpy versions, the kernel cache's folder.
 2. The kernel cache warmed (the tests' and the table's kernels, CUDA and CPU).
-3. ``tests/test_gpu.py`` with ``WARP_SPT_TEST_DEVICE=cuda`` (every integrator x sampler on the GPU,
+3. ``tests/gpu/test_device_render.py`` with ``WARP_SPT_TEST_DEVICE=cuda`` (every integrator x sampler on the GPU,
    ``guided``/``ears`` deterministic there, GPU and CPU images statistically equal, the
    progressive and albedo/normal passes, ``--device cuda`` on the command line): pytest's summary
    and, on failure, its last lines; the exit status is pytest's.
@@ -49,7 +49,7 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 
 import numpy as np  # noqa: E402
 
-TEST_FILES = ("tests/test_gpu.py", "tests/test_gpu_kinds.py")
+TEST_FILES = ("tests/gpu/test_device_render.py", "tests/gpu/test_device_kinds.py")
 BLOCK = 16            # pixels per side of the blocks whose differences estimate the noise
 FLAG_T = 4.0
 
@@ -186,9 +186,9 @@ def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu:
         for _, device, wide in configs(gpu):
             dev = device_scene(host, device, wide, stand_in)
             jobs.append((unloaded_kernel(dev, rs(device, width=size, height=size, spp=spp, sky=sky)), device))
-    if tests:           # the kernels of tests/test_gpu.py (its Cornell box, every integrator x sampler)
-        from tests.stability_scenes import cornell_files
-        from tests.test_gpu_kinds import KIND_SCENES, settings
+    if tests:           # the kernels of tests/gpu/test_device_render.py (its Cornell box, every integrator x sampler)
+        from tests.support.stability_scenes import cornell_files
+        from tests.gpu.test_device_kinds import KIND_SCENES, settings
 
         from warp_spt.io.loader import load_scene
         host = load_scene(*cornell_files(folder), warn=lambda message: None)
@@ -203,7 +203,7 @@ def warm_jobs(scenes: dict, size: int, spp: int, tests: bool, folder: Path, gpu:
             jobs.append((unloaded_kernel(dev, rs(device, sampler="independent"), "aov"), device))
         wide = device_scene(host, gpu, WIDE_BVH_MAX_TRIANGLES, stand_in)
         jobs.append((unloaded_kernel(wide, rs(gpu, sky=sky)), gpu))
-        # and of tests/test_gpu_kinds.py (this round's kinds: pbr, environment map, punctual lights,
+        # and of tests/gpu/test_device_kinds.py (this round's kinds: pbr, environment map, punctual lights,
         # the light tree, volpath's media), on both devices
         for k, build in enumerate(KIND_SCENES.values()):
             host, _, kw, _ = build(folder / f"kind{k}")

@@ -7,7 +7,7 @@ The issue's reproducer (a 4096x4096 render interrupted 2-9 s in):
 
 Each trial starts the command line (``python -m warp_spt`` or the console script's entry), sends
 SIGINT or SIGTERM after a delay drawn uniformly from 0 to 1.1x an uninterrupted run, and checks
-the result (see ``tests/interrupt_trials.py``). Prints the counts of each outcome: hangs, leftover
+the result (see ``tests/support/interrupt_trials.py``). Prints the counts of each outcome: hangs, leftover
 temp files, corrupt outputs and bad exits should all be 0. ``before_our_code`` counts signals that
 arrived while the Python interpreter itself was starting, before any warp_spt code ran.
 """

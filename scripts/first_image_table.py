@@ -1,4 +1,4 @@
-"""The first image of each generated model (tests/first_image.py), before and after: a Markdown table.
+"""The first image of each generated model (tests/support/first_image.py), before and after: a Markdown table.
 
 Runs ``python -m warp_spt -obj MODEL`` with no other flag (a new user's first command) from two
 source trees and judges each image with this tree's checks (upright, in frame, lit)::
@@ -25,7 +25,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.first_image import MODELS, SIZE, judge, write_case  # noqa: E402
+from tests.support.first_image import MODELS, SIZE, judge, write_case  # noqa: E402
 
 
 def render(tree: Path, obj: str, out: Path) -> tuple[np.ndarray, str]:

@@ -1,4 +1,4 @@
-"""docs/formats.png: the test files of tests/format_files.py rendered from their own formats.
+"""docs/formats.png: the test files of tests/support/format_files.py rendered from their own formats.
 
 Left to right: the PLY pyramid (binary big endian, tristrips) with its vertex colours and
 ``--filter bilinear``; the glTF textured box (a data-URI PNG, KHR_texture_transform) seen through
@@ -23,7 +23,7 @@ from PIL import Image
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from tests.format_files import write_all  # noqa: E402
+from tests.support.format_files import write_all  # noqa: E402
 from warp_spt.cli.main import run  # noqa: E402
 from warp_spt.cli.options import parse_args  # noqa: E402
 

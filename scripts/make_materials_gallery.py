@@ -16,7 +16,7 @@ material is of the ``pbr`` kind), under a gradient sky and an area light:
    tile, and, once the loader honours ``map_d``, a cut-out (a leaf-like mask generated here) casting
    its shadow on the ground (until then the panel says so and leaves it out).
 
-The Mitsuba figure renders our side of the scenes of tests/test_materials_mitsuba.py (compensation
+The Mitsuba figure renders our side of the scenes of tests/bsdfs/test_materials_mitsuba.py (compensation
 off, as there) and puts it beside Mitsuba's stored mean image (tests/data/mitsuba_material_refs.npz,
 made by tests/data/make_mitsuba_material_refs.py), with the difference.
 """
@@ -332,8 +332,8 @@ def gallery(width: int, spp: int, out: Path) -> None:
 
 
 def versus_mitsuba(spp: int, scale: int, out: Path) -> None:
-    from tests import mitsuba_scenes as MS
-    from tests.test_materials_mitsuba import REFS, camera, load_ours
+    from tests.support import mitsuba_scenes as MS
+    from tests.bsdfs.test_materials_mitsuba import REFS, camera, load_ours
 
     if not REFS.exists():
         raise SystemExit(f"{REFS} is absent: run tests/data/make_mitsuba_material_refs.py first")

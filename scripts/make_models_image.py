@@ -1,6 +1,6 @@
 """docs/models.png: a generated Y-up "bunny" as the previous release first showed it, as it does now, and --view left.
 
-The model comes from tests/models.py (procedural, no downloaded data). Each panel is one warp-spt
+The model comes from tests/support/models.py (procedural, no downloaded data). Each panel is one warp-spt
 command line run in-process; the commands are printed.
 
     python scripts/make_models_image.py [--size 240] [--spp 64]
@@ -20,7 +20,7 @@ from PIL import Image
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from tests.models import write_model  # noqa: E402
+from tests.support.models import write_model  # noqa: E402
 from warp_spt.cli.options import parse_args  # noqa: E402
 from warp_spt.cli.main import run  # noqa: E402
 

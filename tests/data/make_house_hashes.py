@@ -1,5 +1,5 @@
 """Hashes of images made by a fixed set of commands and API calls: the restructure of the package
-(issue 20) must leave every one of them bit-identical (tests/test_house_hashes.py).
+(issue 20) must leave every one of them bit-identical (tests/house/test_house_hashes.py).
 
 Made once from the commit before the restructure (0d310d9), with only the public API and the CLI,
 which the restructure keeps unchanged::

@@ -1,11 +1,11 @@
-"""Render the Mitsuba 3 reference of the environment-map comparison (tests/test_envmap.py) into
+"""Render the Mitsuba 3 reference of the environment-map comparison (tests/emitters/test_envmap.py) into
 tests/data/mitsuba_envmap_refs.npz.
 
 Run once, from the repository root (Mitsuba 3 is needed here only):
 
     PYTHONPATH=$PWD python tests/data/make_mitsuba_envmap_refs.py [--spp 1024] [--batches 8]
 
-The scene is tests/mitsuba_envmap_scene.py: three spheres lit by Mitsuba's ``envmap`` emitter with the
+The scene is tests/support/mitsuba_envmap_scene.py: three spheres lit by Mitsuba's ``envmap`` emitter with the
 synthetic map of scripts/make_test_envmap.py, made at Mitsuba's own row latitudes (``pole_rows``),
 hidden from camera rays (``hide_emitters``; ours: a black background).
 Rendered as ``--batches`` independently seeded images (``path``, ``independent`` sampler, box
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests import mitsuba_envmap_scene as ES
+from tests.support import mitsuba_envmap_scene as ES
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = Path(__file__).with_name("mitsuba_envmap_refs.npz")
@@ -74,7 +74,7 @@ def main() -> None:
         imgs = np.stack([np.asarray(mi.render(ms, spp=a.spp, seed=2000 + k), dtype=np.float64)
                          for k in range(a.batches)])
     settings = {"spp": a.spp, "batches": a.batches, "variant": "scalar_rgb", "mitsuba": mi.__version__,
-                "seconds": round(time.perf_counter() - start, 1), "scene": "tests/mitsuba_envmap_scene.py",
+                "seconds": round(time.perf_counter() - start, 1), "scene": "tests/support/mitsuba_envmap_scene.py",
                 "map": {"width": ES.MAP_WIDTH, **ES.SUN, "pole_rows": True}, "hide_emitters": True}
     np.savez_compressed(OUT, mean=imgs.mean(0).astype(np.float32),
                         blocks=np.stack([block_means(i) for i in imgs]).astype(np.float32),

@@ -1,11 +1,11 @@
-"""Render the Mitsuba 3 references of tests/test_materials_mitsuba.py into tests/data/mitsuba_material_refs.npz.
+"""Render the Mitsuba 3 references of tests/bsdfs/test_materials_mitsuba.py into tests/data/mitsuba_material_refs.npz.
 
 Run once, from the repository root (Mitsuba 3 is needed here only, not by the tests):
 
     PYTHONPATH=$PWD python tests/data/make_mitsuba_material_refs.py [--spp 4096] [--batches 8]
 
 The scenes (geometry as OBJ files written here, the same files warp_spt reads; camera, light, sky,
-depth; the BSDF matched to ours) are defined in tests/mitsuba_scenes.py. Each scene is rendered as
+depth; the BSDF matched to ours) are defined in tests/support/mitsuba_scenes.py. Each scene is rendered as
 ``--batches`` independently seeded images of ``--spp`` samples (Mitsuba's ``path`` integrator,
 ``independent`` sampler, box pixel filter, ``scalar_rgb``); stored per scene, float32:
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests import mitsuba_scenes as MS
+from tests.support import mitsuba_scenes as MS
 
 BLOCK = 4
 OUT = Path(__file__).with_name("mitsuba_material_refs.npz")
@@ -70,7 +70,7 @@ def render(scene: MS.MitsubaScene, spp: int, batches: int, folder: Path) -> tupl
 
 def plastic_scale(n: int = 1 << 16) -> float:
     """(1 - specular albedo) / diffuse albedo of Mitsuba's roughplastic with a white base, at normal
-    incidence: the factor that makes its white base conserve energy (tests/mitsuba_scenes.py).
+    incidence: the factor that makes its white base conserve energy (tests/support/mitsuba_scenes.py).
     Cosine-weighted stratified directions; the diffuse part is the white base's BSDF minus the black's."""
     import mitsuba as mi
 
@@ -143,7 +143,7 @@ def main() -> None:
 
     mi.set_variant(a.variant)
     k = plastic_scale()
-    print(f"roughplastic's white-base diffuse scale: {k:.4f} (tests/mitsuba_scenes.py: {MS.PLASTIC_DIFFUSE_SCALE})")
+    print(f"roughplastic's white-base diffuse scale: {k:.4f} (tests/support/mitsuba_scenes.py: {MS.PLASTIC_DIFFUSE_SCALE})")
     if a.check_plastic:
         return
     if abs(k / MS.PLASTIC_DIFFUSE_SCALE - 1.0) > 0.002:

@@ -1,11 +1,11 @@
-"""Render the Mitsuba 3 references of tests/test_volumes_mitsuba.py into tests/data/mitsuba_volume_refs.npz.
+"""Render the Mitsuba 3 references of tests/media/test_volumes_mitsuba.py into tests/data/mitsuba_volume_refs.npz.
 
 Run once, from the repository root (Mitsuba 3 is needed here only, not by the tests):
 
     PYTHONPATH=$PWD python tests/data/make_mitsuba_volume_refs.py [--spp 1024] [--batches 8]
 
 The scenes (a cube with a pass-through boundary around a homogeneous or a grid medium, under the
-area light and sky of tests/mitsuba_scenes.py) are defined in tests/mitsuba_volume_scenes.py. Each is
+area light and sky of tests/support/mitsuba_scenes.py) are defined in tests/support/mitsuba_volume_scenes.py. Each is
 rendered as ``--batches`` independently seeded images (Mitsuba's ``volpath``, ``max_depth`` -1 with
 its Russian roulette, ``independent`` sampler, box filter, ``llvm_ad_rgb``); stored per scene,
 float32: ``NAME_mean`` (32 x 32 x 3) and ``NAME_blocks`` (per batch, the means of 4 x 4 pixel
@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tests import mitsuba_scenes as MS
-from tests import mitsuba_volume_scenes as VS
+from tests.support import mitsuba_scenes as MS
+from tests.support import mitsuba_volume_scenes as VS
 
 BLOCK = 4
 OUT = Path(__file__).with_name("mitsuba_volume_refs.npz")

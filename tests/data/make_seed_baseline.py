@@ -1,6 +1,6 @@
 """Regenerate tests/data/seed_baseline_*.npy: images of the renderer BEFORE the light-transport
 restructure (commit 2f89ff6), which the seed integrator with the independent sampler must reproduce
-bit for bit (tests/test_seed_baseline.py).
+bit for bit (tests/integrators/test_seed_baseline.py).
 
     git worktree add /tmp/baseline 2f89ff6
     PYTHONPATH=/tmp/baseline /work/venv/bin/python tests/data/make_seed_baseline.py tests/data

@@ -149,7 +149,7 @@ def make_closest_hit(features: Features, small_scene: int = SMALL_SCENE, differe
     mesh and no spheres is then a box test and a bare query of the mesh's own BVH. Same hits: the TLAS only prunes items whose box the ray
     misses or enters beyond the closest hit so far, which cannot hold the closest hit; only the
     order of visits differs, which matters just for exact ties in t between two items
-    (tests/test_intersect.py compares the two paths).
+    (tests/accel/test_intersect.py compares the two paths).
     """
 
     mesh_closest = make_closest_query(max(features.bvh_stack, 1))

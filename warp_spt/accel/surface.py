@@ -26,7 +26,7 @@ INV_TWO_PI = wp.constant(0.15915494309189535)
 # gap between the test Cornell box's light and its ceiling, which then leaked.
 # ABS covers the ray-triangle test's own rounding, which grows with the triangle's size (<= extent).
 # Geometry finer than eps (gaps, thin walls, spheres of radius < eps) is not resolved; the limits
-# are measured in tests/test_stability.py and listed in docs/limits.md.
+# are measured in tests/rendering/test_stability.py and listed in docs/limits.md.
 OFFSET_REL = wp.constant(5.0e-7)
 OFFSET_ABS = wp.constant(1.0e-5)
 
@@ -86,7 +86,7 @@ def triangle_point(mesh: wp.uint64, face: int, u: float, v: float, extent: float
     """The hit point u*p0 + v*p1 + (1-u-v)*p2, kept at least about offset_eps inside the triangle.
 
     Two fixes for scenes far from the origin (the Cornell box shifted by 1e5 leaked sky along its
-    edges, tests/test_stability.py):
+    edges, tests/rendering/test_stability.py):
 
     * evaluated as p2 + small edge terms: the plain form's three large products (what
       wp.mesh_eval_position does) each round, and the sum could land an ulp outside the triangle;

@@ -51,7 +51,7 @@ def lobe_weight(p: float) -> float:
     Multiplying a lobe's weight by ``lobe_weight(prob of that lobe)`` leaves every image bit-identical
     and makes the differentiable kernel's derivative in the choice's probability correct in
     expectation: the choice ``u < p`` is a step for common random numbers, so its pathwise derivative
-    is 0, and the score term p'/p restores d E[L] / d p (warp_spt.diff.gradients, tests/test_gradients.py).
+    is 0, and the score term p'/p restores d E[L] / d p (warp_spt.diff.gradients, tests/diff/test_gradients.py).
     """
     return 1.0
 

@@ -13,7 +13,7 @@ mapping tables). At a point it mixes, in the local shading frame (``common.to_lo
     capped at 1, times ``specular``; compensated) over a Lambertian base. Energy-consistent: the base
     is scaled by (1 - E(mu_o)) (1 - E(mu_i)) / (1 - E_avg), E the layer's directional albedo and
     E_avg its hemispherical average (Kulla & Conty 2017): reciprocal, and a white base under the
-    layer reflects exactly what the layer does not (furnace: tests/test_materials.py).
+    layer reflects exactly what the layer does not (furnace: tests/bsdfs/test_materials.py).
 
 Roughness is perceptual (alpha = roughness^2); anisotropy stretches alpha along the tangent rotated by
 ``anisotropy_rotation`` (KHR_materials_anisotropy). Below ``microfacet.DELTA_ALPHA`` a lobe is a

@@ -4,7 +4,7 @@
 (:func:`light_options`): a tuple of ``warp_spt.scene.lights`` records that the runners add to the
 scene's own lights. ``--light`` takes one line of a light file (``warp_spt.io.light_file``), so the
 file and the flag have one syntax. Warp-free, and numpy-free until the flags are read: the command
-line imports this module before its Ctrl-C handlers go in (tests/test_interrupt.py).
+line imports this module before its Ctrl-C handlers go in (tests/rendering/test_interrupt.py).
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ class CameraParams:
     Primary rays use ``to_upper_left`` (the corner relative to the origin, subtracted in float64):
     with the absolute corner, a camera at 1e5 rounded every target point to 1/128 unit before the
     origin was subtracted, which bent primary rays by up to a few percent
-    (tests/test_stability.py, shifted Cornell box).
+    (tests/rendering/test_stability.py, shifted Cornell box).
     """
 
     origin: wp.vec3

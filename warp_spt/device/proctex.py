@@ -223,7 +223,7 @@ def make_dispatch(key: tuple[tuple[str, str], ...]):
 
     A chain of closures, one per texture, rather than ``wp.static(funcs[i])`` in an unrolled loop:
     Warp leaves static expressions over loop variables out of the module hash, so two kernels with
-    as many textures but different ones were deduplicated into one (tests/test_proctex.py caught it).
+    as many textures but different ones were deduplicated into one (tests/device/test_proctex.py caught it).
     A closure's function is hashed with its source.
     """
     if not key:

@@ -2,7 +2,7 @@
 
 Emission counts in full wherever a path meets it; the sky counts on a miss. Four dimensions per
 bounce (lobe, direction, Fresnel), exactly the draws of the renderer before the restructure, so
-with the independent sampler its images are bit-identical to it (tests/test_seed_baseline.py).
+with the independent sampler its images are bit-identical to it (tests/integrators/test_seed_baseline.py).
 It is the NEE step with light sampling (and roulette) compiled out: MIS weights are then exactly 1.
 """
 

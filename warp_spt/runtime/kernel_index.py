@@ -18,7 +18,7 @@ place of its own, then loads the recorded object: nothing is generated, hashed o
 What the key covers is everything the kernel's code can depend on, as long as the code comes from
 this package: the caller must not ask for a key when any of it comes from outside (an integrator,
 sampler or procedural texture registered by a user's module), whose source the digest does not
-read. A change to any source file of the package changes the key (tests/test_kernel_index.py), so a
+read. A change to any source file of the package changes the key (tests/runtime/test_kernel_index.py), so a
 stale object is never loaded; a record whose files are gone, or any failure while loading it,
 falls back to Warp's own look-up, which then writes a new record. CPU only: a CUDA object depends on
 the device's architecture and context, and its load is not the start-up cost measured here.

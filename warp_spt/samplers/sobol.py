@@ -68,7 +68,7 @@ Limits:
     are, per aligned pair of samples, either (lo,lo)+(hi,hi) or (lo,hi)+(hi,lo): one coin per sample
     pair instead of one per sample. An integrand's interaction between two pairs (e.g. a step in x_a
     times a step in x_b) can therefore get up to twice the variance that independent numbers give
-    it (the correlation between pairs has variance ~1.6/N in place of 1/N; tests/test_sobol.py
+    it (the correlation between pairs has variance ~1.6/N in place of 1/N; tests/samplers/test_sobol.py
     bounds it by 2/N). A sampler that knows spp (pbrt's PaddedSobol: a uniform random permutation
     of the spp indices) avoids this but loses progressive stratification and the global index. The
     2D parts converge at Owen's rates, so it wins whenever they dominate; the benchmark measures both.

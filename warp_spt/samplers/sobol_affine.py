@@ -31,7 +31,7 @@ digit of two inputs, so the pair law above stays exact; what the first stage add
 three- and more-point statistics, on which no mean error depends but the spread of the error from
 pixel to pixel does: with the last stage alone (a multiplier m = 1 mod 2**t leaves the first t
 digits merely shifted), the RMSE's own standard error over 8192 estimates was up to 10x ``sobol``'s;
-with both stages it is ``sobol``'s (docs/performance.md). ``tests/test_sobol_affine.py`` checks the
+with both stages it is ``sobol``'s (docs/performance.md). ``tests/samplers/test_sobol_affine.py`` checks the
 pair distribution, the nets and the error against ``sobol``'s.
 
 Per 2-D request: the key (one hash of the pixel key and the dimension), eight more hashes for the

@@ -19,7 +19,7 @@ They are chosen so that every product the kernel forms stays finite in float32 (
 * a triangle's longest edge is at most MAX_TRIANGLE_EDGE: the kernel squares its cross product
   (about edge^4: the geometric normal, areas) and forms triple products of edge-sized and
   distance-sized numbers in the hit test (about edge^2 x distance), in float32; a square of
-  half-size 4e9 shades black and one of 4e12 is missed (tests/test_hardening4.py).
+  half-size 4e9 shades black and one of 4e12 is missed (tests/hardening/test_bounds_memory_and_signals.py).
 
 The render settings have bounds too (``rendering.settings.check_args`` applies them for the API,
 the command line and the viewer alike), so that no setting can wrap a kernel's int32 or make

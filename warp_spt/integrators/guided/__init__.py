@@ -41,7 +41,7 @@ the Cornell box at 16 spp), and the image is built pass after pass in a fixed or
 
 Parameters (``PARAMS``, set by name in ``RenderSettings.integrator_options``): ``alpha`` fixes the
 guide's probability in every quadtree that learnt something (and training never stops); 0 is
-``nee``'s estimator, so its image is ``nee``'s bit for bit (tests/test_guiding.py) at the cost of
+``nee``'s estimator, so its image is ``nee``'s bit for bit (tests/integrators/test_guiding.py) at the cost of
 the recording; the others tune training and the tree (``guiding_tree``'s constants are their defaults).
 
 Not a speed option: on the benchmarks' indirectly lit room it reaches 1.6-1.8x lower MSE than ``nee``

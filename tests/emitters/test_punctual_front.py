@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,19 @@ from warp_spt.cli.main import main
 from warp_spt.cli.options import parse_args
 from warp_spt.io.light_file import load_lights, parse_light
 from warp_spt.scene.errors import SceneError
-from warp_spt.scene.lights import PointLight, SpotLight, SunLight
+from warp_spt.scene.lights import (
+    ANGLE,
+    COLOUR,
+    PUNCTUAL_KINDS,
+    VECTOR,
+    WORD,
+    LightField,
+    PointLight,
+    PunctualKind,
+    SpotLight,
+    SunLight,
+    check_fields,
+)
 
 
 def test_light_file_reads_every_kind(tmp_path):
@@ -115,3 +129,43 @@ def test_the_command_line_renders_a_scene_lit_by_its_flags_only(tmp_path, capsys
     assert status == 0, capsys.readouterr().err
     img = np.load(out)
     assert np.allclose(img, 0.6 / np.pi * 2.0, rtol=1e-4)
+
+
+@dataclass(frozen=True)
+class RingLight:
+    """A probe punctual kind: a record and its declaration, nothing else (no parser edit)."""
+
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    power: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    spread_deg: float = 10.0
+    name: str = "ring"
+    kind = 9
+
+    def __post_init__(self):
+        check_fields(self)
+
+
+RING = PunctualKind("ring", RingLight, (
+    LightField("position", "position", VECTOR), LightField("power", "power", COLOUR, 0.0, 10.0),
+    LightField("spread", "spread_deg", ANGLE, 0.0, 30.0), LightField("name", "name", WORD)))
+
+
+def test_a_registered_punctual_kind_is_read_by_the_light_file_and_the_flag(tmp_path, monkeypatch):
+    monkeypatch.setitem(PUNCTUAL_KINDS, "ring", RING)
+    f = tmp_path / "l.txt"
+    f.write_text("point position 0 1 0\nring position 1 2 3 power 2 spread 20 name halo\n")
+    point, ring = load_lights(str(f))
+    assert point == PointLight(position=(0, 1, 0)) and ring == RingLight((1, 2, 3), (2, 2, 2), 20.0, "halo")
+    (flag,) = parse_args(["--light", "ring", "power", "1", "2", "3"]).lights
+    assert flag == RingLight(power=(1, 2, 3), name="light0")          # numbered, as points and spots
+    for line, mentions in (("ring spread 40", "spread must be in [0, 30]"), ("ring power 11", "power must be in"),
+                           ("ring inner 3", "a ring light takes position, power, spread, name; got 'inner'"),
+                           ("lamp", "(sun, point, spot or ring)")):
+        f.write_text(f"ring\n{line}\n")
+        with pytest.raises(SceneError) as info:
+            load_lights(str(f))
+        assert str(info.value).startswith(f"{f}:2: ") and mentions in str(info.value), str(info.value)
+    with pytest.raises(UsageError, match=r"--light ring spread 31: spread must be in \[0, 30\]"):
+        parse_args(["--light", "ring", "spread", "31"])
+    with pytest.raises(ValueError, match="light 'ring': power must be in"):
+        RingLight(power=-1.0)

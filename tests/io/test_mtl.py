@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
 import pytest
 
 from warp_spt.io.mtl import builtin_checker, load_mtl, parse_mtl_bytes
@@ -12,6 +18,7 @@ from warp_spt.scene.model import CHECKER_NAME, TextureRef
 SEED_DIFFUSE = (0x9F / 256, 0x8F / 256, 0x7C / 256)
 SEED_REFLECT = (0xAF / 256, 0xBF / 256, 0xCF / 256)
 SEED_REFRACT = (0xBB / 256, 0xBC / 256, 0xB1 / 256)
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def mtl(text: str, path: str = "lib/m.mtl"):
@@ -227,3 +234,129 @@ def test_a_kd_only_material_is_matte_in_a_standard_file_and_keeps_the_seed_lobe_
                  "newmtl lamp\nKl 1 1 1\nnewmtl plain\nKd 0.8 0.8 0.8\n"):
         seed = mtl(text)["plain"]
         assert seed.roughness == 0.85 and seed.fuzz == pytest.approx(0.62) and seed.seed_dialect
+
+
+# ---------------------------------------------------------------------------------------------
+# ``kind NAME`` and ``set FIELD VALUE...``: a material names its kind and any schema field by name
+
+
+def test_kind_pbr_in_a_seed_file_reads_the_standard_mapping_and_leaves_the_dialect_alone():
+    lib = mtl("newmtl gold\nkind pbr\nKd 1 0.8 0.3\nPr 0.4\nFuzz 0.2\nnewmtl old\nKd 0.5 0.5 0.5\nPr 0.3\n"
+              "Refractable\n")
+    gold, old = lib["gold"], lib["old"]
+    assert gold.kind == 1 and gold.base_color == (1, 0.8, 0.3) and gold.roughness == 0.4   # Pr: roughness
+    assert gold.seed_dialect            # the file's conventions: it uses the seed's tags
+    assert old.kind == 0 and old.fuzz == 0.3 and old.refractable                    # Pr: fuzz
+    warnings = []
+    lib = parse_mtl_bytes(b"newmtl a\nkind pbr\nFuzz 0.2\nnewmtl b\nKd 1 0 0\n", "f.mtl", warnings.append)
+    assert lib["b"].kind == 1 and not lib["b"].seed_dialect     # a seed tag under 'kind pbr': not the file's
+    assert warnings == ["f.mtl: read but not supported (ignored): Fuzz"]
+
+
+def test_kind_seed_in_a_standard_file_reads_the_seeds_mapping():
+    warnings = []
+    lib = parse_mtl_bytes(b"newmtl s\nkind seed\nKd 0.2 0.3 0.4\nPr 0.3\nnorm n.png\nnewmtl p\nPr 0.3\n", "f.mtl",
+                          warnings.append)
+    s, p = lib["s"], lib["p"]
+    assert s.kind == 0 and s.diffuse == s.reflect == (0.2, 0.3, 0.4) and s.fuzz == 0.3 and not s.seed_dialect
+    assert p.kind == 1 and p.roughness == 0.3
+    assert warnings == ["f.mtl: read but not supported (ignored): norm"]    # the seed's kind has no normal map
+
+
+def test_set_writes_one_field_by_its_schema_name_and_wins_over_the_classic_tags():
+    from warp_spt.scene.proctex_registry import ProcRef
+
+    m = one("set roughness 0.3\nillum 3\nset base_color 0.5\nset thin on\nset metallic_map -s 2 2 m.png\n"
+            "set emission_map proc:noise scale=3\nset multiscatter off\nset specular_color 2 2 2\nKd 1 0 0\n")
+    assert (m.kind, m.roughness, m.metallic, m.thin, m.multiscatter) == (1, 0.3, 1.0, True, False)  # illum 3: metal
+    assert m.base_color == (0.5, 0.5, 0.5) and m.specular_color == (2, 2, 2)          # Kd is later, set still wins
+    assert m.metallic_map == TextureRef("m.png", "lib/m.mtl", 6)
+    assert isinstance(m.emission_map, ProcRef) and m.emission_map.name == "noise"
+    s = seed_one("set fuzz 0.1\nset diffuse 0 1 0\nset refractable 1\nset RoughNess 0.25\n")
+    assert (s.kind, s.fuzz, s.diffuse, s.refractable, s.roughness) == (0, 0.1, (0, 1, 0), True, 0.25)
+    assert s.reflect == pytest.approx(SEED_REFLECT)          # set names one field (Kd names two)
+    warnings = []
+    parse_mtl_bytes(b"newmtl m\nset base_color_map -s 2 2 a.png\n", "f.mtl", warnings.append)
+    assert warnings == ["f.mtl: read but not supported (ignored): texture option -s"]
+
+
+@pytest.mark.parametrize("text, line, message", [
+    ("kind pbr\n", 1, "expected 'newmtl NAME' before 'kind'"),
+    ("newmtl m\nKd 1 0 0\nkind pbr\n", 3, "expected 'kind' right after 'newmtl m' (line 1)"),
+    ("newmtl m\nkind pbr\nkind seed\n", 3, "expected 'kind' right after 'newmtl m' (line 1)"),
+    ("newmtl m\nkind\n", 2, "expected a material kind after 'kind' (seed, pbr), got ''"),
+    ("newmtl m\nkind plastic\n", 2, "expected a material kind after 'kind' (seed, pbr), got 'plastic'"),
+    ("newmtl m\nset\n", 2, "expected a material field after 'set' (diffuse, diffuse_map, reflect"),
+    ("newmtl m\nset rough 1\n", 2, "got 'rough'"),
+    ("newmtl m\nkind pbr\nset fuzz 1\n", 3, "expected a material field after 'set' (emission, emission_map"),
+    ("newmtl m\nset kind 1\n", 2, "got 'kind'"),
+    ("newmtl m\nset tex 1\n", 2, "got 'tex'"),
+    ("newmtl m\nset roughness\n", 2, "expected a value after 'set roughness'"),
+    ("newmtl m\nset roughness 1.5\n", 2, "expected a value in [0, 1] after 'set roughness', got 1.5"),
+    ("newmtl m\nset roughness x\n", 2, "set roughness"),
+    ("newmtl m\nset base_color 1 2\n", 2, "set base_color"),
+    ("newmtl m\nset base_color 1 2 1\n", 2, "expected colour values in [0, 1] after 'set base_color', got 2"),
+    ("newmtl m\nset emission -1\n", 2, "expected colour values in [0, 1e+30] after 'set emission', got -1"),
+    ("newmtl m\nset thin yes\n", 2, "expected on or off after 'set thin', got 'yes'"),
+    ("newmtl m\nset ior 0\n", 2, "expected a value in [0.001, 1000] after 'set ior'"),
+    ("newmtl m\nset roughness_map proc:nope\n", 2, "unknown procedural texture 'nope' after 'set roughness_map'"),
+    # the kind is the file's dialect, known at its end; the error still names the set line
+    ("newmtl m\nset metallic 1\nnewmtl z\nKl 0 0 0\n", 2, "expected a field of material kind 'seed' after 'set'"),
+    ("newmtl m\nset fuzz 0.5\n", 2, "expected a field of material kind 'pbr' after 'set'"),
+])
+def test_kind_and_set_errors_name_file_line_and_expectation(text, line, message):
+    with pytest.raises(SceneError) as info:
+        mtl(text)
+    assert str(info.value).startswith(f"lib/m.mtl:{line}: ") and message in str(info.value), str(info.value)
+
+
+# A probe kind with two columns of its own, written into the schema's source (its MATERIAL_KINDS line
+# and two Column lines, as tests/scene/test_material_schema.py does); the MTL reader is not edited.
+PROBE_KIND = textwrap.dedent('''
+    import importlib.util, sys
+    path, folder = sys.argv[1:3]
+    src = open(path).read()
+    line = 'MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr")'
+    assert line in src
+    src = src.replace(line, 'MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr", "probe")')
+    end = src.index("\\n)\\n", src.index("COLUMNS: tuple[Column, ...] = (")) + 1
+    extra = ('    Column("glow", COLOR, (0.0, 0.0, 0.0), 0.0, 1.0, "probe", slot=10, kinds=("probe",)),\\n'
+             '    Column("haze", SCALAR, 0.5, 0.0, 2.0, "probe", kinds=("probe",)),\\n')
+    spec = importlib.util.spec_from_loader("warp_spt.scene.material_schema", loader=None)
+    schema = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = schema
+    exec(compile(src[:end] + extra + src[end:], path, "exec"), schema.__dict__)
+
+    from warp_spt.io.loader import load_scene
+    from warp_spt.io.mtl import parse_mtl_bytes
+    from warp_spt.scene.errors import SceneError
+
+    warnings = []
+    lib = parse_mtl_bytes(open(folder + "/a.mtl", "rb").read(), "a.mtl", warnings.append)
+    p = lib["p"]
+    assert (p.kind, p.glow, p.haze, p.emission, p.ior) == (2, (0.5, 0.25, 1.0), 1.5, (2.0, 2.0, 2.0), 1.0), p
+    assert p.glow_map.name == "noise" and p.interior is not None and not p.seed_dialect
+    assert warnings == ["a.mtl: read but not supported (ignored): Kd"], warnings   # no reading of classic tags
+    for text, message in ((b"newmtl q\\nkind probe\\nset haze 3\\n", "a.mtl:3: expected a value in [0, 2]"),
+                          (b"newmtl q\\nkind probe\\nset metallic 1\\n", "a.mtl:3: expected a material field"),
+                          (b"newmtl q\\nset glow 1\\n", "a.mtl:2: expected a field of material kind 'pbr'")):
+        try:
+            parse_mtl_bytes(text, "a.mtl")
+            raise AssertionError(text)
+        except SceneError as err:
+            assert str(err).startswith(message), err
+    scene = load_scene([folder + "/a.obj"], [folder + "/a.mtl"])           # the host table and its checks
+    row = scene.materials.names.index("p")
+    assert scene.materials.kind[row] == 2 and scene.materials.haze[row] == 1.5
+    print("ok")
+''')
+
+
+def test_a_registered_kind_and_its_columns_are_named_from_an_mtl_file_with_no_parser_edit(tmp_path):
+    (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n")
+    (tmp_path / "a.mtl").write_text("newmtl p\nkind probe\nset glow 0.5 0.25 1\nset glow_map proc:noise\n"
+                                    "set haze 1.5\nset emission 2\nKd 1 0 0\nmedium_sigma_a 1\n")
+    src = str(ROOT / "warp_spt" / "scene" / "material_schema.py")
+    out = subprocess.run([sys.executable, "-c", PROBE_KIND, src, str(tmp_path)], capture_output=True, text=True,
+                         cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300)
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]

@@ -46,7 +46,7 @@ def light_options(ns: argparse.Namespace, error: Callable[[str], Exception]) -> 
             raise error(f"--sun: {str(err).replace(repr('sun') + ': ', '').replace('light ', '', 1)}") from None
     for k, words in enumerate(ns.light):
         try:
-            lights.append(parse_light(list(words), default_name=f"light{k}" if words[0].lower() != "sun" else None))
+            lights.append(parse_light(list(words), default_name=f"light{k}"))     # a sun keeps "sun"
         except ValueError as err:
             raise error(f"--light {' '.join(words)}: {err}") from None
     for path in ns.lights:          # a bad file is a SceneError naming it and the line (exit status 1)

@@ -64,6 +64,19 @@ Every other file is **standard**: its materials are of the physically based kind
 built-ins: :mod:`warp_spt.device.proctex`; read against the textures' Warp-free declarations,
 :mod:`warp_spt.scene.proctex_registry`); an unknown name or key is a SceneError with file and line.
 
+A material may name its kind and set any field of it by the material schema's names
+(:mod:`warp_spt.scene.material_schema`; docs/materials.md, "Naming the kind in MTL"), so a new kind
+needs no edit here:
+
+* ``kind NAME`` (right after ``newmtl``): any name of ``MATERIAL_KINDS``. ``seed`` and ``pbr`` read
+  the other tags as the seed's and the standard dialect do, whatever the file's dialect (tags the
+  kind has no field for are reported); any other kind starts from the columns' defaults and reads
+  ``set`` lines only (and ``medium_*``, ``index_matched``). Its tags leave the file's dialect alone.
+* ``set FIELD VALUE...``: a colour (1 or 3 numbers), scalar (1 number) or flag (``on``/``off``)
+  column that the material's kind reads, checked against the column's range, or ``FIELD_map`` (a
+  texture statement, ``proc:`` included) for a column with a texture slot. It writes that one field,
+  over what the tags derive, wherever it stands; without ``kind`` the file's dialect gives the kind.
+
 Texture paths are recorded with their file and line (:class:`TextureRef`); they are resolved and
 read later, by :func:`warp_spt.io.loader.load_scene`, and only for materials that geometry uses.
 Bad values (a non-number, NaN, a reflectance colour outside [0, 1], an emission above 1e30, a
@@ -87,12 +100,12 @@ from warp_spt.io.tokens import (
     parse_int,
     read_file,
 )
+from warp_spt.scene import material_schema as schema
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.media import KEYS as MEDIUM_KEYS, MAX_MAJORANT, MAX_SIGMA, Medium
-from warp_spt.scene.material_schema import COLUMN
+from warp_spt.scene.material_schema import COLOR, COLUMN, FLAG, Column
 from warp_spt.scene.model import CHECKER_NAME, PBR_DEFAULTS, Material, TextureRef
 from warp_spt.scene.proctex_registry import parse_proc_map
-from warp_spt.scene.validate import MAX_RADIANCE
 
 # Texture options and how many values follow them; (1, 3) means one to three numbers.
 _TEX_OPTIONS = {
@@ -111,6 +124,11 @@ _PBR_MAPS = {"map_pr": "roughness", "map_pm": "metallic", "map_d": "opacity", "n
 # Tags of standard files the pbr kind does not model (yet): reported once per file.
 _UNMODELLED = {"ps": "sheen", "pc": "clearcoat", "pcr": "clearcoat roughness", "map_ps": "sheen",
                "map_pc": "clearcoat", "map_ks": "specular colour map"}
+# The classic tags a kind's reading leaves out, in a material whose ``kind`` line names it (reported as
+# ignored; a file's dialect reports its own once per file, in parse_mtl_bytes). Kinds not named here
+# have no reading of the classic tags: they read ``set`` lines only (and what every kind reads, _kind_reads).
+_UNREAD = {"seed": frozenset(_PBR_MAPS) | {"aniso", "anisor"}, "pbr": SEED_TAGS | {"map_ks"}}
+_FLAG_WORDS = {"on": True, "off": False, "true": True, "false": False, "1": True, "0": False}
 
 
 def builtin_checker() -> Material:
@@ -138,15 +156,36 @@ class _Draft:
     pbr: dict[str, object] = field(default_factory=dict)   # pbr-only values and maps (standard files)
     medium: dict[str, object] = field(default_factory=dict)  # the interior medium's medium_* values
     index_matched: bool = False                             # ``index_matched``: a pass-through surface
+    kind: str | None = None          # the kind its ``kind`` line names; None: the file's dialect decides
+    statements: int = 0              # lines read since ``newmtl`` (a ``kind`` line must come first)
+    sets: list[tuple[str, object, Column, int]] = field(default_factory=list)   # ``set``: field, value, line
 
     def finish(self, seed_dialect: bool) -> Material:
         """The material as read; ``seed_dialect``: its file uses the seed's own tags (module docs)."""
-        if not seed_dialect:
-            return self._pbr_material()
+        kind = self.kind or ("seed" if seed_dialect else "pbr")
+        if kind == "pbr":
+            m = self._pbr_material()
+        elif kind == "seed":
+            m = self._seed_material()
+        else:           # no reading of the classic tags: the columns' defaults, then its set lines
+            m = replace(self.mat, kind=schema.MATERIAL_KINDS.index(kind))
+        if self.kind is not None:       # the file's conventions (Scene.seed_dialect), whatever kind it names
+            m = replace(m, seed_dialect=seed_dialect)
+        return self._with_sets(m, kind)
+
+    def _with_sets(self, m: Material, kind: str) -> Material:
+        """``m`` with its ``set`` lines, which win over what the classic tags derive, wherever they
+        stand; checked against the kind here, where it is known (a file's dialect: only at its end)."""
+        for key, _, column, lineno in self.sets:
+            if not schema.read_by(column, kind):
+                raise SceneError(m.source, lineno, f"expected a field of material kind {kind!r} after 'set' "
+                                 f"({', '.join(schema.settable(kind))}), got {key!r} (material {m.name!r})")
+        return replace(m, **{key: value for key, value, _, _ in self.sets})
+
+    def _seed_material(self) -> Material:
+        """A material of the seed's kind from the classic tags (module docs: the mapping)."""
         derived = self._phong_and_pbr()
-        if not seed_dialect and not self.phong and self.illum not in (3, 4, 5, 6, 7):
-            derived["roughness"] = 1.0       # a standard Kd-only material is matte
-        derived["seed_dialect"] = seed_dialect
+        derived["seed_dialect"] = True
         if self.illum in (3, 5, 4, 6, 7):
             derived.update(roughness=0.0, fuzz=0.0)
         if self.illum in (4, 6, 7) or self.opacity < 1.0:
@@ -224,19 +263,30 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
     data = normalise_text(data, path, "MTL")
     for lineno, toks in iter_lines(data):
         tag = toks[0].decode("latin-1").lower()
-        seed_dialect = seed_dialect or tag in SEED_TAGS     # anywhere in the file, even before newmtl
+        if draft is None or draft.kind is None:     # a material naming its kind leaves the dialect alone
+            seed_dialect = seed_dialect or tag in SEED_TAGS     # anywhere in the file, even before newmtl
         if tag == "newmtl":
             if len(toks) < 2:
                 raise SceneError(path, lineno, "expected a material name after 'newmtl'")
             draft = _Draft(Material(name=decode_name(toks[1:]), source=path, line=lineno))
             drafts[draft.mat.name] = draft             # a later definition of a name replaces it
-        elif draft is not None:
+            continue
+        if tag == "kind":
+            _kind_statement(draft, toks, path, lineno)
+        elif draft is None:
+            continue
+        elif tag == "set":
+            _set_statement(draft, toks, path, lineno, ignored)
+        elif draft.kind is not None and not _kind_reads(draft.kind, tag):
+            ignored[toks[0].decode("latin-1")] = None
+        else:
             if not _statement(draft, tag, toks, path, lineno):
                 ignored[toks[0].decode("latin-1")] = None
             elif tag in _MAP_SLOTS:
                 ignored.update((f"texture option {o}", None) for o in _texture_options(toks[1:]))
-            if tag in _PBR_MAPS or tag in ("aniso", "anisor", "map_ks"):
+            if draft.kind is None and (tag in _PBR_MAPS or tag in ("aniso", "anisor", "map_ks")):
                 standard_only[toks[0].decode("latin-1")] = None
+        draft.statements += 1
     if seed_dialect:        # the seed's kind has no normal, bump or cut-out maps, no anisotropy
         ignored.update((t, None) for t in standard_only if t.lower() != "map_ks")
     elif "map_Ks" in standard_only or "map_ks" in standard_only:
@@ -244,6 +294,74 @@ def parse_mtl_bytes(data: bytes, path: str = "<input>", warn: Callable[[str], No
     if warn is not None:
         _report(path, list(ignored), warn)
     return {name: _with_medium(d, d.finish(seed_dialect)) for name, d in drafts.items()}
+
+
+def _kind_reads(kind: str, tag: str) -> bool:
+    """Whether a material that names ``kind`` reads classic tag ``tag``: the seed and pbr kinds read
+    their dialects' tags but for what they have no field for (_UNREAD); every kind reads its interior
+    medium and ``index_matched`` (docs/volumes.md), and ``Ka`` is ignored silently, as everywhere."""
+    if kind in _UNREAD:
+        return tag not in _UNREAD[kind]
+    return tag.startswith("medium_") or tag in ("index_matched", "ka")
+
+
+def _kind_statement(d: _Draft | None, toks: list[bytes], path: str, lineno: int) -> None:
+    """``kind NAME``: the material's kind, any name of ``MATERIAL_KINDS`` (read when the line is, so
+    that a kind registered there needs nothing here)."""
+    kinds = schema.MATERIAL_KINDS
+    if d is None:
+        raise SceneError(path, lineno, "expected 'newmtl NAME' before 'kind'")
+    if d.statements:        # so each line is read knowing the kind (the seed's and pbr's readings differ)
+        raise SceneError(path, lineno, f"expected 'kind' right after 'newmtl {d.mat.name}' (line {d.mat.line}), "
+                                       "before the material's other lines")
+    name = b" ".join(toks[1:]).decode("latin-1").lower()
+    if name not in kinds:
+        raise SceneError(path, lineno, f"expected a material kind after 'kind' ({', '.join(kinds)}), got {name!r}")
+    d.kind = name
+
+
+def _set_statement(d: _Draft, toks: list[bytes], path: str, lineno: int, ignored: dict[str, None]) -> None:
+    """``set FIELD VALUE...``: one field of the material by its schema name, read by its column's type
+    and checked against its range (whether the kind reads it: at the end, _Draft._with_sets)."""
+    fields = schema.settable(d.kind)
+    key = toks[1].decode("latin-1").lower() if len(toks) > 1 else ""
+    if key not in fields:
+        raise SceneError(path, lineno, f"expected a material field after 'set' ({', '.join(fields)}), "
+                                       f"got {key or 'nothing'!r}")
+    (column, is_map), args, tag = fields[key], toks[2:], f"set {key}"
+    words = b" ".join(args).decode("latin-1")
+    if not args:
+        raise SceneError(path, lineno, f"expected a value after '{tag}'")
+    if is_map:
+        value: object = _map_ref(args, path, lineno, tag, column.high)
+        ignored.update((f"texture option {o}", None) for o in _texture_options(args))
+    elif column.type == COLOR:
+        value = _colour(args, path, lineno, tag, column.low, column.high)
+    elif column.type == FLAG:
+        value = _FLAG_WORDS.get(words.lower())
+        if value is None:
+            raise SceneError(path, lineno, f"expected on or off after '{tag}', got {words!r}")
+    else:
+        value = _column_value(args, path, lineno, tag, column.name)
+    d.sets.append((key, value, column, lineno))
+
+
+def _map_ref(args: list[bytes], path: str, lineno: int, tag: str, high: float | None, proc: bool = True) -> object:
+    """A texture statement's map: a procedural texture (``proc:``, where ``proc``; its colours in
+    [0, ``high``]), else a texture file after the statement's options."""
+    ref = parse_proc_map(args, path, lineno, tag, np.inf if high is None else high) if proc else None
+    return ref or TextureRef(path=_texture_path(args, path, lineno, tag), mtl_file=path, line=lineno)
+
+
+def _colour(args: list[bytes], path: str, lineno: int, tag: str, low: float, high: float
+            ) -> tuple[float, float, float]:
+    """A colour: 3 numbers, or 1 for a grey, each in [low, high] (the schema's range)."""
+    rgb = parse_floats(args, (1, 3), path, lineno, tag)
+    if min(rgb) < low or max(rgb) > high:
+        why = " (a surface cannot reflect more light than it receives)" if high == 1.0 else ""
+        bad = min(rgb) if min(rgb) < low else max(rgb)
+        raise SceneError(path, lineno, f"expected colour values in [{low:g}, {high:g}] after '{tag}', got {bad:g}{why}")
+    return (rgb[0],) * 3 if len(rgb) == 1 else tuple(rgb)
 
 
 def _with_medium(d: _Draft, m: Material) -> Material:
@@ -272,13 +390,8 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     args, name = toks[1:], toks[0].decode("latin-1")
     m = d.mat
     if tag in _COLOUR_SLOTS:
-        rgb = parse_floats(args, (1, 3), path, lineno, name)
-        high = min(COLUMN[slot].high for slot in _COLOUR_SLOTS[tag])     # the schema's ranges (low 0)
-        if min(rgb) < 0 or max(rgb) > high:
-            why = "" if high == MAX_RADIANCE else " (a surface cannot reflect more light than it receives)"
-            bad = min(rgb) if min(rgb) < 0 else max(rgb)
-            raise SceneError(path, lineno, f"expected colour values in [0, {high:g}] after '{name}', got {bad:g}{why}")
-        colour = (rgb[0],) * 3 if len(rgb) == 1 else tuple(rgb)
+        slots = [COLUMN[slot] for slot in _COLOUR_SLOTS[tag]]
+        colour = _colour(args, path, lineno, name, max(c.low for c in slots), min(c.high for c in slots))
         for slot in _COLOUR_SLOTS[tag]:
             setattr(m, slot, colour)
             setattr(m, slot + "_map", None)
@@ -289,8 +402,7 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
             d.tf = colour
     elif tag in _MAP_SLOTS:
         high = min(COLUMN[slot].high for slot in _MAP_SLOTS[tag])     # the schema's, as for colours
-        ref = parse_proc_map(args, path, lineno, name, high) or TextureRef(
-            path=_texture_path(args, path, lineno, name), mtl_file=path, line=lineno)
+        ref = _map_ref(args, path, lineno, name, high)
         for slot in _MAP_SLOTS[tag]:
             setattr(m, slot + "_map", ref)
     elif tag == "roughness":
@@ -304,9 +416,7 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
         d.pbr["ni"] = True
     elif tag in _PBR_MAPS:
         column = _PBR_MAPS[tag]
-        ref = parse_proc_map(args, path, lineno, name, COLUMN[column].high) if tag in ("map_pr", "map_pm") else None
-        d.pbr[column + "_map"] = ref or TextureRef(path=_texture_path(args, path, lineno, name), mtl_file=path,
-                                                   line=lineno)
+        d.pbr[column + "_map"] = _map_ref(args, path, lineno, name, COLUMN[column].high, tag in ("map_pr", "map_pm"))
         bm = _bump_multiplier(args, path, lineno, name)
         if bm is not None and column in ("normal", "bump"):
             d.pbr[column] = bm

@@ -145,6 +145,25 @@ def range_text(c: Column) -> str:
     return f"lie in [{c.low:g}, {c.high:g}]"
 
 
+def read_by(c: Column, kind: str) -> bool:
+    """Whether material kind ``kind`` reads column ``c`` (a column that names no kinds: every kind):
+    what an MTL ``set`` line is checked against (``warp_spt.io.mtl``)."""
+    return not c.kinds or kind in c.kinds
+
+
+def settable(kind: str | None = None) -> dict[str, tuple[Column, bool]]:
+    """The fields a scene file may set by name (MTL ``set``), in the schema's order: {field: (its
+    column, whether it is the column's texture map)}: every colour, scalar and flag that material
+    kind ``kind`` reads (None: any kind) and ``<name>_map`` for those with a texture slot."""
+    out: dict[str, tuple[Column, bool]] = {}
+    for c in COLUMNS:
+        if c.type in (COLOR, SCALAR, FLAG) and (kind is None or read_by(c, kind)):
+            out[c.name] = (c, False)
+            if c.slot is not None:
+                out[c.name + "_map"] = (c, True)
+    return out
+
+
 def _check_schema() -> None:
     """Slots number 0..NUM_SLOTS-1 once each and belong to colours; names are unique."""
     assert len(COLUMN) == len(COLUMNS), "duplicate column names"

@@ -5,8 +5,8 @@
 
 Each "pixel" is one independent estimate of the integral from N samples (index 0..N-1 of its own
 sequence, as a renderer's pixel would draw them); the RMSE over pixels against the analytic value is
-the estimator's error. Sobol' draws dimension pairs (0,1), (2,3), ... with sobol_2d; the independent
-sampler draws each dimension with wp.randf from stream_state(seed, pixel, sample), as the renderer
+the estimator's error. Sobol' draws dimension pairs (0,1), (2,3), ... with the sampler's ``POINTS.two``; the
+independent sampler draws each dimension with wp.randf from stream_state(seed, pixel, sample), as the renderer
 does today. Slopes are least-squares fits of log RMSE against log N over N >= 4 (independent
 sampling: -0.5; scrambled nets: -1.5 for smooth 2D integrands, about -0.75 for a 2D discontinuity),
 at powers of two; a second table shows the gain at N = 3 * 2**k, between powers of two.
@@ -41,8 +41,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt.device.sampling import stream_state  # noqa: E402
-from warp_spt.samplers.sobol import sobol_2d  # noqa: E402
-from warp_spt.samplers.sobol_affine import affine_2d  # noqa: E402
+from warp_spt.samplers import sobol, sobol_affine  # noqa: E402
 
 vec8 = wp.types.vector(length=8, dtype=float)
 HALF_PI = math.pi / 2
@@ -76,7 +75,7 @@ def integrand(kind: int, u: vec8) -> float:
 def make_draw(sampler: str):
     """The wp.func that fills the first ``dims`` entries of a vec8 for (seed, pixel, sample)."""
     if sampler in ("sobol", "sobol-affine"):
-        two_d = sobol_2d if sampler == "sobol" else affine_2d
+        two_d = (sobol if sampler == "sobol" else sobol_affine).POINTS.two
 
         @wp.func
         def draw(seed: wp.uint32, pixel: int, j: int, dims: int) -> vec8:

@@ -42,19 +42,10 @@ import warp as wp  # noqa: E402
 
 wp.config.log_level = wp.LOG_WARNING
 
-from warp_spt.samplers.sobol import (  # noqa: E402
-    _DIM_MUL,
-    _X_SALT,
-    _Y_SALT,
-    mix32,
-    owen_scramble,
-    pixel_key,
-    reverse_bits,
-    shuffled_index,
-    sobol_2d_keyed,
-    sobol_dim1,
-    to_unit,
-)
+from warp_spt.samplers.sobol import POINTS, _X_SALT, _Y_SALT, owen_scramble, shuffled_index  # noqa: E402
+from warp_spt.samplers.sobol_points import _DIM_MUL, mix32, pixel_key, reverse_bits, sobol_dim1, to_unit  # noqa: E402
+
+sobol_2d_keyed = POINTS.two_keyed
 
 OPTIONS = {"cpu_compiler_flags": "-march=native -mllvm=-inline-threshold=2000 -mllvm=-slp-recursion-max-depth=4"}
 

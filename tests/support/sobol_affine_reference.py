@@ -54,7 +54,7 @@ def _request(seed, pixel, index, dim):
 
 
 def affine_2d(seed, pixel, index, dim) -> np.ndarray:
-    """[..., 2] float32 points, as sobol_affine.affine_2d for broadcast (seed, pixel, index, dim)."""
+    """[..., 2] float32 points, as sobol_affine.POINTS.two for broadcast (seed, pixel, index, dim)."""
     key, i = _request(seed, pixel, index, dim)
     x = scramble(R.sobol_u32(i, 0), *_words(key, A.X_INNER_SALT, R.mix32(key ^ np.uint64(A.X_ADD_SALT)), A.X_MUL_SALT))
     y = scramble(R.sobol_u32(i, 1), *_words(key, A.Y_INNER_SALT, R.mix32(key ^ np.uint64(A.Y_ADD_SALT)), A.Y_MUL_SALT))

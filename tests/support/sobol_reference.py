@@ -7,7 +7,8 @@
   flip is the random bit of the flip-tree node (l, prefix), looked up directly from its definition
   (levels < 15: subtree of 5 levels, one hash per subtree root, bit 2**j - 1 + sub-prefix; levels
   15..23: bits of one hash of the 15-bit prefix). The index shuffle likewise, bit by bit.
-Only the hash and the seed chain are shared with the module: they are its specification.
+Only the hash and the seed chain (warp_spt.samplers.sobol_points) and the salts are shared with the
+modules: they are their specification.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from warp_spt.samplers import sobol as S
+from warp_spt.samplers import sobol_points as P
 
 M32 = np.uint64(0xFFFFFFFF)
 
@@ -23,9 +25,9 @@ def mix32(x):
     """lowbias32 on uint32 arrays, computed in uint64 and masked (no reliance on wrap-around)."""
     x = np.asarray(x, dtype=np.uint64) & M32
     x ^= x >> np.uint64(16)
-    x = (x * np.uint64(S.LOWBIAS_MUL1)) & M32
+    x = (x * np.uint64(P.LOWBIAS_MUL1)) & M32
     x ^= x >> np.uint64(15)
-    x = (x * np.uint64(S.LOWBIAS_MUL2)) & M32
+    x = (x * np.uint64(P.LOWBIAS_MUL2)) & M32
     x ^= x >> np.uint64(16)
     return x
 
@@ -114,9 +116,9 @@ def shuffle(index, key) -> np.ndarray:
 
 
 def request_seed(seed, pixel, dim) -> np.ndarray:
-    h = mix32(np.asarray(seed, dtype=np.uint64) ^ np.uint64(S.SEED_SALT))
+    h = mix32(np.asarray(seed, dtype=np.uint64) ^ np.uint64(P.SEED_SALT))
     h = mix32(h ^ (np.asarray(pixel, dtype=np.uint64) & M32))
-    return mix32(h ^ ((np.asarray(dim, dtype=np.uint64) * np.uint64(S.DIM_MUL)) & M32))
+    return mix32(h ^ ((np.asarray(dim, dtype=np.uint64) * np.uint64(P.DIM_MUL)) & M32))
 
 
 def to_unit(v) -> np.ndarray:
@@ -130,7 +132,7 @@ def _request(seed, pixel, index, dim):
 
 
 def sobol_2d(seed, pixel, index, dim) -> np.ndarray:
-    """[..., 2] float32 points, as warp_spt.samplers.sobol.sobol_2d for broadcast (seed, pixel, index, dim)."""
+    """[..., 2] float32 points, as warp_spt.samplers.sobol.POINTS.two for broadcast (seed, pixel, index, dim)."""
     key, i = _request(seed, pixel, index, dim)
     x = owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT)))
     y = owen(sobol_u32(i, 1), mix32(key ^ np.uint64(S.Y_SALT)))
@@ -138,6 +140,6 @@ def sobol_2d(seed, pixel, index, dim) -> np.ndarray:
 
 
 def sobol_1d(seed, pixel, index, dim) -> np.ndarray:
-    """Float32 values, as warp_spt.samplers.sobol.sobol_1d: the scrambled van der Corput dimension alone."""
+    """Float32 values, as warp_spt.samplers.sobol.POINTS.one: the scrambled van der Corput dimension alone."""
     key, i = _request(seed, pixel, index, dim)
     return to_unit(owen(sobol_u32(i, 0), mix32(key ^ np.uint64(S.X_SALT))))

@@ -106,6 +106,15 @@ def test_the_view_refines_with_an_error_estimate(session):
     assert later.relative_error < res.relative_error * 1.2     # more samples, no worse (noisy estimate)
 
 
+def test_the_views_batches_draw_the_progressive_renderers_streams():
+    """Batch b of the view is seeded as ``render_progressive``'s batch b (one ``batch_seed``, the
+    renderer's), so the two estimate the same per-batch streams."""
+    from warp_spt.rendering.schedule import batch_seed
+
+    acc = session_module.Accumulator(0, 2, 3, seed=5)
+    assert acc.seeds == [batch_seed(5, b) for b in range(session_module.BATCHES)]
+
+
 def test_a_camera_change_restarts_the_refinement(session):
     first = session.wait_for(8, timeout=TIMEOUT)
     before = session.camera

@@ -10,7 +10,9 @@ with the dimensions in increasing order; the integrators assign them (``integrat
 * ``sobol-affine`` (:mod:`warp_spt.samplers.sobol_affine`): the same points with a cheaper nested scramble
   of the same error.
 
-A new sampler is one module with a ``make() -> Sampler`` function plus one line in ``SAMPLERS``.
+Both Sobol' samplers are one builder (:mod:`warp_spt.samplers.sobol_points`) given a scramble record.
+A new sampler is one module with a ``make() -> Sampler`` function plus one line in ``SAMPLERS``; a new
+scramble of the Sobol' points, a ``sobol_points.Scramble`` of four Warp functions and ``points(...).sampler``.
 """
 
 from __future__ import annotations

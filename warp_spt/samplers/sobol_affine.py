@@ -1,8 +1,8 @@
 """Padded Sobol' points with a cheaper nested scramble, affine in the digits (``sobol-affine``).
 
-The same sequence, padding and interface as :mod:`warp_spt.samplers.sobol` (Sobol' dimensions 0 and 1
-per 2-D request, an index shuffle per (seed, pixel, dimension), ``next_1d(d) == next_2d(d).x``, values
-multiples of 2**-24 in [0, 1 - 2**-24], global sample index below 2**31, ``make_batch``), with a
+The padded Sobol' points of :mod:`warp_spt.samplers.sobol_points`, as ``sobol``'s (Sobol' dimensions 0
+and 1 per 2-D request, an index shuffle per (seed, pixel, dimension), ``next_1d(d) == next_2d(d).x``,
+values multiples of 2**-24 in [0, 1 - 2**-24], global sample index below 2**31, ``make_batch``), with a
 different scramble, cheaper per request (docs/performance.md, "A per-pixel cache, and a cheaper
 scramble").
 
@@ -31,8 +31,9 @@ digit of two inputs, so the pair law above stays exact; what the first stage add
 three- and more-point statistics, on which no mean error depends but the spread of the error from
 pixel to pixel does: with the last stage alone (a multiplier m = 1 mod 2**t leaves the first t
 digits merely shifted), the RMSE's own standard error over 8192 estimates was up to 10x ``sobol``'s;
-with both stages it is ``sobol``'s (docs/performance.md). ``tests/samplers/test_sobol_affine.py`` checks the
-pair distribution, the nets and the error against ``sobol``'s.
+with both stages it is ``sobol``'s (docs/performance.md). ``tests/samplers/test_sobol.py`` checks the pair
+distribution and the nets (for both scrambles), ``tests/samplers/test_sobol_affine.py`` the error against
+``sobol``'s.
 
 Per 2-D request: the key (one hash of the pixel key and the dimension), eight more hashes for the
 stages' words (index shuffle, x, y; the key itself is the shuffle's addend), six affine maps, three
@@ -53,8 +54,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_spt.samplers.base import Sampler, SamplerState, batch_lanes, detach_requests, sampler_state
-from warp_spt.samplers.sobol import _DIM_MUL, mix32, pixel_key, reverse_bits, to_unit
+from warp_spt.samplers.sobol_points import Scramble, mix32, pascal, points, reverse_bits, to_unit
 
 # Salts of the eight words derived from a request's key (arbitrary distinct constants, odd so that
 # none is 0; the key's own hash already spreads dimensions and pixels).
@@ -100,24 +100,6 @@ def scramble(r: wp.uint32, h: wp.uint32, a: wp.uint32, m: wp.uint32) -> wp.uint3
 
 
 @wp.func
-def pascal(i: wp.uint32) -> wp.uint32:
-    """Sobol' dimension 1 of index i with its digits in reversed order (``sobol.sobol_dim1`` before its
-    final reversal): output bit r is the XOR of the index bits k with k & r == r (Lucas' theorem
-    on the Pascal-matrix generator), as 5 bit-parallel butterfly steps."""
-    i = i ^ ((i >> wp.uint32(1)) & wp.uint32(0x55555555))
-    i = i ^ ((i >> wp.uint32(2)) & wp.uint32(0x33333333))
-    i = i ^ ((i >> wp.uint32(4)) & wp.uint32(0x0F0F0F0F))
-    i = i ^ ((i >> wp.uint32(8)) & wp.uint32(0x00FF00FF))
-    return i ^ (i >> wp.uint32(16))
-
-
-@wp.func
-def request_key(pkey: wp.uint32, dim: int) -> wp.uint32:
-    """The key of a (seed, pixel, dimension) request (as ``sobol``'s)."""
-    return mix32(pkey ^ (wp.uint32(dim) * _DIM_MUL))
-
-
-@wp.func
 def shuffled(key: wp.uint32, rindex: wp.uint32) -> wp.uint32:
     """The Sobol' index of the sample whose index has reversed bits ``rindex``."""
     return reverse_bits(scramble(rindex, mix32(key ^ _SHUFFLE_INNER), key, mix32(key ^ _SHUFFLE_MUL)))
@@ -135,83 +117,18 @@ def scrambled_y(key: wp.uint32, i: wp.uint32) -> float:
     return to_unit(reverse_bits(scramble(pascal(i), mix32(key ^ _Y_INNER), mix32(key ^ _Y_ADD), mix32(key ^ _Y_MUL))))
 
 
-@wp.func(inline=False)
-def affine_1d_keyed(pkey: wp.uint32, index: int, dim: int) -> float:
-    """Sample dimension ``dim`` of global sample ``index``, the pixel's part given as ``pkey``."""
-    key = request_key(pkey, dim)
-    return scrambled_x(key, shuffled(key, reverse_bits(wp.uint32(index))))
-
-
-@wp.func(inline=False)
-def affine_2d_keyed(pkey: wp.uint32, index: int, dim: int) -> wp.vec2:
-    """Sample dimensions ``dim`` and ``dim + 1`` of global sample ``index``."""
-    key = request_key(pkey, dim)
-    i = shuffled(key, reverse_bits(wp.uint32(index)))
-    return wp.vec2(scrambled_x(key, i), scrambled_y(key, i))
-
-
 @wp.func
-def affine_1d(seed: wp.uint32, pixel: int, index: int, dim: int) -> float:
-    return affine_1d_keyed(pixel_key(seed, pixel), index, dim)
+def reversed_index(index: int) -> wp.uint32:
+    """The sample index with its bits reversed: what ``shuffled`` reads (the same for every lane of a batch)."""
+    return reverse_bits(wp.uint32(index))
 
 
-@wp.func
-def affine_2d(seed: wp.uint32, pixel: int, index: int, dim: int) -> wp.vec2:
-    return affine_2d_keyed(pixel_key(seed, pixel), index, dim)
-
-
-def make_batch(offsets: tuple) -> object:
-    """``batch(state, base) -> vector``: the 2-D requests at ``base + offsets[k]`` as the lanes of one
-    call, bit for bit ``affine_2d_keyed``'s (the contract of ``Sampler.make_batch``)."""
-    from warp_spt.runtime import kernel_cache
-
-    return kernel_cache.cached("sobol-affine batch", tuple(offsets), lambda: _build_batch(tuple(offsets)))
-
-
-def _build_batch(offsets: tuple) -> object:
-    if not offsets:
-        raise ValueError("a Sobol' batch needs at least one dimension offset")
-    lanes = batch_lanes(len(offsets))
-    padded = offsets + (offsets[-1],) * (lanes - len(offsets))
-    vi = wp.types.vector(length=lanes, dtype=wp.int32)
-    vf = wp.types.vector(length=2 * lanes, dtype=wp.float32)
-    offs = wp.constant(vi(*padded))
-
-    # out of line, as sobol's batch: one function keeps the lanes together for clang's vectoriser
-    @wp.func(inline=False)
-    def lanes_2d(pkey: wp.uint32, index: int, base: int):
-        out = vf()
-        r = reverse_bits(wp.uint32(index))     # the same for every lane
-        for j in range(wp.static(lanes)):
-            key = request_key(pkey, base + offs[j])
-            i = shuffled(key, r)
-            out[j] = scrambled_x(key, i)
-            out[j + wp.static(lanes)] = scrambled_y(key, i)
-        return out
-
-    @wp.func
-    def batch(state: SamplerState, base: int):
-        return lanes_2d(state.rng, state.index, base)
-
-    return batch
+AFFINE = Scramble("sobol-affine",
+                  "Sobol' points with a cheaper nested scramble (affine in the digits), of sobol's error",
+                  reversed_index, shuffled, scrambled_x, scrambled_y)
+POINTS = points(AFFINE)   # one(seed, pixel, index, dim), two, their *_keyed forms, make_batch
 
 
 def make():
-    """The record (warp_spt.samplers.SAMPLERS["sobol-affine"]): as ``sobol``'s, the pixel's key
-    computed once per sample."""
-    @wp.func
-    def start(seed: wp.uint32, pixel: int, index: int) -> SamplerState:
-        return sampler_state(seed, pixel, index, pixel_key(seed, pixel))
-
-    @wp.func
-    def next_1d(state: SamplerState, dim: int):
-        return affine_1d_keyed(state.rng, state.index, dim), state
-
-    @wp.func
-    def next_2d(state: SamplerState, dim: int):
-        return affine_2d_keyed(state.rng, state.index, dim), state
-
-    detach_requests(next_1d, next_2d)
-    return Sampler("sobol-affine", start, next_1d, next_2d, random_access=True,
-                   summary="Sobol' points with a cheaper nested scramble (affine in the digits), of sobol's error",
-                   make_batch=make_batch)
+    """The record of ``SAMPLERS["sobol-affine"]``."""
+    return POINTS.sampler()

@@ -12,9 +12,11 @@ version is checked between bands: a new interaction abandons the pass within one
 are never killed.
 
 How samples add up: the refined image is kept as BATCHES batch sums, as
-``warp_spt.render_progressive`` keeps them (docs/error.md): batch b renders with its own seed and
-continues its own sample sequence (``sample_offset``), so batches are independent and their spread
-gives each pixel's standard error, and the image is an exact float64 sum of the samples.
+``warp_spt.render_progressive`` keeps them (docs/error.md): batch b renders with that renderer's
+seed for batch b (``rendering.schedule.batch_seed``) and continues its own sample sequence
+(``sample_offset``), so batches are independent and their spread gives each pixel's standard error,
+batch b draws the sample stream of ``render_progressive``'s batch b, and the image is an exact
+float64 sum of the samples.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from warp_spt.rendering.schedule import batch_seed
 from warp_spt.scene.limits import MAX_DEPTH, MAX_RADIANCE, MAX_SPP, MAX_VIEW_PIXELS
 
 from . import display, lighting, messages, navigation
@@ -170,11 +173,6 @@ def preview_size(settings: ViewSettings, budget: float | None = None, smallest: 
         f = min(max(f, math.sqrt(settings.width * settings.height / budget)), MAX_PREVIEW_SHRINK * f)
     f = max(1.0, min(f, min(settings.width, settings.height) / smallest))
     return max(1, round(settings.width / f)), max(1, round(settings.height / f))
-
-
-def batch_seed(seed: int, batch: int) -> int:
-    """A distinct 32-bit seed per batch (any distinct seeds give independent scrambles)."""
-    return (seed * 0x9E3779B1 + (batch + 1) * 0x85EBCA77) & 0xFFFFFFFF
 
 
 class Accumulator:

@@ -15,7 +15,6 @@ import statistics
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -26,7 +25,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.19 dropped config.quiet)
 
 from warp_spt.upload.device_scene import DeviceScene  # noqa: E402
-from warp_spt.emitters import sky_emits  # noqa: E402
+from warp_spt.emitters import declare_sky  # noqa: E402
 from warp_spt.integrators import get_kernel  # noqa: E402
 from warp_spt.io.loader import load_scene  # noqa: E402
 from warp_spt.rendering.settings import RenderSettings  # noqa: E402
@@ -74,7 +73,7 @@ def main() -> None:
         for name, statement in VARIANTS.items():
             dev = scene_for(Path(tmp), name, statement)
             start = time.perf_counter()
-            get_kernel(replace(dev.features, sky=sky_emits(settings.sky)))
+            get_kernel(dev.features.with_lights(declare_sky(settings.sky)))
             load = time.perf_counter() - start
             render_scene(dev, camera, settings)
             times = [render_scene(dev, camera, settings).stats.seconds for _ in range(3)]

@@ -40,7 +40,6 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +55,7 @@ wp.config.log_level = wp.LOG_WARNING   # no banner or module-load lines (Warp 1.
 import warp_spt.rendering.tiles as R
 from warp_spt.upload.device_scene import MESH_LEAF_SIZE, DeviceScene, Features, Geometry, Materials, Textures  # noqa: E402
 from warp_spt.accel.ray_queries import KIND_MISS, NO_HIT, Hit, make_closest_hit, make_occluded  # noqa: E402
-from warp_spt.emitters import Lights, light_table, sky_emits  # noqa: E402
+from warp_spt.emitters import Lights, declare_sky, light_table  # noqa: E402
 from warp_spt.accel.surface import make_surface  # noqa: E402
 from warp_spt.demo import demo_files  # noqa: E402
 from warp_spt.integrators import (  # noqa: E402
@@ -91,7 +90,7 @@ SKY = Sky.gradient()
 
 def path_features(dev: DeviceScene) -> Features:
     """The feature set render() compiles for this scene and SKY."""
-    return replace(dev.features, sky=sky_emits(SKY))
+    return dev.features.with_lights(declare_sky(SKY))
 
 
 def camera_ray_kernel(dev: DeviceScene) -> wp.Kernel:
@@ -555,7 +554,7 @@ def path_table(name: str, dev: DeviceScene, cam: Camera, sky: Sky, size: int, sp
     wp.mesh_query_ray and wp.mesh_query_ray_anyhit kernels on the very rays it traced, and the
     ablations (what each piece costs inside the path kernel). One thread, CPU time of the launch."""
     n = size * size
-    feats = replace(dev.features, sky=sky_emits(sky))
+    feats = dev.features.with_lights(declare_sky(sky))
     fixed = [dev.geometry, dev.materials, dev.textures(), light_table(dev, sky), camera_params(cam, size, size)]
     rp = RenderParams()
     rp.width, rp.pixel_start, rp.sample_start, rp.sample_count = size, 0, 0, spp

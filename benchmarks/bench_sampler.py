@@ -172,7 +172,7 @@ def render_table(size: int, spp: int, repeat: int) -> None:
     import statistics
     import tempfile
 
-    from warp_spt.emitters import light_table, sky_emits
+    from warp_spt.emitters import declare_sky, light_table
     from warp_spt.integrators import RenderParams, camera_params, nee
     from warp_spt.integrators.common import make_kernel, make_start_path
     from warp_spt.samplers import get_sampler
@@ -187,7 +187,7 @@ def render_table(size: int, spp: int, repeat: int) -> None:
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name, dev, cam, sky in render_scenes(Path(tmp)):
-            feats = dataclasses.replace(dev.features, sky=sky_emits(sky))
+            feats = dev.features.with_lights(declare_sky(sky))
             kernels = {}
             for label, sampler in variants.items():
                 k = make_kernel(nee.make_path_step(feats, sampler, light_sampling=True), make_start_path(sampler))

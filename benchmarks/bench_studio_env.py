@@ -54,7 +54,7 @@ from warp_spt.scene.sky import Sky                           # noqa: E402
 
 def texel_directions(h: int, up) -> np.ndarray:
     """(H, 2H, 3) the direction of each texel centre of an H x 2H map about ``up`` (rotation 0), as
-    ``emitters.envmap`` maps them."""
+    ``emitters.environment`` maps them."""
     t, b, u = sky_frame(up)
     theta = np.pi * (np.arange(h) + 0.5) / h
     psi = 2 * np.pi * (np.arange(2 * h) + 0.5) / (2 * h)

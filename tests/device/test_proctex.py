@@ -175,7 +175,8 @@ def test_registration_rejects_bad_declarations():
 
 def test_scene_without_procedural_textures_compiles_the_same_kernel():
     """Registering textures changes nothing for scenes that do not use them; using one does."""
-    plain = replace(Features.general(), sky=False)
+    plain = replace(Features.general(), lights=("environment.seen", "punctual", "sphere", "triangle", "triangle.texels",
+                                                "triangle.tree"))   # every light kind but the sky's
     assert plain.procedural == ()
     step, start = get_step("seed", "independent", plain)
     h0 = make_kernel(step, start).module.hash_module()

@@ -104,7 +104,7 @@ def test_floor_under_a_textured_lamp_matches_the_closed_form(scene_dir):
     # direct light only (depth 2), black sky; pixel = mean over its footprint of
     # albedo / pi * sum over texels of L_texel * E_texel(x), E from Lambert's formula
     dev = lamp_scene(scene_dir, "texel_lamp")
-    assert dev.features.emissive_texels
+    assert dev.features.lit("triangle.texels")
     lights = light_table(dev, sky(0.0))
     assert (lights.triangle.texel.first.numpy() >= 0).sum() == 2       # both lamp triangles have cells
     w, h = 12, 10

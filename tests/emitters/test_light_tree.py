@@ -36,7 +36,7 @@ def test_many_lamps_over_a_floor_match_the_closed_form(scene_dir):
     obj = quads_obj([("floor", FLOOR)] + [("lamp", q) for q in quads])
     mtl = material("floor", Kd=(ALBEDO,) * 3, Roughness=1) + material("lamp", Kd=(0, 0, 0), Kl=(L,) * 3)
     dev = scene_from_text(scene_dir, "many_lamps", obj, mtl)
-    assert dev.features.light_tree and len(quads) * 2 >= MIN_TREE_LIGHTS
+    assert dev.features.lit("triangle.tree") and len(quads) * 2 >= MIN_TREE_LIGHTS
     table = light_table(dev, sky(0.0))
     assert table.num_entries == 1 and table.triangle.use_tree == 1      # the tree chooses the triangle
     w, h = 12, 10

@@ -137,7 +137,7 @@ def test_delta_sun_matches_a_distant_sphere(scene_dir):
 def test_only_delta_lights_render(scene_dir, integrator):
     pos, i = (0.3, 0.5, 1.5), 7.0
     dev = floor_scene(scene_dir, [PointLight(position=pos, intensity=(i, i, i))])
-    assert dev.features.punctual and not dev.features.emitters
+    assert dev.features.lights == ("punctual",) and not dev.features.emitters
     from warp_spt.rendering.settings import RenderSettings
     from warp_spt.rendering.tiles import render_scene
     img = render_scene(dev, FLOOR_CAM, RenderSettings(width=W, height=H, spp=16, max_depth=2, sky=sky(0.0),

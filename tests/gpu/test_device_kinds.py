@@ -72,7 +72,7 @@ def _pbr_under_a_map(folder):
            "newmtl glass\nKd 1 1 1\nPr 0.2\nNi 1.5\nTf 1 1 1\nd 0\n")
     host = load_scene(*write_scene_files(folder, "pbr_env", obj, mtl), warn=lambda message: None)
     host = replace(host, sky=Sky.environment(_sun_and_sky_map(), up=(0.0, 1.0, 0.0)))
-    return host, SPHERES_CAM, {"spp": 8, "max_depth": 12}, lambda f: "pbr" in f.material_kinds and f.environment
+    return host, SPHERES_CAM, {"spp": 8, "max_depth": 12}, lambda f: "pbr" in f.material_kinds and f.lit("environment")
 
 
 def _punctual(folder):
@@ -82,7 +82,7 @@ def _punctual(folder):
               SpotLight(position=(-0.2, 0.8, 0.3), direction=(0.0, -1.0, 0.0), intensity=(1.5, 1.5, 2.0),
                         inner_deg=10.0, outer_deg=30.0)]
     return (replace(host, lights=lights), cornell_camera(), {"sky": Sky.constant(0.05, 0.05, 0.05)},
-            lambda f: f.punctual)
+            lambda f: f.lit("punctual"))
 
 
 def _many_lamps(folder):
@@ -95,7 +95,7 @@ def _many_lamps(folder):
     host = load_scene(*write_scene_files(folder, "lamps", quads_obj([("floor", floor), *lamps]), mtl),
                       warn=lambda message: None)
     cam = Camera.look_at((0.0, -5.0, 3.0), (0.0, 2.0, 0.0), up=(0.0, 0.0, 1.0), fov=60.0)
-    return host, cam, {"sky": Sky.black(), "max_depth": 3, "spp": 8}, lambda f: f.light_tree
+    return host, cam, {"sky": Sky.black(), "max_depth": 3, "spp": 8}, lambda f: f.lit("triangle.tree")
 
 
 def _ball_with(folder, name: str, medium: Medium | None, mtl_lines: str = ""):

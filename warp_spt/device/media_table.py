@@ -5,7 +5,8 @@ interior medium. ``mat_medium[row]`` is the interior medium of material row ``ro
 surface is no medium boundary: crossing it keeps the ray's medium), ``outer`` the medium outside
 every closed mesh (the fog, or -1), which is also where camera rays start. A scene without media
 uploads one-element dummies and ``count`` 0: its kernels compile no media code
-(``Features.media`` is empty) and never read them. The upload is ``media.upload``.
+(``Features.media``, declared by ``media.registry``, is empty) and never read them. The upload is
+``media.upload``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from warp_spt.scene.media import Medium, interface_rows
 
 @wp.struct
 class Media:
-    kind: wp.array(dtype=wp.int32)        # index into MEDIUM_KINDS
+    kind: wp.array(dtype=wp.int32)        # index into scene.families.MEDIUM_KINDS
     sigma_a: wp.array(dtype=wp.vec3)
     sigma_s: wp.array(dtype=wp.vec3)
     g: wp.array(dtype=wp.float32)
@@ -60,21 +61,6 @@ def media_of(scene) -> tuple[list[Medium], int, np.ndarray]:
             same = [len(media) - 1]
         rows[names[name]] = same[0]
     return media, outer, rows
-
-
-def media_features(scene) -> tuple[str, ...]:
-    """``Features.media``: the medium kinds the scene uses (sorted), and "emission" where some
-    medium emits; () for a scene without media."""
-    media, _, _ = media_of(scene)
-    if not media:
-        return ()
-    kinds = sorted({m.kind for m in media})
-    if any(max(m.emission) > 0 and max(m.sigma_a) > 0 for m in media):
-        kinds.append("emission")
-    _, _, rows = media_of(scene)
-    if (interface_rows(scene.materials) & (rows >= 0)).any():
-        kinds.append("interface")          # shadow rays cross pass-through medium boundaries
-    return tuple(kinds)
 
 
 def interface_media(scene) -> set[int]:

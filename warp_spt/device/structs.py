@@ -3,7 +3,7 @@
 One small Warp struct per concept (:class:`Geometry`, :class:`Textures`, ``Materials`` from the
 material schema) and :class:`Features`. This is the low half of the device scene: kernels, material
 kinds, lights and integrators import these; ``warp_spt.upload.device_scene`` (the high half) uploads a
-host scene into them and decides its Features from what the material kinds declare.
+host scene into them and decides its Features from what the material, light and medium kinds declare.
 """
 
 from __future__ import annotations
@@ -108,19 +108,16 @@ class Features:
     light sampling, MIS and guiding; and ``material_flags``, the names of the code paths the kinds
     need (``"seed.refraction"``, ``"pbr.transmission"``, ``"dims.lobe"``, ``"frame.uv"``, ...: see
     :meth:`needs`). A scene of the seed's kind alone compiles the lean kernel it always compiled.
+    The lights' and media's parts are what their kinds declare in the same way (``lights``, ``media``:
+    :meth:`lit`, :attr:`samples_lights`); the rest are the geometry's flags.
     """
 
     meshes: bool = True
     spheres: bool = True
     textures: bool = True
     checker: bool = True
-    emitters: bool = True
+    emitters: bool = True      # some used material emits (its emission is added where a ray hits it)
     smooth: bool = True
-    sky: bool = True           # the sky emits (set per render from the Sky, not by the scene)
-    environment: bool = True   # the sky is an environment map (set per render, as ``sky``)
-    punctual: bool = True      # the scene has sun, point or spot lights (scene.lights)
-    light_tree: bool = True    # many emitting triangles: chosen by a light tree (emitters.light_tree)
-    emissive_texels: bool = True   # image-textured emitters: drawn by their texels (emitters.emissive_texels)
     # procedural textures used: sorted (name, source hash); () compiles no procedural code
     procedural: tuple[tuple[str, str], ...] = ()
     # material kinds used (warp_spt.bsdfs), in MATERIAL_KINDS order; one compiles no dispatch
@@ -132,8 +129,12 @@ class Features:
     # mesh has a wide BVH), and whether some mesh keeps Warp's BVH (WIDE_BVH_MAX_TRIANGLES)
     bvh_stack: int = BVH_STACKS[-1]
     warp_meshes: bool = True
-    # participating media (media.media_features): the medium kinds used, "emission" where one
-    # emits; () compiles no media code (every scene without a medium)
+    # the light kinds' declarations (``emitters.LightKind.declare``/``declare_sky``), sorted: a kind's
+    # name where it is in the light table (its sampling code is compiled in), "KIND.PATH" for a code
+    # path it needs ("triangle.tree", "environment.seen"); "*": every kind and path (general())
+    lights: tuple[str, ...] = ("*",)
+    # the medium kinds' declarations (``media.registry.declare``), sorted: the kinds used, "emission"
+    # where one emits, "interface" behind pass-through boundaries; () compiles no media code
     media: tuple[str, ...] = ()
     # some mesh is placed by transforms (MeshData.transforms): the traversal moves rays into object
     # space and the surface look-up moves points, normals and tangents back (Geometry's inst_* arrays)
@@ -157,10 +158,36 @@ class Features:
         """Some material has a lobe with a density (diffuse or glossy): light sampling and MIS apply."""
         return bool(self.lobes & LOBE_SMOOTH)
 
+    def lit(self, flag: str) -> bool:
+        """A light kind declared this name (``lights``): the kind is in the light table, or it needs
+        this code path."""
+        return flag in self.lights or "*" in self.lights
+
+    @property
+    def samples_lights(self) -> bool:
+        """Some light can be sampled: a kind declared itself in the light table (a name without a
+        path), whichever kind it is."""
+        return any("." not in name for name in self.lights)
+
+    def with_lights(self, flags) -> "Features":
+        """These features with more light declarations (the sky's, per render)."""
+        return replace(self, lights=_union(self.lights, flags))
+
     def covering(self, scene: "Features") -> "Features":
-        """These features with the mesh traversal that ``scene``'s meshes need added: a kernel
-        compiled for other features (an override) must still trace this scene's rays."""
+        """These features with what ``scene`` needs to be rendered right added: its mesh traversal and
+        every declared set (``lights``, ``media``) merged, so that a kernel compiled for other features
+        (an override) still traces this scene's rays and samples every light of its table."""
         stack = self.bvh_stack if scene.bvh_stack == 0 else max(self.bvh_stack, scene.bvh_stack)
+        merged = {name: _union(getattr(self, name), getattr(scene, name)) for name in DECLARED}
         return replace(self, bvh_stack=stack, warp_meshes=self.warp_meshes or scene.warp_meshes,
-                       punctual=self.punctual or scene.punctual, light_tree=self.light_tree or scene.light_tree,
-                       instances=self.instances or scene.instances)
+                       instances=self.instances or scene.instances, **merged)
+
+
+# the fields of Features that families declare (sets of names, kept sorted so equal sets are equal keys)
+DECLARED = ("lights", "media")
+
+
+def _union(a, b) -> tuple[str, ...]:
+    """The sorted union of two declared sets; "*" (everything) absorbs the rest."""
+    names = set(a) | set(b)
+    return ("*",) if "*" in names else tuple(sorted(names))

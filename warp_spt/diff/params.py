@@ -64,7 +64,7 @@ from warp_spt.scene.model import TEX_PROC_BASE, Scene
 from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 from warp_spt.scene.validate import check_procedural_colours
 
-# the environment map's light kind (emitters.envmap) and its parameters, in the order of the rows
+# the environment map's light kind (emitters.environment) and its parameters, in the order of the rows
 # of its parameter array (EnvLight.params): Sky fields
 ENVIRONMENT = "environment"
 ENVIRONMENT_FIELDS = ("strength", "rotate")

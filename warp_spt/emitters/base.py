@@ -84,7 +84,13 @@ class LightKind:
       ``emission`` at ``surface_at``, shared by all area kinds); otherwise an infinite light, which
       gives ``le(lights, d)`` itself and is seen by every ray that misses the scene (its ``le`` is
       compiled in whatever the features: a dark one is black).
-    * ``sampled(features)``: its sampling code is compiled in (it can be in the table).
+    * ``declare(scene, used, base) -> names`` (host, once per scene): what the kind needs from a scene
+      (``Features.lights``): its own name where the scene gives it entries in the light table, and
+      "NAME.PATH" for a code path of its own (``used``: the material rows the scene's geometry uses;
+      ``base``: the scene's other features). ``declare_sky(sky) -> names``: the same from the sky of
+      a render (the infinite lights). The upload and the render set-up ask every kind in turn.
+    * ``sampled(features)``: its sampling code is compiled in (it can be in the table): by default
+      where the features name it (``Features.lit``).
     * ``weigh(scene, sky) -> Weighed`` (host): its entries and their weights (``cache``: they do not
       depend on the sky and are computed once per scene).
     * ``upload(payload, prob, scene, sky, up, device) -> data`` (host): its device data, with
@@ -99,23 +105,31 @@ class LightKind:
     * ``params``: the field of ``data`` holding its differentiable parameters, an array whose rows
       ``diff.params`` names (e.g. the sky's colours), or None; ``pathwise``: those of its parameter
       fields that move directions (a light's position), whose derivative needs the tape.
-    * ``delta``: no ray can meet it (its samples have hit kind KIND_PUNCTUAL): the dispatch's ``le``
-      asks its ``radiance(lights, ls, x)``, and neither a miss nor a hit counts it.
+    * ``delta``: no ray can meet it (its samples have hit kind KIND_PUNCTUAL, its ``hit_kind``): the
+      dispatch's ``le`` asks its ``radiance(lights, ls, x)``, and neither a miss nor a hit counts it.
+      Several delta kinds may be compiled in: the dispatch then tells their samples apart by the
+      sample's ``h.face``, which it sets (a delta kind's ``sample_li`` must not need it).
     """
 
     name: str
     data: Any
     hit_kind: int
     area: bool
-    sampled: Callable[[Features], bool]
     weigh: Callable[[Scene, Sky], Weighed]
     upload: Callable[..., Any]
     make: Callable[..., Any]
+    declare: Callable[..., frozenset] = lambda scene, used, base: frozenset()
+    declare_sky: Callable[[Sky], frozenset] = lambda sky: frozenset()
+    sampled: Callable[[Features], bool] | None = None
     cache: bool = True
     params: str | None = None
     present: Callable[[Features], bool] = lambda features: True
     delta: bool = False
     pathwise: frozenset = frozenset()
+
+    def __post_init__(self):
+        if self.sampled is None:
+            object.__setattr__(self, "sampled", lambda features: features.lit(self.name))
 
 
 def device_array(x, dtype, np_dtype, device: str) -> wp.array:
@@ -138,3 +152,10 @@ def mean_emission(scene: Scene, mat: np.ndarray, uv: np.ndarray) -> np.ndarray:
         vals = checker_np(pts) if k == TEX_CHECKER else sample_texture_np(scene.textures[k], pts)
         out[sel] = vals.reshape(sel.sum(), -1, 3).mean(axis=(1, 2))
     return out
+
+
+def emitting_rows(scene: Scene) -> np.ndarray:
+    """Per material row: it emits (a colour or an emission texture, procedural ones included)."""
+    mt = scene.materials
+    tex = mt.tex[:, SLOT_EMISSION]
+    return (mt.emission > 0).any(axis=1) | (tex >= 0) | (tex <= TEX_PROC_BASE)

@@ -37,7 +37,7 @@ from warp_spt.emitters.table import Lights, pick_entry
 
 def _sample_chain(levels):
     """``sample_entry(geo, lights, e, prob, x, u)``: entry ``e`` sampled by the kind that holds it;
-    ``levels`` are (slot in KINDS, sample_li, infinite-light index or -1)."""
+    ``levels`` are (slot in KINDS, sample_li, infinite-light index or -1, delta-light index or -1)."""
     if not levels:
         @wp.func
         def no_light(geo: Geometry, lights: Lights, e: int, prob: float, x: wp.vec3, u: wp.vec2) -> LightSample:
@@ -45,7 +45,7 @@ def _sample_chain(levels):
             ls.pdf = 0.0
             return ls
         return no_light
-    slot, sample_li, infinite = levels[0]
+    slot, sample_li, infinite, delta = levels[0]
     rest = _sample_chain(levels[1:])
 
     @wp.func(inline=True)
@@ -55,6 +55,10 @@ def _sample_chain(levels):
             if wp.static(infinite >= 0):       # several infinite lights: ``le`` must know which one
                 ls = sample_li(geo, lights, k, prob, x, u)
                 ls.h.index = infinite
+                return ls
+            if wp.static(delta >= 0):          # several delta kinds: so must their ``radiance``
+                ls = sample_li(geo, lights, k, prob, x, u)
+                ls.h.face = delta
                 return ls
             return sample_li(geo, lights, k, prob, x, u)
         return rest(geo, lights, e, prob, x, u)
@@ -127,6 +131,23 @@ def _le_chain(levels):
     return le_of
 
 
+def _delta_chain(levels):
+    """``radiance_of(lights, ls, x)``: the radiance of the delta kind that gave the sample ``ls``
+    (``levels``: (index, radiance); one kind alone is called as it is, without the test)."""
+    index, radiance = levels[0]
+    if len(levels) == 1:
+        return radiance
+    rest = _delta_chain(levels[1:])
+
+    @wp.func(inline=True)
+    def radiance_of(lights: Lights, ls: LightSample, x: wp.vec3) -> wp.vec3:
+        if ls.h.face == index:
+            return radiance(lights, ls, x)
+        return rest(lights, ls, x)
+
+    return radiance_of
+
+
 def _escaped(seen, miss_le):
     """``le_escaped(lights, d, depth)``: what a ray that misses the scene along ``d`` after ``depth``
     hits receives: ``le_miss``, except that a camera ray (depth 0) sees what an infinite kind's
@@ -148,21 +169,25 @@ def _escaped(seen, miss_le):
     return escaped
 
 
+def _place(i: int, group: list[int]) -> int:
+    """Kind ``i``'s index in ``group`` (the infinite or the delta kinds) where the group has several
+    (its samples must say which one gave them), else -1 (no tag: one kind's code is as it was)."""
+    return group.index(i) if len(group) > 1 and i in group else -1
+
+
 def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     """The interface above for the kinds these features use (``surface_at`` and ``emission``: the
     integrator's surface and the materials' emission, which area lights radiate)."""
     made = [k.make(Lights, features) for k in KINDS]
     infinite = [i for i, k in enumerate(KINDS) if not k.area and not k.delta and k.present(features)]
-    several = len(infinite) > 1
     sampled = [(i, k, made[i]) for i, k in enumerate(KINDS) if k.sampled(features) and k.present(features)]
-    sample_entry = _sample_chain([(i, f.sample_li, infinite.index(i) if several and i in infinite else -1)
-                                  for i, k, f in sampled])
+    # lights no ray meets (``punctual``): their samples share one hit kind, so with several such kinds
+    # each sample is tagged with its kind's place among them, as an infinite light's is
+    deltas = [i for i, k, f in sampled if k.delta]
+    sample_entry = _sample_chain([(i, f.sample_li, _place(i, infinite), _place(i, deltas)) for i, k, f in sampled])
     pdf_hit = _pdf_chain([(k.hit_kind, f.pdf_li) for i, k, f in sampled if k.area])
     miss_pdf = _miss_sum([f.pdf_li for i, k, f in sampled if not k.area and not k.delta], 0.0)
-    # lights no ray meets (at most one such kind, ``punctual``): their samples' radiance
-    delta = [f.radiance for i, k, f in sampled if k.delta]
-    assert len(delta) <= 1, "one delta light kind: its hit kind tells its samples apart"
-    delta_radiance = delta[0] if delta else None
+    delta_radiance = _delta_chain([(n, made[i].radiance) for n, i in enumerate(deltas)]) if deltas else None
     miss_le = _miss_sum([made[i].le for i in infinite], wp.vec3(0.0, 0.0, 0.0))
     sample_le = _le_chain([(n, made[i].le) for n, i in enumerate(infinite)])
     le_escaped = _escaped([made[i].seen for i in infinite if hasattr(made[i], "seen")], miss_le)

@@ -16,7 +16,7 @@ remapping): each level spends about one of its 24 bits, what is left places the 
 triangle.
 
 A scene uses the tree when it has at least ``MIN_TREE_LIGHTS`` emitting triangles
-(``Features.light_tree``); below that the power table alone is as good and compiles no tree code.
+(``Features.lights``: "triangle.tree"); below that the power table alone is as good and compiles no tree code.
 """
 
 from __future__ import annotations

@@ -195,6 +195,11 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     return s
 
 
-KIND = LightKind("punctual", PunctualLights, KIND_PUNCTUAL, area=False, sampled=lambda f: f.punctual,
+def declare(scene: Scene, used: np.ndarray, base: Features) -> frozenset:
+    """"punctual" where the scene has a sun, point or spot light."""
+    return frozenset({"punctual"} if punctual_lights(scene.lights) else ())
+
+
+KIND = LightKind("punctual", PunctualLights, KIND_PUNCTUAL, area=False, declare=declare,
                  weigh=weigh, upload=upload, make=make, params="vecs", delta=True,
                  pathwise=frozenset({"position", "direction"}))

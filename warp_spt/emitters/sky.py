@@ -166,5 +166,10 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     return s
 
 
-KIND = LightKind("sky", SkyLight, KIND_MISS, area=False, sampled=lambda f: f.sky, weigh=weigh,
+def declare_sky(sky: Sky) -> frozenset:
+    """"sky" where the sky emits (its ``le`` is compiled in whatever the features: a dark sky is black)."""
+    return frozenset({"sky"} if sky_emits(sky) else ())
+
+
+KIND = LightKind("sky", SkyLight, KIND_MISS, area=False, declare_sky=declare_sky, weigh=weigh,
                  upload=upload, make=make, cache=False, params="colors")

@@ -109,5 +109,10 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     return s
 
 
-KIND = LightKind("sphere", SphereLights, KIND_SPHERE, area=True,
-                 sampled=lambda f: f.emitters and f.spheres, weigh=weigh, upload=upload, make=make)
+def declare(scene: Scene, used: np.ndarray, base: Features) -> frozenset:
+    """"sphere" where some used material emits and the scene has spheres."""
+    return frozenset({"sphere"} if base.emitters and base.spheres else ())
+
+
+KIND = LightKind("sphere", SphereLights, KIND_SPHERE, area=True, weigh=weigh, upload=upload, make=make,
+                 declare=declare, sampled=lambda f: f.emitters and f.spheres and f.lit("sphere"))

@@ -24,6 +24,7 @@ import warp as wp
 from warp_spt.device.structs import Features, Geometry
 from warp_spt.accel.ray_queries import KIND_TRIANGLE, Hit
 from warp_spt.emitters.base import (
+    emitting_rows,
     LightKind,
     LightSample,
     Weighed,
@@ -154,11 +155,11 @@ def make(Lights, features: Features):
             return prob * triangle_pdf(geo.mesh_ids[h.index], h.face, o, h.t * h.t / cos_l)
         return 0.0
 
-    if features.emissive_texels:       # image-textured emitters drawn by their texels' light
+    if features.lit("triangle.texels"):       # image-textured emitters drawn by their texels' light
         by_texels = emissive_texels.make(Lights, use_solid_angle, sample_triangle, pdf_li)
         sample_triangle, pdf_li = by_texels.sample_li, by_texels.pdf_li
 
-    if not features.light_tree:
+    if not features.lit("triangle.tree"):
         return SimpleNamespace(sample_li=sample_triangle, pdf_li=pdf_li)
 
     @wp.func(inline=True)     # into the dispatch's chain: one call level, as without the tree
@@ -235,5 +236,20 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     return t
 
 
-KIND = LightKind("triangle", TriangleLights, KIND_TRIANGLE, area=True,
-                 sampled=lambda f: f.emitters and f.meshes, weigh=weigh, upload=upload, make=make)
+def declare(scene: Scene, used: np.ndarray, base: Features) -> frozenset:
+    """"triangle" where some used material emits and the scene has triangles; "triangle.tree" for
+    many emitting faces (at least as many as the table's triangle entries, so that a scene whose
+    table builds a light tree compiles its code); "triangle.texels" for image-textured emitters."""
+    out = set()
+    if base.emitters and base.meshes:
+        out.add("triangle")
+    row_emits = emitting_rows(scene)
+    if sum(np.count_nonzero(row_emits[m.face_material]) for m in scene.meshes) >= MIN_TREE_LIGHTS:
+        out.add("triangle.tree")
+    if (scene.materials.tex[used, SLOT_EMISSION] >= 0).any():
+        out.add("triangle.texels")
+    return frozenset(out)
+
+
+KIND = LightKind("triangle", TriangleLights, KIND_TRIANGLE, area=True, weigh=weigh, upload=upload, make=make,
+                 declare=declare, sampled=lambda f: f.emitters and f.meshes and f.lit("triangle"))

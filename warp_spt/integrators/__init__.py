@@ -173,12 +173,13 @@ def _own_code(integrator: str, sampler: str, features: Features) -> bool:
     """Whether the fast kernel of (integrator, sampler, features) is this package's code alone, the
     common kernel around an integrator and a sampler of its own and no procedural texture: what
     ``kernel_index``'s key covers (a plugin's source is not in its digest)."""
+    from warp_spt.emitters.registry import KINDS as LIGHT_KINDS
     from warp_spt.media.registry import KINDS as MEDIA_KINDS
     from warp_spt.samplers import SAMPLERS
 
     rec = get_integrator(integrator)
     make = SAMPLERS.get(sampler)
-    ours = [rec.make_step, make, *MEDIA_KINDS.values()]
+    ours = [rec.make_step, make, *MEDIA_KINDS.values(), *(k.make for k in LIGHT_KINDS)]
     return (rec.make_kernel is None and not features.procedural and make is not None
             and all(getattr(x, "__module__", getattr(x, "__name__", "")).startswith("warp_spt.") for x in ours))
 

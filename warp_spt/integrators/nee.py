@@ -269,7 +269,7 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     mat = make_materials(features)
     stride = STRIDE if light_sampling else SEED_STRIDE
     bsdf_dims = make_bsdf_dims(sampler, stride, features)
-    sample_lights = light_sampling and (features.emitters or features.sky or features.punctual) and features.scatters
+    sample_lights = light_sampling and features.samples_lights and features.scatters
     blocked = make_blocked(features)
     light = make_lights(features, surface_at, mat.emission)
     roulette = make_roulette(sampler)

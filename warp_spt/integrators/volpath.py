@@ -281,7 +281,7 @@ def _make_vertex(features: Features, sampler: Sampler, inline: bool | None, repl
         detach_lights(light)
     light_sample = make_light_sample(sampler, light, inline=True)
     roulette = make_roulette(sampler)
-    sample_lights = bool(features.emitters or features.sky or features.punctual)
+    sample_lights = features.samples_lights
 
     @wp.func
     def mis_weight(pa: float, pb: float) -> float:

@@ -39,8 +39,8 @@ import warp as wp
 
 from warp_spt.device.adjoint import zero_adjoint
 from warp_spt.media.phase import hg, hg_eval, hg_sample  # noqa: F401 (re-exported)
-from warp_spt.media.registry import KINDS
-from warp_spt.device.media_table import Media, media_features  # noqa: F401 (re-exported)
+from warp_spt.media.registry import KINDS, declare  # noqa: F401 (re-exported)
+from warp_spt.device.media_table import Media
 from warp_spt.media.upload import upload_media  # noqa: F401 (re-exported)
 from warp_spt.scene.media import MEDIUM_KINDS
 from warp_spt.device.sampling import hash_u32
@@ -114,29 +114,36 @@ def ratio3(a: wp.vec3, b: wp.vec3) -> wp.vec3:
     return out
 
 
-def make_media(features, diff: bool = False) -> SimpleNamespace:
-    """The trackers (module docs) for ``features.media``'s kinds (one kind: called directly; two: a
-    test of the medium's kind); ``diff``: with their derivatives, for path replay (module docs)."""
-    kinds = [k for k in MEDIUM_KINDS if k in features.media]
-    made = [KINDS[k].make(features) for k in kinds]
-    emits = "emission" in features.media
+def _dispatch(kinds: list[tuple[int, SimpleNamespace]]) -> SimpleNamespace:
+    """``coefficients`` and ``segment`` of ``kinds`` [(index, functions)]: the first's where the medium
+    row's ``kind`` is its index, else the rest's; one kind alone is called directly, and the last takes
+    every row that reaches it (the rows hold only the features' kinds)."""
+    index, first = kinds[0]
     if len(kinds) == 1:
-        coefficients, segment = made[0].coefficients, made[0].segment
-    else:
-        first, second = made
-        which = MEDIUM_KINDS.index(kinds[1])
+        return first
+    rest = _dispatch(kinds[1:])
 
-        @wp.func
-        def coefficients(media: Media, m: int, x: wp.vec3):
-            if media.kind[m] == wp.static(which):
-                return second.coefficients(media, m, x)
+    @wp.func
+    def coefficients(media: Media, m: int, x: wp.vec3):
+        if media.kind[m] == index:
             return first.coefficients(media, m, x)
+        return rest.coefficients(media, m, x)
 
-        @wp.func
-        def segment(media: Media, m: int, o: wp.vec3, d: wp.vec3, t: float, t_max: float):
-            if media.kind[m] == wp.static(which):
-                return second.segment(media, m, o, d, t, t_max)
+    @wp.func
+    def segment(media: Media, m: int, o: wp.vec3, d: wp.vec3, t: float, t_max: float):
+        if media.kind[m] == index:
             return first.segment(media, m, o, d, t, t_max)
+        return rest.segment(media, m, o, d, t, t_max)
+
+    return SimpleNamespace(coefficients=coefficients, segment=segment)
+
+
+def make_media(features, diff: bool = False) -> SimpleNamespace:
+    """The trackers (module docs) for ``features.media``'s kinds (dispatched on the medium row's kind,
+    ``_dispatch``); ``diff``: with their derivatives, for path replay (module docs)."""
+    kind = _dispatch([(i, KINDS[k].make(features)) for i, k in enumerate(MEDIUM_KINDS) if k in features.media])
+    coefficients, segment = kind.coefficients, kind.segment
+    emits = "emission" in features.media
 
     # free_flight and transmittance (and volpath's shadow_path) are called, not inlined: inlined at each
     # call site, NVRTC optimised one function of several thousand lines and the media kernel's CUDA
@@ -310,5 +317,5 @@ def make_media(features, diff: bool = False) -> SimpleNamespace:
     return SimpleNamespace(free_flight=free_flight, transmittance=transmittance)
 
 
-__all__ = ["Media", "FlightDeriv", "ratio3", "make_media", "media_features", "upload_media", "hg", "hg_eval", "hg_sample", "next_u",
+__all__ = ["Media", "FlightDeriv", "ratio3", "make_media", "declare", "upload_media", "hg", "hg_eval", "hg_sample", "next_u",
            "EVENT_SURFACE", "EVENT_SCATTER", "EVENT_ABSORB"]

@@ -23,6 +23,11 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.media import MAX_GRID_VOXELS, Medium, check_densities
 
 NAME = "grid"
+
+
+def declare(medium) -> frozenset:
+    """What a medium of this kind needs compiled in (``Features.media``): its name: no code path of its own."""
+    return frozenset({NAME})
 _INF = wp.constant(1.0e30)
 
 

@@ -11,6 +11,11 @@ from warp_spt.device.media_table import Media
 NAME = "homogeneous"
 
 
+def declare(medium) -> frozenset:
+    """What a medium of this kind needs compiled in (``Features.media``): its name: no code path of its own."""
+    return frozenset({NAME})
+
+
 def make(features) -> SimpleNamespace:
     """``coefficients(media, m, x) -> (sigma_a, sigma_s)`` at point ``x`` of medium row ``m``, and
     ``segment(media, m, o, d, t, t_max) -> (t_end, sigma_bar)``: the majorant (per channel) that

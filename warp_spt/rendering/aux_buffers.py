@@ -107,7 +107,7 @@ def aov_inputs(b: Bound, rp: RenderParams, albedo: wp.array, normal: wp.array) -
 register_kind(KernelKind(
     "aov", lambda b: get_aov_kernel(b.features, b.settings.sampler, b.dev.device),
     lambda scene_features, rs, sky: replace(rs.features.covering(scene_features) if rs.features else scene_features,
-                                            sky=False),   # no sky light here
+                                            lights=()),   # it reads no light table
     lights=False))
 
 

@@ -21,7 +21,7 @@ import warp as wp
 
 from warp_spt.device.camera_rays import CameraParams, camera_params
 from warp_spt.upload.device_scene import DeviceScene, Features, Textures
-from warp_spt.emitters import Lights, light_table, sky_features
+from warp_spt.emitters import Lights, declare_sky, light_table
 from warp_spt.device.media_table import interface_media
 from warp_spt.integrators import Integrator, RenderParams, get_integrator, get_kernel
 from warp_spt.rendering.settings import RenderSettings, check_args, check_rows
@@ -47,13 +47,11 @@ class KernelKind:
 
 
 def render_features(scene_features: Features, rs: RenderSettings, sky: Sky) -> Features:
-    """The features a path-tracing kernel is compiled for: the settings' override, else the scene's
-    own with the sky's (whether it emits, whether it is an environment map: an override without the
-    environment's code would show a black sky, so it gets it)."""
-    if not rs.features:
-        return replace(scene_features, **sky_features(sky))
-    f = rs.features.covering(scene_features)
-    return f if f.environment or not sky_features(sky)["environment"] else replace(f, environment=True)
+    """The features a path-tracing kernel is compiled for: the scene's own with what the light kinds
+    declare the sky needs (whether it emits, whether it is an environment map), under the settings'
+    override where one is given (which must still cover them: ``Features.covering``)."""
+    own = scene_features.with_lights(declare_sky(sky))
+    return rs.features.covering(own) if rs.features else own
 
 
 KERNEL_KINDS: dict[str, KernelKind] = {}

@@ -119,7 +119,7 @@ def sampling_weights(image: np.ndarray, sampling: str = "importance") -> np.ndar
     weighs in full where light sampling cannot reach (falls back to the plain weights when that
     leaves nothing, a constant map)."""
     lum = texel_luminance(image)
-    # the radiance is linear between texel centres in azimuth (emitters.envmap.env_radiance): a
+    # the radiance is linear between texel centres in azimuth (emitters.environment.env_radiance): a
     # texel's mean over its area is 3/4 its own value and 1/8 of each neighbour's in its row, which
     # is also > 0 wherever the radiance is (else light sampling could never reach a bright texel's
     # spill into its dark neighbours: unbiased through BSDF sampling, but with wild variance)

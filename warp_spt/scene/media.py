@@ -20,7 +20,9 @@ import numpy as np
 
 from warp_spt.scene.numbers import plain_float
 
-MEDIUM_KINDS = ("homogeneous", "grid")      # the device kinds (warp_spt.media), by index
+from warp_spt.scene import families
+from warp_spt.scene.families import MEDIUM_KINDS  # noqa: F401 (re-exported: the medium kinds, by index)
+
 MAX_GRID_VOXELS = 256 ** 3                  # a dense grid's voxels (the memory budget: 4 bytes each)
 MAX_SIGMA = 1.0e6                    # per unit length: beyond it a medium is a surface
 MAX_MAJORANT = 64.0
@@ -49,6 +51,9 @@ class Medium:
     voxel_size: float = 1.0
     to_world: object = field(default=None, compare=False, repr=False)
     majorant_cells: int = 16          # the majorant grid's cells along the grid's longest axis
+    # the medium kind (scene.families.MEDIUM_KINDS: its device code, warp_spt.media.<model>); "": by its
+    # data, "grid" with a density and "homogeneous" without
+    model: str = ""
 
     def __post_init__(self):
         for name in ("sigma_a", "sigma_s", "emission"):
@@ -58,11 +63,17 @@ class Medium:
 
     @property
     def kind(self) -> str:
+        """Its medium kind: ``model``, or the one its data gives."""
+        if self.model:
+            return self.model
         return "homogeneous" if self.density is None else "grid"
 
     def check(self, where: str = "medium") -> "Medium":
         """ValueError naming ``where`` and the field for a value a kernel must not see (a grid's
         file is read, and its values checked, when it is uploaded: ``media.grid``)."""
+        if self.kind not in families.MEDIUM_KINDS:
+            raise ValueError(f"{where}: model must be a medium kind ({', '.join(families.MEDIUM_KINDS)}), "
+                             f"got {self.model!r}")
         if self.density is not None:
             _check_grid(self, where)
         for name in ("sigma_a", "sigma_s", "emission"):

@@ -18,11 +18,12 @@ import numpy as np
 import warp as wp
 
 from warp_spt.accel.tlas import build_tlas
-from warp_spt.emitters.light_tree import MIN_TREE_LIGHTS
+from warp_spt.emitters.base import emitting_rows
+from warp_spt.emitters.registry import declare as declare_lights
 from warp_spt.device.material_table import upload_materials
 from warp_spt.bsdfs import declare
 from warp_spt.device.proctex import MAX_PARAMS, ProcParams, features_key, instance_arrays
-from warp_spt.device.media_table import media_features
+from warp_spt.media.registry import declare as declare_media
 from warp_spt.media.upload import upload_media
 from warp_spt.device.structs import (  # noqa: F401 (re-exported: the structs' old home)
     BVH_STACKS,
@@ -39,8 +40,7 @@ from warp_spt.accel.wide_bvh import MAX_TRIANGLES as WIDE_MAX_TRIANGLES
 from warp_spt.accel.wide_bvh import WIDTH, WideBvh, build_wide
 from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.runtime.warp_init import init_warp
-from warp_spt.scene.lights import punctual_lights
-from warp_spt.scene.model import SLOT_EMISSION, TEX_CHECKER, TEX_PROC_BASE, Scene, column_range
+from warp_spt.scene.model import TEX_CHECKER, TEX_PROC_BASE, Scene, column_range
 from warp_spt.scene.validate import validate_scene
 
 # Meshes of more triangles than this keep Warp's own BVH (wp.mesh_query_ray) instead of a wide BVH:
@@ -357,7 +357,7 @@ def flatten_emitters(scene: Scene) -> Scene:
     and probabilities per face), so an emitter is never instanced; everything else stays shared."""
     if not scene.instanced:
         return scene
-    emits = _emitting_rows(scene)
+    emits = emitting_rows(scene)
     meshes: list = []
     for m in scene.meshes:
         if m.transforms is not None and emits[m.face_material].any():
@@ -414,45 +414,28 @@ def _upload_procedural(scene: Scene, key: tuple, device: str) -> tuple[wp.array,
 
 
 def _features(scene: Scene) -> Features:
-    """Which code paths the scene's used materials and geometry need (the materials' part declared
-    by their kinds, ``warp_spt.bsdfs.declare``)."""
+    """Which code paths the scene's used materials, geometry, lights and media need: the materials'
+    part declared by their kinds (``warp_spt.bsdfs.declare``), the lights' and the media's by theirs
+    (``warp_spt.emitters.declare``, ``warp_spt.media.declare``)."""
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
     mt = scene.materials
     tex = mt.tex[used]
-    emits = ((mt.emission[used] > 0).any() or (tex[:, SLOT_EMISSION] >= 0).any()
-             or (tex[:, SLOT_EMISSION] <= TEX_PROC_BASE).any())
     kinds, lobes, flags = declare(mt, used)
-    return Features(
+    base = Features(
         meshes=any(len(m.indices) for m in scene.meshes),
         spheres=len(scene.spheres) > 0,
         textures=bool((tex >= 0).any()),
         checker=bool((tex == TEX_CHECKER).any()),
-        emitters=bool(emits),
-        punctual=bool(punctual_lights(scene.lights)),
-        light_tree=_emitting_faces(scene) >= MIN_TREE_LIGHTS,
-        emissive_texels=bool((tex[:, SLOT_EMISSION] >= 0).any()),
+        emitters=bool(emitting_rows(scene)[used].any()),
         smooth=any(m.corner_normal is not None for m in scene.meshes),
         procedural=features_key(scene.procedural[TEX_PROC_BASE - k].name for k in np.unique(tex[tex <= TEX_PROC_BASE])),
         material_kinds=kinds,
         lobes=lobes,
         material_flags=flags,
-        media=media_features(scene),
+        media=declare_media(scene),
         instances=scene.instanced,
     )
-
-
-def _emitting_faces(scene: Scene) -> int:
-    """Faces whose material emits (colour or texture): at least as many as the light table's
-    triangle entries, so that a scene whose table builds a light tree compiles its code."""
-    row_emits = _emitting_rows(scene)
-    return int(sum(np.count_nonzero(row_emits[m.face_material]) for m in scene.meshes))
-
-
-def _emitting_rows(scene: Scene) -> np.ndarray:
-    """Per material row: it emits (a colour or an emission texture)."""
-    mt = scene.materials
-    tex = mt.tex[:, SLOT_EMISSION]
-    return (mt.emission > 0).any(axis=1) | (tex >= 0) | (tex <= TEX_PROC_BASE)
+    return replace(base, lights=declare_lights(scene, used, base))
 
 
 def _corner_normals(m) -> np.ndarray:

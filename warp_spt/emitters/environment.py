@@ -237,6 +237,15 @@ def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -
     return e
 
 
-KIND = LightKind("environment", EnvLight, KIND_MISS, area=False, sampled=lambda f: f.sky and f.environment,
+def declare_sky(sky: Sky) -> frozenset:
+    """"environment.seen" where the sky is a map (its code is compiled in: rays that miss see it),
+    "environment" where the map emits (it is in the light table)."""
+    if sky.kind != SKY_ENVIRONMENT:
+        return frozenset()
+    return frozenset({"environment.seen", "environment"} if environment_emits(sky) else {"environment.seen"})
+
+
+KIND = LightKind("environment", EnvLight, KIND_MISS, area=False, declare_sky=declare_sky,
+                 sampled=lambda f: f.lit("environment") and f.lit("environment.seen"),
                  weigh=weigh, upload=upload, make=make, cache=False, params="params",
-                 present=lambda f: f.environment)
+                 present=lambda f: f.lit("environment.seen"))

@@ -1,4 +1,11 @@
-"""Shared test fixtures: scene-file writers and the seed's data (skipped when ../shared is absent)."""
+"""Shared test fixtures (the seed's data, skipped when ../shared is absent) and the suite's markers and tiers.
+
+The tiers: ``python -m pytest tests`` runs the default tier (every test not marked ``slow``);
+``python -m pytest tests -m slow`` the slow tier; ``-m ""`` both. CI runs both (``.ci/run``). The
+markers that say what a test needs (``cuda``, ``browser``, ``notebook``, ``cluster``) are given here
+from :data:`NEEDS`, so ``-m "not browser"`` and the like select by need; the slow tier is
+:data:`SLOW`, each entry with the measurement that put it there.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +20,37 @@ SEED_DEMO = SHARED / "seed" / "demo"
 
 os.environ.setdefault("WARP_SPT_QUIET", "1")
 
+# What a test needs beyond the base install, by file (or "file::test" prefix): its markers.
+NEEDS = {
+    "tests/gpu/": ("cuda",),
+    "tests/viewer/test_viewer_browser.py": ("browser",),
+    "tests/house/test_notebooks.py": ("notebook",),
+    "tests/viewer/test_viewer_widget.py": ("notebook",),
+    "tests/library/test_cluster.py": ("cluster",),
+}
+# The slow tier: node-id prefixes (a file, or "file::test"), each with why. Cold figures are from a
+# run on 2 cores with an empty Warp kernel cache; a test stays in the default tier unless it alone
+# costs minutes that the default tier's 10 cannot hold.
+# Figures: seconds of each test in one run of the whole suite on 2 workers at load 4-6 (2026-12-01).
+SLOW: dict[str, str] = {
+    "tests/gpu/test_cuda_compile.py": "NVRTC compiles the representative set for a GPU this machine lacks: "
+                                      "a general fast kernel 139 s, the adjoint kinds minutes each; about "
+                                      "17 CPU minutes with Warp's cache cold",
+    "tests/diff/test_volumes_gradients.py::test_interior_medium_gradients": "522 s: 8 seeds x 7 FD pairs at 256 spp",
+    "tests/diff/test_volumes_gradients.py::test_grid_gradients": "309 s: the same for a density grid",
+    "tests/diff/test_volumes_gradients.py::test_furnace_gradients_vanish": "229 s",
+    "tests/diff/test_volumes_gradients.py::test_fog_gradients": "202 s",
+    "tests/house/test_notebooks.py": "176 s: every notebook executed in a Jupyter kernel",
+    "tests/integrators/test_light_transport.py::test_light_pdfs_integrate_to_one_and_match_sampling":
+        "217 s for the sky case alone: a dense sphere of directions per light kind",
+    "tests/integrators/test_light_transport.py::test_nee_matches_polygon_irradiance": "159 s",
+    "tests/integrators/test_light_transport.py::test_lobe_pdf_integrates_to_its_probability_and_matches_sampling":
+        "90 s for the rough-metal case",
+    "tests/emitters/test_emissive_texels.py::test_sampled_density_is_what_mis_evaluates": "128 s",
+    "tests/emitters/test_emissive_texels.py::test_the_lamps_texture_gradient_holds_the_cells_fixed":
+        "139 s: tape and path replay against finite differences",
+}
+
 
 def pytest_configure(config):
     """A run started in the background (``nohup pytest &``, a script's ``&``) inherits an ignored
@@ -23,6 +61,28 @@ def pytest_configure(config):
 
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Markers from NEEDS and SLOW, and ``cluster`` for every test that starts a Dask client."""
+    import inspect
+
+    for item in items:
+        node = item.nodeid
+        for prefix, marks in NEEDS.items():
+            if node.startswith(prefix):
+                for mark in marks:
+                    item.add_marker(mark)
+        if any(node.startswith(prefix) for prefix in SLOW):
+            item.add_marker("slow")
+        function = getattr(item, "function", None)
+        if function is not None and "cluster" not in item.keywords:
+            try:
+                source = inspect.getsource(function)
+            except (OSError, TypeError):
+                source = ""
+            if "dask.distributed" in source or "client" in getattr(item, "fixturenames", ()):
+                item.add_marker("cluster")
 
 
 @pytest.fixture(scope="session")

@@ -217,7 +217,7 @@ def test_the_signal_tests_pass_in_a_run_started_with_sigint_ignored():
              "tests/rendering/test_interrupt.py::test_a_signal_stops_the_jobs_then_raises_like_the_previous_handler",
              "tests/rendering/test_interrupt.py::test_real_processes_interrupted_at_random_moments"]
     env = dict(os.environ, PYTHONPATH=str(T.REPO))
-    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests], cwd=T.REPO,
-                          env=env, capture_output=True, text=True, timeout=600,
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-n", "0", "-p", "no:cacheprovider", *tests],
+                          cwd=T.REPO, env=env, capture_output=True, text=True, timeout=600,
                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     assert done.returncode == 0, done.stdout[-3000:]          # 1: a test failed, 5: none ran

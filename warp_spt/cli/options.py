@@ -86,32 +86,33 @@ darkens) the tone-mapped .png/.jpg by 2^EV; linear .npy/.pfm/.exr keep the scene
 
 @dataclass(frozen=True)
 class EnvOptions:
-    """--env FILE, --env-rotate DEG, --env-strength X, --env-background R G B."""
+    """--env FILE, --env-rotate DEG, --env-strength X, --env-background R G B; ``plus``: the sky that
+    -sky/--sky-color ask for beside the map (a second infinite light), or None."""
 
     path: str
     rotate: float = 0.0
     strength: float = 1.0
     background: tuple[float, float, float] | None = None
+    plus: Sky | None = None
 
 
 def _env_options(ns) -> EnvOptions | None:
-    """The environment flags, checked: the others need --env, and --env excludes -sky/--sky-color."""
+    """The environment flags, checked: the others need --env; -sky/--sky-color with --env add that sky."""
     extra = [f for f, v in (("--env-rotate", ns.env_rotate), ("--env-strength", ns.env_strength),
                             ("--env-background", ns.env_background)) if v is not None]
     if ns.env is None:
         if extra:
             raise UsageError(f"{extra[0]} needs --env FILE")
         return None
-    if ns.sky is not None or ns.sky_color is not None:
-        raise UsageError("give either --env or -sky/--sky-color, not both")
     if not ns.env.strip():
         raise UsageError("--env needs a file name, got an empty one")
     if ns.env_strength is not None and ns.env_strength < 0:
         raise UsageError(f"--env-strength must be >= 0, got {ns.env_strength:g}")
     if ns.env_background is not None and min(ns.env_background) < 0:
         raise UsageError("--env-background colour values must be >= 0")
+    plus = None if ns.sky is None and ns.sky_color is None else _sky(ns.sky, ns.sky_color, DEFAULT_SKY)
     return EnvOptions(ns.env, ns.env_rotate or 0.0, 1.0 if ns.env_strength is None else ns.env_strength,
-                      None if ns.env_background is None else tuple(ns.env_background))
+                      None if ns.env_background is None else tuple(ns.env_background), plus)
 
 
 @dataclass(frozen=True)
@@ -275,7 +276,7 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                      help="a constant sky instead of -sky; 0 0 0 for none")
     new.add_argument("--env", metavar="FILE",
                      help="an environment map lights the scene: an equirectangular (2:1) .hdr, .exr or .pfm "
-                          "(an 8-bit .png with a warning)")
+                          "(an 8-bit .png with a warning); with -sky or --sky-color that sky lights it too")
     new.add_argument("--env-rotate", type=finite_float, metavar="DEG", help="turn the --env map about the up axis")
     new.add_argument("--env-strength", type=finite_float, metavar="X", help="scale the --env map's radiance (default 1)")
     new.add_argument("--env-background", nargs=3, type=finite_float, metavar=("R", "G", "B"),

@@ -112,13 +112,15 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
 
 
 def _environment(opts, say) -> Sky:
-    """The --env map as a sky (RunError naming the file if it cannot be read)."""
+    """The --env map as a sky, with -sky/--sky-color's sky beside it if given (RunError naming the file
+    if it cannot be read)."""
     from warp_spt.images.environment import load_environment
 
     e = opts.env
     try:
-        return load_environment(e.path, rotate=e.rotate, strength=e.strength, background=e.background,
-                                warn=lambda message: say(f"warning: {message}"))
+        sky = load_environment(e.path, rotate=e.rotate, strength=e.strength, background=e.background,
+                               warn=lambda message: say(f"warning: {message}"))
+        return sky if e.plus is None else replace(sky, plus=e.plus)
     except ValueError as err:
         raise RunError(str(err)) from None
 

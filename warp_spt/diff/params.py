@@ -149,7 +149,9 @@ class SceneParameters:
             return np.array(s.procedural[p.index].params[off:off + size], dtype=np.float32).reshape(p.shape)
         if (p.kind, p.field) == (ENVIRONMENT, ENVIRONMENT_TEXELS):
             return np.array(self.sky.env.image, dtype=np.float32)
-        if p.kind in ("sky", ENVIRONMENT):
+        if p.kind == "sky":          # the constant or gradient part (an environment map's plus sky)
+            return np.array(getattr(self.sky.colour_sky(), p.field), dtype=np.float32)
+        if p.kind == ENVIRONMENT:
             return np.array(getattr(self.sky, p.field), dtype=np.float32)
         if p.kind == "punctual":
             return np.array(getattr(self._light(p)[1], p.field), dtype=np.float32)
@@ -184,7 +186,7 @@ class SceneParameters:
         elif p.kind == "proc":
             self._set_proc(p, v)
         elif p.kind == "sky":
-            self.sky = replace(self.sky, **{p.field: tuple(float(x) for x in v)})   # validated by Sky
+            self.sky = self.sky.with_colours(**{p.field: tuple(float(x) for x in v)})   # validated by Sky
         elif (p.kind, p.field) == (ENVIRONMENT, ENVIRONMENT_TEXELS):     # a new map: its own light table
             self.sky = replace(self.sky, env=replace(self.sky.env, image=v.astype(np.float32)))
         elif p.kind == ENVIRONMENT:

@@ -169,6 +169,23 @@ def _escaped(seen, miss_le):
     return escaped
 
 
+def _entries(slots):
+    """``entries(lights)``: how many table entries the kinds at ``slots`` (in KINDS) hold."""
+    slot = slots[0]
+    if len(slots) == 1:
+        @wp.func(inline=True)
+        def one(lights: Lights) -> int:
+            return lights.count[slot]
+        return one
+    rest = _entries(slots[1:])
+
+    @wp.func(inline=True)
+    def total(lights: Lights) -> int:
+        return lights.count[slot] + rest(lights)
+
+    return total
+
+
 def _place(i: int, group: list[int]) -> int:
     """Kind ``i``'s index in ``group`` (the infinite or the delta kinds) where the group has several
     (its samples must say which one gave them), else -1 (no tag: one kind's code is as it was)."""
@@ -191,6 +208,14 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
     miss_le = _miss_sum([made[i].le for i in infinite], wp.vec3(0.0, 0.0, 0.0))
     sample_le = _le_chain([(n, made[i].le) for n, i in enumerate(infinite)])
     le_escaped = _escaped([made[i].seen for i in infinite if hasattr(made[i], "seen")], miss_le)
+    # Several infinite lights in the table (a map and a sky) overlap in every direction, and a ray that
+    # misses meets them all (le_miss, weighed against pdf_miss by the BSDF's MIS): their samples are
+    # then one technique, the mixture, with the summed radiance and the summed density, or the light
+    # sample's weight would miss the other lights' density and the estimate be low. With one infinite
+    # entry (every scene before) the kind's own density and radiance stay, bit for bit.
+    sampled_infinite = [i for i, k, f in sampled if not k.area and not k.delta]
+    mixed = len(sampled_infinite) > 1
+    infinite_entries = _entries(sampled_infinite) if mixed else None
 
     @wp.func
     def sample_li(geo: Geometry, lights: Lights, x: wp.vec3, u_pick: float, u: wp.vec2) -> LightSample:
@@ -200,7 +225,11 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
             ls.pdf = 0.0
             return ls
         e = pick_entry(lights, u_pick)
-        return sample_entry(geo, lights, e, lights.entry_prob[e], x, u)
+        ls = sample_entry(geo, lights, e, lights.entry_prob[e], x, u)
+        if wp.static(mixed):
+            if ls.h.kind == KIND_MISS and ls.pdf > 0.0 and infinite_entries(lights) > 1:
+                ls.pdf = miss_pdf(lights, ls.dir)
+        return ls
 
     @wp.func(inline=True)
     def le(geo: Geometry, m: Materials, t: Textures, lights: Lights, ls: LightSample, x: wp.vec3) -> wp.vec3:
@@ -210,6 +239,9 @@ def make_lights(features: Features, surface_at, emission) -> SimpleNamespace:
             if ls.h.kind == KIND_PUNCTUAL:
                 return delta_radiance(lights, ls, x)
         if ls.h.kind == KIND_MISS:
+            if wp.static(mixed):
+                if infinite_entries(lights) > 1:      # the mixture's sample: every infinite light's radiance
+                    return miss_le(lights, ls.dir)
             return sample_le(lights, ls)
         return emission(m, t, surface_at(geo, ls.h, x, ls.dir))
 

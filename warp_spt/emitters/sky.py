@@ -118,15 +118,21 @@ def make(Lights, features: Features):
 
 
 def sky_emits(sky: Sky) -> bool:
-    """Some colour of the sky is above 0 (else it is not in the light table)."""
-    return any(c > 0 for f in sky.colour_fields() for c in getattr(sky, f))
+    """Some colour of the sky (its constant or gradient part, ``Sky.colour_sky``) is above 0 (else it
+    is not in the light table)."""
+    part = sky.colour_sky()
+    return part is not None and any(c > 0 for f in sky.colour_fields() for c in getattr(part, f))
 
 
 def sky_terms(sky: Sky) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """(colour or mean, slope) of the sky's radiance colour + slope * z."""
-    if sky.kind == SKY_GRADIENT:
-        return sky.gradient_terms()
-    return tuple(sky.color), (0.0, 0.0, 0.0)
+    """(colour or mean, slope) of the radiance colour + slope * z of the sky's constant or gradient part
+    (black for an environment map alone)."""
+    part = sky.colour_sky()
+    if part is None:
+        return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    if part.kind == SKY_GRADIENT:
+        return part.gradient_terms()
+    return tuple(part.color), (0.0, 0.0, 0.0)
 
 
 def sky_density(sky: Sky) -> tuple[float, float]:
@@ -158,10 +164,13 @@ def weigh(scene: Scene, sky: Sky) -> Weighed:
 def upload(payload, prob: np.ndarray, scene: Scene, sky: Sky, up, device: str) -> SkyLight:
     s = SkyLight()
     s.prob = float(prob[0]) if len(prob) else 0.0
-    s.kind = int(sky.kind)
-    rows = [getattr(sky, f) for f in sky.colour_fields()] or [(0.0, 0.0, 0.0)]   # an environment: black here
+    part = sky.colour_sky() or sky
+    s.kind = int(part.kind)
+    rows = [getattr(part, f) for f in sky.colour_fields()] or [(0.0, 0.0, 0.0)]   # a map alone: black here
     s.colors = wp.array(np.array(rows, dtype=np.float64), dtype=wp.vec3d, device=device)
     s.a, s.b = sky_density(sky) if len(prob) else (1.0, 0.0)
+    if part is not sky and part.up is not None:     # a map's plus sky with an axis of its own
+        up = part.up
     s.t, s.b_axis, s.up = (wp.vec3(*v.astype(np.float32).tolist()) for v in sky_frame(up))
     return s
 

@@ -83,7 +83,7 @@ def reuse_pick(lights: Lights, u: float) -> float:
 def table_key(sky: Sky, camera_up=Z_UP) -> tuple:
     """The key under which a DeviceScene caches its light table for this sky and camera up."""
     return (sky.kind, tuple(sky.color), tuple(sky.zenith), tuple(sky.nadir), sky.env, sky.strength,
-            sky.rotate, sky.background, sky.up_axis(camera_up))
+            sky.rotate, sky.background, sky.plus, sky.up_axis(camera_up))
 
 
 def light_table(dev, sky: Sky, camera_up=Z_UP) -> Lights:

@@ -10,7 +10,7 @@ sky as the equivalent Z-up scene.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:     # numpy comes with it: the command line reads this module before its Ctrl-C handlers
@@ -39,6 +39,11 @@ class Sky:
     SKY_ENVIRONMENT is an environment map (``env``, see :meth:`environment`): its radiance
     times ``strength``, turned by ``rotate`` degrees about the up axis; ``background``, if given, is
     the colour camera rays see where they miss the scene (the map still lights it).
+
+    ``plus`` (an environment sky only) is a constant or gradient sky lit beside the map: two infinite
+    lights, one table entry each (the ``sky`` and ``environment`` light kinds), chosen by power, both
+    in every MIS density; a ray that misses sees the sum of their radiances (a camera ray the
+    ``background`` instead, if one is set). Its ``up``, if None, is the map's up axis.
     """
 
     kind: int = SKY_CONSTANT
@@ -50,9 +55,10 @@ class Sky:
     strength: float = 1.0
     rotate: float = 0.0
     background: tuple[float, float, float] | None = None
+    plus: Sky | None = None
 
     def __post_init__(self) -> None:
-        problem = sky_problem(self.kind, self.color, self.up) or self._environment_problem()
+        problem = sky_problem(self.kind, self.color, self.up) or self._environment_problem() or self._plus_problem()
         for name in ("zenith", "nadir"):
             problem = problem or colour_problem(f"sky {name}", getattr(self, name))
         if not problem and self.kind == SKY_GRADIENT and max(self.zenith + self.nadir) <= 0.0:
@@ -80,19 +86,37 @@ class Sky:
             return colour_problem("environment background", self.background)
         return None
 
+    def _plus_problem(self) -> str | None:
+        """The light table holds one entry per infinite kind: one map and one constant/gradient sky."""
+        if self.plus is None:
+            return None
+        if self.kind != SKY_ENVIRONMENT:
+            return ("only an environment sky takes a plus sky (Sky.environment(..., plus=Sky.gradient())); "
+                    f"this sky is kind {self.kind} itself")
+        if not isinstance(self.plus, Sky) or self.plus.kind not in (SKY_CONSTANT, SKY_GRADIENT):
+            return ("plus must be a constant or gradient Sky (one environment map per scene), got "
+                    f"{self.plus!r:.80}")
+        return None
+
     @staticmethod
     def environment(image, rotate: float = 0.0, strength: float = 1.0, background=None, up=None,
-                    name: str = "environment map") -> "Sky":
+                    name: str = "environment map", plus: "Sky | None" = None) -> "Sky":
         """An environment map: ``image`` an (H, W, 3) equirectangular radiance array with W = 2 H (or an
         :class:`EnvironmentMap`; ``warp_spt.load_environment`` reads .hdr, .exr, .pfm and PNG files),
         scaled by ``strength`` and turned ``rotate`` degrees about the up axis (``up``, default the
-        camera's); camera rays that miss see ``background`` (an RGB colour) instead, if given."""
+        camera's); camera rays that miss see ``background`` (an RGB colour) instead, if given.
+        ``plus``: a constant or gradient sky that lights the scene beside the map (its radiance added)."""
         from warp_spt.scene.environment import EnvironmentMap
 
         env = image if isinstance(image, EnvironmentMap) else EnvironmentMap(image, name)
         return Sky(SKY_ENVIRONMENT, (0.0, 0.0, 0.0), None if up is None else tuple(up), env=env,
                    strength=float(strength), rotate=float(rotate),
-                   background=None if background is None else tuple(float(c) for c in background))
+                   background=None if background is None else tuple(float(c) for c in background), plus=plus)
+
+    def colour_sky(self) -> Sky | None:
+        """The constant or gradient sky among this sky's lights (the ``sky`` light kind's part): itself,
+        an environment map's ``plus``, or None."""
+        return self.plus if self.kind == SKY_ENVIRONMENT else self
 
     @staticmethod
     def black() -> "Sky":
@@ -126,12 +150,24 @@ class Sky:
         """The seed's ``-sky K``: 1 gradient, 2 pink, anything else the (blue) BlackSky."""
         return {1: Sky.gradient(), 2: Sky.pink()}.get(int(k), Sky.black())
 
+    def with_colours(self, **colours) -> Sky:
+        """This sky with fields of ``colour_sky()`` replaced (the parameters ``sky.<field>``): an
+        environment map's plus sky is replaced inside it (checked by Sky, as any new sky)."""
+        if self.kind == SKY_ENVIRONMENT:
+            if self.plus is None:
+                raise ValueError("this environment sky has no constant or gradient part (plus) to set "
+                                 f"{', '.join(colours)} of")
+            return replace(self, plus=replace(self.plus, **colours))
+        return replace(self, **colours)
+
     def colour_fields(self) -> tuple[str, ...]:
         """The colours this sky is made of, in the order of their rows in the device's colour array
-        (``warp_spt.emitters.sky``) and of the parameters ``sky.<field>`` (``warp_spt.diff.params``)."""
-        if self.kind == SKY_ENVIRONMENT:
+        (``warp_spt.emitters.sky``) and of the parameters ``sky.<field>`` (``warp_spt.diff.params``); an
+        environment sky's are its ``plus`` sky's (fields of ``colour_sky()``)."""
+        part = self.colour_sky()
+        if part is None:
             return ()
-        return ("color",) if self.kind != SKY_GRADIENT else ("zenith", "nadir")
+        return ("color",) if part.kind != SKY_GRADIENT else ("zenith", "nadir")
 
     def up_axis(self, camera_up=Z_UP) -> tuple[float, float, float]:
         """The unit up axis the gradient follows: ``up``, else ``camera_up`` (normalised)."""

@@ -49,7 +49,23 @@ SLOW: dict[str, str] = {
     "tests/emitters/test_emissive_texels.py::test_sampled_density_is_what_mis_evaluates": "128 s",
     "tests/emitters/test_emissive_texels.py::test_the_lamps_texture_gradient_holds_the_cells_fixed":
         "139 s: tape and path replay against finite differences",
+    "tests/diff/test_pbr_gradients.py::test_pbr_gradients_are_the_derivative_of_the_expected_image":
+        "96 s: the pbr kind's adjoint kernels, tape and replay",
+    "tests/diff/test_param_gradients.py::test_colour_gradients_match_finite_differences": "67 s",
+    "tests/integrators/test_light_transport.py::test_nee_with_a_light_too_unlikely_to_share_its_pick_number": "61 s",
+    "tests/integrators/test_ears.py::test_ears_converges_to_the_same_image_as_nee": "56 s",
+    "tests/hardening/test_fuzz_api.py::test_fuzzed_render_arguments_render_or_name_the_argument":
+        "45 s: a kernel variant per drawn feature set",
+    "tests/house/test_house_engine.py::test_every_kernel_kind_is_built_once_in_the_one_cache": "44 s",
+    "tests/media/test_volumes_mitsuba.py::test_volpath_matches_mitsuba": "38 s",
+    "tests/integrators/test_vertex_hooks.py::test_hooks_that_change_nothing_give_nee_bit_for_bit": "37 s",
+    "tests/emitters/test_envmap.py::test_strength_gradient_is_the_image_over_the_strength": "36 s",
+    "tests/media/test_volumes.py::test_emitting_box_equilibrium": "31 s",
+    "tests/integrators/test_guiding.py::test_guided_converges_to_the_same_image_as_nee": "30 s",
+    "tests/bsdfs/test_materials.py::test_cutouts_are_holes_for_camera_rays_and_shadow_rays": "30 s",
 }
+# Beside SLOW, the tests that check every integrator x sampler pair run a covering set by default and
+# the other pairs in the slow tier (tests/support/combos.py): 512 s of the same run for all 15 pairs.
 
 
 def pytest_configure(config):

@@ -23,15 +23,14 @@ import warp as wp
 import warp_spt as ws
 from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.emitters import Lights, env_pdf, env_radiance, light_table, sample_env
-from warp_spt.integrators import INTEGRATORS
 from warp_spt.images.environment import load_environment, read_environment_image
 from warp_spt.images.hdr import HdrError, read_hdr, write_hdr
 from warp_spt.rendering.settings import RenderSettings
-from warp_spt.samplers import SAMPLERS
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.environment import EnvironmentMap, row_solid_angles
 from warp_spt.scene.sky import Sky
 
+from tests.support.combos import every_pair
 from tests.support.scenes import material, write_scene_files
 from tests.support.stability_scenes import t_quantile
 
@@ -241,8 +240,7 @@ def _assert_mean(batches, expected, alpha=1e-4):
         f"worst |err| / se = {np.max(err / np.maximum(se, 1e-12)):.2f} (bound {bound:.2f})"
 
 
-@pytest.mark.parametrize("sampler", sorted(SAMPLERS))
-@pytest.mark.parametrize("integrator", sorted(INTEGRATORS))
+@pytest.mark.parametrize("integrator,sampler", every_pair())
 def test_furnace_constant_map_every_integrator_and_sampler(ball, integrator, sampler):
     # a convex albedo-1 sphere in a constant environment L: every path sees L (one bounce, then out)
     L = np.array([0.5, 1.0, 2.0], np.float32)

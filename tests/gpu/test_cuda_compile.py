@@ -234,8 +234,9 @@ def test_the_variants_come_from_the_registries():
         assert {v.kind for v in chosen} == set(KERNEL_KINDS)
     assert {"tape", "replay", "aov"} <= set(KERNEL_KINDS)
     sets = FEATURE_SETS.values()
-    for name in ("meshes", "spheres", "textures", "checker", "emitters", "smooth", "sky", "warp_meshes", "scatters"):
+    for name in ("meshes", "spheres", "textures", "checker", "emitters", "smooth", "warp_meshes", "scatters"):
         assert {getattr(f, name) for f in sets} == {True, False}, name
+    assert {f.lit("sky") for f in sets} == {True, False}       # an emitting sky, on and off
     for flag in ("frame", "cutout", "dims.lobe", "dims.fresnel", "seed.diffuse", "pbr.transmission"):
         assert {f.needs(flag) for f in sets} == {True, False}, flag
     assert {f.bvh_stack == 0 for f in sets} == {True, False}

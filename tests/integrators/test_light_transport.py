@@ -27,12 +27,12 @@ from warp_spt.accel.ray_queries import KIND_MISS, NO_HIT, make_closest_hit
 from warp_spt.emitters import Lights, light_table, make_lights
 from warp_spt.bsdfs import make_materials
 from warp_spt.accel.surface import Surface, make_surface
-from warp_spt.integrators import INTEGRATORS
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.samplers import SAMPLERS
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.sky import Sky
 
+from tests.support.combos import every_pair
 from tests.support.scenes import box_obj, material
 from tests.support.stability_scenes import (
     GENERAL,
@@ -48,7 +48,7 @@ from tests.support.stability_scenes import (
     t_quantile,
 )
 
-COMBOS = [(i, s) for i in sorted(INTEGRATORS) for s in sorted(SAMPLERS)]
+COMBOS = every_pair()      # a covering set in the default tier, the other pairs slow (tests/support/combos.py)
 
 
 def seed_batches(scene, camera, batches: int, spp: int, first_seed: int, **kw) -> np.ndarray:
@@ -443,7 +443,7 @@ def references(scene_dir, mixed_scene):
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
-@pytest.mark.parametrize("integrator,sampler,roulette", [c + (0,) for c in COMBOS] + [("nee", "sobol", 2)])
+@pytest.mark.parametrize("integrator,sampler,roulette", every_pair(0) + [("nee", "sobol", 2)])
 def test_integrators_and_samplers_converge_to_the_same_image(references, scene, integrator, sampler, roulette):
     dev, cam, kw, ref = references[scene]
     b = seed_batches(dev, cam, BATCHES, SPP, 2000, integrator=integrator, sampler=sampler,

@@ -189,24 +189,20 @@ def cli_cases():
 
 
 def main(out: str, only_new: bool = False) -> None:
+    """Hash every case into ``out``; with ``only_new``, only the API cases house_hashes.json lacks."""
     hashes = {}
-    if only_new:
-        old = json.loads((Path(__file__).with_name("house_hashes.json")).read_text())
-        for name, fn in api_cases():
-            if name not in old:
-                hashes[name] = fn()
+    old = json.loads(Path(__file__).with_name("house_hashes.json").read_text()) if only_new else {}
+    if not only_new:
+        with tempfile.TemporaryDirectory() as tmp:
+            for name, fn in cli_cases():
+                d = Path(tmp) / name
+                d.mkdir()
+                hashes[name] = fn(d)
                 print(name, hashes[name], flush=True)
-        Path(out).write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
-        return
-    with tempfile.TemporaryDirectory() as tmp:
-        for name, fn in cli_cases():
-            d = Path(tmp) / name
-            d.mkdir()
-            hashes[name] = fn(d)
-            print(name, hashes[name], flush=True)
     for name, fn in api_cases():
-        hashes[name] = fn()
-        print(name, hashes[name], flush=True)
+        if name not in old:
+            hashes[name] = fn()
+            print(name, hashes[name], flush=True)
     Path(out).write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
 
 

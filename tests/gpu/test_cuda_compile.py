@@ -9,8 +9,15 @@ Two sets of kernels, both built from the registries at collection time, so an in
 kernel kind, material kind or procedural texture registered later is compiled too:
 
 **The representative set** (the default, what CI runs): every ``wp.func`` and every ``wp.static``
-branch compiled at least once, for sm_75 (the oldest architecture CUDA 13 supports), and the
-default kernel and the small kernels also for sm_90:
+branch compiled at least once, for sm_75 (the oldest architecture CUDA 13 supports), and the small
+kernels also for sm_90. The default kernel (the default integrator and sampler for every feature) is
+compiled as a user's GPU compiles it, optimised; every other kernel in Warp's debug mode (NVRTC
+without optimisation): the same source through the same front end and code generator, so a CPU-only
+intrinsic, a type NVRTC refuses or an atomic on a type without one fails there as in release, in a
+fraction of the time (guided's general kernel: 26 s against 210 s; ears': 24 s against 255 s, one
+compile at a time on the development machine). What only NVRTC's optimiser meets (a kernel it takes
+an hour to optimise, as volpath's inlined trackers once did) the default kernel and the full matrix
+meet:
 
 * the fast kernel (``KERNEL_KINDS["fast"]``) of every integrator for ``Features.general()`` (every
   feature, every material kind of ``MATERIAL_KINDS``, both BVHs), the samplers taken in turn (seed
@@ -20,8 +27,8 @@ default kernel and the small kernels also for sm_90:
 * every other registered kernel kind (``tape``, ``replay``, ``aov``, and any added later) once, with
   the default integrator and the samplers in turn across the kinds, for the meshes-only feature set
   below (the kinds' own machinery; the functions they differentiate are compiled for every feature in
-  the fast kernels); the tape kernel unrolled to depth 2 (the same functions as any depth, unrolled
-  fewer times);
+  the fast kernels); the tape kernel unrolled to depth 1 (the step's functions, each once: a deeper
+  tape unrolls the same step again);
 * the default integrator and sampler's fast kernel for three more feature sets that together with
   the general one switch every feature on and off: every registered procedural texture compiled in
   (``general()`` compiles none); meshes only, traced by Warp's BVH alone (the default on CUDA),
@@ -33,12 +40,15 @@ default kernel and the small kernels also for sm_90:
 * the small kernels outside the renderers: the procedural-texture probe (every registered texture)
   and the first view's probes (``rendering/first_view``: the CLI's, the viewer's, the API's). The
   viewer has no kernels of its own: it renders through the same set-up (``rendering/setup.bind``).
+  These and the meshes-only fast kernel are compiled for sm_90 too (an architecture's own intrinsics
+  show in any kernel that uses them).
 
 **The full matrix** (``WARP_SPT_CUDA_FULL=1``): the representative set's feature sets; the fast
 kernel of every integrator x every sampler,
 every other kind with every integrator (the kinds that refuse ``guided`` and ``ears``, ``replay``
 and ``tape``, reported as skipped), every variant for every architecture in ``ARCHS`` (sm_75 and
-sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides). Run it before a release and on a GPU machine
+sm_90; ``WARP_SPT_CUDA_ARCHS=75,86`` overrides), every one optimised as a user's GPU compiles it.
+Run it before a release and on a GPU machine
 (``benchmarks/gpu_check.py`` runs the kernels themselves there).
 
 The kernels are built as the renderers build them (``KernelKind.build`` of a set-up stub, the one
@@ -46,11 +56,13 @@ kernel cache) with ``kernel_cache.load`` made a no-op (nothing is loaded on the 
 in a thread pool (one thread per core: NVRTC compiles run outside Warp's code-generation lock).
 Warp's kernel cache keeps each PTX file by the module's hash, so a second run compiles nothing.
 
-Cost, measured on the 2-core development machine: a general fast kernel takes 30-80 s of NVRTC per
-architecture with the pbr kind compiled in, the adjoint kernels (NVRTC optimising replay's and the
-tape's adjoints) several CPU-minutes each. The full matrix (about 40 compiles) ran past an hour of CI's
-2 cores with Warp's cache cold, which is why CI compiles the representative set (the fixture prints
-its count of compiles). With Warp's cache warm (the modules unchanged since the last run): seconds.
+Cost, one compile at a time on the 2-core development machine with Warp's cache cold (NVRTC, sm_75),
+optimised: the general fast kernel of nee 114 s, seed 43 s, guided 210 s, ears 255 s, volpath 222 s;
+path replay's kernel on the meshes-only set 102 s, the tape's (depth 1) 128 s. In debug mode a third
+to a tenth of that (seed's: 9 s against 30 s). The representative set compiled every kernel
+optimised until 2026-12, 17 compiles in 1,293 s of CI's 2 cores; the fixture prints its count and
+time. The full matrix (about 40 compiles, all optimised) ran past an hour of CI's 2 cores: run it
+before a release and on a GPU machine. With Warp's cache warm (the modules unchanged): seconds.
 """
 
 from __future__ import annotations
@@ -86,7 +98,7 @@ FULL = os.environ.get("WARP_SPT_CUDA_FULL", "") not in ("", "0")
 # (the tape, path replay, the AOV pass) in full, the functions they differentiate in the fast kernels.
 # For Features.general() an adjoint kernel took over 20 minutes of NVRTC at load 9 (replay and tape).
 ADJOINT_FEATURES = "meshes-warp-bvh"
-TAPE_DEPTH = 2
+TAPE_DEPTH = 1
 
 FEATURE_SETS = {
     "general": Features.general(),
@@ -144,12 +156,23 @@ def variants(full: bool = FULL) -> list[Variant]:
 VARIANTS = variants()
 HELPERS = ("proctex-probe", "view-checks")
 DEFAULT_ID = Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, "general").id
+# the fast kernel compiled for every architecture beside the small kernels (the meshes-only set: the
+# general one took 114 s of NVRTC for one architecture)
+EVERY_ARCH_ID = Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, "meshes-warp-bvh").id
 
 
 def archs_of(name: str) -> tuple[int, ...]:
-    """Every architecture for the full matrix; otherwise the first, and every one for the default
-    kernel and the small kernels (an architecture's own intrinsics show in any kernel that uses them)."""
-    return ARCHS if FULL or name in HELPERS or name == DEFAULT_ID else ARCHS[:1]
+    """Every architecture for the full matrix; otherwise the first, and every one for the small
+    kernels and one small fast kernel (an architecture's own intrinsics show in any kernel that uses
+    them)."""
+    return ARCHS if FULL or name in HELPERS or name == EVERY_ARCH_ID else ARCHS[:1]
+
+
+def mode_of(name: str) -> str:
+    """Warp's compile mode for a kernel: "release" (optimised, as users' GPUs compile it) for the full
+    matrix and the default kernel, "debug" (unoptimised: the same front end, a fraction of the time)
+    for the rest of the representative set."""
+    return "release" if FULL or name == DEFAULT_ID else "debug"
 
 
 def build(v: Variant) -> wp.Kernel:
@@ -194,6 +217,12 @@ def compiled():
     distinct = {id(m): m for m in modules.values()}
     wanted = {(id(m), a) for name, m in modules.items() for a in archs_of(name)}
     jobs = sorted(wanted, key=lambda job: (ARCHS.index(job[1]), list(distinct).index(job[0])))
+    # one mode per module (a module shared by two names takes release if either asks for it); the
+    # modules are the renderers' own (the one kernel cache): their mode is put back afterwards
+    modes = {}
+    for name, m in modules.items():
+        modes[id(m)] = "release" if modes.get(id(m)) == "release" else mode_of(name)
+    saved = {key: distinct[key].options.get("mode") for key in distinct}
 
     def compile_one(job):
         key, a = job
@@ -204,10 +233,19 @@ def compiled():
             return job, f"{type(err).__name__}: {err}"
 
     t0 = time.perf_counter()
-    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
-        done = dict(pool.map(compile_one, jobs))
-    print(f"\n{len(jobs)} CUDA compiles ({len(distinct)} modules, {'full matrix' if FULL else 'representative set'}): "
-          f"{time.perf_counter() - t0:.1f} s")
+    try:
+        for key, m in distinct.items():
+            m.options["mode"] = modes[key]
+            m.mark_modified()
+        with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
+            done = dict(pool.map(compile_one, jobs))
+    finally:
+        for key, m in distinct.items():
+            m.options["mode"] = saved[key]
+            m.mark_modified()
+    n_release = sum(1 for key, _ in jobs if modes[key] == "release")
+    print(f"\n{len(jobs)} CUDA compiles ({len(distinct)} modules, {n_release} compiles optimised, "
+          f"{'full matrix' if FULL else 'representative set'}): {time.perf_counter() - t0:.1f} s")
     for name, m in modules.items():
         for a in ARCHS:
             results[(name, a)] = done.get((id(m), a), ("skip", f"representative set: sm_{ARCHS[0]} only "

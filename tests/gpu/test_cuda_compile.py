@@ -10,14 +10,14 @@ kernel kind, material kind or procedural texture registered later is compiled to
 
 **The representative set** (the default, what CI runs): every ``wp.func`` and every ``wp.static``
 branch compiled at least once, for sm_75 (the oldest architecture CUDA 13 supports), and the small
-kernels also for sm_90. The default kernel (the default integrator and sampler for every feature) is
-compiled as a user's GPU compiles it, optimised; every other kernel in Warp's debug mode (NVRTC
-without optimisation): the same source through the same front end and code generator, so a CPU-only
-intrinsic, a type NVRTC refuses or an atomic on a type without one fails there as in release, in a
-fraction of the time (guided's general kernel: 26 s against 210 s; ears': 24 s against 255 s, one
-compile at a time on the development machine). What only NVRTC's optimiser meets (a kernel it takes
-an hour to optimise, as volpath's inlined trackers once did) the default kernel and the full matrix
-meet:
+kernels also for sm_90. One fast kernel, the default integrator and sampler's for the meshes-only set
+below (what a CUDA render of a mesh scene runs), is compiled as a user's GPU compiles it, optimised;
+every other kernel in Warp's debug mode (NVRTC without optimisation): the same source through the same
+front end and code generator, so a CPU-only intrinsic, a type NVRTC refuses or an atomic on a type
+without one fails there as in release, in a fraction of the time (guided's general kernel: 26 s
+against 210 s; ears': 24 s against 255 s, one compile at a time on the development machine). What
+only NVRTC's optimiser meets (a kernel it takes an hour to optimise, as volpath's inlined trackers
+once did) the optimised kernel and the full matrix meet:
 
 * the fast kernel (``KERNEL_KINDS["fast"]``) of every integrator for ``Features.general()`` (every
   feature, every material kind of ``MATERIAL_KINDS``, both BVHs), the samplers taken in turn (seed
@@ -40,8 +40,8 @@ meet:
 * the small kernels outside the renderers: the procedural-texture probe (every registered texture)
   and the first view's probes (``rendering/first_view``: the CLI's, the viewer's, the API's). The
   viewer has no kernels of its own: it renders through the same set-up (``rendering/setup.bind``).
-  These and the meshes-only fast kernel are compiled for sm_90 too (an architecture's own intrinsics
-  show in any kernel that uses them).
+  These are compiled for sm_90 too (an architecture's own intrinsics show in any kernel that uses
+  them).
 
 **The full matrix** (``WARP_SPT_CUDA_FULL=1``): the representative set's feature sets; the fast
 kernel of every integrator x every sampler,
@@ -155,24 +155,22 @@ def variants(full: bool = FULL) -> list[Variant]:
 
 VARIANTS = variants()
 HELPERS = ("proctex-probe", "view-checks")
-DEFAULT_ID = Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, "general").id
-# the fast kernel compiled for every architecture beside the small kernels (the meshes-only set: the
-# general one took 114 s of NVRTC for one architecture)
-EVERY_ARCH_ID = Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, "meshes-warp-bvh").id
+# the fast kernel the representative set compiles optimised: the default one for a mesh scene (the
+# general one took 114 s of NVRTC optimised, one architecture)
+RELEASE_ID = Variant("fast", DEFAULT_INTEGRATOR, DEFAULT_SAMPLER, "meshes-warp-bvh").id
 
 
 def archs_of(name: str) -> tuple[int, ...]:
     """Every architecture for the full matrix; otherwise the first, and every one for the small
-    kernels and one small fast kernel (an architecture's own intrinsics show in any kernel that uses
-    them)."""
-    return ARCHS if FULL or name in HELPERS or name == EVERY_ARCH_ID else ARCHS[:1]
+    kernels (an architecture's own intrinsics show in any kernel that uses them)."""
+    return ARCHS if FULL or name in HELPERS else ARCHS[:1]
 
 
 def mode_of(name: str) -> str:
     """Warp's compile mode for a kernel: "release" (optimised, as users' GPUs compile it) for the full
-    matrix and the default kernel, "debug" (unoptimised: the same front end, a fraction of the time)
-    for the rest of the representative set."""
-    return "release" if FULL or name == DEFAULT_ID else "debug"
+    matrix and RELEASE_ID, "debug" (unoptimised: the same front end, a fraction of the time) for the
+    rest of the representative set."""
+    return "release" if FULL or name == RELEASE_ID else "debug"
 
 
 def build(v: Variant) -> wp.Kernel:

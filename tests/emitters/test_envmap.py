@@ -134,6 +134,42 @@ def test_a_map_that_is_not_2_to_1_is_refused():
         Sky.environment(np.ones((8, 8, 3), np.float32), name="cube.hdr")
 
 
+def test_unreadable_and_oversized_maps_are_one_error_naming_the_file(tmp_path, capsys):
+    """What the image libraries raise (a junk EXR, a truncated PNG) and a map over the texel budget,
+    known from its header before anything is decoded (a 220 KB PNG once took 3.9 GB; an .npy was read
+    whole first): a ValueError naming the file, and from --env one line, exit 1, no "internal error"."""
+    import zlib
+
+    from warp_spt.cli.main import main
+    from warp_spt.scene.atlas_layout import TEXEL_BUDGET
+
+    cases = {}
+    cases["junk.exr"] = (b"\x76\x2f\x31\x01" + bytes(64), "cannot read the environment map")
+    cases["junk.png"] = (b"\x89PNG\r\n\x1a\n" + bytes(40), "cannot read the environment map")
+    side = int((TEXEL_BUDGET / 2) ** 0.5) + 8                      # 2:1 and over the budget
+    # a PNG header (IHDR) of side x 2 side pixels and one empty compressed row: a few hundred bytes
+    ihdr = b"IHDR" + (2 * side).to_bytes(4, "big") + side.to_bytes(4, "big") + bytes([8, 2, 0, 0, 0])
+    chunk = lambda b: len(b[4:]).to_bytes(4, "big") + b + zlib.crc32(b).to_bytes(4, "big")
+    png = b"\x89PNG\r\n\x1a\n" + chunk(ihdr) + chunk(b"IDAT" + zlib.compress(bytes(7))) + chunk(b"IEND")
+    cases["huge.png"] = (png, "more than the texel budget")
+    npy = tmp_path / "huge.npy"
+    with open(npy, "wb") as f:          # the header of a (side, 2 side, 3) float32 array, and no data
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f4", "fortran_order": False,
+                                                 "shape": (side, 2 * side, 3)})
+    for name, (data, what) in cases.items():
+        (tmp_path / name).write_bytes(data)
+    for name, what in [*((n, w) for n, (_, w) in cases.items()), ("huge.npy", "more than the texel budget")]:
+        path = tmp_path / name
+        if name.endswith(".exr"):
+            pytest.importorskip("OpenEXR")
+        with pytest.raises(ValueError, match=what) as e:
+            read_environment_image(path)
+        assert str(e.value).startswith(f"{path}: ") and "\n" not in str(e.value)
+        assert main(["--env", str(path), "-res", "8", "8", "-sr", "1", "--quiet", "-out", str(tmp_path / "o.npy")]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and str(path) in err[0] and "internal" not in err[0], err
+
+
 def test_an_8bit_png_is_an_ldr_map_with_a_warning(tmp_path):
     from PIL import Image
 
@@ -192,6 +228,22 @@ def test_the_pdf_integrates_to_one_over_the_sphere(ball, rotate):
     d, dw = _grid(512, 1024)
     total = float((_pdfs(lights, d) * dw).sum())
     assert abs(total - 1.0) < 2e-3, total
+
+
+def test_the_pdf_holds_next_to_the_poles(ball):
+    """Within about 0.02 degrees of a pole, 1 - z^2 rounds to 0 in float32: the density there must
+    still be the pole row's (a BSDF-sampled ray escaping to a bright pole otherwise took the whole MIS
+    weight: one pixel of 622 among neighbours of 6). Per row the map is uniform, so along a meridian
+    the density is the row's weight over 2 pi^2 sin(theta): density x sin(theta) is constant."""
+    img = np.ones((64, 128, 3), np.float32)
+    img[0], img[-1] = 1000.0, 300.0                                 # bright poles
+    lights = _table(ball, img)
+    theta = np.radians([1e-4, 1e-3, 5e-3, 0.01, 0.02, 0.05, 0.2, 1.0])
+    for pole, phi in ((1.0, 0.3), (-1.0, 2.0)):
+        d = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), pole * np.cos(theta)], -1)
+        got = _pdfs(lights, d.astype(np.float32))
+        scaled = got * np.sin(theta)
+        assert np.all(got > 0) and np.allclose(scaled, scaled[-1], rtol=2e-3), (pole, got)
 
 
 def test_sampling_matches_the_pdf_chi_square(ball):
@@ -538,3 +590,4 @@ def test_three_spheres_under_the_map_match_mitsuba(tmp_path):
     se_whole = math.sqrt(whole[0].var(ddof=1) / k + whole[1].var(ddof=1) / len(ref))
     assert abs(whole[0].mean() - whole[1].mean()) < t_quantile(1e-3 / 2, dof) * se_whole
     assert abs(whole[0].mean() / whole[1].mean() - 1) < 0.005
+

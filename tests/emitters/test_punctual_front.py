@@ -50,6 +50,11 @@ def test_light_file_reads_every_kind(tmp_path):
     ("sun direction 0 0 0", "direction must not be zero"),
     ("point position 1 2 3 position 1 2 3", "position given twice"),
     ("point position 1 2 nan", "position needs 3 numbers"),
+    # a direction is normalised in float32: 1e20 squared overflowed and the sun shone from below
+    ("sun direction 1e20 1e20 1e20", "direction must not be huge or tiny"),
+    ("sun direction 1e308 0 1", "direction must not be huge or tiny"),
+    ("spot position 0 0 1 direction 1e-40 0 0", "direction must not be huge or tiny"),
+    ("point position 1e16 0 0", "position must lie within +-1e+15"),
 ])
 def test_light_file_errors_name_file_and_line(tmp_path, line, mentions):
     f = tmp_path / "bad.lights"
@@ -75,6 +80,7 @@ def test_sun_and_light_flags():
     (["--sun", "0", "0", "0"], "must not be zero"),
     (["--sun", "0", "0", "1", "--sun-radius", "60"], "radius"),
     (["--light", "point", "position", "1"], "--light point position 1: position needs 3 numbers"),
+    (["--sun", "1e20", "1e20", "1e20"], "direction must not be huge or tiny"),
 ])
 def test_bad_light_flags_are_one_line_and_exit_2(argv, mentions, capsys):
     with pytest.raises(UsageError, match=mentions.replace("(", r"\(")):
@@ -82,6 +88,22 @@ def test_bad_light_flags_are_one_line_and_exit_2(argv, mentions, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and mentions in err and "Traceback" not in err
+
+
+def test_negative_numbers_in_exponent_form_are_numbers_not_flags():
+    """argparse read ``-1e-3`` as a flag; the framing line prints such numbers in its -cam."""
+    opts = parse_args(["--sun", "0.3", "-1e-3", "1", "--light", "point", "position", "-1e1", "2", "-.5E+1"])
+    assert opts.lights[0].direction == (0.3, -1e-3, 1.0) and opts.lights[1].position == (-10.0, 2.0, -5.0)
+    cam = parse_args(["-cam", "0", "-1.2246467991473532e-16", "5", "-0.0", "1", "-2e-3", "40", "5", "0"]).camera
+    assert cam.position == (0.0, -1.2246467991473532e-16, 5.0)
+    with pytest.raises(UsageError):            # a word that is neither stays an unknown flag
+        parse_args(["--sun", "0", "-1e", "1"])
+
+
+def test_directions_and_positions_at_the_bounds_are_taken():
+    from warp_spt.scene.lights import SpotLight
+    assert SunLight(direction=(1e15, -1e15, 2e14)).direction == (1e15, -1e15, 2e14)
+    assert SpotLight(position=(1e15, 0, 0), direction=(0, 0, -1e-30)).position == (1e15, 0.0, 0.0)
 
 
 def test_a_bad_light_file_exits_1_naming_file_and_line(tmp_path, capsys):

@@ -26,6 +26,7 @@ import warp as wp
 
 from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.media import EVENT_SURFACE, Media, hg_sample, make_media, upload_media
+from warp_spt.media.phase import hg
 from warp_spt.device.structs import Features
 from warp_spt.io.loader import load_scene
 from warp_spt.rendering import tiles as R
@@ -92,6 +93,44 @@ def test_hg_sampling_matches_its_pdf(g):
     assert z < 4.0, (g, chi2, df)
     # the density's own normalisation and the mean cosine (g), independently of the bins
     assert abs(mu.mean() - g) < 5 * mu.std() / math.sqrt(n)
+
+
+@wp.kernel
+def _hg_value_kernel(mu: wp.array(dtype=float), g: float, out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = hg(mu[i], g)
+
+
+def _hg_values(mu: np.ndarray, g: float) -> np.ndarray:
+    out = wp.zeros(len(mu), dtype=float, device="cpu")
+    x = wp.array(mu.astype(np.float32), dtype=float, device="cpu")
+    wp.launch(_hg_value_kernel, dim=len(mu), inputs=[x, g, out], device="cpu")
+    return out.numpy().astype(np.float64)
+
+
+@pytest.mark.parametrize("g", [-0.999999, -0.9999, 0.999, 0.9999, 0.999999])
+def test_hg_is_finite_and_sampled_right_at_the_extremes(g):
+    """Up to the accepted |g| <= 0.999999 (g = 0.999999 once gave NaN samples: 1 + g^2 - 2 g cos
+    cancelled to 0 or below in float32): every sampled cosine and every value finite and positive,
+    the sampled cosines' mean g (HG's mean cosine), and where float32 still resolves the peak
+    (|g| <= 0.999) the value integrating to 1 over the sphere."""
+    n = 100_000
+    out = wp.zeros(n, dtype=float, device="cpu")
+    wp.launch(_hg_kernel, dim=n, inputs=[g, 3, out], device="cpu")
+    mu = out.numpy().astype(np.float64)
+    assert np.isfinite(mu).all()
+    assert abs(mu.mean() - g) < 5 * mu.std() / math.sqrt(n) + 2e-6, (mu.mean(), g)
+    grid = np.concatenate([[-1.0, 1.0], np.linspace(-1, 1, 10_001), np.sign(g) * (1 - np.logspace(-9, 0, 2_000))])
+    values = _hg_values(np.concatenate([mu, grid]), g)
+    assert np.isfinite(values).all() and (values > 0).all()
+    if abs(g) <= 0.999:
+        # 2 pi times the integral over mu, on the float32 abscissae the kernel saw, finest at the peak
+        t = np.unique(np.float32(1 - np.logspace(-10, np.log10(2), 20_000)).astype(np.float64))
+        x = np.sign(g) * t
+        x = np.sort(x)
+        y = _hg_values(x, g)
+        total = 2 * np.pi * float(((y[1:] + y[:-1]) / 2 * np.diff(x)).sum())
+        assert abs(total - 1.0) < 2e-3, total
 
 
 # -- Beer-Lambert through the trackers --------------------------------------------------------------
@@ -304,6 +343,22 @@ def test_bad_grids(tmp_path):
         assert "\n" not in str(info.value)
     with pytest.raises(ValueError, match="cannot read"):
         upload_media(_Host(Medium(sigma_s=1.0, density=str(tmp_path / "missing.nvdb"))), "cpu")
+    # the index-to-world map: NaN or infinite (the medium was dropped without a word), singular (it was
+    # "internal error: LinAlgError"); the voxel size's float32 entries of a 0.1 grid rewritten
+    import struct
+    wp.Volume.load_from_numpy(a, voxel_size=0.1, bg_value=0.0, device="cpu").save_to_nvdb(str(path))
+    tenth = struct.pack("<f", 0.1)
+    data = path.read_bytes()
+    assert data.count(tenth) == 3
+    for value, mentions in ((np.nan, "NaN or infinite"), (np.inf, "NaN or infinite"), (0.0, "no scale"),
+                            ("one axis", "singular")):
+        bad = tmp_path / "map.nvdb"
+        if value == "one axis":
+            bad.write_bytes(data.replace(tenth, struct.pack("<f", 0.0), 1))
+        else:
+            bad.write_bytes(data.replace(tenth, struct.pack("<f", value)))
+        with pytest.raises(ValueError, match=rf"map.nvdb: the grid's index-to-world map .*{mentions}"):
+            upload_media(_Host(Medium(sigma_s=1.0, density=str(bad))), "cpu")
     for value in (-1.0, np.nan, np.inf):
         b = a.copy()
         b[3, 2, 1] = value
@@ -371,7 +426,8 @@ def test_gradients_refuse_media(scene_dir, mode, integrator):
 # -- bad input --------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("words, match", [
-    (["g=1"], r"\(-1, 1\)"), (["g=-1.5"], r"\(-1, 1\)"), (["sigma_s=-1"], "sigma_s"),
+    (["g=1"], r"\[-0.999999, 0.999999\]"), (["g=-1.5"], r"\[-0.999999, 0.999999\]"),
+    (["g=0.9999995"], r"\[-0.999999, 0.999999\]"), (["sigma_s=-1"], "sigma_s"),
     (["sigma_a=1,2"], "1 or 3"), (["colour=1"], "KEY=VALUE"), (["sigma_s=nan"], "plain numbers"),
     (["majorant=0.5"], "majorant"),
 ])
@@ -386,7 +442,7 @@ def test_mtl_medium_errors_name_file_and_line(tmp_path):
 
     p = tmp_path / "bad.mtl"
     p.write_text("newmtl a\nindex_matched\nmedium_sigma_s 1 1 1\nmedium_g 1.2\n")
-    with pytest.raises(SceneError, match=r"bad.mtl:4: .*\(-1, 1\)"):
+    with pytest.raises(SceneError, match=r"bad.mtl:4: .*\[-0.999999, 0.999999\]"):
         load_mtl(p)
     p.write_text("newmtl a\nmedium_sigma_a -1\n")
     with pytest.raises(SceneError, match=r"bad.mtl:2"):
@@ -415,7 +471,14 @@ def test_cli_fog_and_a_corrupt_grid(scene_dir, capsys):
     assert status == 1
     assert "bad.nvdb: not a valid NanoVDB grid" in err[-1] and "Traceback" not in "\n".join(err)
     assert main(["-obj", objs[0], "--fog", "g=2", "-out", str(out)]) == 2
-    assert "(-1, 1)" in capsys.readouterr().err
+    assert "[-0.999999, 0.999999]" in capsys.readouterr().err
+    # an integrator that ignores media, asked for by the flag: a usage error (2), not "internal error"
+    objs, mtls = write_scene_files(scene_dir, "cli_interior", box_obj(material="m"),
+                                   "newmtl m\nindex_matched\nmedium_sigma_s 1\n")
+    for args in (["--fog", "sigma_s=0.1"], ["-mtl", mtls[0]]):
+        assert main(["-obj", objs[0], *args, "--integrator", "nee", "-res", "8", "8", "-out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--integrator nee ignores them" in err[0] and "internal" not in err[0], err
 
 
 def test_far_off_grid_moves_with_the_scene(scene_dir):

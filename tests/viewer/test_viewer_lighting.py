@@ -117,7 +117,7 @@ def test_light_and_fog_messages_change_the_image(session):
     ("lamp_intensity", [1e31, 0, 0], "lamp_intensity"),
     ("lamp_angle", 95.0, "lamp_angle must be in [0, 90]"),
     ("lamp_angle", 0.0, "lamp_angle must be above 0"),
-    ("fog_g", 1.0, "g (Henyey-Greenstein asymmetry) must lie in (-1, 1)"),
+    ("fog_g", 1.0, "g (Henyey-Greenstein asymmetry) must lie in [-0.999999, 0.999999]"),
     ("fog_sigma_s", [1.0, math.nan, 1.0], "fog_sigma_s[1] must be a finite number"),
     ("fog_sigma_a", [-0.1, 0.0, 0.0], "sigma_a must be finite numbers in [0"),
     ("env_background", [1.0, -1.0, 0.0], "env_background colour values must be >= 0"),
@@ -191,7 +191,7 @@ def test_the_view_commands_light_fog_and_environment_flags_become_the_pages_sett
     (["--light", "point", "--light", "point", "position", "1", "1", "1"], "one sun and one point or spot light"),
     (["--light", "spot", "inner", "5"], "no inner cone"),
     (["--fog", "emission=1"], "sigma_a, sigma_s and g"),
-    (["--fog", "g=1"], "g (Henyey-Greenstein asymmetry) must lie in (-1, 1)"),
+    (["--fog", "g=1"], "g (Henyey-Greenstein asymmetry) must lie in [-0.999999, 0.999999]"),
     (["--env-rotate", "30"], "--env-rotate needs --env FILE"),
     (["--sun-radius", "2"], "need --sun"),
 ])

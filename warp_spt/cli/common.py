@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import time
 import unicodedata
 from dataclasses import replace
@@ -33,8 +34,20 @@ class RunError(Exception):
     """A failure after parsing (unreadable input, output directory missing): exit status 1."""
 
 
+# argparse asks this pattern whether a word that starts with "-" is a number (no flag of ours looks
+# like one): digits with an optional fraction and an optional exponent
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 class Parser(argparse.ArgumentParser):
-    """argparse that raises :class:`UsageError` instead of printing the usage and exiting."""
+    """argparse that raises :class:`UsageError` instead of printing the usage and exiting, and that
+    reads a negative number in exponent form (``-1.2246467991473532e-16``, ``-1e1``) as a number:
+    argparse's own pattern (``-1``, ``-.5``, ``-1.5``) took it for a flag, so the ``-cam`` the framing
+    line prints for five of the six named views was refused."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str):  # type: ignore[override]
         raise UsageError(message)
@@ -204,6 +217,10 @@ def check_registry_names(opts) -> None:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
     integrator_options_of(opts)
     name = opts.integrator or DEFAULT_INTEGRATOR
+    if getattr(opts, "fog", None) is not None and opts.integrator is not None and not INTEGRATORS[name].media:
+        media = sorted(n for n, r in INTEGRATORS.items() if r.media)
+        raise UsageError(f"--fog needs an integrator that reads media ({', '.join(media)}); --integrator {name} "
+                         f"ignores them (leave --integrator out: --fog chooses volpath)")
     if INTEGRATORS[name].render_passes is not None:
         given = opts.budget.flags() + [flag for flag, value in (("--workers", opts.workers),
                                                                 ("--cluster", opts.cluster)) if value]

@@ -16,6 +16,7 @@ from typing import Sequence, TextIO
 # Only light modules here (stdlib, no numpy, no Warp): main() installs the SIGINT/SIGTERM handling
 # before anything heavy is imported, so a Ctrl-C during start-up gets the same one-line message.
 from warp_spt import __version__
+from warp_spt.io.paths import trusting
 from warp_spt.cli.common import (
     EXIT_FAILURE,
     EXIT_INTERRUPTED,
@@ -79,11 +80,12 @@ def run(opts: Options, *, stderr: TextIO | None = None, started: float | None = 
         # two lines with a source line)
         warnings.showwarning = lambda message, *args, **kw: None if opts.quiet else print(
             f"{PROG}: warning: {one_line(str(message))}", file=err)
-        if opts.animated or opts.cluster or opts.workers:
-            from warp_spt.cli.animation import run_cli
-            return run_cli(opts, err, started)
-        from warp_spt.cli.render import run_image
-        return run_image(opts, err, started)
+        with trusting(opts.trust_paths):
+            if opts.animated or opts.cluster or opts.workers:
+                from warp_spt.cli.animation import run_cli
+                return run_cli(opts, err, started)
+            from warp_spt.cli.render import run_image
+            return run_image(opts, err, started)
 
 
 def _main(argv: list[str], stderr: TextIO, started: float) -> int:

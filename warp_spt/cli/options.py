@@ -152,6 +152,7 @@ class Options:
     sky_given: bool = False          # -sky, --sky-color or a --demo preset chose the sky
     exposure: float = 0.0            # --exposure, in stops, for tone-mapped outputs
     default_material: str = "auto"
+    trust_paths: bool = False        # --trust-paths: scene files may name files outside their folder
     file_camera: str | None = None   # --camera: a camera of the model files (glTF), by name or index
     smooth_angle: float | str = "auto"   # --smooth-angle; "auto": 30 degrees unless the seed's dialect
     texture_modules: tuple[str, ...] = ()   # --textures: user modules registering procedural textures
@@ -363,6 +364,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         studio=ns.studio, sky_given=(ns.sky is not None or ns.sky_color is not None or preset is not None
                                      or ns.env is not None),
         exposure=ns.exposure, default_material=ns.default_material, file_camera=ns.file_camera,
+        trust_paths=ns.trust_paths,
         smooth_angle="auto" if ns.smooth_angle is None else ns.smooth_angle,
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
         lights=light_options(ns, UsageError),
@@ -454,6 +456,10 @@ def _add_model_flags(g) -> None:
     g.add_argument("--smooth-angle", type=_smooth_angle, default=None, metavar="DEG",
                    help="smooth normals by angle for OBJ files without vn: faces within DEG degrees of "
                         "each other shade smooth (0: off, flat); default 30, off for the seed's dialect")
+    g.add_argument("--trust-paths", action="store_true",
+                   help="let scene files name files outside their own folder (absolute paths, '..', links "
+                        "out): for scenes you trust; by default a glTF, OBJ or MTL reads only below its folder "
+                        "(an MTL's maps also below the working directory)")
     g.add_argument("--default-material", choices=("auto", "clay", "checker"), default="auto",
                    help="material of faces with no usemtl: clay (grey) or checker (the seed's); "
                         "auto (default): checker if any MTL is given or any OBJ names a material, else clay")

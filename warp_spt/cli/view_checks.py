@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from warp_spt.cli.common import CompileNotice, RunError
+from warp_spt.cli.common import CompileNotice, RunError, UsageError
 from warp_spt.rendering.first_view import (
     PROBE_SIZE,
     Probe,
@@ -81,9 +81,17 @@ def with_flag_lights(opts, scene):
 def media_integrator(opts, scene, say):
     """``opts`` with integrator ``volpath`` when ``scene`` has a fog or an interior medium and no
     --integrator was given (the other integrators refuse media), saying so."""
-    if (getattr(scene, "fog", None) is not None or getattr(scene, "interiors", None)) and not opts.integrator:
+    if not (getattr(scene, "fog", None) is not None or getattr(scene, "interiors", None)):
+        return opts
+    if not opts.integrator:
         say("participating media: integrator volpath (docs/volumes.md)")
         return replace(opts, integrator="volpath")
+    from warp_spt.integrators import INTEGRATORS
+
+    if not INTEGRATORS[opts.integrator].media:          # the flag's choice: a usage error (exit 2)
+        media = ", ".join(sorted(n for n, r in INTEGRATORS.items() if r.media))
+        raise UsageError(f"the scene has participating media (a fog or an interior medium): --integrator "
+                         f"{opts.integrator} ignores them; leave --integrator out or choose {media}")
     return opts
 
 

@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.environment import EnvironmentMap
 from warp_spt.scene.sky import Sky
 
@@ -47,6 +48,7 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
             from warp_spt.images.files import read_pfm
             return read_pfm(p)
         if ext == ".npy":
+            _check_npy_header(p)
             img = np.load(p, allow_pickle=False)
             if not np.issubdtype(img.dtype, np.number):
                 raise ValueError(f"{path}: expected a numeric (H, W, 3) array, got dtype {img.dtype}")
@@ -67,13 +69,42 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
         from PIL import Image
 
         with Image.open(p) as im:
+            _check_size(path, *im.size)              # from the header, before anything is decoded
             img = np.asarray(im.convert("RGB"), dtype=np.uint8)
         if warn is not None:
             warn(f"{path}: an 8-bit image is a low-dynamic-range environment (radiance at most 1, its bright "
                  "parts clipped): lighting from it is flatter than from an .hdr or .exr map")
         return srgb_to_linear(img / 255.0).astype(np.float32)
-    except (OSError, SyntaxError) as err:
-        raise ValueError(f"{path}: cannot read the environment map: {err}") from None
+    except ValueError as err:
+        if str(err).startswith((f"{path}: ", f"{p}: ")):     # ours, already naming the file
+            raise
+        raise ValueError(f"{path}: cannot read the environment map: {' '.join(str(err).split())}") from None
+    except Exception as err:        # the image libraries' own (OpenEXR's RuntimeError, PIL's bomb guard...)
+        text = " ".join(str(err).split()) or type(err).__name__
+        raise ValueError(f"{path}: cannot read the environment map: {text}") from None
+
+
+def _check_size(path, width: int, height: int) -> None:
+    """The texel budget, from the size a header gives (a PNG of 220 KB once decoded to 3.9 GB)."""
+    if width * height > TEXEL_BUDGET:
+        raise ValueError(f"{path}: {width}x{height} = {width * height:,} texels, more than the texel budget of "
+                         f"{TEXEL_BUDGET:,}")
+
+
+def _check_npy_header(p: Path) -> None:
+    """An .npy map's shape and type from its header, before its data is read."""
+    with open(p, "rb") as f:
+        try:
+            version = np.lib.format.read_magic(f)
+            shape, _, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
+                               else np.lib.format.read_array_header_2_0(f))
+        except ValueError as err:
+            raise ValueError(f"{p}: not an .npy array: {' '.join(str(err).split())}") from None
+    if len(shape) != 3 or shape[2] != 3:
+        raise ValueError(f"{p}: an environment map must be an RGB image (height, width, 3), got shape {shape}")
+    if not np.issubdtype(dtype, np.number):
+        raise ValueError(f"{p}: expected a numeric (H, W, 3) array, got dtype {dtype}")
+    _check_size(p, shape[1], shape[0])
 
 
 def load_environment(path: str | os.PathLike, rotate: float = 0.0, strength: float = 1.0, background=None,

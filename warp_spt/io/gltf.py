@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from warp_spt.io.paths import confine
 from warp_spt.io.tokens import MAX_FILE_BYTES, file_problem, read_file
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import CHECKER_NAME, Material, ObjData, TextureRef
@@ -333,7 +334,10 @@ class _Reader:
         scheme = urllib.parse.urlsplit(uri).scheme
         if scheme and len(scheme) > 1:       # one letter: a Windows drive
             raise _err(self.path, pointer, f"only relative file URIs and data URIs are read, got {uri[:80]!r}")
-        target = self.folder / urllib.parse.unquote(uri)
+        targets, refused = confine(urllib.parse.unquote(uri), self.folder, "the file")
+        if refused:
+            raise _err(self.path, pointer, refused)
+        target = targets[0]
         problem = file_problem(target)
         if problem is not None:
             raise _err(self.path, pointer, f"{uri!r} cannot be read ({target}: {problem})")

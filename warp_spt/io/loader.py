@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Callable, Iterable
 import numpy as np
 
 from warp_spt.io.mtl import builtin_checker, builtin_clay, load_mtl
+from warp_spt.io.paths import confine
 from warp_spt.io.tokens import file_problem
 from warp_spt.runtime.memory import map_large_allocations
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET, atlas_problem
@@ -338,9 +339,11 @@ class _TextureCache:
 
 
 def _find_texture(ref: TextureRef) -> str:
-    """The first existing candidate: relative to the MTL's folder, then to the working directory."""
-    name = ref.path.replace("\\", "/")
-    candidates = [Path(name)] if Path(name).is_absolute() else [Path(ref.mtl_file).parent / name, Path.cwd() / name]
+    """The first existing candidate: relative to the MTL's folder, then to the working directory (the
+    seed's maps are written relative to it), each inside its folder (:mod:`warp_spt.io.paths`)."""
+    candidates, refused = confine(ref.path, Path(ref.mtl_file).parent, "texture", also=(Path.cwd(),))
+    if refused:
+        raise SceneError(ref.mtl_file, ref.line, refused)
     problems = []
     for c in candidates:
         problem = file_problem(c)
@@ -373,10 +376,12 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
 
     from PIL import Image
 
+    source = None
     try:
         with _warnings.catch_warnings(record=True) as caught:
             _warnings.simplefilter("always")
-            with Image.open(path if ref.image is None else io.BytesIO(ref.image)) as img:
+            source = path if ref.image is None else io.BytesIO(ref.image)
+            with Image.open(source) as img:
                 w, h = img.size
                 if w * h > TEXEL_BUDGET:
                     raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "
@@ -386,7 +391,9 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     except (OSError, ValueError, Image.DecompressionBombError) as err:
         if isinstance(err, SceneError):
             raise
-        raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {err}") from None
+        # Pillow names an in-memory image by its repr (``<_io.BytesIO object at 0x...>``): say what it is
+        text = " ".join(str(err).split()).replace(repr(source), "(its embedded bytes)") if ref.image is not None else str(err)
+        raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {text}") from None
     for w in caught:
         if not issubclass(w.category, Image.DecompressionBombWarning):
             note(f"{ref.mtl_file}:{ref.line}: texture {path}: {w.message}")

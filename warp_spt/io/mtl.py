@@ -92,6 +92,7 @@ from typing import Callable
 
 import numpy as np
 
+from warp_spt.io.paths import confine
 from warp_spt.io.tokens import (
     decode_name,
     iter_lines,
@@ -102,7 +103,7 @@ from warp_spt.io.tokens import (
 )
 from warp_spt.scene import material_schema as schema
 from warp_spt.scene.errors import SceneError
-from warp_spt.scene.media import KEYS as MEDIUM_KEYS, MAX_MAJORANT, MAX_SIGMA, Medium
+from warp_spt.scene.media import KEYS as MEDIUM_KEYS, MAX_G, MAX_MAJORANT, MAX_SIGMA, Medium
 from warp_spt.scene.material_schema import COLOR, COLUMN, FLAG, Column
 from warp_spt.scene.model import CHECKER_NAME, PBR_DEFAULTS, Material, TextureRef
 from warp_spt.scene.proctex_registry import parse_proc_map
@@ -436,15 +437,18 @@ def _statement(d: _Draft, tag: str, toks: list[bytes], path: str, lineno: int) -
     elif tag == "medium_density":           # a density grid: a .nvdb file, relative to this file
         if len(args) != 1:
             raise SceneError(path, lineno, f"expected one .nvdb file name after '{name}'")
-        d.medium["density"] = os.path.join(os.path.dirname(path), decode_name(args))
+        grids, refused = confine(decode_name(args), os.path.dirname(path), "density grid")
+        if refused:
+            raise SceneError(path, lineno, refused)
+        d.medium["density"] = str(grids[0])
     elif tag == "medium_density_scale":
         d.medium["density_scale"] = _number(args, path, lineno, name, lo=0.0, hi=MAX_SIGMA, open_lo=True)
     elif tag.startswith("medium_") and tag[7:] in MEDIUM_KEYS:
         key = tag[7:]
         if key == "g":
             g = parse_floats(args, (1,), path, lineno, name)[0]
-            if not -1.0 < g < 1.0:
-                raise SceneError(path, lineno, f"expected a value in (-1, 1) after '{name}', got {g:g}")
+            if not -MAX_G <= g <= MAX_G:
+                raise SceneError(path, lineno, f"expected a value in [-{MAX_G}, {MAX_G}] after '{name}', got {g:g}")
             d.medium[key] = g
         elif key == "majorant":
             d.medium[key] = _number(args, path, lineno, name, lo=1.0, hi=MAX_MAJORANT)

@@ -31,6 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
+from warp_spt.io.paths import confine
 from warp_spt.io.obj_scan import _INDEX_NAMES, RawObj, scan_lines
 from warp_spt.io.tokens import decode_name, is_regular_file, normalise_text, read_file
 from warp_spt.scene.errors import SceneError
@@ -180,10 +181,17 @@ def _mtllib_paths(args_list: list[tuple[int, list[bytes]]], obj_path: str) -> li
     existing file (a file name with spaces).
     """
     base = Path(obj_path).parent
+
+    def inside(name: str, lineno: int) -> Path:          # the rule of warp_spt.io.paths
+        found, refused = confine(name, base, "mtllib")
+        if refused:
+            raise SceneError(obj_path, lineno, refused)
+        return found[0]
+
     out: list[tuple[str, int]] = []
     for lineno, args in args_list:
-        whole = base / decode_name(args).replace("\\", "/")
-        names = [whole] if is_regular_file(whole) else [base / decode_name([a]).replace("\\", "/") for a in args]
+        whole = inside(decode_name(args), lineno)
+        names = [whole] if is_regular_file(whole) else [inside(decode_name([a]), lineno) for a in args]
         out += [(str(p), lineno) for p in names if str(p) not in (q for q, _ in out)]
     return out
 

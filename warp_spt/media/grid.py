@@ -20,9 +20,13 @@ import warp as wp
 
 from warp_spt.device.media_table import Media
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.limits import MAX_COORDINATE
 from warp_spt.scene.media import MAX_GRID_VOXELS, Medium, check_densities
 
 NAME = "grid"
+# a grid's index-to-world matrix may stretch one axis up to this much more than another (a voxel a
+# million times longer than wide is already a modelling slip; beyond it the inverse loses digits)
+MAX_CONDITION = 1e8
 
 
 def declare(medium) -> frozenset:
@@ -117,6 +121,9 @@ def load_grid(medium: Medium, device: str, where: str):
             raise SceneError(path, 0, f"not a valid NanoVDB grid ({text})") from None
         if kind != "float":
             raise SceneError(path, 0, f"the density grid holds {kind!r} values; a float grid was expected")
+        problem = transform_problem(vol)
+        if problem:
+            raise SceneError(path, 0, problem)
         ijk = vol.get_voxels().numpy().astype(np.int32)
         if len(ijk) > MAX_GRID_VOXELS:
             raise SceneError(path, 0, f"{len(ijk):,} active voxels are over the budget of {MAX_GRID_VOXELS:,}")
@@ -136,6 +143,23 @@ def load_grid(medium: Medium, device: str, where: str):
                                     device=device)
     ijk = np.argwhere(a != 0).astype(np.int32)
     return vol, ijk, a[a != 0]
+
+
+def transform_problem(vol: wp.Volume) -> str | None:
+    """Why the grid's index-to-world map cannot place it (None if it can): NaN or infinite entries
+    (the medium was dropped without a word), or a matrix too near singular to invert (it was
+    ``internal error: LinAlgError``)."""
+    info = vol.get_grid_info()
+    m = np.asarray(info.transform_matrix, dtype=np.float64).reshape(3, 3)
+    t = np.asarray(info.translation, dtype=np.float64)
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(t))):
+        return "the grid's index-to-world map holds NaN or infinite numbers"
+    if np.abs(t).max() > MAX_COORDINATE or not np.abs(m).max() > 0.0:
+        return f"the grid's index-to-world map places it beyond +-{MAX_COORDINATE:g} or has no scale"
+    if np.linalg.cond(m) > MAX_CONDITION:
+        return (f"the grid's index-to-world map is singular or nearly so (condition number over "
+                f"{MAX_CONDITION:g}): its voxels would have no volume")
+    return None
 
 
 def grid_index_transform(vol: wp.Volume, medium: Medium) -> np.ndarray:

@@ -17,8 +17,14 @@ INV_FOUR_PI = wp.constant(0.07957747154594767)
 @wp.func
 def hg(cos_theta: float, g: float) -> float:
     """p(cos theta) of the angle between the propagation directions before and after scattering."""
-    den = 1.0 + g * g - 2.0 * g * cos_theta
-    return INV_FOUR_PI * (1.0 - g * g) / (den * wp.sqrt(wp.max(den, 1.0e-12)))
+    # 1 + g^2 - 2 g cos written as a sum of two terms >= 0: in float32 the plain form cancels to 0 or
+    # below near the peak once |g| > 0.999 (g = 0.999999 gave NaN samples)
+    a = wp.abs(g)
+    c = cos_theta
+    if g < 0.0:
+        c = -cos_theta
+    den = (1.0 - a) * (1.0 - a) + 2.0 * a * (1.0 - c)
+    return INV_FOUR_PI * (1.0 - a) * (1.0 + a) / (den * wp.sqrt(den))
 
 
 @wp.func
@@ -32,7 +38,12 @@ def hg_cos(g: float, u: float) -> float:
     """The cosine between the old and new propagation directions, by inverting HG's CDF."""
     if wp.abs(g) < 1.0e-3:
         return 1.0 - 2.0 * u
-    s = (1.0 - g * g) / (1.0 + g - 2.0 * g * u)
+    # 1 + g - 2 g u as (1 - g) + 2 g (1 - u): no cancellation as g nears 1 and u nears 1 (nor, for g
+    # near -1, as u nears 0: (1 + g) - 2 g u with both terms >= 0)
+    den = (1.0 - g) + 2.0 * g * (1.0 - u)
+    if g < 0.0:
+        den = (1.0 + g) - 2.0 * g * u
+    s = (1.0 - g) * (1.0 + g) / den
     return wp.clamp((1.0 + g * g - s * s) / (2.0 * g), -1.0, 1.0)
 
 

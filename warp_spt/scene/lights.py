@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from warp_spt.scene.limits import MAX_RADIANCE
+from warp_spt.scene.limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
 from warp_spt.scene.numbers import plain_float
 
 KIND_SUN, KIND_POINT, KIND_SPOT = 0, 1, 2
@@ -106,6 +106,14 @@ def _vec(name: str, field: str, v, nonzero: bool = False) -> tuple[float, float,
         raise ValueError(f"light {name!r}: {field} must be 3 finite numbers, got {v!r:.60}")
     if nonzero and not any(t):
         raise ValueError(f"light {name!r}: {field} must not be zero")
+    size = max(abs(x) for x in t)
+    # a direction is normalised in float32 on the device: 1e20 squared overflows (the sun then shone
+    # from below the horizon); a position as far as geometry may lie
+    if nonzero and not MIN_DIRECTION <= size <= MAX_COORDINATE:
+        raise ValueError(f"light {name!r}: {field} must not be huge or tiny: its largest component must lie in "
+                         f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}] in size, got {v!r:.60}")
+    if not nonzero and size > MAX_COORDINATE:
+        raise ValueError(f"light {name!r}: {field} must lie within +-{MAX_COORDINATE:g}, got {v!r:.60}")
     return t
 
 

@@ -89,7 +89,7 @@ class ViewSettings:
     fog: bool = False
     fog_sigma_a: tuple = (0.01, 0.01, 0.01)    # per unit length
     fog_sigma_s: tuple = (0.05, 0.05, 0.05)
-    fog_g: float = 0.0                         # Henyey-Greenstein asymmetry, in (-1, 1)
+    fog_g: float = 0.0                         # Henyey-Greenstein asymmetry, |g| <= 0.999999
     max_spp: int = 1024
     preview_scale: int = 4
     exposure: float = 0.0

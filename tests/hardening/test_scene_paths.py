@@ -74,11 +74,12 @@ def test_gltf_buffers_and_images_stay_in_the_files_folder(tree, monkeypatch):
         tex["images"][0]["uri"] = uri
         (scene / "t.gltf").write_text(json.dumps(tex))
         _refused(r"/images/0/uri: ", load_scene, [str(scene / "t.gltf")])
-    # inside the folder (a subfolder, a '..' that stays inside) is read
+    # inside the folder (a subfolder, a '..' that stays inside, an absolute name of a file in it) is read
     (scene / "sub" / "tex.png").write_bytes(png_2x2())
-    tex["images"][0]["uri"] = "sub/../sub/tex.png"
-    (scene / "t.gltf").write_text(json.dumps(tex))
-    assert load_scene([str(scene / "t.gltf")]).textures
+    for uri in ("sub/../sub/tex.png", str(scene / "sub" / "tex.png")):
+        tex["images"][0]["uri"] = uri
+        (scene / "t.gltf").write_text(json.dumps(tex))
+        assert load_scene([str(scene / "t.gltf")]).textures
 
 
 def _mtl_scene(scene: Path, mtl: str) -> list[str]:
@@ -129,7 +130,8 @@ def test_confine_keeps_the_places_inside_their_roots(tmp_path, monkeypatch):
     root.mkdir()
     assert confine("a/b.png", root, "texture") == ([root / "a/b.png"], None)
     assert confine("a\\b.png", root, "texture") == ([root / "a/b.png"], None)       # Windows separators
-    for bad in ("../x", "/etc/passwd", "C:/x", "C:\\x", "a/../../x"):
+    assert confine(str(root / "a.png"), root, "texture") == ([root / "a.png"], None)     # absolute, inside
+    for bad in ("../x", "/etc/passwd", "C:/x", "C:\\x", "a/../../x", str(tmp_path / "a.png")):
         places, why = confine(bad, root, "texture")
         assert places == [] and why and repr(bad) in why, bad
     monkeypatch.setenv(TRUST_ENV, "0")

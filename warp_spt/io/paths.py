@@ -1,10 +1,10 @@
 """Where a scene file may read from: the rule every reader follows for the files a scene file names.
 
 A scene file names other files: an OBJ its ``mtllib``, an MTL its texture maps and density grids, a
-glTF its buffers and images. Each such name must be relative, and the file it names must lie, after
-symbolic links are resolved, inside the folder of the file that names it (or below). An absolute
-path, a drive letter, ``..`` climbing out (percent-encoded as ``%2e%2e`` in a glTF URI too) and a
-symbolic link that points outside are refused with a :class:`SceneError` naming the file, the line
+glTF its buffers and images. The file a name gives must lie, after symbolic links are resolved,
+inside the folder of the file that names it (or below), however the name is written. An absolute
+path elsewhere, a drive letter, ``..`` climbing out (percent-encoded as ``%2e%2e`` in a glTF URI
+too) and a symbolic link that points outside are refused with a :class:`SceneError` naming the file, the line
 or JSON pointer, and the way out. So a model from elsewhere cannot pull an image from anywhere on the
 machine into its render, nor any readable file in as vertex bytes.
 
@@ -63,17 +63,23 @@ def _inside(path: Path, root: Path) -> bool:
 def confine(name: str, folder: str | os.PathLike[str], what: str,
             also: tuple[str | os.PathLike[str], ...] = ()) -> tuple[list[Path], str | None]:
     """The places ``name`` may be read from, in order, and why none (or None): ``name`` joined to
-    ``folder`` and to each of ``also``, when every one of them lies inside its root once links are
-    resolved. ``what`` names the file's role in the message ("texture", "glTF buffer"...); ``\\`` is
-    read as ``/``. A trusted environment (:func:`trusted`) keeps every place, and an absolute name."""
+    ``folder`` and to each of ``also`` (an absolute name is itself), when every one of them lies
+    inside its root once links are resolved. Where a file lies is what counts, not how its name is
+    written: an absolute name of a file in the folder is read (exporters write such names), one of a
+    file elsewhere is not. ``what`` names the file's role in the message ("texture", "glTF
+    buffer"...); ``\\`` is read as ``/``. A trusted environment (:func:`trusted`) keeps every place."""
     clean = name.replace("\\", "/")
     p = Path(clean)
-    absolute = p.is_absolute() or (len(clean) > 1 and clean[1] == ":")
+    drive = len(clean) > 1 and clean[1] == ":" and not p.is_absolute()      # C:/x on a POSIX machine
     roots = (Path(folder), *map(Path, also))
     if trusted():
-        return ([p] if absolute else [root / p for root in roots]), None
-    if absolute:
-        return [], f"{what} {name!r} is an absolute path; a scene file names files in its folder only ({OPT_OUT})"
+        return ([p] if p.is_absolute() or drive else [root / p for root in roots]), None
+    if p.is_absolute() or drive:
+        inside = [root for root in roots if not drive and _inside(p, root)]
+        if inside:
+            return [p], None
+        return [], (f"{what} {name!r} is an absolute path outside {' and '.join(str(r) for r in roots)}; a scene "
+                    f"file names files in its folder only ({OPT_OUT})")
     out = [root for root in roots if not _inside(root / p, root)]
     if not out:
         return [root / p for root in roots], None

@@ -217,16 +217,25 @@ def check_registry_names(opts) -> None:
             raise UsageError(f"argument {flag}: invalid choice: {name!r} (choose from {', '.join(sorted(registry))})")
     integrator_options_of(opts)
     name = opts.integrator or DEFAULT_INTEGRATOR
-    if getattr(opts, "fog", None) is not None and opts.integrator is not None and not INTEGRATORS[name].media:
-        media = sorted(n for n, r in INTEGRATORS.items() if r.media)
-        raise UsageError(f"--fog needs an integrator that reads media ({', '.join(media)}); --integrator {name} "
-                         f"ignores them (leave --integrator out: --fog chooses volpath)")
+    if getattr(opts, "fog", None) is not None and opts.integrator is not None:   # before anything is loaded
+        refuse_without_media(opts.integrator, "--fog")
     if INTEGRATORS[name].render_passes is not None:
         given = opts.budget.flags() + [flag for flag, value in (("--workers", opts.workers),
                                                                 ("--cluster", opts.cluster)) if value]
         if given:
             raise UsageError(f"--integrator {name} trains over its own passes of the whole image: it cannot "
                              f"render with {', '.join(given)} (use -sr, or another --integrator)")
+
+
+def refuse_without_media(integrator: str, what: str) -> None:
+    """A :class:`UsageError` if ``integrator`` (a registered name, chosen by --integrator) ignores
+    participating media, which ``what`` (--fog, or the scene's media) brings. Imports Warp."""
+    from warp_spt.integrators import INTEGRATORS
+
+    if not INTEGRATORS[integrator].media:
+        media = ", ".join(sorted(n for n, r in INTEGRATORS.items() if r.media))
+        raise UsageError(f"{what} brings participating media: --integrator {integrator} ignores them; leave "
+                         f"--integrator out or choose {media}")
 
 
 def integrator_options_of(opts) -> dict:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from warp_spt.cli.common import CompileNotice, RunError, UsageError
+from warp_spt.cli.common import CompileNotice, RunError, refuse_without_media
 from warp_spt.rendering.first_view import (
     PROBE_SIZE,
     Probe,
@@ -86,12 +86,7 @@ def media_integrator(opts, scene, say):
     if not opts.integrator:
         say("participating media: integrator volpath (docs/volumes.md)")
         return replace(opts, integrator="volpath")
-    from warp_spt.integrators import INTEGRATORS
-
-    if not INTEGRATORS[opts.integrator].media:          # the flag's choice: a usage error (exit 2)
-        media = ", ".join(sorted(n for n, r in INTEGRATORS.items() if r.media))
-        raise UsageError(f"the scene has participating media (a fog or an interior medium): --integrator "
-                         f"{opts.integrator} ignores them; leave --integrator out or choose {media}")
+    refuse_without_media(opts.integrator, "the scene (a fog or an interior medium)")
     return opts
 
 

@@ -391,8 +391,9 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
     except (OSError, ValueError, Image.DecompressionBombError) as err:
         if isinstance(err, SceneError):
             raise
-        # Pillow names an in-memory image by its repr (``<_io.BytesIO object at 0x...>``): say what it is
-        text = " ".join(str(err).split()).replace(repr(source), "(its embedded bytes)") if ref.image is not None else str(err)
+        text = str(err)
+        if ref.image is not None:    # Pillow names in-memory bytes by their repr (<_io.BytesIO object at 0x...>)
+            text = text.replace(repr(source), "(its embedded bytes)")
         raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {text}") from None
     for w in caught:
         if not issubclass(w.category, Image.DecompressionBombWarning):

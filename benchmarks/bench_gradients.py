@@ -1,7 +1,7 @@
 """Backward against forward: time and peak memory of gradient renders, and texel-gradient contention.
 
     PYTHONPATH=. python benchmarks/bench_gradients.py [--size 128] [--spp 4] [--depth 6]
-        [--integrator nee] [--sampler sobol] [--skip modes tape growth texels]
+        [--integrator nee] [--sampler sobol] [--skip modes tape growth texels geometry]
 
 Scene: the demo Cornell box (cornell.obj, demo.mtl); by default the renderer's default integrator
 and sampler (nee + sobol). Modes:
@@ -25,6 +25,11 @@ Peak memory is the rise of the process's peak resident set (VmHWM, reset through
 Texel contention: backward time with the gradient of a 2x2, 16x16 or 256x256 texture on a quad
 filling the view, against no texel gradient (CPU kernels are serial per thread and each tile has its
 own buffer: no atomic contention is expected, and this measures it).
+Geometry (``geometry``): the Cornell box's pose (``cornell.obj.translation`` and ``.rotation``, every
+triangle moving) and the camera's position at the same spp: the forward render, the tape's interior
+term (``boundary=False``), the whole gradient with the boundary term, and the boundary term's parts
+(the host's curves and samples, the kernel tracing its pairs of rays, the chain rule); what setting a
+pose costs (a world-space mesh's BVH is rebuilt; an instance's only the top-level BVH).
 """
 
 from __future__ import annotations
@@ -184,6 +189,70 @@ def bench_texels(size: int, spp: int) -> None:
               f"{out['no texels'] * 1e3:6.0f} ms without ({out['texels'] / out['no texels']:.2f}x)")
 
 
+def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: str) -> None:
+    """The geometry gradients' terms against the forward render (module docstring)."""
+    from warp_spt.diff import boundary as B
+    from warp_spt.rendering.setup import bind
+
+    params, rs = cornell(size, spp, depth, integrator, sampler)
+    rs = replace(rs, max_depth=min(depth, 8))          # the tape's interior term: at most 8 bounces
+    adj = np.ones((size, size, 3))
+    names = ["cornell.obj.translation", "cornell.obj.rotation", "camera.position"]
+
+    def forward():
+        render_scene(params.scene, params.camera, replace(rs, sky=params.sky))
+
+    def interior():
+        return render_gradients(params, rs, adjoint=adj, wrt=names, boundary=False)
+
+    def whole():
+        return render_gradients(params, rs, adjoint=adj, wrt=names)
+
+    for fn in (forward, interior, whole):
+        fn()                                           # compile (or load) and warm up
+    rows = [("forward (fast kernel, all threads)", forward), ("interior term (tape, boundary=False)", interior),
+            ("interior + boundary term", whole)]
+    runs = {name: [] for name, _ in rows}
+    for _ in range(3):
+        for name, fn in rows:
+            runs[name].append(peak_rise_mb(fn))
+    f = min(r[0] for r in runs[rows[0][0]])
+    print(f"\nGeometry: Cornell box {size}x{size}, spp {spp} (boundary spp {spp}), depth {rs.max_depth}; "
+          f"{integrator} + {sampler}; wrt {', '.join(names)}; best of 3, interleaved")
+    for name, _ in rows:
+        sec, mb = min(r[0] for r in runs[name]), max(r[1] for r in runs[name])
+        print(f"  {name:42s} {sec * 1e3:8.0f} ms  {sec / f:5.2f}x forward   peak +{mb:6.1f} MB")
+    r = whole()
+    print(f"  backward allocates {r.backward_bytes / 1024:.0f} KiB ({r.tiles} tiles)")
+    b = bind(params.scene, params.camera, replace(rs, sky=params.sky), mode="tape")
+    proj = B.Projection.of(b.camera, size, size)
+    parts = {}
+    for _ in range(3):
+        t0 = time.perf_counter()
+        curves = B.candidate_curves(b.dev.scene, b.dev.geometry.has_corner_normals != 0, proj, size, size,
+                                    b.dev.geometry.extent, {})
+        smp = B.draw(curves, b.dev.scene, proj, spp * size * size, np.random.default_rng(0))
+        t1 = time.perf_counter()
+        B._trace_pairs(b, proj, smp.px, smp.normal, 1)
+        t2 = time.perf_counter()
+        infos = [params.info(n) for n in names]
+        B.boundary_gradients(b, adj, infos, params._poses, spp, 1, params.camera)
+        t3 = time.perf_counter()
+        for k, v in (("curves and samples (host)", t1 - t0), ("paths of the sample pairs (kernel)", t2 - t1),
+                     ("the whole boundary term", t3 - t2)):
+            parts[k] = min(parts.get(k, v), v)
+    print(f"  the boundary term: {len(curves)} curves, {spp * size * size} samples, {2 * spp * size * size} rays")
+    for k, v in parts.items():
+        print(f"    {k:40s} {v * 1e3:8.0f} ms  {v / f:5.2f}x forward")
+    for label, value in (("a world-space mesh's pose (its BVH rebuilt)", (0.01, 0.0, 0.0)),):
+        t0 = time.perf_counter()
+        for k in range(5):
+            params["cornell.obj.translation"] = np.asarray(value) * (k + 1)
+        print(f"  setting {label}: {(time.perf_counter() - t0) / 5 * 1e3:.1f} ms "
+              f"({len(params.scene.scene.meshes[0].indices)} triangles)")
+    params["cornell.obj.translation"] = (0.0, 0.0, 0.0)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=128)
@@ -191,7 +260,7 @@ def main() -> None:
     ap.add_argument("--depth", type=int, default=6)
     ap.add_argument("--integrator", default=DEFAULT_INTEGRATOR)
     ap.add_argument("--sampler", default=DEFAULT_SAMPLER)
-    ap.add_argument("--skip", nargs="*", default=[], choices=["modes", "tape", "growth", "texels"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["modes", "tape", "growth", "texels", "geometry"])
     a = ap.parse_args()
     if "modes" not in a.skip:
         bench_modes(a.size, a.spp, a.depth, a.integrator, a.sampler, with_tape="tape" not in a.skip)
@@ -199,6 +268,8 @@ def main() -> None:
         bench_growth(a.size, a.spp, a.depth, a.integrator, a.sampler)
     if "texels" not in a.skip:
         bench_texels(a.size, a.spp)
+    if "geometry" not in a.skip:
+        bench_geometry(a.size, a.spp, a.depth, a.integrator, a.sampler)
 
 
 if __name__ == "__main__":

@@ -1,12 +1,13 @@
-"""Where the gradient is biased: a discontinuity the pathwise derivative cannot see.
+"""Discontinuities and the pathwise derivative: where the boundary term is needed, and one it lacks.
 
     PYTHONPATH=. python examples/gradient_bias.py
 
-Two cases. **Fuzz**, below. **Camera**: a noise-textured quad under the gradient sky, seen from
-2 units up, the camera moved along its view axis (``camera.position`` z). A quad larger than the view
-shows no edge: gradient and finite differences agree. A smaller quad seen whole against the sky grows
-in the image as the camera comes down; its edges move, which finite differences see (a boundary
-term) and the gradient, through shading only, does not.
+Two cases. **Fuzz**, below: a step the gradient does not see. **Camera**: a noise-textured quad under
+the gradient sky, seen from 2 units up, the camera moved along its view axis (``camera.position`` z).
+A quad larger than the view shows no edge: the pathwise (interior) gradient and finite differences
+agree. A smaller quad seen whole against the sky grows in the image as the camera comes down; its
+edges move, which finite differences see and the interior term alone (``boundary=False``) does not:
+the boundary term of primary visibility (warp_spt.diff.boundary) carries it.
 
 Fuzz:
 
@@ -74,19 +75,21 @@ def noise_quad(folder: Path, half: float):
 
 
 def camera_compare(half: float, size: int = 8, spp: int = 256, seeds: int = 4, h: float = 0.02):
-    """(gradient, finite difference, standard error of their difference) of the image sum in the
-    camera's height, over ``seeds`` seeds: central FD with step h, common random numbers."""
+    """(gradient, interior term alone, finite difference, standard error of gradient - FD) of the image
+    sum in the camera's height, over ``seeds`` seeds: central FD with step h, common random numbers."""
     with tempfile.TemporaryDirectory() as tmp:
         scene = noise_quad(Path(tmp), half)
     cam = warp_spt.Camera(position=(0.1, -0.2, 2.0), direction=(0.05, 0.1, -1.0), fov=60.0, aperture=0.0,
                           focus=2.0, up=(0.0, 1.0, 0.0))
     params = parameters(scene, cam, warp_spt.Sky.gradient(zenith=(0.4, 0.6, 1.0), nadir=(0.9, 0.8, 0.7)))
-    g, fd = [], []
+    g, g0, fd = [], [], []
     for seed in range(seeds):
         rs = RenderSettings(width=size, height=size, spp=spp, max_depth=2, seed=seed, sky=params.sky,
                             integrator="seed")
         r = render_gradients(params, rs, adjoint=np.ones((size, size, 3)), wrt=["camera.position"])
         g.append(float(r.grads["camera.position"][2]))
+        r0 = render_gradients(params, rs, adjoint=np.ones((size, size, 3)), wrt=["camera.position"], boundary=False)
+        g0.append(float(r0.grads["camera.position"][2]))
         sums = []
         for s in (h, -h):
             params["camera.position"] = np.add(cam.position, (0.0, 0.0, s))
@@ -94,7 +97,7 @@ def camera_compare(half: float, size: int = 8, spp: int = 256, seeds: int = 4, h
         params["camera.position"] = cam.position
         fd.append((sums[0] - sums[1]) / (2 * h))
     se = math.sqrt(np.var(g, ddof=1) / seeds + np.var(fd, ddof=1) / seeds)
-    return float(np.mean(g)), float(np.mean(fd)), se
+    return float(np.mean(g)), float(np.mean(g0)), float(np.mean(fd)), se
 
 
 def main() -> None:
@@ -102,10 +105,11 @@ def main() -> None:
     for elev in (80, 45, 25, 12, 6):
         g, fd = compare(elev)
         print(f"{elev:7d}°  {g:9.3f}  {fd:9.3f}")
-    print("\nquad half-size  edges in view  gradient  finite difference  std. error  (image sum, d/d camera z)")
+    print("\nquad half-size  edges in view  gradient  interior only  finite difference  std. error  "
+          "(image sum, d/d camera z)")
     for half in (2.0, 1.0, 0.5):
-        g, fd, se = camera_compare(half)
-        print(f"{half:14.1f}  {'no' if half > 1.2 else 'yes':>13}  {g:8.3f}  {fd:17.3f}  {se:10.3f}")
+        g, g0, fd, se = camera_compare(half)
+        print(f"{half:14.1f}  {'no' if half > 1.2 else 'yes':>13}  {g:8.3f}  {g0:13.3f}  {fd:17.3f}  {se:10.3f}")
 
 
 if __name__ == "__main__":

@@ -481,8 +481,18 @@ def ray_sphere(sph: wp.vec4, o: wp.vec3, d: wp.vec3, t_near: float) -> float:
     return t0
 
 
+@wp.func
+def with_derivative_vec(value: wp.vec3, smooth: wp.vec3) -> wp.vec3:
+    """:func:`with_derivative` per component."""
+    return wp.vec3(with_derivative(value[0], smooth[0]), with_derivative(value[1], smooth[1]),
+                   with_derivative(value[2], smooth[2]))
+
+
 def make_refine_hit(features: Features):
-    """``refine_hit(geo, hit, o, d) -> Hit``: ``hit`` with t, u, v differentiable in o and d (same values)."""
+    """``refine_hit(geo, hit, o, d) -> Hit``: ``hit`` with t, u, v and the normal differentiable in
+    o and d and in the hit primitive (same values): a triangle's corners (``Geometry.corner_point``
+    when the backward pass filled it, else the wp.Mesh's points, which carry no adjoint) and its
+    instance's placement, or a sphere's centre and radius."""
 
     @wp.func
     def refine_hit(s: Geometry, h: Hit, o: wp.vec3, d: wp.vec3) -> Hit:
@@ -497,10 +507,19 @@ def make_refine_hit(features: Features):
         r.placed = h.placed
         if h.kind == KIND_TRIANGLE:
             if wp.static(features.meshes):
-                mesh = s.mesh_ids[h.index]
-                p0 = wp.mesh_get_point(mesh, 3 * h.face)
-                p1 = wp.mesh_get_point(mesh, 3 * h.face + 1)
-                p2 = wp.mesh_get_point(mesh, 3 * h.face + 2)
+                p0 = wp.vec3()
+                p1 = wp.vec3()
+                p2 = wp.vec3()
+                if s.has_corner_points != 0:
+                    g = 3 * (s.face_offset[h.index] + h.face)
+                    p0 = s.corner_point[g]
+                    p1 = s.corner_point[g + 1]
+                    p2 = s.corner_point[g + 2]
+                else:
+                    mesh = s.mesh_ids[h.index]
+                    p0 = wp.mesh_get_point(mesh, 3 * h.face)
+                    p1 = wp.mesh_get_point(mesh, 3 * h.face + 1)
+                    p2 = wp.mesh_get_point(mesh, 3 * h.face + 2)
                 if wp.static(features.instances):
                     if h.placed > 0:
                         a = s.inst_linear[h.placed - 1]
@@ -512,6 +531,12 @@ def make_refine_hit(features: Features):
                 r.t = with_derivative(h.t, tuv[0])
                 r.u = with_derivative(h.u, tuv[1])
                 r.v = with_derivative(h.v, tuv[2])
+                # the winding's normal of the placed corners (a mirroring placement flips the cross
+                # product, not the traversal's A^-T normal: the sign follows the traversal's)
+                n = wp.normalize(wp.cross(p1 - p0, p2 - p0))
+                if wp.dot(n, h.normal) < 0.0:
+                    n = -n
+                r.normal = with_derivative_vec(h.normal, n)
         elif h.kind == KIND_SPHERE:
             if wp.static(features.spheres):
                 r.t = with_derivative(h.t, ray_sphere(s.spheres[h.index], o, d, h.t))

@@ -14,7 +14,7 @@ from __future__ import annotations
 import warp as wp
 
 from warp_spt.device.adjoint import zero_adjoint
-from warp_spt.accel.ray_queries import KIND_TRIANGLE, Hit
+from warp_spt.accel.ray_queries import KIND_TRIANGLE, Hit, with_derivative_vec
 from warp_spt.device.structs import Features, Geometry
 
 INV_PI = wp.constant(0.3183098861837907)
@@ -117,8 +117,11 @@ def triangle_point_of(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, u: float, v: float,
     return p2 + (e0 * (bu / total) + e1 * (bv / total))
 
 
-def make_surface(features: Features):
-    """``surface_at(geo, hit, o, d)``, specialised to the scene's primitives."""
+def make_surface(features: Features, differentiable: bool = False):
+    """``surface_at(geo, hit, o, d)``, specialised to the scene's primitives. ``differentiable`` (the
+    tape's kernel): a triangle's point keeps its value and takes the derivative of ``o + t d``, the
+    point where the ray meets the (moving) triangle's plane: the value's corners come from the
+    wp.Mesh, whose look-up has no adjoint."""
 
     @wp.func
     def surface_at(s: Geometry, h: Hit, o: wp.vec3, d: wp.vec3) -> Surface:
@@ -143,6 +146,8 @@ def make_surface(features: Features):
                                              a * wp.mesh_get_point(mesh, 3 * h.face + 2) + c, h.u, h.v, s.extent)
                 else:
                     sf.p = triangle_point(s.mesh_ids[h.index], h.face, h.u, h.v, s.extent)
+                if wp.static(differentiable):
+                    sf.p = with_derivative_vec(sf.p, o + d * h.t)
                 w = 1.0 - h.u - h.v
                 sf.uv = s.corner_uv[3 * g] * h.u + s.corner_uv[3 * g + 1] * h.v + s.corner_uv[3 * g + 2] * w
                 if wp.static(features.smooth):

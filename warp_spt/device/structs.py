@@ -57,6 +57,11 @@ class Geometry:
     corner_tangent: wp.array(dtype=wp.vec4)
     has_corner_tangents: int
     num_meshes: int
+    # 3 per face when has_corner_points (the differentiable kernels, asked for a mesh's positions or
+    # pose: diff.gradients): the corners in the mesh's own space, read in place of the wp.Mesh's
+    # points, whose look-up has no adjoint in Warp 1.19 (mesh_get_point: "MISSINGADJOINT")
+    corner_point: wp.array(dtype=wp.vec3)
+    has_corner_points: int
     # Analytic spheres
     spheres: wp.array(dtype=wp.vec4)           # centre xyz, radius
     sphere_material: wp.array(dtype=wp.int32)

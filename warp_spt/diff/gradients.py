@@ -25,10 +25,11 @@ What is differentiated (see docs/gradients.md): material colours and emission (e
 depend on them), texture texels (nearest and bilinear), ``Roughness`` (the lobe choice is discrete:
 ``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz`` (tape),
 the constant sky colour and the gradient sky's zenith and nadir colours, procedural-texture
-parameters, the camera's position and direction (tape only, through shading: the tape's kernel
-re-intersects each hit primitive in closed form, ``geometry.make_refine_hit``, because the
-traversal's dynamic loop drops its adjoint). Visibility is not differentiated (no edge sampling):
-silhouettes that move with a parameter bias its gradient.
+parameters, the camera's position and direction and geometry (a mesh's positions, an object's pose,
+a sphere; tape only: the tape's kernel re-intersects each hit primitive in closed form,
+``ray_queries.make_refine_hit``, because the traversal's dynamic loop drops its adjoint), with the
+boundary term of the curves the camera sees (``warp_spt.diff.boundary``, edge sampling). Secondary
+visibility (shadows' edges, outlines seen by bounces) is not differentiated: docs/gradients.md, Limits.
 """
 
 from __future__ import annotations
@@ -66,6 +67,9 @@ from warp_spt.diff.params import (
     camera_jacobian,
     proc_slice,
 )
+from warp_spt.diff import geometry_params as geo_params
+from warp_spt.diff.geometry_params import GEOMETRY_KINDS, MESH, SPHERE
+from warp_spt.diff.boundary import boundary_gradients
 from warp_spt.diff.prb import replay_inputs
 
 ENV_TEXELS_KEY = "environment.texels"       # its reduced buffer among the parts of ``_Backward.run``
@@ -248,7 +252,7 @@ class GradientResult:
 def render_gradients(params: SceneParameters, settings: RenderSettings | None = None, *,
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
                      wrt: list[str] | None = None, gradient_seed: int | None = None,
-                     mode: str = "auto") -> GradientResult:
+                     mode: str = "auto", boundary: bool = True, boundary_spp: int | None = None) -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``).
@@ -259,6 +263,10 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
     alone has the pathwise derivatives of fuzz and the camera), or "auto": "prb" unless a parameter
     in ``wrt`` needs the tape.
+
+    ``boundary``: add the boundary term of primary visibility to geometry and camera parameters
+    (``warp_spt.diff.boundary``; False: the interior term alone), estimated with ``boundary_spp``
+    samples per pixel along the image's silhouettes and edges (default: ``settings.spp``).
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -292,8 +300,16 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     sums = bw.run(adj.reshape(-1, 3), rs.threads, want_image=replay_image)
     if replay_image:
         image = Film(sums.pop("film").reshape(shape), rs.spp).image()
+    grads = {p.name: _pick(p, sums, dev, camera, rs, params._poses, params._base_meshes) for p in infos}
+    moved = [p for p in infos if p.kind in (*GEOMETRY_KINDS, "camera")]
+    if boundary and moved:           # the silhouettes they move (diff.boundary): an estimate of its own
+        spp_b = rs.spp if boundary_spp is None else int(boundary_spp)
+        if spp_b < 0:
+            raise ValueError(f"boundary_spp must be >= 0, got {boundary_spp}")
+        extra = boundary_gradients(bw.bound, adj, moved, params._poses, spp_b, brs.seed, camera)
+        for n, g in extra.items():
+            grads[n] = grads[n] + g
     backward_seconds = time.perf_counter() - t0
-    grads = {p.name: _pick(p, sums, dev, camera, rs) for p in infos}
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
                           bw.threads, mode)
 
@@ -329,10 +345,17 @@ class _Backward:
         # the environment map's texels: a gradient buffer of the map's size per tile, only when asked
         self.wants_env = (ENVIRONMENT, ENVIRONMENT_TEXELS) in wants
         self.wants_media = MEDIUM in wants
+        # a mesh's positions or pose, a sphere: the kernels' corners, corner normals, placements and
+        # spheres carry this tile's gradient buffers (geometry_params has the chain rules)
+        self.wants_geometry = bool(wants & set(GEOMETRY_KINDS))
         n = rs.width * rs.height
         self.tiles = [(p, min(n, p + rs.tile_pixels)) for p in range(0, n, rs.tile_pixels)]
         self.nbytes = 0
         self.threads = 1
+        self.corners = None
+        if self.wants_geometry:
+            self.corners = wp.array(geo_params.corner_points(self.dev.scene), dtype=wp.vec3, device=self.dev.device)
+            self.nbytes += self.corners.capacity
 
     def _grad_alias(self, a: wp.array) -> wp.array:
         """``a``'s data with a fresh zeroed gradient buffer of this tile."""
@@ -361,21 +384,28 @@ class _Backward:
         if self.wants_env:
             lights = alias_field(lights, ENVIRONMENT, ENVIRONMENT_TEXELS, self._grad_alias)
         geo = None
-        if self.wants_media:
+        if self.wants_media or self.wants_geometry:
             geo = self._geometry_alias(self.dev.geometry)
         return m, t, lights, deltas, scratch, geo
 
     def _geometry_alias(self, geo: Geometry) -> Geometry:
-        """A copy of ``geo`` whose media table's coefficients and g carry this tile's gradient buffers."""
-        media = Media()
-        for k in Media.vars:
-            setattr(media, k, getattr(geo.media, k))
-        for k in MEDIUM_ARRAYS:
-            setattr(media, k, self._grad_alias(getattr(geo.media, k)))
+        """A copy of ``geo`` whose media table's coefficients and g (media) or whose corners, corner
+        normals, placements and spheres (geometry) carry this tile's gradient buffers."""
         out = Geometry()
         for k in Geometry.vars:
             setattr(out, k, getattr(geo, k))
-        out.media = media
+        if self.wants_media:
+            media = Media()
+            for k in Media.vars:
+                setattr(media, k, getattr(geo.media, k))
+            for k in MEDIUM_ARRAYS:
+                setattr(media, k, self._grad_alias(getattr(geo.media, k)))
+            out.media = media
+        if self.wants_geometry:
+            out.corner_point = self._grad_alias(self.corners)
+            out.has_corner_points = 1
+            for k in GEOMETRY_ARRAYS:
+                setattr(out, k, self._grad_alias(getattr(geo, k)))
         return out
 
     def run(self, adj: np.ndarray, threads: int | None, want_image: bool = False) -> dict:
@@ -416,6 +446,8 @@ class _Backward:
                 parts[ENV_TEXELS_KEY] = getattr(getattr(lights, ENVIRONMENT), ENVIRONMENT_TEXELS).grad
             if self.wants_media:
                 parts.update({f"medium.{k}": getattr(geo.media, k).grad for k in MEDIUM_ARRAYS})
+            if self.wants_geometry:
+                parts.update({f"geometry.{k}": getattr(geo, k).grad for k in ("corner_point", *GEOMETRY_ARRAYS)})
             for key, g in parts.items():
                 v = g.numpy().astype(np.float64)
                 sums[key] = sums[key] + v if key in sums else v
@@ -424,7 +456,8 @@ class _Backward:
         return sums
 
 
-def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -> np.ndarray:
+def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings, poses: list,
+          base_meshes: list) -> np.ndarray:
     """The gradient of one named parameter from the reduced buffers."""
     if p.kind == "camera":       # chain rule through the host's image-plane frame (float64)
         jac = camera_jacobian(camera, p.field, rs.width, rs.height)
@@ -441,12 +474,51 @@ def _pick(p, sums: dict, dev: DeviceScene, camera: Camera, rs: RenderSettings) -
         return sums[ENV_TEXELS_KEY].reshape(p.shape).copy()
     if p.kind == MEDIUM:
         return _medium_gradient(p, sums, dev)
+    if p.kind in GEOMETRY_KINDS:
+        return geometry_gradient(p, sums, dev, poses, base_meshes)
     if p.kind in PARAMETER_KINDS:            # a light's parameter (the sky's colours): a row of its array
         return sums[p.kind][p.index].copy()
     raise ValueError(f"no gradient buffer holds {p.name}")
 
 
 MEDIUM_ARRAYS = ("sigma_a", "sigma_s", "g")     # the media table's arrays path replay differentiates
+# the Geometry arrays the tape differentiates for geometry parameters (besides corner_point)
+GEOMETRY_ARRAYS = ("corner_normal", "spheres", "inst_linear", "inst_offset", "inst_normal")
+
+
+def geometry_gradient(p: ParamInfo, sums: dict, dev: DeviceScene, poses: list, base_meshes: list) -> np.ndarray:
+    """A geometry parameter's gradient from those of the arrays the kernel read (corners, corner
+    normals, placements, spheres; ``geometry_params`` has the chain rules)."""
+    scene = dev.scene
+    if p.kind == SPHERE:
+        row = sums["geometry.spheres"][p.index]
+        return row[:3].copy() if p.field == "center" else np.asarray(row[3], dtype=np.float64).reshape(())
+    smooth = dev.geometry.has_corner_normals != 0
+    if p.kind == MESH:
+        k = p.index
+        m = scene.meshes[k]
+        lo, hi = geo_params.face_ranges(scene)[k]
+        corner = sums["geometry.corner_point"][3 * lo:3 * hi].reshape(-1, 3, 3)
+        g = geo_params.vertex_gradient(scene, k, corner)
+        if smooth and base_meshes[k].corner_normal is None:     # its flat normals, read as corner normals
+            g += geo_params.flat_normal_gradient(scene, k, sums["geometry.corner_normal"][3 * lo:3 * hi].reshape(-1, 3, 3))
+        if m.transforms is None:         # world-space vertices of base positions moved by its pose
+            pose = next(q for q in poses if q.mesh == k)
+            g = g @ geo_params.placement(pose)[:3, :3]
+        return g
+    pose = poses[p.index]
+    k = pose.mesh
+    m = scene.meshes[k]
+    if m.transforms is not None:
+        item = geo_params.item_of(scene, pose)
+        full = geo_params.pose_gradient_placed(pose, sums["geometry.inst_linear"][item],
+                                               sums["geometry.inst_offset"][item], sums["geometry.inst_normal"][item])
+    else:
+        lo, hi = geo_params.face_ranges(scene)[k]
+        world = geo_params.vertex_gradient(scene, k, sums["geometry.corner_point"][3 * lo:3 * hi].reshape(-1, 3, 3))
+        normals = sums["geometry.corner_normal"][3 * lo:3 * hi].reshape(-1, 3, 3) if smooth else None
+        full = geo_params.pose_gradient_world(pose, base_meshes[k], world, normals)
+    return full[geo_params.pose_slice(p.field)]
 
 
 def _medium_gradient(p: ParamInfo, sums: dict, dev: DeviceScene) -> np.ndarray:

@@ -124,8 +124,9 @@ def recover_texture(iterations: int = 60, size: int = 48, spp: int = 4) -> Recov
                      lr=0.05, average=10, target_spp=16 * spp, decay=0.95)
 
 
-def plot_losses(runs: list[Recovery], width: int = 480, height: int = 240) -> Image.Image:
-    """Loss curves (log10 scale) as an image, drawn with PIL (no plotting dependency)."""
+def plot_losses(runs: list[Recovery], width: int = 480, height: int = 240, what: str = "L2") -> Image.Image:
+    """Loss curves (log10 scale) as an image, drawn with PIL (no plotting dependency); each run has a
+    ``name`` and ``losses`` (``what`` they are: the legend's word)."""
     img = Image.new("RGB", (width, height), "white")
     draw = ImageDraw.Draw(img)
     logs = [np.log10(np.maximum(np.asarray(r.losses), 1e-12)) for r in runs]
@@ -137,8 +138,8 @@ def plot_losses(runs: list[Recovery], width: int = 480, height: int = 240) -> Im
         xs = m + (width - 10 - m) * np.arange(len(l)) / max(1, len(l) - 1)
         ys = height - m - (height - m - 10) * (l - lo) / max(hi - lo, 1e-9)
         draw.line(list(zip(xs.tolist(), ys.tolist())), fill=colours[k % 3], width=2)
-        draw.text((m + 8, 14 + 12 * k), f"{r.name}: L2 {r.losses[0]:.2e} -> {r.losses[-1]:.2e}", fill=colours[k % 3])
-    draw.text((m, height - m + 6), f"iteration (0..{max(len(l) for l in logs) - 1}); log10 loss {lo:.1f}..{hi:.1f}",
+        draw.text((m + 8, 14 + 12 * k), f"{r.name}: {what} {r.losses[0]:.2e} -> {r.losses[-1]:.2e}", fill=colours[k % 3])
+    draw.text((m, height - m + 6), f"iteration (0..{max(len(l) for l in logs) - 1}); log10 {what} {lo:.1f}..{hi:.1f}",
               fill="black")
     return img
 

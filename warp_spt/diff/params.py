@@ -25,9 +25,11 @@
   medium (materials whose media are equal share one: setting one sets all); a density grid adds
   ``.density_scale`` / ``.medium_density_scale`` (), and its ``sigma_a``/``sigma_s`` are per unit
   density (docs/volumes.md, Gradients);
-* ``"camera.position"`` and ``"camera.direction"`` (3,): differentiated through shading only (hit
-  points, normals, uv and what follows them move with the rays; silhouettes are not differentiated,
-  see docs/gradients.md).
+* geometry (``warp_spt.diff.geometry_params``): ``"<mesh>.positions"`` (V, 3), an object's
+  ``.translation``, ``.rotation`` (a rotation vector) and ``.scale`` (3,), ``"sphere<k>.center"``
+  (3,) and ``.radius`` (); by the tape, with the silhouettes seen by the camera (``diff.boundary``);
+* ``"camera.position"`` and ``"camera.direction"`` (3,): by the tape, through shading and the
+  silhouettes seen by the camera (see docs/gradients.md).
 
 Values are validated before they reach a kernel (finite; a material field in its range of the
 material schema, reflectance colours in [0, 1], roughness in [0, 1], fuzz >= 0; texels >= 0; a
@@ -43,6 +45,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from warp_spt.device.camera_rays import CAMERA_FIELDS
+from warp_spt.diff import geometry_params as geo_params
+from warp_spt.diff.geometry_params import MESH, POSE, SPHERE
 from warp_spt.device.camera_rays import camera_frame as kernel_camera_frame
 from warp_spt.upload.device_scene import DeviceScene
 from warp_spt.device.proctex import get_texture
@@ -110,10 +114,20 @@ class SceneParameters:
             raise TypeError(f"camera must be a warp_spt.Camera or None, got {camera!r}")
         if sky is not None and not isinstance(sky, Sky):
             raise TypeError(f"sky must be a warp_spt.Sky or None, got {sky!r}")
-        self.scene = scene if isinstance(scene, DeviceScene) else DeviceScene(scene)
+        # uploaded here with a mesh cache: a geometry parameter's change then keeps the BVHs of the
+        # meshes it leaves as they were (DeviceScene.update_geometry)
+        self.scene = scene if isinstance(scene, DeviceScene) else DeviceScene(scene, meshes={})
         self.camera = camera or Camera()
         self.sky = sky or getattr(self.scene.scene, "sky", None) or Sky.black()
         self._info = _describe(self.scene.scene, self.sky)
+        geometry, self._poses = geo_params.describe(self.scene.scene, set(self._info))
+        # the geometry's names come before the camera's (whose names stay last, as before)
+        camera = {n: self._info.pop(n) for n in [n for n, p in self._info.items() if p.kind == "camera"]}
+        for n, (kind, f, index, shape) in geometry.items():
+            self._info[n] = ParamInfo(n, kind, f, index, shape)
+        self._info.update(camera)
+        # the meshes as loaded: a world-space mesh's pose moves these (geometry_params.with_pose)
+        self._base_meshes = list(self.scene.scene.meshes)
 
     # --- the mapping -------------------------------------------------------------------------
     def names(self) -> list[str]:
@@ -157,7 +171,71 @@ class SceneParameters:
             return np.array(getattr(self._light(p)[1], p.field), dtype=np.float32)
         if p.kind == MEDIUM:
             return np.array(getattr(self._medium(p), p.field), dtype=np.float32)
+        if p.kind == MESH:
+            m = s.meshes[p.index] if s.meshes[p.index].transforms is not None else self._base_meshes[p.index]
+            return np.array(m.positions, dtype=np.float32)
+        if p.kind == POSE:
+            return np.array(getattr(self._poses[p.index], p.field), dtype=np.float32)
+        if p.kind == SPHERE:
+            row = np.asarray(s.spheres[p.index], dtype=np.float32)
+            return row[:3].copy() if p.field == "center" else np.array(row[3], dtype=np.float32)
         return np.array(getattr(self.camera, p.field), dtype=np.float32)
+
+    def pose(self, name: str) -> geo_params.Pose:
+        """The :class:`geometry_params.Pose` an object's pose parameter belongs to."""
+        p = self.info(name)
+        if p.kind != POSE:
+            raise KeyError(f"{name} is not an object's pose parameter")
+        return self._poses[p.index]
+
+    def _set_geometry(self, p: ParamInfo, v: np.ndarray) -> None:
+        """Validate and upload a geometry parameter's new value (geometry_params)."""
+        dev = self.scene
+        scene = dev.scene
+        if p.kind == SPHERE:
+            geo_params.check_sphere(p.name, p.field, v)
+            spheres = np.array(scene.spheres, dtype=np.float64).reshape(-1, 4)
+            if p.field == "center":
+                spheres[p.index, :3] = v
+            else:
+                spheres[p.index, 3] = v
+            dev.update_geometry(replace(scene, spheres=spheres.astype(np.float32)))
+            return
+        if p.kind == POSE:
+            geo_params.check_pose(p.name, p.field, v)
+            pose = self._poses[p.index]
+            old = getattr(pose, p.field)
+            setattr(pose, p.field, np.array(v, dtype=np.float64))
+            try:
+                new = geo_params.with_pose(scene, self._base_meshes, self._poses, pose.mesh)
+                m = new.meshes[pose.mesh]
+                x = geo_params.placement(pose)
+                if m.transforms is not None:
+                    geo_params.check_positions(p.name, m, np.asarray(m.positions, np.float64), x[:3, :3])
+                else:
+                    geo_params.check_positions(p.name, m, np.asarray(m.positions, np.float64))
+            except ValueError:
+                setattr(pose, p.field, old)
+                raise
+            dev.update_geometry(new)
+            return
+        k = p.index
+        m = scene.meshes[k]
+        if m.transforms is not None:
+            geo_params.check_positions(p.name, m, v)
+            meshes = list(scene.meshes)
+            meshes[k] = replace(m, positions=v.astype(np.float32))
+            dev.update_geometry(replace(scene, meshes=meshes))
+            return
+        base = self._base_meshes[k]
+        x = geo_params.placement(next(q for q in self._poses if q.mesh == k))
+        geo_params.check_positions(p.name, base, v, x[:3, :3])
+        self._base_meshes[k] = replace(base, positions=v.astype(np.float32))
+        try:
+            dev.update_geometry(geo_params.with_pose(scene, self._base_meshes, self._poses, k))
+        except Exception:
+            self._base_meshes[k] = base
+            raise
 
     def _light(self, p: ParamInfo):
         """(place in scene.lights, the light) of a light's parameter (row 2 j or 2 j + 1: light j)."""
@@ -193,6 +271,8 @@ class SceneParameters:
             self.sky = replace(self.sky, **{p.field: float(v)})
         elif p.kind == MEDIUM:
             self._set_medium(p, v)
+        elif p.kind in geo_params.GEOMETRY_KINDS:
+            self._set_geometry(p, v)
         elif p.kind == "punctual":      # validated by the light's record; its table is rebuilt
             k, light = self._light(p)
             self.scene.scene.lights[k] = replace(light, **{p.field: tuple(float(x) for x in v)})

@@ -183,7 +183,7 @@ def make_path_step(features: Features, sampler: Sampler, light_sampling: bool, d
     # structs they take by value (about 2 KB); the tape kernel, unrolled, keeps the compiler's choice
     inline = None if differentiable else True
     vertex = make_path_vertex(features, sampler, light_sampling, inline=inline, hooks=hooks,
-                              batched=not differentiable)
+                              batched=not differentiable, differentiable=differentiable)
     if hooks is not None:
         Aux = hooks.Aux
 
@@ -243,7 +243,8 @@ class VertexHooks:
 
 
 def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool, inline: bool | None = None,
-                     replay: bool = False, media=None, hooks: VertexHooks | None = None, batched: bool = False):
+                     replay: bool = False, media=None, hooks: VertexHooks | None = None, batched: bool = False,
+                     differentiable: bool = False):
     """``vertex(geo, mats, tex, lights, rp, path, hit, vis) -> PathState``: everything a bounce does
     once its ray has met ``hit`` (sky, emission, light sampling, the next direction, roulette). The
     fast and tape kernels run it inside ``step`` with ``vis`` = VIS_TRACE (it traces its shadow ray);
@@ -261,8 +262,10 @@ def make_path_vertex(features: Features, sampler: Sampler, light_sampling: bool,
     is then its ``Aux`` data and it returns ``hooks.finish(path, out)``; None compiles none of it.
     ``batched`` (forward kernels): where the sampler has ``make_batch``, the vertex's BSDF and light
     point requests are drawn as one batch at its start: the same numbers at a fraction of the cost
-    (the light point is drawn for nothing at a vertex without a smooth lobe; the lanes make it cheap)."""
-    surface_at = make_surface(features)
+    (the light point is drawn for nothing at a vertex without a smooth lobe; the lanes make it cheap).
+    ``differentiable`` (the tape's step): the surface point moves with the hit primitive
+    (``surface.make_surface``)."""
+    surface_at = make_surface(features, differentiable)
     if replay:
         detach_surface(surface_at)
     inline_callees = inline

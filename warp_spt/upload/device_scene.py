@@ -145,6 +145,36 @@ class DeviceScene:
         self.proc_kind, self.proc_params = _upload_procedural(scene, self.features.procedural, device)
         self._lights: dict = {}          # light tables per sky (warp_spt.emitters.light_table)
 
+    def update_geometry(self, scene: Scene) -> None:
+        """Upload ``scene``'s meshes and spheres in place of this scene's (its materials, textures and
+        media stay; ``scene`` has this scene's materials): what a geometry parameter's change does
+        (``warp_spt.diff.geometry_params``). A mesh whose float32 positions and triangles are unchanged
+        keeps its wp.Mesh and BVH (the mesh cache's key, ``mesh_key``: an instance's new transforms
+        only rebuild the top-level BVH); the light tables are rebuilt (area lights move)."""
+        scene = scene.rounded()
+        validate_scene(scene)
+        kept = {key: UploadedMesh(mm, w, lo, hi) for key, mm, w, (lo, hi) in
+                zip(self.mesh_keys, self._meshes, self._wide, self._mesh_bounds)
+                if key and not isinstance(w, _Uploaded)}
+        cache = self._mesh_cache if self._mesh_cache is not None else kept
+        if self._mesh_cache is None and not kept:      # keys are only made with a cache: make one now
+            cache = {}
+        g = Geometry()
+        media = self.geometry.media
+        self.scene = scene
+        self._meshes, self._wide, self._mesh_bounds, self.mesh_keys = [], [], [], []
+        saved, self._mesh_cache = self._mesh_cache, cache
+        try:
+            self._upload_meshes(g, scene, self.device)
+        finally:
+            self._mesh_cache = saved
+        self._upload_spheres_and_tlas(g, scene, self.device)
+        b = scene.bounds
+        g.extent = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
+        g.media = media
+        self.geometry = g
+        self.refresh_features()
+
     def light_cache(self, key: Hashable, build: Callable[[], Any]) -> Any:
         """What ``build()`` makes for ``key``, kept with this scene until :meth:`invalidate_lights`
         (the light tables of :func:`warp_spt.emitters.light_table`, per sky and up axis)."""
@@ -221,6 +251,8 @@ class DeviceScene:
         s.has_corner_normals = int(self.features.smooth)
         s.corner_tangent = _arr(_cat(tangents, (0, 4), np.float32), wp.vec4, device, np.float32)
         s.has_corner_tangents = int(bool(tangents))
+        s.corner_point = _arr(np.zeros((0, 3)), wp.vec3, device, np.float32)    # filled by gradients only
+        s.has_corner_points = 0
 
     def _upload_wide(self, s: Geometry, scene: Scene, device: str, release: bool = False) -> None:
         """Concatenate the meshes' wide BVHs (node and triangle numbers offset per mesh), size the

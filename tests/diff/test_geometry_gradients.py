@@ -1,0 +1,232 @@
+"""Geometry gradients (positions, poses, spheres, the camera) with the primary-visibility boundary
+term, against analytic derivatives and central finite differences of the primal render.
+
+References are independent of the code under test: closed forms (an emitting square's image under
+scaling and translation, a sphere's projected disc under its radius), and central differences of the
+fast renderer (which knows nothing of gradients) with common random numbers. Tolerances come from
+the estimated standard errors of both sides: the gradient's over ``SEEDS`` gradient seeds, the
+difference's over as many render seeds; the difference's truncation error is bounded by comparing
+steps h and 2h (central differences err by O(h^2): |D(2h) - D(h)| / 3 estimates D(h)'s). Each
+comparison must also resolve its reference (the tolerance below 10% of it), and the same comparison
+with the boundary term switched off must fail: the silhouettes carry these derivatives.
+
+All scenes share one feature set (tests/support/geometry_scenes.py): one set of kernels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.params import parameters
+from warp_spt.rendering.settings import RenderSettings
+from warp_spt.rendering.tiles import render_scene
+from warp_spt.scene.sky import Sky
+
+from tests.support import geometry_scenes as gs
+
+W = H = 16
+RS = RenderSettings(width=W, height=H, spp=16, max_depth=2, seed=3, integrator="seed")
+FD_SPP = 2048
+SEEDS = 4
+ADJ = np.random.default_rng(7).uniform(0.2, 1.0, (H, W, 3)).astype(np.float32)
+# A ramp across the image: where every vertex of the subject moves (the camera's translation), a
+# random adjoint makes the objective kink each time a vertex crosses a pixel's side, and central
+# differences over the step then err by O(h), not O(h^2)
+RAMP = np.broadcast_to((0.5 + np.arange(W) / W)[None, :, None] * [1.0, 0.8, 0.6], (H, W, 3)).astype(np.float32)
+# a gradient sky about the view's up axis: a surface's shading changes as it turns (the interior term)
+LIT = Sky.gradient(zenith=(0.2, 0.3, 0.7), nadir=(0.7, 0.5, 0.3), up=(0.0, 1.0, 0.0))
+PPU = H / (2.0 * 3.0 * math.tan(math.radians(20.0)))     # pixels per unit at the origin's depth (fov 40, distance 3)
+
+
+def _params(meshes, spheres=None, sphere_materials=None, camera=gs.CAMERA, sky=gs.SKY):
+    return parameters(gs.scene(meshes, spheres, sphere_materials), camera, sky)
+
+
+def gradient(p, name: str, direction, adjoint=ADJ, **kw) -> tuple[float, float]:
+    """(mean, standard error) of ``grad . direction`` over SEEDS gradient seeds."""
+    u = np.asarray(direction, np.float64)
+    vals = [float(np.sum(render_gradients(p, RS, adjoint=adjoint, wrt=[name], gradient_seed=100 + k, **kw)
+                         .grads[name] * u)) for k in range(SEEDS)]
+    return float(np.mean(vals)), float(np.std(vals, ddof=1) / math.sqrt(SEEDS))
+
+
+def difference(p, name: str, direction, h: float, adjoint=ADJ) -> tuple[float, float, float]:
+    """(D(h), its standard error, the truncation bound |D(2h) - D(h)| / 3): central differences of
+    sum(adjoint x image) along ``direction``, common random numbers per seed."""
+    v0 = p[name].astype(np.float64).copy()
+    u = np.asarray(direction, np.float64).reshape(v0.shape)
+
+    def objective(v, seed):
+        p[name] = v
+        img = render_scene(p.scene, p.camera, replace(RS, spp=FD_SPP, seed=seed, sky=p.sky)).film.image()
+        return float(np.sum(img.astype(np.float64) * adjoint))
+
+    try:
+        d = {step: [(objective(v0 + step * u, s) - objective(v0 - step * u, s)) / (2 * step)
+                    for s in range(SEEDS)] for step in (h, 2 * h)}
+    finally:
+        p[name] = v0
+    return float(np.mean(d[h])), float(np.std(d[h], ddof=1) / math.sqrt(SEEDS)), abs(np.mean(d[2 * h]) - np.mean(d[h])) / 3
+
+
+def assert_matches(g, se_g, ref, se_ref, trunc=0.0, what=""):
+    tol = 4.0 * math.hypot(se_g, se_ref) + trunc + 1e-6 * abs(ref)
+    print(f"{what}: gradient {g:.5f} +- {se_g:.5f}, reference {ref:.5f} +- {se_ref:.5f} (truncation {trunc:.5f})")
+    assert tol < 0.1 * abs(ref), (what, "the reference is not resolved", tol, ref)
+    assert abs(g - ref) <= tol, (what, g, ref, tol)
+    return tol
+
+
+def check_against_fd(p, name, direction, h, control=True, adjoint=ADJ) -> float:
+    """The gradient (with the boundary term) matches the differences; without it, it does not.
+    Returns the interior term alone (``boundary=False``)."""
+    ref, se_ref, trunc = difference(p, name, direction, h, adjoint)
+    g, se = gradient(p, name, direction, adjoint)
+    tol = assert_matches(g, se, ref, se_ref, trunc, name)
+    g0, _ = gradient(p, name, direction, adjoint, boundary=False)
+    print(f"  without the boundary term: {g0:.5f}")
+    if control:
+        assert abs(g0 - ref) > 2 * tol, (name, "the boundary term made no difference", g0, ref)
+    return g0
+
+
+# --- analytic ---------------------------------------------------------------------------------
+
+def test_an_emitting_square_scaled_and_translated():
+    """A square of radiance 1 on the sky (0.25), face-on, fully in view: its image covers
+    side^2 pixels, side = PPU x its size; d sum/d scale_x = 3 x 0.75 x side^2 (coverage grows as
+    s_x s_y about the centre); translating it moves the left and right edges, each of side pixels,
+    by PPU pixels per unit: the image's left half loses 3 x 0.75 x side x PPU per unit, its right half
+    gains as much, and the whole image's derivative is 0."""
+    p = _params([gs.square(0.5)])
+    side = PPU
+    ones = np.ones((H, W, 3), np.float32)
+    g = render_gradients(p, RS, adjoint=ones, wrt=["square.scale"]).grads["square.scale"]
+    assert g[:2] == pytest.approx([3 * 0.75 * side ** 2] * 2, rel=1e-4)
+    left = ones.copy()
+    left[:, W // 2:] = 0
+    for adj, sign in ((left, -1.0), (1 - left, 1.0), (ones, 0.0)):
+        g = render_gradients(p, RS, adjoint=adj, wrt=["square.translation"]).grads["square.translation"]
+        assert g[0] == pytest.approx(sign * 3 * 0.75 * side * PPU, abs=1e-4 * side * PPU)
+        assert g[2] == pytest.approx(3 * 0.75 * side ** 2 * 2 / 3.0 * (0.5 if sign else 1.0), rel=1e-4)
+    g = render_gradients(p, RS, adjoint=ones, wrt=["square.scale"], boundary=False).grads["square.scale"]
+    assert np.all(g == 0)           # its radiance is the same everywhere: all of it is the boundary's
+
+
+def test_a_sphere_radius_under_a_constant_sky():
+    """A red diffuse sphere under the constant sky reflects (0.8, 0.3, 0.2) x 0.25 at every point (it
+    is convex): its image is a disc of that colour whose area is pi (PPT tan(asin(r / D)))^2 pixels."""
+    r, dist = 0.5, 3.0
+    p = _params([], [[0, 0, 0, r]], [gs.RED])
+    ppt = H / (2 * math.tan(math.radians(20.0)))
+
+    def area(x):
+        return math.pi * (ppt * math.tan(math.asin(x / dist))) ** 2
+
+    d_area = (area(r + 1e-6) - area(r - 1e-6)) / 2e-6
+    contrast = sum(np.array([0.8, 0.3, 0.2]) * 0.25 - 0.25)
+    g = render_gradients(p, RS, adjoint=np.ones((H, W, 3), np.float32), wrt=["sphere0.radius"]).grads["sphere0.radius"]
+    assert float(g) == pytest.approx(contrast * d_area, rel=1e-3)
+
+
+# --- finite differences of the primal ----------------------------------------------------------
+
+def test_a_diffuse_square_rotated_under_the_sky():
+    p = _params([gs.square(0.5, material=gs.RED, transform=gs.placement((0.5, 0.4, 0.2)))])
+    check_against_fd(p, "square.rotation", (0.2, 1.0, 0.3), 0.02)
+
+
+def test_an_emitter_translated():
+    p = _params([gs.square(0.4)])
+    check_against_fd(p, "square.translation", (1.0, 0.4, 0.5), 0.01)
+
+
+def test_a_sphere_moved_and_scaled():
+    p = _params([], [[0.1, -0.1, 0, 0.4]], [gs.RED])
+    check_against_fd(p, "sphere0.center", (0.5, 1.0, -0.8), 0.01)
+    check_against_fd(p, "sphere0.radius", 1.0, 0.01, control=False)
+
+
+def test_the_camera_translated_past_a_silhouette():
+    p = _params([gs.cube(transform=gs.placement((0.4, 0.6, 0.1)))])
+    check_against_fd(p, "camera.position", (1.0, 0.3, 0.0), 0.02, adjoint=RAMP)
+
+
+def test_an_instance_rotated():
+    """Under the gradient sky its faces' shading turns with them (the interior term: 0.64 of -19.1
+    here) as its outline does (the boundary term, the rest)."""
+    inst = replace(gs.cube(), transforms=np.stack([gs.placement((0.4, 0.6, 0.1)), gs.placement(offset=(0, 0, -500))]))
+    p = _params([inst], sky=LIT)
+    g0 = check_against_fd(p, "cube[0].rotation", (0.3, -1.0, 0.5), 0.02)
+    assert abs(g0) > 0.3
+
+
+def test_a_plane_filling_the_view_turned_under_the_gradient_sky():
+    """No curve in view (the plane's edges are outside the image): the interior term is the whole
+    derivative, and the boundary term adds exactly nothing."""
+    p = _params([gs.square(6.0, material=gs.RED, transform=gs.placement((0.3, -0.2, 0.0)))], sky=LIT)
+    g0 = check_against_fd(p, "square.rotation", (1.0, 0.5, 0.2), 0.01, control=False)
+    g, _ = gradient(p, "square.rotation", (1.0, 0.5, 0.2))
+    assert g == g0 and abs(g0) > 1.0
+
+
+def test_a_ball_inflated_along_its_normals():
+    """The ball's vertices move along their normals (its interior and its silhouette alike)."""
+    b = gs.ball(2, 0.6)
+    p = _params([b])
+    n = np.asarray(b.positions, np.float64)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    check_against_fd(p, "ball.positions", n, 0.01)
+
+
+def test_a_gltf_node_translated(tmp_path):
+    """A glTF file's node, read as an instance of its mesh (materials replaced by the kit's)."""
+    from warp_spt.io.loader import load_scene
+
+    from tests.support.format_files import CUBE_POSITIONS, CUBE_TRIANGLES, GltfBuilder
+
+    g = GltfBuilder()
+    g.mesh(CUBE_POSITIONS, CUBE_TRIANGLES)
+    g.node(mesh=0, translation=[0.2, -0.1, 0.0], rotation=[0.2, 0.3, 0.1, float(np.sqrt(1 - 0.14))])
+    g.node(mesh=0, translation=[0.0, 0.0, -400.0])
+    (tmp_path / "two.gltf").write_bytes(g.gltf()[0])
+    m = load_scene([str(tmp_path / "two.gltf")], []).meshes[0]
+    assert m.transforms is not None and len(m.transforms) == 2
+    m = replace(m, name="node", face_material=np.where(np.arange(12) // 2 % 2 == 0, gs.WHITE, gs.RED).astype(np.int32))
+    p = _params([m])
+    check_against_fd(p, "node[0].translation", (1.0, -0.5, 0.7), 0.01)
+
+
+def test_a_cube_as_a_mesh_and_as_an_instance_has_one_gradient():
+    """The same cube placed in world space and as an instance: the pose gradients agree, and the
+    world mesh's translation is the sum of its vertices' gradients."""
+    x = gs.placement((0.4, 0.6, 0.1), (0.1, 0.0, 0.0))
+    world = _params([gs.cube(transform=x)])
+    placed = _params([replace(gs.cube(), transforms=x[None])])
+    for f in ("translation", "rotation", "scale"):
+        a = [render_gradients(world, RS, adjoint=ADJ, wrt=[f"cube.{f}"], gradient_seed=k).grads[f"cube.{f}"]
+             for k in range(SEEDS)]
+        b = [render_gradients(placed, RS, adjoint=ADJ, wrt=[f"cube.{f}"], gradient_seed=k).grads[f"cube.{f}"]
+             for k in range(SEEDS)]
+        se = np.hypot(np.std(a, 0, ddof=1), np.std(b, 0, ddof=1)) / math.sqrt(SEEDS)
+        print(f, np.mean(a, 0), np.mean(b, 0), se)
+        assert np.all(np.abs(np.mean(a, 0) - np.mean(b, 0)) <= 4 * se + 1e-3 * np.abs(np.mean(a, 0)).max())
+    r = render_gradients(world, RS, adjoint=ADJ, wrt=["cube.translation", "cube.positions"], gradient_seed=1)
+    assert r.grads["cube.translation"] == pytest.approx(r.grads["cube.positions"].sum(0), rel=1e-5, abs=1e-6)
+
+
+def test_geometry_gradients_are_identical_on_one_and_two_threads():
+    """The tape's tiles reduce in tile order and the boundary term is one launch with numbers drawn
+    from the seed: the same bits whatever the thread count."""
+    p = _params([gs.cube(transform=gs.placement((0.4, 0.6, 0.1)))], [[0.6, 0.3, -0.2, 0.3]], [gs.RED])
+    names = ["cube.translation", "cube.rotation", "cube.positions", "sphere0.center", "camera.position"]
+    rs = replace(RS, tile_pixels=64)
+    a, b = (render_gradients(p, replace(rs, threads=t), adjoint=ADJ, wrt=names).grads for t in (1, 2))
+    for n in names:
+        assert np.array_equal(a[n], b[n]), n
+        assert np.any(a[n] != 0), n

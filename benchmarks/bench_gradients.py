@@ -27,8 +27,9 @@ filling the view, against no texel gradient (CPU kernels are serial per thread a
 own buffer: no atomic contention is expected, and this measures it).
 Geometry (``geometry``): the Cornell box's pose (``cornell.obj.translation`` and ``.rotation``, every
 triangle moving) and the camera's position at the same spp: the forward render, the tape's interior
-term (``boundary=False``), the whole gradient with the boundary term, and the boundary term's parts
-(the host's curves and samples, the kernel tracing its pairs of rays, the chain rule); what setting a
+term (``boundary=False``), the whole gradient with the boundary term, and the primary boundary
+term's parts (the host's curves and samples, the kernel tracing its pairs of rays, the chain rule) and
+the secondary term; what setting a
 pose costs (a world-space mesh's BVH is rebuilt; an instance's only the top-level BVH).
 """
 
@@ -192,6 +193,7 @@ def bench_texels(size: int, spp: int) -> None:
 def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: str) -> None:
     """The geometry gradients' terms against the forward render (module docstring)."""
     from warp_spt.diff import boundary as B
+    from warp_spt.diff import secondary as S
     from warp_spt.rendering.setup import bind
 
     params, rs = cornell(size, spp, depth, integrator, sampler)
@@ -211,7 +213,7 @@ def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: st
     for fn in (forward, interior, whole):
         fn()                                           # compile (or load) and warm up
     rows = [("forward (fast kernel, all threads)", forward), ("interior term (tape, boundary=False)", interior),
-            ("interior + boundary term", whole)]
+            ("interior + boundary terms", whole)]
     runs = {name: [] for name, _ in rows}
     for _ in range(3):
         for name, fn in rows:
@@ -236,12 +238,15 @@ def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: st
         B._trace_pairs(b, proj, smp.px, smp.normal, 1)
         t2 = time.perf_counter()
         infos = [params.info(n) for n in names]
-        B.boundary_gradients(b, adj, infos, params._poses, spp, 1, params.camera)
+        B.primary_term(b, adj, infos, spp, 1)
         t3 = time.perf_counter()
+        S.secondary_term(b, adj, infos, spp, 1)
+        t4 = time.perf_counter()
         for k, v in (("curves and samples (host)", t1 - t0), ("paths of the sample pairs (kernel)", t2 - t1),
-                     ("the whole boundary term", t3 - t2)):
+                     ("the whole primary term", t3 - t2), ("the secondary term (all of it)", t4 - t3)):
             parts[k] = min(parts.get(k, v), v)
-    print(f"  the boundary term: {len(curves)} curves, {spp * size * size} samples, {2 * spp * size * size} rays")
+    print(f"  the primary term: {len(curves)} curves, {spp * size * size} samples, {2 * spp * size * size} rays; "
+          f"the secondary term: {spp * size * size} camera-ray hits, each 2 rays and 2 paths")
     for k, v in parts.items():
         print(f"    {k:40s} {v * 1e3:8.0f} ms  {v / f:5.2f}x forward")
     for label, value in (("a world-space mesh's pose (its BVH rebuilt)", (0.01, 0.0, 0.0)),):

@@ -4,9 +4,9 @@ Every scene is its subject (a square, a cube, a sphere, a mesh ball) plus the sa
 which uses every material and every kind of geometry the subjects use (an instanced mesh with vertex
 normals, an emitting triangle, an analytic sphere): all of them then have the same ``Features``, and
 the tests compile one fast kernel, one tape kernel and one boundary kernel between them (a scene's
-kernels are specialised to what it uses). The kit lies 1000 units behind the camera, which looks down
+kernels are specialised to what it uses). The kit lies 27 units behind the camera, which looks down
 -z from +z, under a constant sky: a path reaches it only through the sky's solid angle it covers
-(about 1e-7), the same in a render and in its finite differences.
+(about 1e-7: its parts are 0.01 across), the same in a render and in its finite differences.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
 from warp_spt.scene.sky import Sky
 
-WHITE, RED, GLOW = 1, 2, 3
+WHITE, RED, GLOW, LAMP = 1, 2, 3, 4
 SKY = Sky.constant(0.25, 0.25, 0.25)
 CAMERA = Camera(position=(0.0, 0.0, 3.0), direction=(0.0, 0.0, -1.0), fov=40.0, aperture=0.0, focus=3.0,
                 up=(0.0, 1.0, 0.0))
@@ -31,6 +31,7 @@ def materials() -> MaterialTable:
         Material("white", diffuse=(0.8, 0.8, 0.8), roughness=1.0),
         Material("red", diffuse=(0.8, 0.3, 0.2), roughness=1.0),
         Material("glow", diffuse=(0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0), roughness=1.0),
+        Material("lamp", diffuse=(0.0, 0.0, 0.0), emission=(6.0, 6.0, 6.0), roughness=1.0),
     ])
 
 
@@ -106,12 +107,13 @@ def placement(rotation_vector=(0.0, 0.0, 0.0), offset=(0.0, 0.0, 0.0), scale=1.0
 
 def kit() -> tuple[list[MeshData], np.ndarray, np.ndarray]:
     """(meshes, spheres (S, 4), sphere materials): the out-of-view objects every scene carries."""
-    far = np.array([0.0, 0.0, 1000.0])
+    far = np.array([0.0, 0.0, 30.0])
     tiny = ball(2, 0.01)
     tiny = replace(tiny, name="kit_ball", face_material=np.resize(np.array([WHITE, RED], np.int32), len(tiny.indices)),
                    transforms=np.stack([placement(offset=far), placement(offset=far + [0.1, 0, 0])]))
-    lamp = mesh("kit_lamp", far + [[0, 0.1, 0], [0.01, 0.1, 0], [0, 0.11, 0]], [(0, 1, 2)], GLOW)
-    spheres = np.array([[0.0, -0.1, 1000.0, 0.01]])
+    lamp = mesh("kit_lamp", far + [[0, 0.1, 0], [0.01, 0.1, 0], [0, 0.11, 0], [0.01, 0.11, 0]], [(0, 1, 2), (1, 3, 2)],
+                [GLOW, LAMP])
+    spheres = np.array([[0.0, -0.1, 30.0, 0.01]])
     return [tiny, lamp], spheres, np.array([WHITE], np.int32)
 
 

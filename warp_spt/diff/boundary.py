@@ -44,8 +44,8 @@ import warp as wp
 
 from warp_spt.device.camera_rays import CameraParams, camera_frame
 from warp_spt.device.structs import Features, Geometry, Materials, Textures
-from warp_spt.diff import geometry_params as geo_params
-from warp_spt.diff.geometry_params import MESH, POSE, SPHERE
+from warp_spt.diff.forces import Forces
+from warp_spt.diff.geometry_params import MESH, SPHERE
 from warp_spt.emitters import Lights
 from warp_spt.integrators import RenderParams, get_step
 from warp_spt.rendering.setup import Bound, KernelKind, register_kind, render_features
@@ -387,23 +387,21 @@ def draw(curves: list[Curve], scene, proj: Projection, n: int, rng: np.random.Ge
 # The estimate
 
 
-def boundary_gradients(bound: Bound, adjoint: np.ndarray, infos: list, poses: list,
-                       boundary_spp: int, seed: int, camera) -> dict[str, np.ndarray]:
-    """The primary-visibility boundary term of each geometry and camera parameter in ``infos`` (the
-    others get none), for the loss whose adjoint image is ``adjoint`` (H, W, 3). ``camera``: the
-    user's camera (its parameters' names); ``bound.camera`` is the one the scene's coordinates use."""
+def primary_term(bound: Bound, adjoint: np.ndarray, wanted: list, boundary_spp: int, seed: int):
+    """(Forces on the geometry's points, {camera parameter name: gradient}): the boundary term of
+    primary visibility for the loss whose adjoint image is ``adjoint`` (H, W, 3); ``wanted``: the
+    parameters asked for (the camera's are differentiated here, the geometry's by ``forces.chain``)."""
     rs = bound.settings
-    wanted = [p for p in infos if p.kind in (MESH, POSE, SPHERE, "camera")]
-    out = {p.name: np.zeros(p.shape) for p in wanted}
-    if not wanted or boundary_spp <= 0:
-        return out
+    cams = {p.name: np.zeros(3) for p in wanted if p.kind == "camera"}
+    if boundary_spp <= 0:
+        return Forces.empty(), cams
     w, h = rs.width, rs.height
     scene = bound.dev.scene
     proj = Projection.of(bound.camera, w, h)
     reads_normals = bound.dev.geometry.has_corner_normals != 0
     curves = candidate_curves(scene, reads_normals, proj, w, h, bound.dev.geometry.extent, {})
     if not curves:
-        return out
+        return Forces.empty(), cams
     n = boundary_spp * w * h
     rng = np.random.default_rng([seed, SEED_SALT])
     smp = draw(curves, scene, proj, n, rng)
@@ -416,17 +414,22 @@ def boundary_gradients(bound: Bound, adjoint: np.ndarray, infos: list, poses: li
     dl = rad[0::2] - rad[1::2]                      # L_minus - L_plus
     wgt = np.zeros(n)
     wgt[live] = np.sum(a[live] * dl, axis=1) * smp.weight[live] / n
-    # the force on each sample's point: weight x (d pixel / d X)^T n
     idx = np.flatnonzero(wgt != 0.0)
     if not len(idx):
-        return out
+        return Forces.empty(), cams
+    # the force on each sample's point: weight x (d pixel / d X)^T n
     jac = proj.jacobian(smp.point[idx])
-    force = wgt[idx, None] * np.einsum("nij,ni->nj", jac, smp.normal[idx])      # (M, 3)
+    force = wgt[idx, None] * np.einsum("nij,ni->nj", jac, smp.normal[idx])
     table = CurveTable.of(curves)
-    pose_cache: dict = {}
+    owner = smp.owner[idx]
+    s = np.where(table.sphere[owner], 0.0, smp.s[idx])
+    forces = Forces(smp.point[idx], force, table.sphere[owner], table.index[owner], table.placement[owner],
+                    np.stack([table.va[owner], table.vb[owner], table.va[owner]], axis=1),
+                    np.stack([1.0 - s, s, np.zeros_like(s)], axis=1))
     for p in wanted:
-        out[p.name] = _chain(p, idx, force, wgt, smp, curves, table, scene, poses, bound, camera, pose_cache)
-    return out
+        if p.kind == "camera":
+            cams[p.name] = _camera_fd(p, idx, wgt, smp, table, scene, bound)
+    return forces, cams
 
 
 def _trace_pairs(bound: Bound, proj: Projection, px: np.ndarray, normal: np.ndarray, seed: int) -> np.ndarray:
@@ -448,8 +451,8 @@ def _trace_pairs(bound: Bound, proj: Projection, px: np.ndarray, normal: np.ndar
 
 @dataclass
 class CurveTable:
-    """The curves' fields as arrays (one row per curve): kind (0 edge, 1 sphere), mesh or sphere
-    index, placement, the edge's two vertex rows."""
+    """The curves' fields as arrays (one row per curve): whether a sphere's, the mesh or sphere
+    index, the placement, the edge's two vertex rows."""
 
     sphere: np.ndarray
     index: np.ndarray
@@ -464,100 +467,41 @@ class CurveTable:
                    np.array([c.vb for c in curves]))
 
 
-def _chain(p, idx, force, wgt, smp: Samples, curves, table: CurveTable, scene, poses, bound, camera,
-           pose_cache: dict) -> np.ndarray:
-    """The parameter's boundary gradient from the samples' forces (or weights, by differences)."""
-    owner = smp.owner[idx]
-    if p.kind == MESH or p.kind == POSE:
-        k = p.index if p.kind == MESH else poses[p.index].mesh
-        mine = ~table.sphere[owner] & (table.index[owner] == k)
-        m = scene.meshes[k]
-        if p.kind == MESH:
-            sel = np.flatnonzero(mine)
-            if m.transforms is None:         # world positions of base ones moved by the mesh's pose
-                lin = np.broadcast_to(geo_params.placement(next(q for q in poses if q.mesh == k))[:3, :3], (len(sel), 3, 3))
-            else:
-                lin = np.asarray(m.transforms, np.float64)[table.placement[owner[sel]], :3, :3]
-            fo = np.einsum("ni,nij->nj", force[sel], lin)
-            s = smp.s[idx[sel]][:, None]
-            g = np.zeros((len(m.positions), 3))
-            np.add.at(g, table.va[owner[sel]], (1.0 - s) * fo)
-            np.add.at(g, table.vb[owner[sel]], s * fo)
-            return g
-        if p.index not in pose_cache:
-            pose_cache[p.index] = _pose_gradient(poses[p.index], np.flatnonzero(
-                mine & (table.placement[owner] == poses[p.index].placement)), idx, force, smp)
-        return pose_cache[p.index][geo_params.pose_slice(p.field)]
-    if p.kind == SPHERE:
-        sel = np.flatnonzero(table.sphere[owner] & (table.index[owner] == p.index))
-        if not len(sel):
-            return np.zeros(p.shape)
-        sph = np.asarray(scene.spheres, dtype=np.float64).reshape(-1, 4)[p.index]
-        return _sphere_fd(p, sph, smp, idx[sel], wgt, bound)
-    return _camera_fd(p, idx, wgt, smp, curves, scene, bound, camera)
-
-
-def _pose_gradient(pose, sel: np.ndarray, idx, force, smp: Samples) -> np.ndarray:
-    """(9,): the pose's term from its samples' forces, through central differences of its map."""
-    if not len(sel):
-        return np.zeros(9)
-    x = smp.point[idx[sel]]
-    full = geo_params.placement(pose)
-    obj = (x - full[:3, 3]) @ np.linalg.inv(full[:3, :3]).T        # own-space (or base) points
-    f = force[sel]
-    return geo_params.pose_derivative(pose, lambda m: np.sum(f * (obj @ m[:3, :3].T + m[:3, 3])))
-
-
-def _normal_speed(xp: np.ndarray, xm: np.ndarray, h: float, normal: np.ndarray) -> np.ndarray:
-    """n . (xp - xm) / 2h per sample: the normal speed of image points by a central difference."""
-    return np.sum((xp - xm) / (2.0 * h) * normal, axis=1)
-
-
-def _sphere_fd(p, sph, smp: Samples, rows, wgt, bound: Bound) -> np.ndarray:
-    """A sphere parameter's term: n . d pixel / d theta of its silhouette points at fixed angle."""
-    rs = bound.settings
-    proj = Projection.of(bound.camera, rs.width, rs.height)
-    eye = proj.origin
-    phi = smp.s[rows]
-    _, basis = sphere_circle(sph[:3], float(sph[3]), eye, phi[:1])
-    comps = range(3) if p.field == "center" else [3]
-    g = []
-    for c in comps:
-        hstep = 1e-6 * max(1.0, abs(sph[c]), abs(sph[3]))
-        pp, pm = sph.copy(), sph.copy()
-        pp[c] += hstep
-        pm[c] -= hstep
-        xp = proj.project(sphere_circle(pp[:3], float(pp[3]), eye, phi, basis)[0])[0]
-        xm = proj.project(sphere_circle(pm[:3], float(pm[3]), eye, phi, basis)[0])[0]
-        g.append(np.sum(wgt[rows] * _normal_speed(xp, xm, hstep, smp.normal[rows])))
-    return np.array(g) if p.field == "center" else np.asarray(g[0]).reshape(())
-
-
-def _camera_fd(p, idx, wgt, smp: Samples, curves, scene, bound: Bound, camera) -> np.ndarray:
+def _camera_fd(p, idx, wgt, smp: Samples, table: CurveTable, scene, bound: Bound) -> np.ndarray:
     """The camera's term: n . d pixel / d (position or direction) of each sample's point (a sphere's
     silhouette point moves with the eye too)."""
     rs = bound.settings
-    cam0 = bound.camera
-    v0 = np.asarray(getattr(cam0, p.field), dtype=np.float64)
     spheres = np.asarray(scene.spheres, dtype=np.float64).reshape(-1, 4)
     owner = smp.owner[idx]
-    table = CurveTable.of(curves)
-    eye0 = Projection.of(cam0, rs.width, rs.height).origin
+    eye0 = Projection.of(bound.camera, rs.width, rs.height).origin
     groups = {}                    # sphere -> (its samples' rows, the basis they were drawn with)
     for j in np.unique(table.index[owner][table.sphere[owner]]):
         rows = np.flatnonzero(table.sphere[owner] & (table.index[owner] == j))
         groups[int(j)] = (rows, sphere_circle(spheres[j, :3], float(spheres[j, 3]), eye0, smp.s[idx[rows[:1]]])[1])
+
+    def pixels(proj: Projection) -> np.ndarray:
+        x = smp.point[idx].copy()
+        for j, (rows, basis) in groups.items():
+            x[rows] = sphere_circle(spheres[j, :3], float(spheres[j, 3]), proj.origin, smp.s[idx[rows]], basis)[0]
+        return proj.project(x)[0]
+
+    # n . d pixel / d theta per sample, weighted: linear in the pixels, so the difference of the sums
+    return camera_derivative(bound, p.field, lambda proj: np.sum(wgt[idx] * np.sum(pixels(proj) * smp.normal[idx], axis=1)))
+
+
+def camera_derivative(bound: Bound, field: str, objective) -> np.ndarray:
+    """(3,): d objective(projection) / d camera.<field> ("position" or "direction") by central
+    differences (the camera's frame is a smooth float64 function of both)."""
+    rs = bound.settings
+    cam0 = bound.camera
+    v0 = np.asarray(getattr(cam0, field), dtype=np.float64)
     g = np.zeros(3)
+    hstep = 1e-6 * max(1.0, float(np.linalg.norm(v0)))
     for i in range(3):
-        hstep = 1e-6 * max(1.0, float(np.linalg.norm(v0)))
-        pix = []
+        vals = []
         for sgn in (1.0, -1.0):
             v = v0.copy()
             v[i] += sgn * hstep
-            proj = Projection.of(replace(cam0, **{p.field: tuple(v)}), rs.width, rs.height)
-            x = smp.point[idx].copy()
-            for j, (rows, basis) in groups.items():
-                x[rows] = sphere_circle(spheres[j, :3], float(spheres[j, 3]), proj.origin, smp.s[idx[rows]], basis)[0]
-            pix.append(proj.project(x)[0])
-        g[i] = np.sum(wgt[idx] * _normal_speed(pix[0], pix[1], hstep, smp.normal[idx]))
+            vals.append(objective(Projection.of(replace(cam0, **{field: tuple(v)}), rs.width, rs.height)))
+        g[i] = (vals[0] - vals[1]) / (2.0 * hstep)
     return g

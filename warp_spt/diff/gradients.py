@@ -69,7 +69,9 @@ from warp_spt.diff.params import (
 )
 from warp_spt.diff import geometry_params as geo_params
 from warp_spt.diff.geometry_params import GEOMETRY_KINDS, MESH, SPHERE
-from warp_spt.diff.boundary import boundary_gradients
+from warp_spt.diff.boundary import primary_term
+from warp_spt.diff.forces import Forces, chain_all
+from warp_spt.diff.secondary import secondary_term
 from warp_spt.diff.prb import replay_inputs
 
 ENV_TEXELS_KEY = "environment.texels"       # its reduced buffer among the parts of ``_Backward.run``
@@ -80,6 +82,7 @@ from warp_spt.integrators import (
     get_step,
 )
 from warp_spt.losses import Loss
+from warp_spt.scene.limits import MAX_SPP
 from warp_spt.rendering.film import Film
 from warp_spt.rendering.settings import RenderSettings
 from warp_spt.rendering.setup import (
@@ -252,7 +255,8 @@ class GradientResult:
 def render_gradients(params: SceneParameters, settings: RenderSettings | None = None, *,
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
                      wrt: list[str] | None = None, gradient_seed: int | None = None,
-                     mode: str = "auto", boundary: bool = True, boundary_spp: int | None = None) -> GradientResult:
+                     mode: str = "auto", boundary: bool = True, boundary_spp: int | None = None,
+                     secondary_spp: int | None = None) -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``).
@@ -264,9 +268,12 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     alone has the pathwise derivatives of fuzz and the camera), or "auto": "prb" unless a parameter
     in ``wrt`` needs the tape.
 
-    ``boundary``: add the boundary term of primary visibility to geometry and camera parameters
-    (``warp_spt.diff.boundary``; False: the interior term alone), estimated with ``boundary_spp``
-    samples per pixel along the image's silhouettes and edges (default: ``settings.spp``).
+    ``boundary``: add the boundary terms to geometry and camera parameters (False: the interior term
+    alone): primary visibility (``warp_spt.diff.boundary``), estimated with ``boundary_spp`` samples
+    per pixel along the image's silhouettes and edges, and secondary visibility at the camera rays'
+    hits (``warp_spt.diff.secondary``: shadows' edges, outlines seen from the surface) with
+    ``secondary_spp`` hits per pixel; both default to ``settings.spp``, 0 leaves one out. (The
+    interior term takes ``settings.spp``: Mitsuba's sppc, sppp and sppi.)
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -302,16 +309,36 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
         image = Film(sums.pop("film").reshape(shape), rs.spp).image()
     grads = {p.name: _pick(p, sums, dev, camera, rs, params._poses, params._base_meshes) for p in infos}
     moved = [p for p in infos if p.kind in (*GEOMETRY_KINDS, "camera")]
-    if boundary and moved:           # the silhouettes they move (diff.boundary): an estimate of its own
-        spp_b = rs.spp if boundary_spp is None else int(boundary_spp)
-        if spp_b < 0:
-            raise ValueError(f"boundary_spp must be >= 0, got {boundary_spp}")
-        extra = boundary_gradients(bw.bound, adj, moved, params._poses, spp_b, brs.seed, camera)
-        for n, g in extra.items():
+    if boundary and moved:           # the curves they move: estimates of their own
+        for n, g in boundary_terms(bw.bound, adj, moved, params._poses, brs.seed,
+                                   _budget(boundary_spp, rs.spp, "boundary_spp"),
+                                   _budget(secondary_spp, rs.spp, "secondary_spp")).items():
             grads[n] = grads[n] + g
     backward_seconds = time.perf_counter() - t0
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
                           bw.threads, mode)
+
+
+def _budget(value: int | None, default: int, name: str) -> int:
+    """A boundary term's samples per pixel (``default`` when None; 0 leaves the term out)."""
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= MAX_SPP:
+        raise ValueError(f"{name} must be an integer in [0, {MAX_SPP}], got {value!r}")
+    return int(value)
+
+
+def boundary_terms(bound: Bound, adj: np.ndarray, moved: list, poses: list, seed: int, primary_spp: int,
+                   secondary_spp: int) -> dict[str, np.ndarray]:
+    """The boundary terms of the geometry and camera parameters ``moved``: primary visibility
+    (``diff.boundary``) and secondary visibility at the camera rays' hits (``diff.secondary``), as
+    forces on the geometry's points chained to the parameters (``diff.forces``)."""
+    f1, cam1 = primary_term(bound, adj, moved, primary_spp, seed)
+    f2, cam2 = secondary_term(bound, adj, moved, secondary_spp, seed)
+    out = chain_all(moved, Forces.join([f1, f2]), bound.dev.scene, poses)
+    for n in cam1:
+        out[n] = cam1[n] + cam2[n]
+    return out
 
 
 def _forward(dev: DeviceScene, camera: Camera, rs: RenderSettings, loss: Loss | None, adjoint, replay_image: bool):

@@ -104,6 +104,10 @@ def quiet_local_workers():
         sys.warnoptions.append(tracker_quiet)
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         with ignored_by_children():
+            # a worker forked as this process exits ends quietly (see the module); distributed's own
+            # preload (itself, numpy...) saves each worker its imports
+            multiprocessing.forkserver.set_forkserver_preload(["warp_spt.runtime.forkserver_preload",
+                                                               "distributed", "numpy"])
             multiprocessing.forkserver.ensure_running()
         yield
 

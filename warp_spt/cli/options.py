@@ -19,7 +19,7 @@ from warp_spt.cli.light_flags import add_light_flags, light_options
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
-from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP, MAX_THREADS  # the API's caps (settings.check_args)
+from warp_spt.scene.limits import MAX_DEPTH, MAX_FPS, MAX_SPP, MAX_THREADS, MIN_FPS  # the API's caps (settings.check_args)
 from warp_spt.runtime.extras import install_hint
 from warp_spt.scene.sky import Sky
 
@@ -613,8 +613,8 @@ def with_animation_options(opts, ns, *, explicit_out: bool):
         frames = parse_frames(ns.frames) if ns.frames is not None else None
     except ValueError as err:
         raise UsageError(f"argument --frames: {err}") from None
-    if not 0 < ns.fps <= 1e6:
-        raise UsageError(f"--fps must lie in (0, 1e6], got {ns.fps:g}")
+    if not MIN_FPS <= ns.fps <= MAX_FPS:
+        raise UsageError(f"--fps must lie in [{MIN_FPS:g}, {MAX_FPS:g}], got {ns.fps:g}")
     opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
                    gif=ns.gif, fps=ns.fps)
     check_budget_flags(opts)

@@ -150,6 +150,8 @@ class GltfExtras:
     placed: list[tuple[ObjData, np.ndarray]] = field(default_factory=list)
     # the first animation's time range in seconds (None: the file has no animation)
     time_range: tuple[float, float] | None = None
+    # placements of meshes scaled to nothing (a common way to hide an object), not drawn
+    hidden: int = 0
 
 
 def world_triangles(d: ObjData) -> tuple[np.ndarray, np.ndarray]:
@@ -510,6 +512,8 @@ class _Reader:
                     # flattened triangles of zero area would not be drawn
                     if abs(np.linalg.det(world[:3, :3])) > 1e-30:
                         placed[mesh][1].append(world)
+                    else:
+                        extras.hidden += 1
                     continue
             for prim_k, prim in enumerate(self._primitives(mesh)):
                 pptr = f"/meshes/{mesh}/primitives/{prim_k}"

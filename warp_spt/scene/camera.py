@@ -322,7 +322,9 @@ def far_centre(scene: Scene, ratio: float = RECENTRE_RATIO) -> np.ndarray | None
     """The centre of a scene that lies far from the origin (farther than ``ratio`` times its size,
     in float64), or None for a scene near the origin."""
     b = exact_bounds(scene)
-    size = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 0.0
+    if not np.all(np.isfinite(b)):          # nothing to draw (an animation's frame that hides everything)
+        return None
+    size = float(np.max(b[1] - b[0]))
     centre = 0.5 * (b[0] + b[1])
     return centre if size > 0.0 and float(np.max(np.abs(centre))) > ratio * size else None
 

@@ -311,6 +311,9 @@ class Scene:
     # map), uploaded and shipped to cluster workers with the scene; None: the seed's blue BlackSky.
     # RenderSettings.sky, when given, overrides it.
     sky: Sky | None = None
+    # every object is hidden (an animation's frame that scales them all to nothing): the scene may hold
+    # no geometry at all, and renders empty (every ray misses); otherwise that is an error
+    hidden: bool = False
 
     def add_light(self, light) -> "Scene":
         """Add a sun, point or spot light (``warp_spt.SunLight``, ``PointLight``, ``SpotLight``, made

@@ -200,7 +200,7 @@ def validate_scene(scene: Scene) -> None:
         _fail("spheres must have a radius > 0")
     smat = _check_array(scene.sphere_material, "sphere_material", np.int32, (len(spheres),))
     _check_index(smat, "sphere_material", n_mat)
-    if scene.num_triangles == 0 and len(spheres) == 0:
+    if scene.num_triangles == 0 and len(spheres) == 0 and not scene.hidden:
         _fail("the scene has no geometry: no triangles and no spheres")
 
 

@@ -355,3 +355,13 @@ def gltf_scaled_away(big_keys: bool = False) -> GltfBuilder:
     anim["samplers"].append({"input": times, "output": scale})
     anim["channels"].append({"sampler": len(anim["samplers"]) - 1, "target": {"node": 0, "path": "scale"}})
     return g
+
+
+def gltf_instanced_grid(n: int) -> GltfBuilder:
+    """``n`` nodes placing one cube (half size) on a square grid in y = 0: the instancing stress file."""
+    g = GltfBuilder()
+    g.mesh(CUBE_POSITIONS, CUBE_TRIANGLES)
+    side = int(np.ceil(n ** 0.5))
+    for k in range(n):
+        g.node(mesh=0, translation=[2.0 * (k % side), 0.0, 2.0 * (k // side)], scale=[0.5, 0.5, 0.5])
+    return g

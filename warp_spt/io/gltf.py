@@ -76,6 +76,7 @@ class GltfCamera:
     yfov: float
     aspect: float | None
     znear: float
+    kind: str = "perspective"    # another type (orthographic) is listed but cannot be looked through
 
     def fov_degrees(self, width: int, height: int) -> float:
         """The full horizontal angle for an image of ``width`` x ``height`` (the renderer's ``fov``)."""
@@ -519,7 +520,7 @@ class _Reader:
                 pptr = f"/meshes/{mesh}/primitives/{prim_k}"
                 mat = self.index(prim, "material", pptr, "materials")
                 if mat not in material_rows:
-                    name, material = self._material(mat, names)
+                    name, material = self._checked_material(mat, names)
                     material_rows[mat] = len(names)
                     names.append(name)
                     materials[name] = material
@@ -547,7 +548,7 @@ class _Reader:
             if part[4] is not None:
                 return None
             if mat not in material_rows:
-                name, material = self._material(mat, names)
+                name, material = self._checked_material(mat, names)
                 material_rows[mat] = len(names)
                 names.append(name)
                 materials[name] = material
@@ -931,6 +932,17 @@ class _Reader:
         buf, off, length, _ = self.view(view)
         return TextureRef(name, self.path, 0, image=buf[off:off + length])
 
+    def _checked_material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
+        """:meth:`_material`, its values within the material schema's ranges (SceneError naming the
+        file, the material's pointer and name, and the field)."""
+        from warp_spt.scene.model import MaterialValueError
+
+        try:
+            return self._material(mat, names)
+        except MaterialValueError as err:   # its name is "FILE: NAME"; the file is named already
+            raise _err(self.path, f"/materials/{mat}" if mat is not None else "",
+                       f"material {err.name.split(': ', 1)[-1]!r}: {err.problem}") from None
+
     def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
         """A unique name and a material of the ``pbr`` kind: glTF's metallic-roughness model and the
         KHR_materials_* that the kind has columns for. The packed metallic-roughness texture is named by
@@ -1045,7 +1057,8 @@ class _Reader:
         if direction is None or up is None:
             raise _err(self.path, f"/nodes/{node}", "the camera's node transform is singular")
         return GltfCamera(name=name, index=k, node=node, position=tuple(float(c) for c in world[:3, 3]), direction=direction, up=up,
-                          yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0))
+                          yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0),
+                          kind=kind)
 
     def _light(self, ref: dict, ptr: str, world: np.ndarray) -> GltfLight:
         k = self.get(ref, "light", int, ptr, required=True)
@@ -1059,7 +1072,7 @@ class _Reader:
         if kind not in ("point", "spot", "directional"):
             raise _err(self.path, f"{lptr}/type", f"expected point, spot or directional, got {kind!r}")
         spot = self.obj(light, "spot", lptr)
-        return GltfLight(
+        out = GltfLight(
             name=self.get(light, "name", str, lptr, ""), kind=kind,
             color=tuple(self.numbers(light, "color", lptr, 3, [1.0, 1.0, 1.0])),
             intensity=self.get(light, "intensity", float, lptr, 1.0),
@@ -1067,6 +1080,21 @@ class _Reader:
             range=self.get(light, "range", float, lptr),
             inner_cone=self.get(spot, "innerConeAngle", float, f"{lptr}/spot", 0.0),
             outer_cone=self.get(spot, "outerConeAngle", float, f"{lptr}/spot", math.pi / 4))
+        # the extension's ranges, each naming its member; then the renderer's light's own bounds
+        if not all(0.0 <= c <= 1.0 for c in out.color):
+            raise _err(self.path, f"{lptr}/color", f"each component must lie in [0, 1] (linear RGB), got {list(out.color)}")
+        if not out.intensity >= 0.0:
+            raise _err(self.path, f"{lptr}/intensity", f"must be at least 0, got {out.intensity:g}")
+        if out.range is not None and not out.range > 0.0:
+            raise _err(self.path, f"{lptr}/range", f"must be above 0, got {out.range:g}")
+        if kind == "spot" and not 0.0 <= out.inner_cone < out.outer_cone <= math.pi / 2:
+            raise _err(self.path, f"{lptr}/spot", f"expected 0 <= innerConeAngle < outerConeAngle <= pi/2 (radians), "
+                       f"got {out.inner_cone:g} and {out.outer_cone:g}")
+        try:
+            out.to_scene()
+        except ValueError as err:
+            raise _err(self.path, lptr, str(err)) from None
+        return out
 
     # ----------------------------------------------------------------------------------- the object
 
@@ -1253,8 +1281,12 @@ def choose_camera(cameras: list[GltfCamera], choice: str | int, width: int, heig
     elif text.lstrip("-").isdigit() and 0 <= int(text) < len(cameras):
         cam = cameras[int(text)]
     else:
-        listed = ", ".join(f"{k}: {n!r}" if n else f"{k}" for k, n in enumerate(names))
-        raise ValueError(f"no camera {text!r}; the files have {listed}")
+        listed = ", ".join(f"{k}: {n!r}" if n else f"{k} (unnamed)" for k, n in enumerate(names))
+        raise ValueError(f"no camera {text!r}; the files have {len(cameras)} camera{'s' * (len(cameras) > 1)}: "
+                         f"{listed}")
+    if cam.kind != "perspective":
+        raise ValueError(f"camera {text!r} is {cam.kind} (/cameras/{cam.index}); only perspective cameras can be "
+                         "looked through")
     camera = Camera(position=cam.position, direction=cam.direction, fov=cam.fov_degrees(width, height),
                     aperture=0.0, focus=1.0, up=cam.up)
     camera.validate()

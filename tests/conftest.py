@@ -114,6 +114,17 @@ SLOW: dict[str, str] = {
     "tests/rendering/test_interrupt.py::test_real_processes_interrupted_at_random_moments": "11 s: processes",
     "tests/hardening/test_bad_text_paths_and_flags.py::test_ctrl_c_to_the_process_group_with_local_workers_is_one_line":
         "11 s: worker processes",
+    # The readers' long fuzzing runs (1,500 cases each; their short runs of 25 stay): seconds on 2
+    # cores, warm (2026-12-02), 38 s together
+    "tests/hardening/test_reader_fuzz.py::test_gltf_files_with_extreme_values_load_or_name_file_and_pointer_long":
+        "12 s",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_ply_scenes_load_or_name_the_file_long": "11 s",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_environment_images_read_or_name_the_file_long":
+        "5 s, with the others of its run",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_light_files_load_or_name_file_and_line_long":
+        "5 s, with the others of its run",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_nanovdb_grids_load_or_name_the_file_long":
+        "5 s, with the others of its run",
 }
 # Beside SLOW, the tests that check every integrator x sampler pair run a covering set by default and
 # the other pairs in the slow tier (tests/support/combos.py): 512 s of the same run for all 15 pairs.

@@ -56,6 +56,9 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
                 from warp_spt.runtime.extras import install_hint
                 raise ValueError(f"{path}: reading .exr needs the optional 'openexr' package: "
                                  f"{install_hint('exr')}") from None
+            with OpenEXR.File(str(p), header_only=True) as head:     # the size before any pixel is decoded
+                (x0, y0), (x1, y1) = head.header()["dataWindow"]
+            _check_size(path, int(x1) - int(x0) + 1, int(y1) - int(y0) + 1)
             with OpenEXR.File(str(p)) as exr:
                 channels = exr.channels()
                 if "RGB" not in channels:
@@ -92,6 +95,7 @@ _SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 # block of rows at a time; a float64 map read whole, then converted, took 36)
 READ_BYTES_PER_TEXEL = {".hdr": 24, ".png": 24, ".npy": 20}
 NPY_BLOCK_BYTES = 1 << 22
+NPY_HEADER_BYTES = 1 << 16      # numpy writes headers of about 128 bytes
 
 
 def _read_npy(p: Path) -> np.ndarray:
@@ -109,7 +113,8 @@ def _read_npy(p: Path) -> np.ndarray:
             block = np.fromfile(f, dtype=dtype, count=n * w * 3)
             if block.size != n * w * 3:
                 raise ValueError(f"{p}: the array's data ends at row {r + block.size // (w * 3)} of {h}")
-            out[r:r + n] = block.reshape(n, w, 3)
+            with np.errstate(over="ignore"):     # beyond float32: infinite, which the map's check refuses by name
+                out[r:r + n] = block.reshape(n, w, 3)
     return out
 
 
@@ -124,6 +129,15 @@ def _npy_header(f, p: Path):
     """An .npy map's (shape, fortran order, dtype) from its header, checked before its data is read."""
     try:
         version = np.lib.format.read_magic(f)
+        # numpy reads a header of the length it declares before it checks that length (4 GB for
+        # four forged bytes): the version and the length are checked here first
+        size = 2 if version == (1, 0) else 4
+        start = f.tell()
+        length = int.from_bytes(f.read(size), "little")
+        if version not in ((1, 0), (2, 0), (3, 0)) or length > NPY_HEADER_BYTES:
+            raise ValueError(f"version {version[0]}.{version[1]} with a header of {length:,} bytes (expected "
+                             f"1.0, 2.0 or 3.0 and at most {NPY_HEADER_BYTES:,})")
+        f.seek(start)
         shape, fortran, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
                                  else np.lib.format.read_array_header_2_0(f))
     except ValueError as err:

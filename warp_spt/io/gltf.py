@@ -56,6 +56,7 @@ _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126:
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
           6: "triangle fans"}
+MAX_UV = 1e30          # transformed texture coordinates: float32 with room to spare (1e39 became inf)
 SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_lights_punctual",
                         "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission",
                         "KHR_materials_volume", "KHR_materials_specular", "KHR_materials_anisotropy"}
@@ -909,7 +910,11 @@ class _Reader:
         scale = self.numbers(tt, "scale", ptr, 2, [1.0, 1.0])
         c, s = math.cos(rotation), math.sin(rotation)
         su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
-        return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
+        out = np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
+        if not np.abs(out).max(initial=0.0) <= MAX_UV:       # stored as float32 (also NaN)
+            raise _err(self.path, ptr, f"offset {offset} and scale {scale} take texture coordinates beyond "
+                       f"+-{MAX_UV:g}")
+        return out
 
     def _image(self, tex: int, ptr: str) -> TextureRef:
         t = self.item("textures", tex)

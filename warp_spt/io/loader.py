@@ -123,8 +123,13 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
     textures = _TextureCache(note)
+    meshes, sources = [], []             # each mesh and the file it came from (named in its errors)
+    for d, rows in zip(data, obj_rows):
+        for m in _meshes(d, rows, note, angle):
+            meshes.append(m)
+            sources.append(d.path)
     scene = Scene(
-        meshes=[m for d, rows in zip(data, obj_rows) for m in _meshes(d, rows, note, angle)],
+        meshes=meshes,
         spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float64),
         sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
@@ -140,7 +145,13 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         interiors={m.name: m.interior for m in table_rows if m.interior is not None},
         hidden=hidden,
     )
-    validate_scene(scene)       # zero-area triangles dropped: counted, not news (a UV sphere's poles)
+    try:
+        validate_scene(scene)   # zero-area triangles dropped: counted, not news (a UV sphere's poles)
+    except SceneError as err:   # a mesh's problem (a PLY's or glTF's edge too long): its file named
+        k = _mesh_index(err.message)
+        if k is None or k >= len(sources):
+            raise
+        raise SceneError(sources[k], 0, err.message.split(": ", 1)[-1]) from None
     for message in open_boundary_warnings(scene):
         note(message)
     return scene
@@ -176,6 +187,14 @@ def _kind_by_content(path: str) -> str | None:
     if kind is None and head.lstrip(b" \t\r\n\xef\xbb\xbf").startswith(b"{") and b'"asset"' in head:
         kind = ".gltf"
     return kind
+
+
+def _mesh_index(message: str) -> int | None:
+    """k of a validation message about ``meshes[k] (NAME): ...``, or None."""
+    if not message.startswith("meshes["):
+        return None
+    k = message[7:message.find("]")]
+    return int(k) if k.isdigit() else None
 
 
 def _require_geometry(data: list[ObjData], hidden_ok: bool = False) -> bool:

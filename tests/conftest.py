@@ -119,6 +119,17 @@ SLOW: dict[str, str] = {
                                              "of compiling its four kernels",
     "tests/diff/test_pose_estimation.py": "the example's --quick run in a process of its own: 25 s warm, "
                                           "its scene's three kernels compiled first",
+    # The readers' long fuzzing runs (1,500 cases each; their short runs of 25 stay): seconds on 2
+    # cores, warm (2026-12-02), 38 s together
+    "tests/hardening/test_reader_fuzz.py::test_gltf_files_with_extreme_values_load_or_name_file_and_pointer_long":
+        "12 s",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_ply_scenes_load_or_name_the_file_long": "11 s",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_environment_images_read_or_name_the_file_long":
+        "5 s, with the others of its run",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_light_files_load_or_name_file_and_line_long":
+        "5 s, with the others of its run",
+    "tests/hardening/test_reader_fuzz.py::test_mutated_nanovdb_grids_load_or_name_the_file_long":
+        "5 s, with the others of its run",
 }
 # Beside SLOW, the tests that check every integrator x sampler pair run a covering set by default and
 # the other pairs in the slow tier (tests/support/combos.py): 512 s of the same run for all 15 pairs.

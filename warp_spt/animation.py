@@ -33,6 +33,7 @@ import numpy as np
 from warp_spt.io.templates import frame_path, is_template
 from warp_spt.scene.camera import Camera
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.limits import MAX_FPS, MIN_FPS
 from warp_spt.scene.model import ObjData, Scene
 from warp_spt.scene.sky import Sky
 
@@ -224,6 +225,8 @@ class ObjSequence:
         self.objs = [str(p) for p in objs]
         self.mtls = [str(p) for p in mtls]
         self.default_material = default_material     # as load_scene's: "checker", "clay" or "auto"
+        if not MIN_FPS <= float(fps) <= MAX_FPS:      # also NaN
+            raise ValueError(f"fps must lie in [{MIN_FPS:g}, {MAX_FPS:g}], got {fps!r}")
         self.fps = float(fps)                         # an animated glTF's frame k is posed at k / fps seconds
         self.smooth_angle = smooth_angle             # as load_scene's
         self.loads = 0
@@ -252,6 +255,36 @@ class ObjSequence:
                 end = max(end or 0.0, span[1])
         return None if end is None else range(0, int(math.floor(end * self.fps + 1e-9)) + 1)
 
+    def check(self, frames: Sequence[int]) -> list[int]:
+        """Pose every animated glTF at every frame before the first is rendered, so that a frame whose
+        pose is out of range (keys of 1e30) ends the run before any work, not part-way: SceneError
+        naming the file, the frame and what is wrong. Returns the frames whose every object is hidden
+        (scaled to nothing; rendered empty). One parse of each animated file per frame."""
+        from warp_spt.io.loader import read_model
+
+        for p in self.objs:
+            if not is_template(p) and p not in self._parsed:
+                self._parsed[p] = read_model(p)
+                self.loads += 1
+        animated = [p for p in self.objs if not is_template(p)
+                    and getattr(self._parsed[p].extras, "time_range", None) is not None]
+        hidden = []
+        for k in frames if animated else ():
+            empty = not any(self._has_geometry(self._parsed[p]) for p in self.objs if p not in animated)
+            for p in animated:
+                try:
+                    posed = self._posed(p, k)
+                except SceneError as err:
+                    raise SceneError(err.path, err.line, f"at frame {k} ({k / self.fps:g} s): {err.message}") from None
+                empty = empty and not self._has_geometry(posed)
+            if empty and not any(is_template(p) for p in self.objs):
+                hidden.append(k)
+        return hidden
+
+    @staticmethod
+    def _has_geometry(d: ObjData) -> bool:
+        return bool(len(d.faces) or len(d.spheres) or getattr(d.extras, "placed", ()))
+
     def paths(self, frame: int) -> list[str]:
         """The OBJ files of ``frame``."""
         return [frame_path(p, frame) for p in self.objs]
@@ -274,7 +307,7 @@ class ObjSequence:
             return self._last_scene[1]
         data = [self._posed(p, frame) if p in posed else self._parsed[p] for p in paths]
         scene = load_scene(data, self.mtls, warn=lambda message: None, default_material=self.default_material,
-                           smooth_angle=self.smooth_angle)
+                           smooth_angle=self.smooth_angle, hidden_ok=bool(posed))
         if self.lights or self.fog is not None or self.sky is not None:
             scene = replace(scene, lights=[*scene.lights, *self.lights],
                             fog=scene.fog if self.fog is None else self.fog,

@@ -607,15 +607,22 @@ def local_client(n_workers: int = 2, *, threads_per_worker: int = 1, **cluster_k
     options = dict(n_workers=n_workers, threads_per_worker=threads_per_worker, processes=True,
                    host="127.0.0.1", dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     options.update(cluster_kwargs)
+    from warp_spt.runtime.signals import deferred_signals
+
+    cluster = client = None
     try:
-        cluster = distributed.LocalCluster(**options)
-    except BaseException:          # Ctrl-C while the workers start: their processes go with it, quietly
-        _kill_children()
-        raise
-    try:
-        client = distributed.Client(cluster)
+        # A Ctrl-C while the workers start waits for the start to end (seconds): cut short, the
+        # event loop's thread went on forking workers after this thread had given up, and those
+        # printed tracebacks as this process exited. Once started, every worker is known and killed
+        # at once. A second Ctrl-C cuts the start short.
+        with deferred_signals(second_now=True):
+            cluster = distributed.LocalCluster(**options)
+            client = distributed.Client(cluster)
     except BaseException:
-        _abandon(cluster)
+        if cluster is None:
+            _kill_children()
+        else:
+            _abandon(cluster, client)
         raise
     try:
         yield client
@@ -630,9 +637,9 @@ ABANDON_SECONDS = 2.0     # what closing a cluster whose workers were killed may
 
 
 def _kill_children() -> None:
-    """Kill this process's multiprocessing children at once. A worker still unpickling its start-up
-    state when this process exits finds its semaphores gone and prints a traceback after the
-    command's one line (a Ctrl-C 1.5 s into ``--workers 2``, under load: CI of 2026-11-27)."""
+    """Kill this process's multiprocessing children at once: what a start cut short by a second Ctrl-C
+    or an error leaves (a worker forked after this still finds its semaphores gone, and
+    :mod:`warp_spt.runtime.forkserver_preload` keeps it quiet)."""
     import multiprocessing
 
     for child in multiprocessing.active_children():

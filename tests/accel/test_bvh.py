@@ -211,9 +211,13 @@ def test_depth_guard_switches_to_median_splits(monkeypatch):
     check_containment(t, lo, lo + 1.0)
 
 
+def test_no_items_give_one_empty_leaf_that_no_ray_enters():
+    t = build_tlas(np.zeros((0, 3)), np.zeros((0, 3)))     # an animation's frame that hides everything
+    assert t.num_nodes == 1 and t.count[0] == 0 and len(t.items) == 0
+    assert (t.lower[0] > t.upper[0]).all()
+
+
 def test_invalid_input():
-    with pytest.raises(ValueError, match="K == 0"):
-        build_tlas(np.zeros((0, 3)), np.zeros((0, 3)))
     with pytest.raises(ValueError, match="lower > upper"):
         build_tlas(np.array([[0.0, 0, 1]]), np.array([[1.0, 1, 0]]))
     with pytest.raises(ValueError, match="finite"):

@@ -278,7 +278,7 @@ def test_choose_camera_by_name_or_index_keeps_the_vertical_fov():
     assert np.allclose(side.position, (5, 0, 0)) and np.allclose(side.direction, (-1, 0, 0)) and side.aperture == 0
     # vertical half-angle 0.25 rad: the image plane at focus f is f tan(0.25) high (half), 1.5 times as wide
     assert math.isclose(math.tan(math.radians(side.fov) / 2), 1.5 * math.tan(0.25))
-    with pytest.raises(ValueError, match="no camera 'back'; the files have 0: 'front', 1: 'side'"):
+    with pytest.raises(ValueError, match="no camera 'back'; the files have 2 cameras: 0: 'front', 1: 'side'"):
         choose_camera(cams, "back", 10, 10)
     with pytest.raises(ValueError, match="no camera '2'"):
         choose_camera(cams, 2, 10, 10)
@@ -295,7 +295,7 @@ def test_the_cli_camera_flag(tmp_path, capsys):
         parse_args(["-obj", str(tmp_path / "c.gltf"), "--camera", "side", "--frame"])
     assert main(["-obj", str(tmp_path / "c.gltf"), "--camera", "back", "-res", "8", "8",
                  "-out", str(tmp_path / "o.png")]) == 1
-    assert capsys.readouterr().err.endswith("error: --camera back: no camera 'back'; the files have 0: 'front', "
+    assert capsys.readouterr().err.endswith("error: --camera back: no camera 'back'; the files have 2 cameras: 0: 'front', "
                                             "1: 'side'\n")
 
 

@@ -129,6 +129,44 @@ def test_deferred_signals_deliver_after_the_block():
     assert order == ["block finished"]
 
 
+def test_deferred_signals_with_second_now_deliver_a_second_signal_at_once():
+    order = []
+    with pytest.raises(KeyboardInterrupt):
+        with deferred_signals(second_now=True):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.01)
+            order.append("held")
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.01)
+            order.append("block finished")
+    assert order == ["held"]
+
+
+def test_a_fork_server_child_whose_start_up_state_is_gone_exits_quietly(tmp_path):
+    """The fork server's child that finds its parent's semaphores unlinked (the parent exiting on a
+    Ctrl-C as local workers start) ends with status 1 and prints nothing; other errors still print."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "child.py"
+    script.write_text(
+        "import os, pickle, sys\n"
+        "import warp_spt.runtime.forkserver_preload\n"
+        "from multiprocessing import spawn\n"
+        "r, w = os.pipe()\n"
+        "gone = (os.stat, ('/nonexistent-semaphore',)) if sys.argv[1] == 'gone' else (int, ('x',))\n"
+        "class State:\n"
+        "    def __reduce__(self):\n"
+        "        return gone\n"
+        "os.write(w, pickle.dumps({}) + pickle.dumps(State()))\n"
+        "os.close(w)\n"
+        "print(spawn._main(r, os.dup(r)))\n")
+    gone = subprocess.run([sys.executable, str(script), "gone"], capture_output=True, text=True, timeout=60)
+    assert (gone.stdout, gone.stderr) == ("1\n", ""), gone
+    other = subprocess.run([sys.executable, str(script), "other"], capture_output=True, text=True, timeout=60)
+    assert other.returncode != 0 and "ValueError" in other.stderr, other
+
+
 def test_real_processes_interrupted_at_random_moments(tmp_path):
     """A short run of the soak: every trial ends promptly, cleanly, and leaves no partial file."""
     seed = int(os.environ.get("WARP_SPT_TRIAL_SEED", time.time_ns() % 10**6))

@@ -338,3 +338,30 @@ def gltf_morph() -> GltfBuilder:
     g.doc["animations"] = [{"samplers": [{"input": times, "output": w}],
                             "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}]}]
     return g
+
+
+def gltf_scaled_away(big_keys: bool = False) -> GltfBuilder:
+    """:func:`gltf_animated`'s cube, also scaled from 1 to 0 over t in [0, 1] (hidden from then on: the
+    usual way to hide an object); with ``big_keys`` its translation instead passes through x = 1e30 at t = 1."""
+    g = gltf_animated()
+    times = g.accessor(np.array([0.0, 1.0], np.float32), "SCALAR", 5126)
+    anim = g.doc["animations"][0]
+    if big_keys:
+        ttimes = g.accessor(np.array([0.0, 1.0, 2.0], np.float32), "SCALAR", 5126)
+        keys = g.accessor(np.array([[0, 0, 0], [1e30, 0, 0], [0, 0, 0]], np.float32), "VEC3", 5126)
+        anim["samplers"][0] = {"input": ttimes, "output": keys}
+        return g
+    scale = g.accessor(np.array([[1, 1, 1], [0, 0, 0]], np.float32), "VEC3", 5126)
+    anim["samplers"].append({"input": times, "output": scale})
+    anim["channels"].append({"sampler": len(anim["samplers"]) - 1, "target": {"node": 0, "path": "scale"}})
+    return g
+
+
+def gltf_instanced_grid(n: int) -> GltfBuilder:
+    """``n`` nodes placing one cube (half size) on a square grid in y = 0: the instancing stress file."""
+    g = GltfBuilder()
+    g.mesh(CUBE_POSITIONS, CUBE_TRIANGLES)
+    side = int(np.ceil(n ** 0.5))
+    for k in range(n):
+        g.node(mesh=0, translation=[2.0 * (k % side), 0.0, 2.0 * (k // side)], scale=[0.5, 0.5, 0.5])
+    return g

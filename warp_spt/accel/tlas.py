@@ -50,10 +50,8 @@ def _validate_boxes(lowers: np.ndarray, uppers: np.ndarray) -> tuple[np.ndarray,
     hi = np.asarray(uppers, dtype=np.float64)
     if lo.ndim != 2 or lo.shape[1:] != (3,) or lo.shape != hi.shape:
         raise ValueError(f"build_tlas: lowers and uppers must both be (K, 3), got {lo.shape} and {hi.shape}")
-    if len(lo) == 0:
-        raise ValueError("build_tlas: no items (K == 0); a scene needs at least one mesh or sphere")
     limit = float(np.finfo(np.float32).max)
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()) or max(-lo.min(), hi.max()) > limit:
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()) or max(-lo.min(initial=0), hi.max(initial=0)) > limit:
         raise ValueError(f"build_tlas: item boxes must be finite and within float32 range (|x| <= {limit:.4g})")
     bad = np.flatnonzero((lo > hi).any(axis=1))
     if len(bad):
@@ -228,13 +226,15 @@ def round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def build_tlas(lowers: np.ndarray, uppers: np.ndarray, max_leaf: int = 2) -> Tlas:
-    """Build a binned-SAH BVH over K >= 1 boxes ``lowers``/``uppers`` (K, 3).
+    """Build a binned-SAH BVH over K boxes ``lowers``/``uppers`` (K, 3); K == 0 gives one empty leaf.
 
-    Raises ValueError for K == 0, mismatched shapes, non-finite or inverted boxes, max_leaf < 1.
+    Raises ValueError for mismatched shapes, non-finite or inverted boxes, max_leaf < 1.
     """
     if max_leaf < 1:
         raise ValueError(f"build_tlas: max_leaf must be >= 1, got {max_leaf}")
     lo, hi = _validate_boxes(lowers, uppers)
+    if len(lo) == 0:            # an empty scene (an animation's frame that hides everything): one leaf
+        return _empty_tlas()    # of no items whose box no ray enters
     order, start, count, depth, left, right = _build_levels(lo, hi, max_leaf)
     nlo, nhi = _node_bounds(order, start, left, right, depth, lo, hi)
     pos = _dfs_positions(left, right, depth)
@@ -253,6 +253,14 @@ def build_tlas(lowers: np.ndarray, uppers: np.ndarray, max_leaf: int = 2) -> Tla
         items=order.astype(np.int32),
         depth=int(depth.max()),
     )
+
+
+def _empty_tlas() -> Tlas:
+    big = np.float32(np.finfo(np.float32).max)
+    none = np.full((1,), -1, np.int32)
+    return Tlas(lower=np.full((1, 3), big, np.float32), upper=np.full((1, 3), -big, np.float32), left=none,
+                right=none.copy(), first=np.zeros(1, np.int32), count=np.zeros(1, np.int32),
+                items=np.zeros(0, np.int32), depth=0)
 
 
 def ray_box_overlap(lo, hi, origin, direction, t_max: float) -> np.ndarray:

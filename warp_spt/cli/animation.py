@@ -104,6 +104,10 @@ def quiet_local_workers():
         sys.warnoptions.append(tracker_quiet)
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         with ignored_by_children():
+            # a worker forked as this process exits ends quietly (see the module); distributed's own
+            # preload (itself, numpy...) saves each worker its imports
+            multiprocessing.forkserver.set_forkserver_preload(["warp_spt.runtime.forkserver_preload",
+                                                               "distributed", "numpy"])
             multiprocessing.forkserver.ensure_running()
         yield
 
@@ -140,6 +144,11 @@ def run_cli(opts, err, started: float | None = None) -> int:
     frames = opts.frames or (path.frames if path is not None else seq.default_frames() or range(0, 1))
     for k in frames:                       # every frame's inputs and outputs, before any rendering
         check_files(seq.paths(k), mtls, frame_path(opts.out, k) if opts.out else None)
+    hidden = set(seq.check(frames))        # and every frame's pose
+    shown = [k for k in frames if k not in hidden]
+
+    def standin():                         # what a leading frame that hides everything is viewed as
+        return seq.scene(shown[0]) if shown else None
     if opts.gif:                           # written after the last frame: checked before the first
         check_files((), (), opts.gif, "--gif")
     init_warp(opts)
@@ -161,12 +170,11 @@ def run_cli(opts, err, started: float | None = None) -> int:
     if opts.animated:
         def images(client, progress):
             return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
-                                    progress=progress, view=frame_view(opts, say))
+                                    progress=progress, view=frame_view(opts, say, standin))
     else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
         from warp_spt.cli.common import CompileNotice
-        from warp_spt.cli.view_checks import _view
         with CompileNotice(say):
-            scene, camera, sky = _view(opts, with_flag_lights(opts, first), say)
+            scene, camera, sky = frame_view(opts, say, standin)(first, opts.camera)
         opts = replace(opts, camera=camera, sky=sky)
         if opts.budget.active:
             return _run_budgeted(opts, scene, say, started)

@@ -19,7 +19,7 @@ from warp_spt.cli.light_flags import add_light_flags, light_options
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
-from warp_spt.scene.limits import MAX_DEPTH, MAX_SPP, MAX_THREADS  # the API's caps (settings.check_args)
+from warp_spt.scene.limits import MAX_DEPTH, MAX_FPS, MAX_RADIANCE, MAX_SPP, MAX_THREADS, MIN_FPS  # the API's caps (settings.check_args)
 from warp_spt.runtime.extras import install_hint
 from warp_spt.scene.sky import Sky
 
@@ -106,8 +106,8 @@ def _env_options(ns) -> EnvOptions | None:
         return None
     if not ns.env.strip():
         raise UsageError("--env needs a file name, got an empty one")
-    if ns.env_strength is not None and ns.env_strength < 0:
-        raise UsageError(f"--env-strength must be >= 0, got {ns.env_strength:g}")
+    if ns.env_strength is not None and not 0 <= ns.env_strength <= MAX_RADIANCE:   # the Sky's own bound
+        raise UsageError(f"--env-strength must lie in [0, {MAX_RADIANCE:g}], got {ns.env_strength:g}")
     if ns.env_background is not None and min(ns.env_background) < 0:
         raise UsageError("--env-background colour values must be >= 0")
     plus = None if ns.sky is None and ns.sky_color is None else _sky(ns.sky, ns.sky_color, DEFAULT_SKY)
@@ -613,8 +613,8 @@ def with_animation_options(opts, ns, *, explicit_out: bool):
         frames = parse_frames(ns.frames) if ns.frames is not None else None
     except ValueError as err:
         raise UsageError(f"argument --frames: {err}") from None
-    if not 0 < ns.fps <= 1e6:
-        raise UsageError(f"--fps must lie in (0, 1e6], got {ns.fps:g}")
+    if not MIN_FPS <= ns.fps <= MAX_FPS:
+        raise UsageError(f"--fps must lie in [{MIN_FPS:g}, {MAX_FPS:g}], got {ns.fps:g}")
     opts = replace(opts, cluster=ns.cluster, workers=ns.workers, frames=frames, camera_path=ns.camera_path,
                    gif=ns.gif, fps=ns.fps)
     check_budget_flags(opts)

@@ -46,14 +46,20 @@ def prepare_view(opts, scene, say, notice: "CompileNotice | None" = None) -> tup
     return DeviceScene(scene), camera, sky
 
 
-def frame_view(opts, say):
+def frame_view(opts, say, standin=None):
     """The view of each frame of an animation: :func:`_view`, the very preparation of a single image,
     with the frame's camera; a camera path, like -cam, is never replaced by framing, but its up
     axis is the model's (Y for a standard OBJ, Z for the seed's scenes; --up to choose), said once.
-    A message that every frame repeats is said once."""
+    A message that every frame repeats is said once.
+
+    A frame whose objects are all hidden (:attr:`Scene.hidden`) has nothing to frame or to stand a
+    studio ground under: it is viewed as the last frame that has something (before the first,
+    ``standin()``'s scene), with that frame's objects taken out and its own lights; with neither, through
+    the camera as given."""
     fixed = opts.cam_given or bool(opts.camera_path)
     said: set[str] = set()
     lit: list = [None, None]        # (a frame's loaded scene, it with the flags' lights): one upload while it stays
+    shown: list = [None]            # the last frame's scene that has something to draw
 
     def say_once(msg: str) -> None:
         if msg not in said:
@@ -61,9 +67,26 @@ def frame_view(opts, say):
             say(msg)
 
     def view(scene, camera):
+        if scene.hidden:
+            return hidden_view(scene, camera)
+        shown[0] = scene
         if lit[0] is not scene:
             lit[:] = [scene, with_flag_lights(opts, scene)]
         return _view(replace(opts, camera=camera, cam_given=fixed), lit[1], say_once)
+
+    def hidden_view(scene, camera):
+        if shown[0] is None and standin is not None:
+            shown[0] = standin()
+        source = shown[0]
+        if source is None:
+            return with_flag_lights(opts, scene), camera, None
+        own = replace(source, lights=scene.lights, fog=scene.fog, sky=scene.sky)
+        prepared, cam, sky = _view(replace(opts, camera=camera, cam_given=fixed), with_flag_lights(opts, own),
+                                   say_once)
+        # the preparation (recentring, the studio) keeps the scene's own geometry first, in order
+        n_spheres = len(source.spheres)
+        return replace(prepared, meshes=prepared.meshes[len(source.meshes):], spheres=prepared.spheres[n_spheres:],
+                       sphere_material=prepared.sphere_material[n_spheres:], hidden=True), cam, sky
     return view
 
 

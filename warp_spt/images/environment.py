@@ -46,13 +46,9 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
             return read_hdr(p)
         if ext == ".pfm":
             from warp_spt.images.files import read_pfm
-            return read_pfm(p)
+            return read_pfm(p, max_texels=TEXEL_BUDGET)
         if ext == ".npy":
-            _check_npy_header(p)
-            img = np.load(p, allow_pickle=False)
-            if not np.issubdtype(img.dtype, np.number):
-                raise ValueError(f"{path}: expected a numeric (H, W, 3) array, got dtype {img.dtype}")
-            return img.astype(np.float32)
+            return _read_npy(p)
         if ext == ".exr":
             try:
                 import OpenEXR
@@ -60,6 +56,9 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
                 from warp_spt.runtime.extras import install_hint
                 raise ValueError(f"{path}: reading .exr needs the optional 'openexr' package: "
                                  f"{install_hint('exr')}") from None
+            with OpenEXR.File(str(p), header_only=True) as head:     # the size before any pixel is decoded
+                (x0, y0), (x1, y1) = head.header()["dataWindow"]
+            _check_size(path, int(x1) - int(x0) + 1, int(y1) - int(y0) + 1)
             with OpenEXR.File(str(p)) as exr:
                 channels = exr.channels()
                 if "RGB" not in channels:
@@ -70,11 +69,13 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
 
         with Image.open(p) as im:
             _check_size(path, *im.size)              # from the header, before anything is decoded
-            img = np.asarray(im.convert("RGB"), dtype=np.uint8)
+            rgb = im if im.mode == "RGB" else im.convert("RGB")
+            img = np.asarray(rgb, dtype=np.uint8)
+            del rgb
         if warn is not None:
             warn(f"{path}: an 8-bit image is a low-dynamic-range environment (radiance at most 1, its bright "
                  "parts clipped): lighting from it is flatter than from an .hdr or .exr map")
-        return srgb_to_linear(img / 255.0).astype(np.float32)
+        return _SRGB_LUT[img]           # a table of the 256 values: 12 bytes a texel, not float64 temporaries
     except ValueError as err:
         if str(err).startswith((f"{path}: ", f"{p}: ")):     # ours, already naming the file
             raise
@@ -84,6 +85,39 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
         raise ValueError(f"{path}: cannot read the environment map: {text}") from None
 
 
+_SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+
+# The budgets of peak memory while a map is read, in bytes a texel, the float32 RGB result's 12
+# included (tests/hardening/test_reader_memory.py measures a subprocess's peak RSS for 2 million
+# texels): .hdr 24 (measured 19: the file, its RGBE pixels and the image, decoded a block of rows at a
+# time; 68 when decoded at once), an 8-bit PNG 24 (20: Pillow's decoded image and a uint8 copy beside
+# the result, through a table; 107 through float64 arithmetic), .npy 20 whatever its dtype (16: read a
+# block of rows at a time; a float64 map read whole, then converted, took 36)
+READ_BYTES_PER_TEXEL = {".hdr": 24, ".png": 24, ".npy": 20}
+NPY_BLOCK_BYTES = 1 << 22
+NPY_HEADER_BYTES = 1 << 16      # numpy writes headers of about 128 bytes
+
+
+def _read_npy(p: Path) -> np.ndarray:
+    """An .npy map as float32, its shape and dtype checked from the header and its data read a block
+    of rows at a time (a float64 map is never whole in memory as float64)."""
+    with open(p, "rb") as f:
+        shape, fortran, dtype = _npy_header(f, p)
+        if fortran or dtype.hasobject:
+            raise ValueError(f"{p}: expected a C-ordered numeric (H, W, 3) array")
+        h, w = shape[0], shape[1]
+        out = np.empty((h, w, 3), dtype=np.float32)
+        rows = max(1, NPY_BLOCK_BYTES // max(1, w * 3 * dtype.itemsize))
+        for r in range(0, h, rows):
+            n = min(rows, h - r)
+            block = np.fromfile(f, dtype=dtype, count=n * w * 3)
+            if block.size != n * w * 3:
+                raise ValueError(f"{p}: the array's data ends at row {r + block.size // (w * 3)} of {h}")
+            with np.errstate(over="ignore"):     # beyond float32: infinite, which the map's check refuses by name
+                out[r:r + n] = block.reshape(n, w, 3)
+    return out
+
+
 def _check_size(path, width: int, height: int) -> None:
     """The texel budget, from the size a header gives (a PNG of 220 KB once decoded to 3.9 GB)."""
     if width * height > TEXEL_BUDGET:
@@ -91,20 +125,29 @@ def _check_size(path, width: int, height: int) -> None:
                          f"{TEXEL_BUDGET:,}")
 
 
-def _check_npy_header(p: Path) -> None:
-    """An .npy map's shape and type from its header, before its data is read."""
-    with open(p, "rb") as f:
-        try:
-            version = np.lib.format.read_magic(f)
-            shape, _, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
-                               else np.lib.format.read_array_header_2_0(f))
-        except ValueError as err:
-            raise ValueError(f"{p}: not an .npy array: {' '.join(str(err).split())}") from None
+def _npy_header(f, p: Path):
+    """An .npy map's (shape, fortran order, dtype) from its header, checked before its data is read."""
+    try:
+        version = np.lib.format.read_magic(f)
+        # numpy reads a header of the length it declares before it checks that length (4 GB for
+        # four forged bytes): the version and the length are checked here first
+        size = 2 if version == (1, 0) else 4
+        start = f.tell()
+        length = int.from_bytes(f.read(size), "little")
+        if version not in ((1, 0), (2, 0), (3, 0)) or length > NPY_HEADER_BYTES:
+            raise ValueError(f"version {version[0]}.{version[1]} with a header of {length:,} bytes (expected "
+                             f"1.0, 2.0 or 3.0 and at most {NPY_HEADER_BYTES:,})")
+        f.seek(start)
+        shape, fortran, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
+                                 else np.lib.format.read_array_header_2_0(f))
+    except ValueError as err:
+        raise ValueError(f"{p}: not an .npy array: {' '.join(str(err).split())}") from None
     if len(shape) != 3 or shape[2] != 3:
         raise ValueError(f"{p}: an environment map must be an RGB image (height, width, 3), got shape {shape}")
     if not np.issubdtype(dtype, np.number):
         raise ValueError(f"{p}: expected a numeric (H, W, 3) array, got dtype {dtype}")
     _check_size(p, shape[1], shape[0])
+    return shape, fortran, dtype
 
 
 def load_environment(path: str | os.PathLike, rotate: float = 0.0, strength: float = 1.0, background=None,

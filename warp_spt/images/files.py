@@ -236,8 +236,10 @@ def _pfm_header(f: BinaryIO, path) -> list[bytes]:
     return tokens      # exactly one whitespace byte follows the scale, as the spec requires
 
 
-def read_pfm(path: str | os.PathLike) -> np.ndarray:
-    """Read a PFM file ("PF" colour or "Pf" grey, either byte order) as float32 (H, W, 3), row 0 = top."""
+def read_pfm(path: str | os.PathLike, max_texels: int | None = None) -> np.ndarray:
+    """Read a PFM file ("PF" colour or "Pf" grey, either byte order) as float32 (H, W, 3), row 0 = top.
+    The size its header declares is checked against the file's bytes (and ``max_texels``) before
+    anything is read or allocated."""
     with open(path, "rb") as f:
         kind, w, h, scale = _pfm_header(f, path)
         if kind not in (b"PF", b"Pf"):
@@ -250,6 +252,13 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
             raise ValueError(f"{path}: invalid PFM size {width}x{height} or scale {s}")
         channels = 3 if kind == b"PF" else 1
         count = width * height * channels
+        if max_texels is not None and width * height > max_texels:
+            raise ValueError(f"{path}: {width}x{height} = {width * height:,} texels, more than the texel budget "
+                             f"of {max_texels:,}")
+        left = os.fstat(f.fileno()).st_size - f.tell()
+        if left < 4 * count:          # a header of 10^6 x 5x10^5 was read as 6 TB: "out of memory"
+            raise ValueError(f"{path}: the PFM header declares {width}x{height}x{channels} floats: expected "
+                             f"{4 * count} bytes of data after it, the file holds {left:,}")
         raw = f.read(4 * count)
     if len(raw) != 4 * count:
         raise ValueError(f"{path}: PFM data holds {len(raw)} bytes, expected {4 * count} ({width}x{height}x{channels} floats)")

@@ -91,11 +91,29 @@ def decode_rgbe(rgbe: np.ndarray) -> np.ndarray:
     return ((rgbe[..., :3].astype(np.float64) + 0.5) * scale[..., None]).astype(np.float32)
 
 
-def read_hdr(path: str | os.PathLike) -> np.ndarray:
-    """A .hdr file as (H, W, 3) float32 radiance, row 0 the top (HdrError naming the file otherwise)."""
-    with open(path, "rb") as f:
-        data = f.read()
+# the RGBE pixels are decoded to float32 this many texels at a time (the temporaries take 60 bytes a
+# texel; decoding the whole image at once made the reader's peak 68 bytes a texel, now 20: see
+# images.environment.READ_BYTES_PER_TEXEL)
+DECODE_BLOCK_TEXELS = 1 << 16
+
+
+def read_hdr(path: str | os.PathLike, max_texels: int | None = None) -> np.ndarray:
+    """A .hdr file as (H, W, 3) float32 radiance, row 0 the top (HdrError naming the file otherwise).
+    Only a regular file is read; its size from the header is checked against ``max_texels``
+    (default the texel budget) before anything is allocated."""
+    from warp_spt.io.tokens import read_file
+    from warp_spt.scene.atlas_layout import TEXEL_BUDGET
+    from warp_spt.scene.errors import SceneError
+
+    budget = TEXEL_BUDGET if max_texels is None else max_texels
+    try:    # run-length lines are at most 1/128 longer than flat ones, plus a marker each
+        data = read_file(str(path), "Radiance .hdr", binary=True,
+                         limit=(4 * budget * 129) // 128 + 4 * MAX_SIDE + (1 << 20))
+    except SceneError as err:
+        raise HdrError(str(err)) from None
     h, w, bottom_up, pos = _header(data, path)
+    if h * w > budget:
+        raise HdrError(f"{path}: {w}x{h} = {h * w:,} texels, more than the texel budget of {budget:,}")
     pixels = np.empty((h, w, 4), dtype=np.uint8)
     for row in range(h):
         rle = 8 <= w <= 32767 and data[pos:pos + 2] == b"\x02\x02" and (len(data) > pos + 2 and data[pos + 2] < 128)
@@ -115,8 +133,16 @@ def read_hdr(path: str | os.PathLike) -> np.ndarray:
                            "not read; re-save the file with a current tool")
         pixels[row] = line
         pos += 4 * w
-    img = decode_rgbe(pixels)
-    return img[::-1].copy() if bottom_up else img
+    del data
+    img = np.empty((h, w, 3), dtype=np.float32)
+    rows = max(1, DECODE_BLOCK_TEXELS // w)
+    for r in range(0, h, rows):                    # decoded a block at a time: see READ_BYTES_PER_TEXEL
+        block = decode_rgbe(pixels[r:r + rows])
+        if bottom_up:                              # flipped as it is written: no second image
+            img[h - r - len(block):h - r] = block[::-1]
+        else:
+            img[r:r + len(block)] = block
+    return img
 
 
 def encode_rgbe(img: np.ndarray) -> np.ndarray:

@@ -56,6 +56,7 @@ _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126:
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
           6: "triangle fans"}
+MAX_UV = 1e30          # transformed texture coordinates: float32 with room to spare (1e39 became inf)
 SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_lights_punctual",
                         "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission",
                         "KHR_materials_volume", "KHR_materials_specular", "KHR_materials_anisotropy"}
@@ -76,6 +77,7 @@ class GltfCamera:
     yfov: float
     aspect: float | None
     znear: float
+    kind: str = "perspective"    # another type (orthographic) is listed but cannot be looked through
 
     def fov_degrees(self, width: int, height: int) -> float:
         """The full horizontal angle for an image of ``width`` x ``height`` (the renderer's ``fov``)."""
@@ -150,6 +152,8 @@ class GltfExtras:
     placed: list[tuple[ObjData, np.ndarray]] = field(default_factory=list)
     # the first animation's time range in seconds (None: the file has no animation)
     time_range: tuple[float, float] | None = None
+    # placements of meshes scaled to nothing (a common way to hide an object), not drawn
+    hidden: int = 0
 
 
 def world_triangles(d: ObjData) -> tuple[np.ndarray, np.ndarray]:
@@ -510,12 +514,14 @@ class _Reader:
                     # flattened triangles of zero area would not be drawn
                     if abs(np.linalg.det(world[:3, :3])) > 1e-30:
                         placed[mesh][1].append(world)
+                    else:
+                        extras.hidden += 1
                     continue
             for prim_k, prim in enumerate(self._primitives(mesh)):
                 pptr = f"/meshes/{mesh}/primitives/{prim_k}"
                 mat = self.index(prim, "material", pptr, "materials")
                 if mat not in material_rows:
-                    name, material = self._material(mat, names)
+                    name, material = self._checked_material(mat, names)
                     material_rows[mat] = len(names)
                     names.append(name)
                     materials[name] = material
@@ -543,7 +549,7 @@ class _Reader:
             if part[4] is not None:
                 return None
             if mat not in material_rows:
-                name, material = self._material(mat, names)
+                name, material = self._checked_material(mat, names)
                 material_rows[mat] = len(names)
                 names.append(name)
                 materials[name] = material
@@ -904,7 +910,11 @@ class _Reader:
         scale = self.numbers(tt, "scale", ptr, 2, [1.0, 1.0])
         c, s = math.cos(rotation), math.sin(rotation)
         su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
-        return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
+        out = np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
+        if not np.abs(out).max(initial=0.0) <= MAX_UV:       # stored as float32 (also NaN)
+            raise _err(self.path, ptr, f"offset {offset} and scale {scale} take texture coordinates beyond "
+                       f"+-{MAX_UV:g}")
+        return out
 
     def _image(self, tex: int, ptr: str) -> TextureRef:
         t = self.item("textures", tex)
@@ -926,6 +936,17 @@ class _Reader:
             raise _err(self.path, iptr, "an image needs a 'uri' or a 'bufferView'")
         buf, off, length, _ = self.view(view)
         return TextureRef(name, self.path, 0, image=buf[off:off + length])
+
+    def _checked_material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
+        """:meth:`_material`, its values within the material schema's ranges (SceneError naming the
+        file, the material's pointer and name, and the field)."""
+        from warp_spt.scene.model import MaterialValueError
+
+        try:
+            return self._material(mat, names)
+        except MaterialValueError as err:   # its name is "FILE: NAME"; the file is named already
+            raise _err(self.path, f"/materials/{mat}" if mat is not None else "",
+                       f"material {err.name.split(': ', 1)[-1]!r}: {err.problem}") from None
 
     def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
         """A unique name and a material of the ``pbr`` kind: glTF's metallic-roughness model and the
@@ -1041,7 +1062,8 @@ class _Reader:
         if direction is None or up is None:
             raise _err(self.path, f"/nodes/{node}", "the camera's node transform is singular")
         return GltfCamera(name=name, index=k, node=node, position=tuple(float(c) for c in world[:3, 3]), direction=direction, up=up,
-                          yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0))
+                          yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0),
+                          kind=kind)
 
     def _light(self, ref: dict, ptr: str, world: np.ndarray) -> GltfLight:
         k = self.get(ref, "light", int, ptr, required=True)
@@ -1055,7 +1077,7 @@ class _Reader:
         if kind not in ("point", "spot", "directional"):
             raise _err(self.path, f"{lptr}/type", f"expected point, spot or directional, got {kind!r}")
         spot = self.obj(light, "spot", lptr)
-        return GltfLight(
+        out = GltfLight(
             name=self.get(light, "name", str, lptr, ""), kind=kind,
             color=tuple(self.numbers(light, "color", lptr, 3, [1.0, 1.0, 1.0])),
             intensity=self.get(light, "intensity", float, lptr, 1.0),
@@ -1063,6 +1085,21 @@ class _Reader:
             range=self.get(light, "range", float, lptr),
             inner_cone=self.get(spot, "innerConeAngle", float, f"{lptr}/spot", 0.0),
             outer_cone=self.get(spot, "outerConeAngle", float, f"{lptr}/spot", math.pi / 4))
+        # the extension's ranges, each naming its member; then the renderer's light's own bounds
+        if not all(0.0 <= c <= 1.0 for c in out.color):
+            raise _err(self.path, f"{lptr}/color", f"each component must lie in [0, 1] (linear RGB), got {list(out.color)}")
+        if not out.intensity >= 0.0:
+            raise _err(self.path, f"{lptr}/intensity", f"must be at least 0, got {out.intensity:g}")
+        if out.range is not None and not out.range > 0.0:
+            raise _err(self.path, f"{lptr}/range", f"must be above 0, got {out.range:g}")
+        if kind == "spot" and not 0.0 <= out.inner_cone < out.outer_cone <= math.pi / 2:
+            raise _err(self.path, f"{lptr}/spot", f"expected 0 <= innerConeAngle < outerConeAngle <= pi/2 (radians), "
+                       f"got {out.inner_cone:g} and {out.outer_cone:g}")
+        try:
+            out.to_scene()
+        except ValueError as err:
+            raise _err(self.path, lptr, str(err)) from None
+        return out
 
     # ----------------------------------------------------------------------------------- the object
 
@@ -1249,8 +1286,12 @@ def choose_camera(cameras: list[GltfCamera], choice: str | int, width: int, heig
     elif text.lstrip("-").isdigit() and 0 <= int(text) < len(cameras):
         cam = cameras[int(text)]
     else:
-        listed = ", ".join(f"{k}: {n!r}" if n else f"{k}" for k, n in enumerate(names))
-        raise ValueError(f"no camera {text!r}; the files have {listed}")
+        listed = ", ".join(f"{k}: {n!r}" if n else f"{k} (unnamed)" for k, n in enumerate(names))
+        raise ValueError(f"no camera {text!r}; the files have {len(cameras)} camera{'s' * (len(cameras) > 1)}: "
+                         f"{listed}")
+    if cam.kind != "perspective":
+        raise ValueError(f"camera {text!r} is {cam.kind} (/cameras/{cam.index}); only perspective cameras can be "
+                         "looked through")
     camera = Camera(position=cam.position, direction=cam.direction, fov=cam.fov_degrees(width, height),
                     aperture=0.0, focus=1.0, up=cam.up)
     camera.validate()

@@ -81,7 +81,8 @@ DEFAULT_MATERIALS = ("checker", "clay", "auto")
 
 
 def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = (), *, warn: WarnFn | None = None,
-               default_material: str = "checker", smooth_angle: float | str | None = None) -> Scene:
+               default_material: str = "checker", smooth_angle: float | str | None = None,
+               hidden_ok: bool = False) -> Scene:
     """Read OBJ files (one object each) and MTL files into a validated :class:`Scene`.
 
     An item of ``objs`` may also be an already parsed :class:`ObjData` (animations re-use static files).
@@ -91,7 +92,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     is in the seed's dialect; None or 0: flat, as the seed.
 
     Raises :class:`SceneError` (file, line, what was expected) for unreadable or bad input,
-    including a scene with no triangles and no spheres. See the module docs for the rules.
+    including a scene with no triangles and no spheres. With ``hidden_ok`` (an animation's frame), a
+    scene whose every mesh placement is scaled to nothing is a :attr:`Scene.hidden` scene instead,
+    rendered empty. See the module docs for the rules.
     """
     for what, given in (("objs", objs), ("mtls", mtls)):
         if isinstance(given, (str, bytes, os.PathLike)):      # iterated, a path is its characters
@@ -109,7 +112,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     mtls = [str(p) for p in mtls]
     map_large_allocations()        # a large model's freed temporaries go back to the system
     data = [p if isinstance(p, ObjData) else read_model(p) for p in objs]   # parsed ones: OBJ sequences
-    _require_geometry(data)
+    hidden = _require_geometry(data, hidden_ok)
     for d in data:
         for message in d.warnings:
             note(message)
@@ -120,8 +123,13 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
     textures = _TextureCache(note)
+    meshes, sources = [], []             # each mesh and the file it came from (named in its errors)
+    for d, rows in zip(data, obj_rows):
+        for m in _meshes(d, rows, note, angle):
+            meshes.append(m)
+            sources.append(d.path)
     scene = Scene(
-        meshes=[m for d, rows in zip(data, obj_rows) for m in _meshes(d, rows, note, angle)],
+        meshes=meshes,
         spheres=np.concatenate([d.spheres for d in data]) if data else np.zeros((0, 4), np.float64),
         sphere_material=np.concatenate([rows[d.sphere_material] for d, rows in zip(data, obj_rows)]
                                        ).astype(np.int32) if data else np.zeros(0, np.int32),
@@ -135,8 +143,15 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
         lights=[c.to_scene() for d in data for c in getattr(d.extras, "lights", ())],
         interiors={m.name: m.interior for m in table_rows if m.interior is not None},
+        hidden=hidden,
     )
-    validate_scene(scene)       # zero-area triangles dropped: counted, not news (a UV sphere's poles)
+    try:
+        validate_scene(scene)   # zero-area triangles dropped: counted, not news (a UV sphere's poles)
+    except SceneError as err:   # a mesh's problem (a PLY's or glTF's edge too long): its file named
+        k = _mesh_index(err.message)
+        if k is None or k >= len(sources):
+            raise
+        raise SceneError(sources[k], 0, err.message.split(": ", 1)[-1]) from None
     for message in open_boundary_warnings(scene):
         note(message)
     return scene
@@ -174,15 +189,28 @@ def _kind_by_content(path: str) -> str | None:
     return kind
 
 
-def _require_geometry(data: list[ObjData]) -> None:
-    """A scene with nothing to draw is an error that names every OBJ file and says why."""
+def _mesh_index(message: str) -> int | None:
+    """k of a validation message about ``meshes[k] (NAME): ...``, or None."""
+    if not message.startswith("meshes["):
+        return None
+    k = message[7:message.find("]")]
+    return int(k) if k.isdigit() else None
+
+
+def _require_geometry(data: list[ObjData], hidden_ok: bool = False) -> bool:
+    """A scene with nothing to draw is an error that names every OBJ file and says why; with
+    ``hidden_ok``, one that has nothing because its objects are scaled to nothing is hidden (True)."""
     if any(len(d.faces) or len(d.spheres) or _placed(d) for d in data):
-        return
+        return False
+    if hidden_ok and any(getattr(d.extras, "hidden", 0) for d in data):
+        return True
     if not data:
         raise SceneError(None, 0, "the scene has no geometry: no OBJ files were given")
     reasons = []
     for d in data:
-        if d.dropped_degenerate:
+        if getattr(d.extras, "hidden", 0):
+            why = f"its {d.extras.hidden} mesh placement(s) are scaled to nothing"
+        elif d.dropped_degenerate:
             why = f"all {d.dropped_degenerate} triangles have zero area"
         elif len(d.positions) and Path(d.path).suffix.lower() in (".ply", ".gltf", ".glb"):
             why = f"{len(d.positions)} vertices but no faces"

@@ -166,7 +166,11 @@ def read_file(path: str, kind: str, *, limit: int | None = None, binary: bool = 
                 raise SceneError(path, 0, f"{kind} file is larger than the {_size(limit)} limit")
             if not binary:
                 normalise_text(head, path, kind)       # binary data is refused from its first bytes
-            data = head + f.read(limit + 1 - len(head))
+            # what the file holds, and one byte more to see it grow: f.read(n) allocates n bytes up
+            # front (a limit of 128 MiB was taken for a grid of 64 KB)
+            data = head + f.read(max(min(limit, info.st_size) + 1 - len(head), 0))
+            if len(data) > info.st_size:            # it grew since fstat: read on up to the limit
+                data += f.read(max(limit + 1 - len(data), 0))
     except OSError as err:
         raise SceneError(path, 0, f"cannot read {kind} file: {_reason(err)}") from None
     finally:

@@ -13,15 +13,18 @@ one step and thin ones with few tentative collisions. Outside the grid's box the
 from __future__ import annotations
 
 import os
+import struct
+import zlib
 from types import SimpleNamespace
 
 import numpy as np
 import warp as wp
 
 from warp_spt.device.media_table import Media
+from warp_spt.io.tokens import read_file
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.limits import MAX_COORDINATE
-from warp_spt.scene.media import MAX_GRID_VOXELS, Medium, check_densities
+from warp_spt.scene.media import MAX_GRID_BYTES, MAX_GRID_VOXELS, Medium, check_densities
 
 NAME = "grid"
 # a grid's index-to-world matrix may stretch one axis up to this much more than another (a voxel a
@@ -108,11 +111,9 @@ def load_grid(medium: Medium, device: str, where: str):
     src = medium.density
     if isinstance(src, (str, bytes)) or hasattr(src, "__fspath__"):
         path = os.fsdecode(src)
-        try:
-            with open(path, "rb") as f:
-                data = f.read()
-        except OSError as err:
-            raise SceneError(path, 0, f"cannot read the density grid ({err.strerror or err})") from None
+        # a regular file (not /dev/zero) of at most MAX_GRID_BYTES, whose zip chunks are inflated here
+        # within that budget: Warp's loader inflates them without a bound (4.2 MB took it to 8.7 GB)
+        data = nvdb_uncompressed(read_file(path, "density grid", limit=MAX_GRID_BYTES, binary=True), path)
         try:
             vol = wp.Volume.load_from_nvdb(data, device=device)
             kind = vol.get_grid_info().type_str
@@ -143,6 +144,55 @@ def load_grid(medium: Medium, device: str, where: str):
                                     device=device)
     ijk = np.argwhere(a != 0).astype(np.int32)
     return vol, ijk, a[a != 0]
+
+
+def nvdb_uncompressed(data: bytes, path: str) -> bytes:
+    """The NanoVDB file ``data`` with its grids uncompressed (codec 0). Every size in the header is
+    checked against the bytes before it is used, the grids' uncompressed size (each grid's metadata
+    says it) against MAX_GRID_BYTES, and inflating stops there: a chunk that would give more is
+    refused, whatever its compression ratio. Data that is not a NanoVDB file is returned as it is,
+    for Warp's own message."""
+    if len(data) < 16 or data[:8] not in (b"NanoVDB0", b"NanoVDB2"):
+        return data
+    count, codec = struct.unpack("<HH", data[12:16])
+    offset, raw, stored, meta = 16, 0, 0, []
+    for k in range(count):
+        if offset + 176 > len(data):
+            raise SceneError(path, 0, f"the header of grid {k} ends past the file's {len(data):,} bytes")
+        grid_size, file_size = struct.unpack("<QQ", data[offset:offset + 16])    # uncompressed, as stored
+        raw, stored = raw + grid_size, stored + file_size
+        meta.append(offset)
+        offset += 176 + struct.unpack("<I", data[offset + 136:offset + 140])[0]
+    start = offset
+    if raw > MAX_GRID_BYTES:
+        raise SceneError(path, 0, f"the grids hold {raw:,} bytes, over the budget of {MAX_GRID_BYTES:,}")
+    if codec != 1:          # none (0), or blosc (2), for which Warp needs the blosc module and says so
+        return data
+    out = bytearray()
+    while offset < start + stored:
+        size = struct.unpack("<Q", data[offset:offset + 8])[0] if offset + 8 <= len(data) else None
+        if size is None or offset + 8 + size > len(data):
+            raise SceneError(path, 0, f"a compressed chunk at byte {offset:,} runs past the end of the file")
+        inflate = zlib.decompressobj()
+        try:
+            part = inflate.decompress(data[offset + 8:offset + 8 + size], raw - len(out) + 1)
+        except zlib.error as err:
+            raise SceneError(path, 0, f"a compressed chunk is not valid zip data ({err})") from None
+        if len(out) + len(part) > raw or inflate.unconsumed_tail:
+            raise SceneError(path, 0, f"the compressed grids inflate to more than the {raw:,} bytes their "
+                             "header declares")
+        out += part
+        offset += 8 + size
+    if len(out) != raw:
+        raise SceneError(path, 0, f"the compressed grids inflate to {len(out):,} bytes; their header declares {raw:,}")
+    head = bytearray(data[:start])
+    head[14:16] = struct.pack("<H", 0)
+    for m in meta:                           # stored sizes are the uncompressed ones now, and no codec
+        head[m + 8:m + 16] = head[m:m + 8]
+        head[m + 168:m + 170] = b"\0\0"
+    head += out
+    del out
+    return bytes(head)
 
 
 def transform_problem(vol: wp.Volume) -> str | None:

@@ -87,7 +87,7 @@ class Probe:
 
 @kernel_cache.memoize("view checks")
 def _kernels():
-    """The probe's two kernels, built on first use so that importing this module needs no Warp."""
+    """The probe's kernels, built on first use so that importing this module needs no Warp."""
     import warp as wp
 
     @wp.kernel
@@ -105,7 +105,24 @@ def _kernels():
         if q.result and q.sign < 0.0:
             inside[0] = 1
 
-    return probe_mesh, inside_mesh
+    @wp.kernel
+    def probe_placed(mesh: wp.uint64, boxes: wp.uint64, inv: wp.array(dtype=wp.mat33), shift: wp.array(dtype=wp.vec3),
+                     origin: wp.vec3, dirs: wp.array(dtype=wp.vec3), t_best: wp.array(dtype=float)):
+        # an instanced mesh: the placements whose world boxes the ray crosses (a BVH over the boxes),
+        # the ray in each one's object space, its direction unnormalised so that t stays the world distance
+        i = wp.tid()
+        d = dirs[i]
+        best = t_best[i]
+        q = wp.bvh_query_ray(boxes, origin, d)
+        k = int(0)
+        while wp.bvh_query_next(q, k, best):
+            a = inv[k]
+            h = wp.mesh_query_ray(mesh, a * (origin - shift[k]), a * d, best)
+            if h.result and h.t < best:
+                best = h.t
+        t_best[i] = best
+
+    return probe_mesh, inside_mesh, probe_placed
 
 
 def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | None = None,
@@ -129,19 +146,23 @@ def probe(scene: Scene, camera: Camera, width: int = PROBE_SIZE, height: int | N
                 continue
             mesh = wp.Mesh(points=wp.array(np.asarray(m.positions, np.float32), dtype=wp.vec3, device=device),
                            indices=wp.array(m.indices.reshape(-1), dtype=wp.int32, device=device))
-            # an instanced mesh: the rays go into each placement's object space, directions left
-            # unnormalised so that t stays the world distance
-            for x in (None,) if m.transforms is None else m.transforms:
-                o, dd = origin, d_dirs
-                if x is not None:
-                    inv = np.linalg.inv(x[:3, :3])
-                    o = inv @ (origin - x[:3, 3])
-                    dd = wp.array((flat @ inv.T).astype(np.float32), dtype=wp.vec3, device=device)
-                t_best = wp.full(len(flat), 1e30, dtype=float, device=device)
-                wp.launch(_kernels()[0], dim=len(flat), device=device,
-                          inputs=[mesh.id, wp.vec3(*o.astype(np.float32).tolist()), dd, t_best])
-                tm = t_best.numpy().astype(np.float64)
-                t = np.minimum(t, np.where(tm < 1e29, tm, np.inf))
+            t_best = wp.full(len(flat), 1e30, dtype=float, device=device)
+            o = wp.vec3(*origin.astype(np.float32).tolist())
+            if m.transforms is None:
+                wp.launch(_kernels()[0], dim=len(flat), device=device, inputs=[mesh.id, o, d_dirs, t_best])
+            else:       # one launch for every placement: host work per placement is a few array rows
+                boxes = m.placement_bounds()
+                pad = 1e-5 * (np.abs(boxes).max(axis=(1, 2)) + 1e-30)[:, None]    # float32 rounding, outward
+                boxes = np.stack([boxes[:, 0] - pad, boxes[:, 1] + pad], axis=1)
+                bvh = wp.Bvh(wp.array(boxes[:, 0].astype(np.float32), dtype=wp.vec3, device=device),
+                             wp.array(boxes[:, 1].astype(np.float32), dtype=wp.vec3, device=device))
+                inv = np.linalg.inv(m.transforms[:, :3, :3])
+                wp.launch(_kernels()[2], dim=len(flat), device=device,
+                          inputs=[mesh.id, bvh.id, wp.array(inv.astype(np.float32), dtype=wp.mat33, device=device),
+                                  wp.array(m.transforms[:, :3, 3].astype(np.float32), dtype=wp.vec3, device=device),
+                                  o, d_dirs, t_best])
+            tm = t_best.numpy().astype(np.float64)
+            t = np.minimum(t, np.where(tm < 1e29, tm, np.inf))
     for c, r in zip(scene.spheres[:, :3].astype(np.float64), scene.spheres[:, 3].astype(np.float64)):
         t = np.minimum(t, _sphere_hits(origin, flat, c, r))
     return Probe(t.reshape(height, width), dirs)
@@ -178,11 +199,13 @@ def enclosing_object(scene: Scene, point: Sequence[float], device: str = "cpu") 
         if not len(m.indices):
             continue
         lo, hi = m.positions.min(0).astype(np.float64), m.positions.max(0).astype(np.float64)
-        # an instanced mesh: the point in each placement's object space (inside is kept by any affine map)
-        for x in (None,) if m.transforms is None else m.transforms:
-            q = p if x is None else np.linalg.solve(x[:3, :3], p - x[:3, 3])
-            if np.any(q < lo) or np.any(q > hi):
-                continue
+        # an instanced mesh: the point in every placement's object space at once (inside is kept by
+        # any affine map); only the placements whose box holds it are asked
+        if m.transforms is None:
+            local = p[None]
+        else:
+            local = np.linalg.solve(m.transforms[:, :3, :3], (p - m.transforms[:, :3, 3])[..., None])[..., 0]
+        for q in local[np.all((local >= lo) & (local <= hi), axis=1)]:
             if _winding_inside(m, q, 2.0 * float(np.linalg.norm(hi - lo)) + 1.0, device):
                 return m.name
     return None

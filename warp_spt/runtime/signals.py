@@ -118,17 +118,26 @@ def stop_on_signals(stop: threading.Event) -> Iterator[Caught]:
 
 
 @contextmanager
-def deferred_signals() -> Iterator[None]:
+def deferred_signals(*, second_now: bool = False) -> Iterator[None]:
     """Hold SIGINT/SIGTERM until the block ends, then deliver the first one (main thread only).
 
     For short critical sections such as writing and renaming an output file: the block either
     completes or unwinds through its own error handling, never in the middle of its cleanup.
+    With ``second_now``, a second signal while the first is held is delivered at once: for a block
+    that may take seconds (starting local workers), where a user who presses Ctrl-C again means it.
     """
     if not _on_main_thread():
         yield
         return
     pending: list[int] = []
-    previous = _install(lambda signum, frame: pending.append(signum))
+    previous: dict[int, object] = {}
+
+    def hold(signum, frame):
+        pending.append(signum)
+        if second_now and len(pending) > 1:
+            deliver(signum, previous.get(signum, signal.SIG_DFL))
+
+    previous.update(_install(hold))
     try:
         yield
     finally:

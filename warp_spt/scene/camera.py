@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
@@ -322,7 +322,9 @@ def far_centre(scene: Scene, ratio: float = RECENTRE_RATIO) -> np.ndarray | None
     """The centre of a scene that lies far from the origin (farther than ``ratio`` times its size,
     in float64), or None for a scene near the origin."""
     b = exact_bounds(scene)
-    size = float(np.max(b[1] - b[0])) if np.all(np.isfinite(b)) else 0.0
+    if not np.all(np.isfinite(b)):          # nothing to draw (an animation's frame that hides everything)
+        return None
+    size = float(np.max(b[1] - b[0]))
     centre = 0.5 * (b[0] + b[1])
     return centre if size > 0.0 and float(np.max(np.abs(centre))) > ratio * size else None
 
@@ -335,29 +337,28 @@ BASE_RATIO = 3.0
 SCAN_BASE_SHARE, SCAN_MIN_HEIGHT = 0.05, 0.5
 
 
-def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> list[tuple]:
-    """Per mesh (per placement of an instanced one): (world positions, triangles, mask of the
-    triangles that lie, all three corners within ``tol`` of the scene's size, in the scene's lowest
-    plane along ``axis``, placement bounds or None). A placement whose box lies wholly above that
-    plane is not copied: positions and mask None, its bounds given instead."""
+def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> Iterator[tuple]:
+    """Per mesh, a batch of placements at a time: (world positions (B, V, 3) float64, triangles
+    (F, 3), mask (B, F) of the triangles that lie, all three corners within ``tol`` of the scene's
+    size, in the scene's lowest plane along ``axis``). A batch is one array product over its
+    placements (B x max(V, F) at most 2^18 rows), so that 200,000 instances cost microseconds each,
+    not a Python loop's tens."""
     b = scene.bounds
     low = float(np.min(b @ axis)) if len(scene.meshes) else 0.0
     eps = tol * max(float(np.max(b[1] - b[0])), 1e-30)
-    out = []
     for m in scene.meshes:
-        boxes = m.placement_bounds() if m.transforms is not None else None
-        for k in range(m.placements):
-            if boxes is not None:
-                # the box's lowest point along the axis bounds every vertex's from below
-                lowest = float(np.minimum(axis * boxes[k, 0], axis * boxes[k, 1]).sum())
-                if lowest > low + eps:
-                    out.append((None, m.indices, None, boxes[k]))
-                    continue
-            positions, tri = m.world_part(k)
-            h = positions.astype(np.float64) @ axis
-            mask = np.all(h[tri] <= low + eps, axis=1) if len(tri) else np.zeros(0, bool)
-            out.append((positions, tri, mask, None))
-    return out
+        tri = np.asarray(m.indices)
+        p = np.asarray(m.positions, dtype=np.float64)
+        if m.transforms is None:
+            batches = [p[None]]
+        else:
+            step = max(1, (1 << 18) // max(len(p), len(tri), 1))
+            batches = (np.matmul(p, x[:, :3, :3].transpose(0, 2, 1)) + x[:, None, :3, 3]
+                       for x in (m.transforms[k:k + step] for k in range(0, len(m.transforms), step)))
+        for world in batches:
+            h = world @ axis
+            mask = np.all(h[:, tri] <= low + eps, axis=2) if len(tri) else np.zeros((len(world), 0), bool)
+            yield world, tri, mask
 
 
 def base_share(scene: Scene, up: str | Sequence[float]) -> float:
@@ -370,9 +371,10 @@ def base_share(scene: Scene, up: str | Sequence[float]) -> float:
     if not rect > 0.0:
         return 0.0
     area = 0.0
-    for positions, tri, mask, _ in _bottom_faces(scene, u):
-        if mask is not None and mask.any():
-            t = positions.astype(np.float64)[tri[mask]]
+    for world, tri, mask in _bottom_faces(scene, u):
+        if mask.any():
+            rows, faces = np.nonzero(mask)
+            t = world[rows[:, None], tri[faces]]                  # (N, 3, 3): the base's triangles
             area += 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
     return area / rect
 
@@ -392,23 +394,21 @@ def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None
     """The bounds of what stands on a base (see BASE_RATIO), to frame instead of the whole scene, or
     None when the scene has no base that much wider than the rest."""
     u = up_vector(up)
-    parts = _bottom_faces(scene, u)
-    if not any(mask is not None and mask.any() for _, _, mask, _ in parts):
-        return None
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     blo, bhi = np.full(3, np.inf), np.full(3, -np.inf)
-    for positions, tri, mask, box in parts:
+    based = False
+    for world, tri, mask in _bottom_faces(scene, u):
         if not len(tri):
             continue
-        if box is not None:             # a placement wholly above the base
-            lo[:], hi[:] = np.minimum(lo, box[0]), np.maximum(hi, box[1])
-            continue
-        p = positions.astype(np.float32).astype(np.float64)
+        based = based or bool(mask.any())
+        corners = world.astype(np.float32).astype(np.float64)[:, tri]     # (B, F, 3, 3)
         for sel, (a, z) in ((~mask, (lo, hi)), (mask, (blo, bhi))):
             if sel.any():
-                q = p[tri[sel].reshape(-1)]
+                q = corners[sel].reshape(-1, 3)
                 a[:] = np.minimum(a, q.min(0))
                 z[:] = np.maximum(z, q.max(0))
+    if not based:
+        return None
     if len(scene.spheres):
         sp = scene.spheres.astype(np.float32).astype(np.float64)
         lo, hi = np.minimum(lo, (sp[:, :3] - sp[:, 3:4]).min(0)), np.maximum(hi, (sp[:, :3] + sp[:, 3:4]).max(0))

@@ -55,3 +55,7 @@ MAX_BATCHES = 64
 # The live viewer's view (width x height): its refined image is 8 float64 batch sums, at most
 # 8 x 2**21 x 3 x 8 bytes = 384 MiB (docs/viewer.md), where 4096 x 4096 would take 6-7.4 GB.
 MAX_VIEW_PIXELS = 1 << 21
+
+# frames per second of an animated glTF: from one frame per 1000 s (a slow time-lapse) to a million a
+# second; frame k at k / fps seconds then stays finite for every frame number (5e-324 made it inf)
+MIN_FPS, MAX_FPS = 1e-3, 1e6

@@ -27,6 +27,9 @@ from warp_spt.scene.families import MEDIUM_KINDS  # noqa: F401 (re-exported: the
 # 1 - |g| apart from 0 much further on (1 - 2^-24 is the last value below 1)
 MAX_G = 0.999999
 MAX_GRID_VOXELS = 256 ** 3                  # a dense grid's voxels (the memory budget: 4 bytes each)
+# a NanoVDB file's grids, uncompressed: twice a dense grid of MAX_GRID_VOXELS floats (the tree's nodes
+# and masks add about a tenth), so the bytes read or inflated stay within what the voxel budget allows
+MAX_GRID_BYTES = 8 * MAX_GRID_VOXELS
 MAX_SIGMA = 1.0e6                    # per unit length: beyond it a medium is a surface
 MAX_MAJORANT = 64.0
 

@@ -75,12 +75,39 @@ PBR_DEFAULTS = {"base_color": (0.8, 0.8, 0.8), "metallic": 0.0, "roughness": 0.5
                 "specular": 1.0, "specular_color": (1.0, 1.0, 1.0), "transmission": 0.0, "seed_dialect": False}
 
 
+class MaterialValueError(ValueError):
+    """A field of ``Material.pbr`` of the wrong shape or out of its range: ``problem`` names the field,
+    so a reader can say which file and place the material came from."""
+
+    def __init__(self, name: str, problem: str):
+        self.name, self.problem = name, problem
+        super().__init__(f"Material.pbr({name!r}): {problem}")
+
+
 def _pbr(cls, name: str, **fields) -> "Material":
     """A material of the physically based kind (``kind`` = KIND_PBR) with :data:`PBR_DEFAULTS` for the
     fields not given (docs/materials.md: base_color, metallic, roughness, anisotropy, ior, specular,
     transmission, thin, emission, normal/bump/opacity maps, ...)."""
-    from warp_spt.scene.material_schema import KIND_PBR
-    return cls(name=name, **{**PBR_DEFAULTS, **fields, "kind": KIND_PBR})
+    from warp_spt.scene.material_schema import COLUMN, KIND_PBR, SLOTS, row_shape
+    from warp_spt.scene.validate import material_problem
+
+    for key, value in fields.items():       # each field's shape, then its range, by name
+        c = COLUMN.get(key)
+        if c is None or c.type == SLOTS:
+            continue
+        shape = row_shape(c)
+        try:
+            ok = np.shape(np.asarray(value, dtype=np.float64)) == shape
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            what = f"{shape[0]} numbers" if shape else "a number"
+            raise MaterialValueError(name, f"{key} must be {what}, got {value!r:.60}")
+    material = cls(name=name, **{**PBR_DEFAULTS, **fields, "kind": KIND_PBR})
+    problem = material_problem(material)
+    if problem:
+        raise MaterialValueError(name, problem)
+    return material
 
 
 Material = make_dataclass("Material", _material_fields(), namespace={"__module__": __name__, "pbr": classmethod(_pbr),
@@ -311,6 +338,9 @@ class Scene:
     # map), uploaded and shipped to cluster workers with the scene; None: the seed's blue BlackSky.
     # RenderSettings.sky, when given, overrides it.
     sky: Sky | None = None
+    # every object is hidden (an animation's frame that scales them all to nothing): the scene may hold
+    # no geometry at all, and renders empty (every ray misses); otherwise that is an error
+    hidden: bool = False
 
     def add_light(self, light) -> "Scene":
         """Add a sun, point or spot light (``warp_spt.SunLight``, ``PointLight``, ``SpotLight``, made

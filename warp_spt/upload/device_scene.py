@@ -450,12 +450,15 @@ def _features(scene: Scene) -> Features:
     part declared by their kinds (``warp_spt.bsdfs.declare``), the lights' and the media's by theirs
     (``warp_spt.emitters.declare``, ``warp_spt.media.declare``)."""
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes] + [scene.sphere_material]).astype(np.int64))
+    empty = not len(used)       # an animation's frame that hides everything: every ray misses, and the
+    if empty:                   # kernel of a sphere of the checker (the seed's kind of scene) traces it
+        used = np.zeros(1, np.int64)
     mt = scene.materials
     tex = mt.tex[used]
     kinds, lobes, flags = declare(mt, used)
     base = Features(
         meshes=any(len(m.indices) for m in scene.meshes),
-        spheres=len(scene.spheres) > 0,
+        spheres=len(scene.spheres) > 0 or empty,
         textures=bool((tex >= 0).any()),
         checker=bool((tex == TEX_CHECKER).any()),
         emitters=bool(emitting_rows(scene)[used].any()),

@@ -144,7 +144,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
 
 # Model readers by suffix, as "module:function" imported on first use (a scene of OBJ files imports neither)
 MODEL_READERS = {".obj": "warp_spt.io.obj:load_obj", ".ply": "warp_spt.io.ply:load_ply",
-                 ".gltf": "warp_spt.io.gltf:load_gltf", ".glb": "warp_spt.io.gltf:load_gltf"}
+                 ".gltf": "warp_spt.gltf:load_gltf", ".glb": "warp_spt.gltf:load_gltf"}
 _HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"))
 
 
@@ -253,7 +253,7 @@ def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
 
 
 def _placed(d: ObjData) -> list:
-    """The (object-space ObjData, (I, 4, 4) transforms) a model keeps instanced (glTF: io.gltf.GltfExtras.placed)."""
+    """The (object-space ObjData, (I, 4, 4) transforms) a model keeps instanced (glTF: gltf.GltfExtras.placed)."""
     return list(getattr(d.extras, "placed", ()))
 
 

@@ -118,7 +118,7 @@ class ObjData:
     dropped_degenerate: int = 0  # zero-area triangles dropped while parsing
     # materials the file defines itself (PLY vertex colours, glTF), by name; an MTL of the same name wins
     materials: dict[str, Material] = field(default_factory=dict)
-    extras: object = None        # what else the format holds (glTF: io.gltf.GltfExtras, cameras and lights)
+    extras: object = None        # what else the format holds (glTF: gltf.GltfExtras, cameras and lights)
     warnings: list[str] = field(default_factory=list)   # the reader's notes; the loader passes them on
 
 
@@ -300,7 +300,7 @@ class Scene:
     # default material). Scenes built in code count as the seed's and not bare.
     seed_dialect: bool = True
     bare: bool = False
-    # cameras and lights the model files define (glTF: io.gltf.GltfCamera, GltfLight), in file order
+    # cameras and lights the model files define (glTF: gltf.GltfCamera, GltfLight), in file order
     cameras: list = field(default_factory=list)
     lights: list = field(default_factory=list)
     # participating media (warp_spt.scene.media.Medium, docs/volumes.md): the scene-wide medium the

@@ -1,0 +1,186 @@
+"""Materials: glTF's metallic-roughness model and the KHR_materials_* extensions onto the ``pbr`` kind;
+their textures (images by URI, data URI or buffer view) and the base colour's texture transform."""
+
+from __future__ import annotations
+
+import math
+import urllib.parse
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from warp_spt.gltf.accessors import Accessors
+from warp_spt.gltf.document import _err
+from warp_spt.scene.model import CHECKER_NAME, Material, TextureRef
+from warp_spt.scene.validate import MAX_RADIANCE
+
+
+@dataclass
+class GltfMaterial:
+    """A glTF material as written (metallic-roughness model), for the ``pbr`` kind."""
+
+    name: str
+    base_color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+    base_color_texture: int | None = None     # index into /textures
+    metallic: float = 1.0
+    roughness: float = 1.0
+    metallic_roughness_texture: int | None = None
+    normal_texture: int | None = None
+    normal_scale: float = 1.0
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    emissive_texture: int | None = None
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+    double_sided: bool = False
+    extensions: dict = field(default_factory=dict)
+
+
+class Materials(Accessors):
+    def _base_texture(self, mat: int | None) -> dict | None:
+        if mat is None:
+            return None
+        pbr = self.obj(self.item("materials", mat), "pbrMetallicRoughness", f"/materials/{mat}")
+        return self.get(pbr, "baseColorTexture", dict, f"/materials/{mat}/pbrMetallicRoughness")
+
+    def _uv_set(self, mat: int | None) -> int:
+        info = self._base_texture(mat)
+        if info is None:
+            return 0
+        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture"
+        tt = self.get(self.obj(info, "extensions", ptr), "KHR_texture_transform", dict, f"{ptr}/extensions")
+        k = self.get(tt, "texCoord", int, f"{ptr}/extensions/KHR_texture_transform") if tt else None
+        k = self.get(info, "texCoord", int, ptr, 0) if k is None else k
+        if not 0 <= k < 16:
+            raise _err(self.path, f"{ptr}/texCoord", f"texCoord {k} must lie in 0..15")
+        return k
+
+    def _uv_transform(self, uv: np.ndarray, mat: int | None) -> np.ndarray:
+        """KHR_texture_transform of the base colour texture: offset + rotation(-r) * scale * uv, in
+        glTF's uv space (v down), as the extension defines it."""
+        info = self._base_texture(mat)
+        if info is None:
+            return uv
+        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform"
+        tt = self.get(self.obj(info, "extensions", ptr.rsplit("/", 2)[0]), "KHR_texture_transform", dict,
+                      ptr.rsplit("/", 1)[0])
+        if not tt:
+            return uv
+        offset = self.numbers(tt, "offset", ptr, 2, [0.0, 0.0])
+        rotation = self.get(tt, "rotation", float, ptr, 0.0)
+        scale = self.numbers(tt, "scale", ptr, 2, [1.0, 1.0])
+        c, s = math.cos(rotation), math.sin(rotation)
+        su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
+        return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
+
+    def _image(self, tex: int, ptr: str) -> TextureRef:
+        t = self.item("textures", tex)
+        tptr = f"/textures/{tex}"
+        source = self.index(t, "source", tptr, "images")
+        if source is None:
+            raise _err(self.path, tptr, "a texture without a 'source' image (or only an extension's) is not read")
+        img = self.item("images", source)
+        iptr = f"/images/{source}"
+        uri = self.get(img, "uri", str, iptr)
+        name = f"images/{source}"
+        if uri is not None and not uri.startswith("data:"):
+            self._local_file(uri, f"{iptr}/uri")             # exists and is local; the loader reads it
+            return TextureRef(urllib.parse.unquote(uri), self.path, 0)
+        if uri is not None:
+            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"))
+        view = self.index(img, "bufferView", iptr, "bufferViews")
+        if view is None:
+            raise _err(self.path, iptr, "an image needs a 'uri' or a 'bufferView'")
+        buf, off, length, _ = self.view(view)
+        return TextureRef(name, self.path, 0, image=buf[off:off + length])
+
+    def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
+        """A unique name and a material of the ``pbr`` kind: glTF's metallic-roughness model and the
+        KHR_materials_* that the kind has columns for. The packed metallic-roughness texture is named by
+        both maps (the kind reads its B and G channels); the base colour texture's alpha is the opacity
+        map of a MASK or BLEND material. Colour maps are decoded from sRGB by the loader (by slot)."""
+        if mat is None:          # glTF's default material: white, metallic 1, roughness 1
+            name = f"{Path(self.path).name}: default material"
+            return name, self._pbr_material(name, dict(base_color=(1.0, 1.0, 1.0), metallic=1.0, roughness=1.0))
+        rec = self._material_record(mat)
+        # named after the file: materials of the same name in two files of a scene stay apart
+        name = f"{Path(self.path).name}: {rec.name or f'material {mat}'}"
+        while name in names or name == CHECKER_NAME:
+            name = f"{name} ({mat})"
+        mptr = f"/materials/{mat}"
+        eptr = f"{mptr}/extensions"
+        ext = lambda key: self.obj(rec.extensions, key, eptr)      # noqa: E731
+        image = lambda k, where: None if k is None else self._image(k, f"{mptr}/{where}")  # noqa: E731
+        tex = image(rec.base_color_texture, "pbrMetallicRoughness/baseColorTexture")
+        strength = self.get(ext("KHR_materials_emissive_strength"), "emissiveStrength", float,
+                            f"{eptr}/KHR_materials_emissive_strength", 1.0)
+        orm = image(rec.metallic_roughness_texture, "pbrMetallicRoughness/metallicRoughnessTexture")
+        fields = dict(base_color=tuple(min(max(c, 0.0), 1.0) for c in rec.base_color[:3]), base_color_map=tex,
+                      metallic=min(max(rec.metallic, 0.0), 1.0), roughness=min(max(rec.roughness, 0.0), 1.0),
+                      metallic_map=orm, roughness_map=orm,
+                      normal=min(max(rec.normal_scale, 0.0), 10.0), normal_map=image(rec.normal_texture, "normalTexture"),
+                      emission=tuple(min(max(c * strength, 0.0), MAX_RADIANCE) for c in rec.emissive),
+                      emission_map=image(rec.emissive_texture, "emissiveTexture"))
+        if rec.alpha_mode == "MASK":
+            fields["alpha_cutoff"] = rec.alpha_cutoff
+        if rec.alpha_mode != "OPAQUE":
+            fields["opacity"] = min(max(rec.base_color[3], 0.0), 1.0)
+            fields["opacity_map"] = tex
+        ior = ext("KHR_materials_ior")
+        if ior:
+            fields["ior"] = self.get(ior, "ior", float, f"{eptr}/KHR_materials_ior", 1.5)
+        transmission = ext("KHR_materials_transmission")
+        if transmission:
+            fields["transmission"] = self.get(transmission, "transmissionFactor", float,
+                                              f"{eptr}/KHR_materials_transmission", 0.0)
+            # without KHR_materials_volume a transmissive glTF surface is thin-walled
+            volume = ext("KHR_materials_volume")
+            fields["thin"] = not volume or self.get(volume, "thicknessFactor", float,
+                                                    f"{eptr}/KHR_materials_volume", 0.0) == 0.0
+        specular = ext("KHR_materials_specular")
+        if specular:
+            sptr = f"{eptr}/KHR_materials_specular"
+            fields["specular"] = self.get(specular, "specularFactor", float, sptr, 1.0)
+            fields["specular_color"] = tuple(self.numbers(specular, "specularColorFactor", sptr, 3, [1.0, 1.0, 1.0]))
+        anisotropy = ext("KHR_materials_anisotropy")
+        if anisotropy:
+            aptr = f"{eptr}/KHR_materials_anisotropy"
+            fields["anisotropy"] = self.get(anisotropy, "anisotropyStrength", float, aptr, 0.0)
+            fields["anisotropy_rotation"] = self.get(anisotropy, "anisotropyRotation", float, aptr, 0.0)
+        return name, self._pbr_material(name, fields)
+
+    def _pbr_material(self, name: str, fields: dict) -> Material:
+        material = Material.pbr(name, **fields)
+        material.source, material.seed_dialect = self.path, False
+        return material
+
+    def _material_record(self, mat: int) -> GltfMaterial:
+        m = self.item("materials", mat)
+        ptr = f"/materials/{mat}"
+        pbr = self.obj(m, "pbrMetallicRoughness", ptr)
+        pptr = f"{ptr}/pbrMetallicRoughness"
+
+        def texture(obj: dict, key: str, p: str) -> int | None:
+            info = self.get(obj, key, dict, p)
+            return None if info is None else self.index(info, "index", f"{p}/{key}", "textures", required=True)
+
+        normal = self.get(m, "normalTexture", dict, ptr) or {}
+        alpha = self.get(m, "alphaMode", str, ptr, "OPAQUE")
+        if alpha not in ("OPAQUE", "MASK", "BLEND"):
+            raise _err(self.path, f"{ptr}/alphaMode", f"expected OPAQUE, MASK or BLEND, got {alpha!r}")
+        return GltfMaterial(
+            name=self.get(m, "name", str, ptr, ""),
+            base_color=tuple(self.numbers(pbr, "baseColorFactor", pptr, 4, [1.0, 1.0, 1.0, 1.0])),
+            base_color_texture=texture(pbr, "baseColorTexture", pptr),
+            metallic=self.get(pbr, "metallicFactor", float, pptr, 1.0),
+            roughness=self.get(pbr, "roughnessFactor", float, pptr, 1.0),
+            metallic_roughness_texture=texture(pbr, "metallicRoughnessTexture", pptr),
+            normal_texture=texture(m, "normalTexture", ptr),
+            normal_scale=self.get(normal, "scale", float, f"{ptr}/normalTexture", 1.0),
+            emissive=tuple(self.numbers(m, "emissiveFactor", ptr, 3, [0.0, 0.0, 0.0])),
+            emissive_texture=texture(m, "emissiveTexture", ptr),
+            alpha_mode=alpha,
+            alpha_cutoff=self.get(m, "alphaCutoff", float, ptr, 0.5),
+            double_sided=self.get(m, "doubleSided", bool, ptr, False),
+            extensions=self.obj(m, "extensions", ptr),
+        )

@@ -56,7 +56,9 @@ class Accessors(Document):
         target = self._local_file(uri, pointer)
         return read_file(str(target), "glTF buffer", binary=True)
 
-    def _local_file(self, uri: str, pointer: str) -> Path:
+    def _local_file(self, uri: str, pointer: str, missing_ok: bool = False) -> Path | None:
+        """The file ``uri`` names, inside the glTF's folder (else a SceneError: a file elsewhere is not
+        read); one that cannot be read is a SceneError too, or with ``missing_ok`` a warning and None."""
         scheme = urllib.parse.urlsplit(uri).scheme
         if scheme and len(scheme) > 1:       # one letter: a Windows drive
             raise _err(self.path, pointer, f"only relative file URIs and data URIs are read, got {uri[:80]!r}")
@@ -66,7 +68,11 @@ class Accessors(Document):
         target = targets[0]
         problem = file_problem(target)
         if problem is not None:
-            raise _err(self.path, pointer, f"{uri!r} cannot be read ({target}: {problem})")
+            if not missing_ok:
+                raise _err(self.path, pointer, f"{uri!r} cannot be read ({target}: {problem})")
+            self.warn_once(pointer, f"{pointer}: {uri!r} cannot be read ({target}: {problem}): a neutral texel "
+                           "stands for it")
+            return None
         return target
 
     def view(self, k: int) -> tuple[bytes, int, int, int | None]:

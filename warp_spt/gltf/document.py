@@ -15,7 +15,12 @@ MAX_JSON_BYTES = 64 << 20
 GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_lights_punctual",
                         "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission",
-                        "KHR_materials_volume", "KHR_materials_specular", "KHR_materials_anisotropy"}
+                        "KHR_materials_volume", "KHR_materials_specular", "KHR_materials_anisotropy",
+                        "KHR_materials_pbrSpecularGlossiness"}
+# extensions a file may use that leave its look as the renderer draws it when they are not read: metadata,
+# material variants (the default is drawn), image formats beside a PNG or JPEG fallback
+LOOK_NEUTRAL = {"KHR_xmp_json_ld", "KHR_materials_variants", "KHR_texture_basisu", "EXT_texture_webp",
+                "EXT_texture_avif", "MSFT_texture_dds"}
 
 
 def _err(path: str, pointer: str, message: str) -> SceneError:
@@ -38,6 +43,17 @@ class Document:
         self.doc = self._json(text)
         self.buffers: dict[int, bytes] = {}
         self.warnings: list[str] = []
+        self._warned: set = set()
+        used = self.get(self.doc, "extensionsUsed", list, "", []) or []
+        for k, name in enumerate(used):
+            if isinstance(name, str) and name not in SUPPORTED_EXTENSIONS | LOOK_NEUTRAL:
+                self.warn_once(name, f"/extensionsUsed/{k}: {name} is not read: the file renders without it")
+
+    def warn_once(self, key, message: str) -> None:
+        """One warning per ``key`` (an extension, an image) however many parts of the file meet it."""
+        if key not in self._warned:
+            self._warned.add(key)
+            self.warnings.append(f"{self.path}: {message}")
 
     # ------------------------------------------------------------------------------------ containers
 

@@ -18,7 +18,8 @@ from warp_spt.scene.validate import MAX_RADIANCE
 
 @dataclass
 class GltfMaterial:
-    """A glTF material as written (metallic-roughness model), for the ``pbr`` kind."""
+    """A glTF material as written (metallic-roughness model; a specular-glossiness one converted to it), for the
+    ``pbr`` kind."""
 
     name: str
     base_color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
@@ -35,19 +36,57 @@ class GltfMaterial:
     double_sided: bool = False
     extensions: dict = field(default_factory=dict)
 
+SPEC_GLOSS = "KHR_materials_pbrSpecularGlossiness"
+DIELECTRIC_F0 = 0.04
+
+
+def specular_glossiness(diffuse, specular, glossiness: float) -> tuple[tuple[float, ...], float, float]:
+    """(base colour RGBA, metallic, roughness) for specular-glossiness factors, by the conversion of
+    Khronos' glTF sample viewer and glTF-Transform: the metallic that explains the specular's
+    perceived brightness beside the diffuse's over a dielectric F0 of 0.04, the base colour blended
+    between the diffuse's and the specular's by metallic squared, roughness = 1 - glossiness."""
+    def brightness(c):
+        return math.sqrt(0.299 * c[0] ** 2 + 0.587 * c[1] ** 2 + 0.114 * c[2] ** 2)
+
+    one_minus_specular = 1.0 - max(specular)
+    d, s = brightness(diffuse), brightness(specular)
+    if s < DIELECTRIC_F0:
+        metallic = 0.0
+    else:
+        a = DIELECTRIC_F0
+        b = d * one_minus_specular / (1.0 - DIELECTRIC_F0) + s - 2.0 * DIELECTRIC_F0
+        c = DIELECTRIC_F0 - s
+        metallic = min(max((-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a), 0.0), 1.0)
+    eps = 1e-6
+    from_diffuse = [x * one_minus_specular / (1.0 - DIELECTRIC_F0) / max(1.0 - metallic, eps) for x in diffuse[:3]]
+    from_specular = [(x - DIELECTRIC_F0 * (1.0 - metallic)) / max(metallic, eps) for x in specular]
+    w = metallic * metallic
+    rgb = [min(max(fd + (fs - fd) * w, 0.0), 1.0) for fd, fs in zip(from_diffuse, from_specular)]
+    return (*rgb, diffuse[3]), metallic, min(max(1.0 - glossiness, 0.0), 1.0)
+
 
 class Materials(Accessors):
+    def _base_pointer(self, mat: int) -> tuple[dict, str, str]:
+        """(the object holding the base colour texture, its pointer, the texture's key): a specular-
+        glossiness material's diffuse texture (the extension, where read, wins over its fallback)."""
+        m = self.item("materials", mat)
+        sg = self.get(self.obj(m, "extensions", f"/materials/{mat}"), SPEC_GLOSS, dict, f"/materials/{mat}/extensions")
+        if sg is not None:
+            return sg, f"/materials/{mat}/extensions/{SPEC_GLOSS}", "diffuseTexture"
+        return self.obj(m, "pbrMetallicRoughness", f"/materials/{mat}"), f"/materials/{mat}/pbrMetallicRoughness", \
+            "baseColorTexture"
+
     def _base_texture(self, mat: int | None) -> dict | None:
         if mat is None:
             return None
-        pbr = self.obj(self.item("materials", mat), "pbrMetallicRoughness", f"/materials/{mat}")
-        return self.get(pbr, "baseColorTexture", dict, f"/materials/{mat}/pbrMetallicRoughness")
+        parent, ptr, key = self._base_pointer(mat)
+        return self.get(parent, key, dict, ptr)
 
     def _uv_set(self, mat: int | None) -> int:
         info = self._base_texture(mat)
         if info is None:
             return 0
-        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture"
+        ptr = "/".join(self._base_pointer(mat)[1:])
         tt = self.get(self.obj(info, "extensions", ptr), "KHR_texture_transform", dict, f"{ptr}/extensions")
         k = self.get(tt, "texCoord", int, f"{ptr}/extensions/KHR_texture_transform") if tt else None
         k = self.get(info, "texCoord", int, ptr, 0) if k is None else k
@@ -61,7 +100,7 @@ class Materials(Accessors):
         info = self._base_texture(mat)
         if info is None:
             return uv
-        ptr = f"/materials/{mat}/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform"
+        ptr = "/".join(self._base_pointer(mat)[1:]) + "/extensions/KHR_texture_transform"
         tt = self.get(self.obj(info, "extensions", ptr.rsplit("/", 2)[0]), "KHR_texture_transform", dict,
                       ptr.rsplit("/", 1)[0])
         if not tt:
@@ -73,26 +112,32 @@ class Materials(Accessors):
         su, sv = uv[:, 0] * scale[0], uv[:, 1] * scale[1]
         return np.stack([c * su + s * sv + offset[0], -s * su + c * sv + offset[1]], axis=1)
 
-    def _image(self, tex: int, ptr: str) -> TextureRef:
+    def _image(self, tex: int, ptr: str) -> TextureRef | None:
+        """Texture ``tex``'s image, or None (a neutral texel: the factors alone) with a warning where it
+        has none that can be read; an image whose bytes turn out unreadable is the loader's warning
+        (``TextureRef.neutral``). A file outside the glTF's folder stays an error."""
         t = self.item("textures", tex)
         tptr = f"/textures/{tex}"
         source = self.index(t, "source", tptr, "images")
         if source is None:
-            raise _err(self.path, tptr, "a texture without a 'source' image (or only an extension's) is not read")
+            self.warn_once(tptr, f"{tptr}: a texture without a 'source' image (or only an extension's) is not "
+                           "read: a neutral texel stands for it")
+            return None
         img = self.item("images", source)
         iptr = f"/images/{source}"
         uri = self.get(img, "uri", str, iptr)
         name = f"images/{source}"
         if uri is not None and not uri.startswith("data:"):
-            self._local_file(uri, f"{iptr}/uri")             # exists and is local; the loader reads it
-            return TextureRef(urllib.parse.unquote(uri), self.path, 0)
+            if self._local_file(uri, f"{iptr}/uri", missing_ok=True) is None:     # local; the loader reads it
+                return None
+            return TextureRef(urllib.parse.unquote(uri), self.path, 0, neutral=True)
         if uri is not None:
-            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"))
+            return TextureRef(name, self.path, 0, image=self.uri(uri, f"{iptr}/uri"), neutral=True)
         view = self.index(img, "bufferView", iptr, "bufferViews")
         if view is None:
             raise _err(self.path, iptr, "an image needs a 'uri' or a 'bufferView'")
         buf, off, length, _ = self.view(view)
-        return TextureRef(name, self.path, 0, image=buf[off:off + length])
+        return TextureRef(name, self.path, 0, image=buf[off:off + length], neutral=True)
 
     def _material(self, mat: int | None, names: list[str]) -> tuple[str, Material]:
         """A unique name and a material of the ``pbr`` kind: glTF's metallic-roughness model and the
@@ -168,13 +213,29 @@ class Materials(Accessors):
         alpha = self.get(m, "alphaMode", str, ptr, "OPAQUE")
         if alpha not in ("OPAQUE", "MASK", "BLEND"):
             raise _err(self.path, f"{ptr}/alphaMode", f"expected OPAQUE, MASK or BLEND, got {alpha!r}")
+        base_color = tuple(self.numbers(pbr, "baseColorFactor", pptr, 4, [1.0, 1.0, 1.0, 1.0]))
+        metallic = self.get(pbr, "metallicFactor", float, pptr, 1.0)
+        roughness = self.get(pbr, "roughnessFactor", float, pptr, 1.0)
+        base_texture = texture(pbr, "baseColorTexture", pptr)
+        mr_texture = texture(pbr, "metallicRoughnessTexture", pptr)
+        sg = self.get(self.obj(m, "extensions", ptr), SPEC_GLOSS, dict, f"{ptr}/extensions")
+        if sg is not None:
+            sptr = f"{ptr}/extensions/{SPEC_GLOSS}"
+            base_color, metallic, roughness = specular_glossiness(
+                self.numbers(sg, "diffuseFactor", sptr, 4, [1.0, 1.0, 1.0, 1.0]),
+                self.numbers(sg, "specularFactor", sptr, 3, [1.0, 1.0, 1.0]),
+                self.get(sg, "glossinessFactor", float, sptr, 1.0))
+            base_texture, mr_texture = texture(sg, "diffuseTexture", sptr), None
+            if texture(sg, "specularGlossinessTexture", sptr) is not None:
+                self.warn_once((SPEC_GLOSS, mat), f"{sptr}/specularGlossinessTexture is not read: the material's "
+                               "specular and glossiness factors are converted to metal-rough, its texture not")
         return GltfMaterial(
             name=self.get(m, "name", str, ptr, ""),
-            base_color=tuple(self.numbers(pbr, "baseColorFactor", pptr, 4, [1.0, 1.0, 1.0, 1.0])),
-            base_color_texture=texture(pbr, "baseColorTexture", pptr),
-            metallic=self.get(pbr, "metallicFactor", float, pptr, 1.0),
-            roughness=self.get(pbr, "roughnessFactor", float, pptr, 1.0),
-            metallic_roughness_texture=texture(pbr, "metallicRoughnessTexture", pptr),
+            base_color=base_color,
+            base_color_texture=base_texture,
+            metallic=metallic,
+            roughness=roughness,
+            metallic_roughness_texture=mr_texture,
             normal_texture=texture(m, "normalTexture", ptr),
             normal_scale=self.get(normal, "scale", float, f"{ptr}/normalTexture", 1.0),
             emissive=tuple(self.numbers(m, "emissiveFactor", ptr, 3, [0.0, 0.0, 0.0])),

@@ -49,9 +49,10 @@ class Meshes(Materials):
         mode = self.get(prim, "mode", int, ptr, 4)
         if mode not in _MODES:
             raise _err(self.path, f"{ptr}/mode", f"unknown mode {mode}")
-        if mode < 4:
-            raise _err(self.path, f"{ptr}/mode", f"{_MODES[mode]} cannot be rendered: warp_spt draws triangles "
-                       "(strips and fans are converted)")
+        if mode < 4:            # as importers do: the file's triangles are drawn, its points and lines not
+            self.warn_once(ptr, f"{ptr}/mode: {_MODES[mode]} are skipped: warp_spt draws triangles (strips and "
+                           "fans are converted)")
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int32), None, None, None
         attrs = self.obj(prim, "attributes", ptr, required=True)
         aptr = f"{ptr}/attributes"
         pos = self.accessor(self.index(attrs, "POSITION", aptr, "accessors", required=True), widths=("VEC3",))

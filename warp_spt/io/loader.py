@@ -394,6 +394,9 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
         text = str(err)
         if ref.image is not None:    # Pillow names in-memory bytes by their repr (<_io.BytesIO object at 0x...>)
             text = text.replace(repr(source), "(its embedded bytes)")
+        if ref.neutral:
+            note(f"{ref.mtl_file}: cannot read texture {ref.path}: {text}; a neutral texel stands for it")
+            return np.array([[[0.5, 0.5, 1.0] if decode == "normal" else [1.0, 1.0, 1.0]]], np.float32)
         raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {text}") from None
     for w in caught:
         if not issubclass(w.category, Image.DecompressionBombWarning):

@@ -47,12 +47,15 @@ class TextureRef:
     ``image``, when given, is the texture itself: an encoded image file's bytes (a glTF's embedded
     PNG or JPEG) or an (H, W, 3) float32 array in [0, 1] (a PLY's baked vertex colours); ``path`` then
     only names it (it must be unique: the loader reads each name once). A baked array holds linear
-    values: the loader takes it as it is, whatever its slot's decoding."""
+    values: the loader takes it as it is, whatever its slot's decoding. ``neutral``: an image that
+    cannot be decoded is a warning and one neutral texel (white; a flat normal), as glTF viewers draw
+    a file whose texture is broken, instead of an error."""
 
     path: str
     mtl_file: str
     line: int
     image: bytes | np.ndarray | None = field(default=None, compare=False, repr=False)
+    neutral: bool = field(default=False, compare=False)
 
 
 def _material_fields() -> list[tuple]:

@@ -192,6 +192,15 @@ class Materials(Accessors):
             aptr = f"{eptr}/KHR_materials_anisotropy"
             fields["anisotropy"] = self.get(anisotropy, "anisotropyStrength", float, aptr, 0.0)
             fields["anisotropy_rotation"] = self.get(anisotropy, "anisotropyRotation", float, aptr, 0.0)
+        clearcoat = ext("KHR_materials_clearcoat")
+        if clearcoat:
+            cptr = f"{eptr}/KHR_materials_clearcoat"
+            fields["clearcoat"] = min(max(self.get(clearcoat, "clearcoatFactor", float, cptr, 0.0), 0.0), 1.0)
+            fields["clearcoat_roughness"] = min(max(self.get(clearcoat, "clearcoatRoughnessFactor", float, cptr,
+                                                             0.0), 0.0), 1.0)
+            for key in ("clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"):
+                if key in clearcoat:
+                    self.warn_once(f"{cptr}/{key}", f"{cptr}/{key} is not read: the coat has its factors alone")
         return name, self._pbr_material(name, fields)
 
     def _pbr_material(self, name: str, fields: dict) -> Material:

@@ -120,6 +120,10 @@ COLUMNS: tuple[Column, ...] = (
     Column("multiscatter", FLAG, True, None, None, "compensate the GGX reflection lobes' single-scattering "
            "energy loss (Turquin 2019); off: the bare single-scattering lobes, as most real-time viewers draw "
            "them", kinds=("pbr",)),
+    Column("clearcoat", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_clearcoat clearcoatFactor: a GGX coat of ior 1.5 "
+           "over the rest, mixed in by clearcoat x Schlick's Fresnel at the view angle", kinds=("pbr",)),
+    Column("clearcoat_roughness", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_clearcoat clearcoatRoughnessFactor: the "
+           "coat's perceptual roughness", kinds=("pbr",)),
 )
 
 COLUMN = {c.name: c for c in COLUMNS}

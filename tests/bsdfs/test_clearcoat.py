@@ -51,6 +51,24 @@ def _eval_kernel(features):
     return evaluate
 
 
+def eval_rows(evaluate, dev, rows, wo, wi) -> list[np.ndarray]:
+    """The kernel ``evaluate`` (:func:`_eval_kernel`) of each material row at ``wo`` for directions ``wi``."""
+    out = []
+    for row in rows:
+        o = wp.zeros(len(wi), dtype=wp.vec3)
+        wp.launch(evaluate, dim=len(wi), inputs=[dev.materials, dev.textures(), wp.vec3(*wo), row,
+                                                 wp.array(wi.astype(np.float32), dtype=wp.vec3), o])
+        out.append(o.numpy().astype(np.float64))
+    return out
+
+
+def upper_directions(rng, n: int) -> np.ndarray:
+    """``n`` random directions above the surface, none within 3 degrees of the horizon."""
+    z = rng.uniform(0.05, 1.0, n)
+    phi = rng.uniform(0, 2 * np.pi, n)
+    return np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], 1)
+
+
 def _coat_numpy(wo, wi, coat, rough):
     alpha = max(rough * rough, 1e-4)
     a2 = alpha * alpha
@@ -76,15 +94,8 @@ def test_the_coat_is_the_gltf_specs_layer_over_the_rest(coat, rough):
     rng = np.random.default_rng(3)
     for theta in (10.0, 45.0, 75.0):
         wo = np.array([np.sin(np.radians(theta)), 0.0, np.cos(np.radians(theta))])
-        z = rng.uniform(0.05, 1.0, 64)
-        phi = rng.uniform(0, 2 * np.pi, 64)
-        wi = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], 1)
-        f = []
-        for row in rows:
-            out = wp.zeros(len(wi), dtype=wp.vec3)
-            wp.launch(evaluate, dim=len(wi), inputs=[dev.materials, dev.textures(), wp.vec3(*wo), row,
-                                                     wp.array(wi.astype(np.float32), dtype=wp.vec3), out])
-            f.append(out.numpy().astype(np.float64))
+        wi = upper_directions(rng, 64)
+        f = eval_rows(evaluate, dev, rows, wo, wi)
         weight, coat_f = _coat_numpy(wo[None], wi, coat, rough)
         np.testing.assert_allclose(f[0], f[1] * (1 - weight[:, None]) + coat_f[:, None], rtol=2e-4, atol=1e-7)
     # a file whose coat is 0 compiles none of it

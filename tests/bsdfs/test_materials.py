@@ -213,7 +213,9 @@ def _mixture_kernels(features):
 
 @pytest.mark.parametrize("mtl", ["Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\n", "Kd 0.9 0.9 0.9\nPr 0.35\nd 0.4\nNi 1.5\n",
                                  "Kd 0.8 0.6 0.2\nPm 0.8\nPr 0.6\naniso 0.7\nanisor 0.1\n",
-                                 "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset clearcoat 0.8\nset clearcoat_roughness 0.3\n"])
+                                 "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset clearcoat 0.8\nset clearcoat_roughness 0.3\n",
+                                 "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset sheen_color 0.9 0.6 0.4\nset sheen_roughness 0.3\n"
+                                 "set clearcoat 0.5\nset clearcoat_roughness 0.2\n"])
 def test_mixture_samples_follow_its_pdf_and_weights_are_eval_over_pdf(tmp_path, mtl):
     quad = quad_obj([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], material="m")
     objs, mtls = write_scene_files(tmp_path, "mix", quad, "newmtl m\n" + mtl)

@@ -16,7 +16,8 @@ GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_lights_punctual",
                         "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission",
                         "KHR_materials_volume", "KHR_materials_specular", "KHR_materials_anisotropy",
-                        "KHR_materials_pbrSpecularGlossiness", "KHR_materials_clearcoat"}
+                        "KHR_materials_pbrSpecularGlossiness", "KHR_materials_clearcoat",
+                        "KHR_materials_sheen"}
 # extensions a file may use that leave its look as the renderer draws it when they are not read: metadata,
 # material variants (the default is drawn), image formats beside a PNG or JPEG fallback
 LOOK_NEUTRAL = {"KHR_xmp_json_ld", "KHR_materials_variants", "KHR_texture_basisu", "EXT_texture_webp",

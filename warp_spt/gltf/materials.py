@@ -198,10 +198,21 @@ class Materials(Accessors):
             fields["clearcoat"] = min(max(self.get(clearcoat, "clearcoatFactor", float, cptr, 0.0), 0.0), 1.0)
             fields["clearcoat_roughness"] = min(max(self.get(clearcoat, "clearcoatRoughnessFactor", float, cptr,
                                                              0.0), 0.0), 1.0)
-            for key in ("clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"):
-                if key in clearcoat:
-                    self.warn_once(f"{cptr}/{key}", f"{cptr}/{key} is not read: the coat has its factors alone")
+            self._unread_textures(clearcoat, cptr, ("clearcoatTexture", "clearcoatRoughnessTexture",
+                                                    "clearcoatNormalTexture"), "the coat")
+        sheen = ext("KHR_materials_sheen")
+        if sheen:
+            shptr = f"{eptr}/KHR_materials_sheen"
+            fields["sheen_color"] = tuple(min(max(c, 0.0), 1.0) for c in self.numbers(
+                sheen, "sheenColorFactor", shptr, 3, [0.0, 0.0, 0.0]))
+            fields["sheen_roughness"] = min(max(self.get(sheen, "sheenRoughnessFactor", float, shptr, 0.0), 0.0), 1.0)
+            self._unread_textures(sheen, shptr, ("sheenColorTexture", "sheenRoughnessTexture"), "the sheen")
         return name, self._pbr_material(name, fields)
+
+    def _unread_textures(self, ext: dict, ptr: str, keys: tuple[str, ...], what: str) -> None:
+        for key in keys:
+            if key in ext:
+                self.warn_once(f"{ptr}/{key}", f"{ptr}/{key} is not read: {what} has its factors alone")
 
     def _pbr_material(self, name: str, fields: dict) -> Material:
         material = Material.pbr(name, **fields)

@@ -12,6 +12,7 @@ import numpy as np
 
 from warp_spt.gltf.accessors import Accessors
 from warp_spt.gltf.document import _err
+from warp_spt.scene.media import MAX_SIGMA, Medium
 from warp_spt.scene.model import CHECKER_NAME, Material, TextureRef
 from warp_spt.scene.validate import MAX_RADIANCE
 
@@ -180,8 +181,10 @@ class Materials(Accessors):
                                               f"{eptr}/KHR_materials_transmission", 0.0)
             # without KHR_materials_volume a transmissive glTF surface is thin-walled
             volume = ext("KHR_materials_volume")
-            fields["thin"] = not volume or self.get(volume, "thicknessFactor", float,
-                                                    f"{eptr}/KHR_materials_volume", 0.0) == 0.0
+            vptr = f"{eptr}/KHR_materials_volume"
+            fields["thin"] = not volume or self.get(volume, "thicknessFactor", float, vptr, 0.0) == 0.0
+            if not fields["thin"]:
+                fields["interior"] = self._attenuation(volume, vptr)
         specular = ext("KHR_materials_specular")
         if specular:
             sptr = f"{eptr}/KHR_materials_specular"
@@ -208,6 +211,22 @@ class Materials(Accessors):
             fields["sheen_roughness"] = min(max(self.get(sheen, "sheenRoughnessFactor", float, shptr, 0.0), 0.0), 1.0)
             self._unread_textures(sheen, shptr, ("sheenColorTexture", "sheenRoughnessTexture"), "the sheen")
         return name, self._pbr_material(name, fields)
+
+    def _attenuation(self, volume: dict, ptr: str) -> Medium | None:
+        """The absorbing interior of a thick transmissive material: sigma_a = -ln(attenuationColor) /
+        attenuationDistance (Beer-Lambert, as the extension defines it), no scattering; None where it
+        absorbs nothing (the defaults: white, an infinite distance). A colour channel of 0 absorbs as
+        strongly as a medium may (MAX_SIGMA)."""
+        colour = self.numbers(volume, "attenuationColor", ptr, 3, [1.0, 1.0, 1.0])
+        if not all(0.0 <= c <= 1.0 for c in colour):
+            raise _err(self.path, f"{ptr}/attenuationColor", f"each channel must lie in [0, 1], got {colour}")
+        distance = self.get(volume, "attenuationDistance", float, ptr, math.inf)
+        if not distance > 0.0:
+            raise _err(self.path, f"{ptr}/attenuationDistance", f"must be greater than 0, got {distance}")
+        sigma = tuple(min(max(-math.log(c), 0.0) / distance, MAX_SIGMA) if c > 0.0 else MAX_SIGMA for c in colour)
+        if math.isinf(distance) or max(sigma) == 0.0:
+            return None
+        return Medium(sigma_a=sigma)
 
     def _unread_textures(self, ext: dict, ptr: str, keys: tuple[str, ...], what: str) -> None:
         for key in keys:

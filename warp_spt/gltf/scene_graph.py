@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -14,6 +15,7 @@ from warp_spt.gltf.animation import Animation
 from warp_spt.gltf.cameras_lights import CamerasLights
 from warp_spt.gltf.document import _err
 from warp_spt.gltf.meshes import GltfExtras
+from warp_spt.scene.media import open_edges
 from warp_spt.scene.model import CHECKER_NAME, Material, ObjData
 from warp_spt.scene.validate import MAX_COORDINATE
 
@@ -115,7 +117,25 @@ class Reader(Animation, CamerasLights):
             self._check_placed(sub, transforms, f"/meshes/{mesh}")
             if len(sub.faces):
                 extras.placed.append((sub, transforms))
-        return self._object(parts, names, materials, extras)
+        out = self._object(parts, names, materials, extras)
+        self._open_volumes(out, materials)
+        return out
+
+    def _open_volumes(self, out: ObjData, materials: dict[str, Material]) -> None:
+        """A thick material (KHR_materials_volume) whose surfaces do not close has no inside for its
+        medium to fill, and a ray that entered one would never leave it: drawn thin-walled instead,
+        with a warning. Each placed mesh is closed or not in its own space, as every copy is."""
+        pieces = [out] + [sub for sub, _ in out.extras.placed]
+        for row, name in enumerate(out.material_names):
+            m = materials.get(name)
+            if m is None or m.interior is None:
+                continue
+            n_open = sum(open_edges(p.positions, p.faces[p.face_material == row]) for p in pieces)
+            if n_open:
+                materials[name] = replace(m, interior=None, thin=True)
+                out.warnings.append(f"{self.path}: material {name!r} has KHR_materials_volume but its surfaces are "
+                                    f"not closed ({n_open} edges not shared by two triangles): drawn thin-walled, "
+                                    "without its attenuation")
 
     def _object_parts(self, mesh: int, material_rows: dict, names: list, materials: dict) -> list | None:
         """Mesh ``mesh``'s primitives in its own object space, to be instanced; None where it cannot be

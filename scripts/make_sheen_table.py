@@ -139,7 +139,8 @@ E = (
     print(f"wrote {OUT}: E_RAW max {raw.max():.4f}, E max {e.max():.4f}")
     if args.check:
         raw2, e2 = tables(n_t=1536, n_phi=768)
-        print(f"quadrature: largest |E - E(2x)| {np.abs(e - e2).max():.2e}, |RAW - RAW(2x)| {np.abs(raw - raw2).max():.2e}")
+        print(f"quadrature: largest |E - E(2x)| {np.abs(e - e2).max():.2e}, "
+              f"|RAW - RAW(2x)| {np.abs(raw - raw2).max():.2e}")
         worst = {0.1: 0.0, 0.02: 0.0, 0.0: 0.0}
         for j in range(N - 1):
             r = MIN_ROUGHNESS + (1.0 - MIN_ROUGHNESS) * (j + 0.5) / (N - 1)

@@ -88,7 +88,7 @@ def main() -> None:
         return bench_instances(args)
     if args.rigid:
         return bench_rigid(args)
-    from warp_spt.io.gltf import load_gltf
+    from warp_spt.gltf import load_gltf
     from warp_spt.io.ply import load_ply
 
     try:

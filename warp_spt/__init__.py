@@ -60,7 +60,7 @@ _EXPORTS = {
     "SunLight": "scene.lights",
     "PointLight": "scene.lights",
     "SpotLight": "scene.lights",
-    "load_gltf": "io.gltf",
+    "load_gltf": "gltf",
     "load_mtl": "io.mtl",
     "load_obj": "io.obj",
     "load_ply": "io.ply",
@@ -102,7 +102,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.images.files import save_image, to_display, tonemap_seed, tonemap_srgb
     from warp_spt.images.environment import load_environment
-    from warp_spt.io.gltf import load_gltf
+    from warp_spt.gltf import load_gltf
     from warp_spt.io.loader import load_scene
     from warp_spt.io.mtl import load_mtl
     from warp_spt.io.obj import load_obj

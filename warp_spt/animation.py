@@ -316,7 +316,7 @@ class ObjSequence:
         return scene
 
     def _posed(self, path: str, frame: int):
-        from warp_spt.io.gltf import load_gltf
+        from warp_spt.gltf import load_gltf
 
         return load_gltf(path, time=frame / self.fps)
 

@@ -168,23 +168,25 @@ def test_a_normal_map_tilts_the_shading_normal_along_u(tmp_path):
         np.testing.assert_allclose(got, np.broadcast_to(want / np.linalg.norm(want), got.shape), atol=2e-3)
 
 
+@wp.func
+def flat(row: int, wo: wp.vec3) -> Surface:
+    """A shading point of material ``row`` with normal +z and tangent +x, seen from ``wo``."""
+    sf = Surface()
+    sf.ng = wp.vec3(0.0, 0.0, 1.0)
+    sf.ns = sf.ng
+    sf.t = wp.vec3(1.0, 0.0, 0.0)
+    sf.b = wp.vec3(0.0, 1.0, 0.0)
+    sf.front = 1
+    sf.mat = row
+    sf.wo = wo
+    return sf
+
+
 def _mixture_kernels(features):
     """Two kernels over the materials at a flat shading point (normal +z, tangent +x): ``draw``
     samples ``wo`` and returns each sample's direction, weight, pdf, and the pdf and eval at that
     direction; ``density`` evaluates ``pdf`` at given directions."""
     mat = make_materials(features)
-
-    @wp.func
-    def flat(row: int, wo: wp.vec3) -> Surface:
-        sf = Surface()
-        sf.ng = wp.vec3(0.0, 0.0, 1.0)
-        sf.ns = sf.ng
-        sf.t = wp.vec3(1.0, 0.0, 0.0)
-        sf.b = wp.vec3(0.0, 1.0, 0.0)
-        sf.front = 1
-        sf.mat = row
-        sf.wo = wo
-        return sf
 
     @wp.kernel(enable_backward=False, module="unique")
     def draw(m: Materials, t: Textures, wo: wp.vec3, row: int, u: wp.array(dtype=wp.vec4),
@@ -210,7 +212,10 @@ def _mixture_kernels(features):
 
 
 @pytest.mark.parametrize("mtl", ["Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\n", "Kd 0.9 0.9 0.9\nPr 0.35\nd 0.4\nNi 1.5\n",
-                                 "Kd 0.8 0.6 0.2\nPm 0.8\nPr 0.6\naniso 0.7\nanisor 0.1\n"])
+                                 "Kd 0.8 0.6 0.2\nPm 0.8\nPr 0.6\naniso 0.7\nanisor 0.1\n",
+                                 "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset clearcoat 0.8\nset clearcoat_roughness 0.3\n",
+                                 "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset sheen_color 0.9 0.6 0.4\nset sheen_roughness 0.3\n"
+                                 "set clearcoat 0.5\nset clearcoat_roughness 0.2\n"])
 def test_mixture_samples_follow_its_pdf_and_weights_are_eval_over_pdf(tmp_path, mtl):
     quad = quad_obj([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], material="m")
     objs, mtls = write_scene_files(tmp_path, "mix", quad, "newmtl m\n" + mtl)

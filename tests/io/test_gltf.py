@@ -112,11 +112,16 @@ def test_strips_and_fans_are_converted(mode, expected):
 
 
 @pytest.mark.parametrize("mode, name", [(0, "points"), (1, "lines"), (3, "line strips")])
-def test_points_and_lines_are_refused_clearly(mode, name):
+def test_points_and_lines_are_skipped_with_one_warning(mode, name):
+    """The file's triangles are drawn, as importers draw them; its point or line primitive is not."""
     g = gltf_box()
-    g.doc["meshes"][0]["primitives"][0]["mode"] = mode
-    with pytest.raises(SceneError, match=rf"^scene.gltf: /meshes/0/primitives/0/mode: {name} cannot be rendered"):
-        _load(g)
+    lines = dict(g.doc["meshes"][0]["primitives"][0], mode=mode)
+    g.doc["meshes"][0]["primitives"].append(lines)
+    g.node(mesh=0)                      # two placements of the mesh: still one warning
+    d = _load(g)
+    assert len(world_triangles(d)[1]) == 2 * len(CUBE_TRIANGLES)
+    assert d.warnings == [f"scene.gltf: /meshes/0/primitives/1/mode: {name} are skipped: warp_spt draws triangles "
+                          "(strips and fans are converted)"]
 
 
 def test_sparse_accessors_with_and_without_a_base_view():

@@ -15,6 +15,10 @@ mapping tables). At a point it mixes, in the local shading frame (``common.to_lo
     E_avg its hemispherical average (Kulla & Conty 2017): reciprocal, and a white base under the
     layer reflects exactly what the layer does not (furnace: tests/bsdfs/test_materials.py).
 
+Over them, where a scene has them: a **sheen** (KHR_materials_sheen, ``bsdfs.sheen``: the sample
+viewer's Charlie lobe, the rest scaled by 1 - max(colour) E_sheen(mu_o)), and over everything a
+**clearcoat** (KHR_materials_clearcoat: mix(rest, coat, clearcoat x F(mu_o))).
+
 Roughness is perceptual (alpha = roughness^2); anisotropy stretches alpha along the tangent rotated by
 ``anisotropy_rotation`` (KHR_materials_anisotropy). Below ``microfacet.DELTA_ALPHA`` a lobe is a
 perfect mirror or smooth refraction: specular (singular, no density), as the seed's glass.
@@ -43,6 +47,7 @@ import numpy as np
 import warp as wp
 
 from warp_spt.bsdfs import microfacet as mf
+from warp_spt.bsdfs import sheen
 from warp_spt.device.lobes import (
     LOBE_DIFFUSE,
     LOBE_GLOSSY,
@@ -64,7 +69,8 @@ SLOT_NORMAL = COLUMN["normal"].slot
 SLOT_BUMP, CH_BUMP = COLUMN["bump"].slot, COLUMN["bump"].channel
 
 # lobe indices of the mixture
-METAL, SPEC, DIFF, TRANS = 0, 1, 2, 3
+METAL, SPEC, DIFF, TRANS, COAT, SHEEN = 0, 1, 2, 3, 4, 5
+COAT_F0 = 0.04              # KHR_materials_clearcoat: the coat's ior is 1.5
 
 
 def declare(table, rows: np.ndarray) -> tuple[int, frozenset]:
@@ -87,10 +93,17 @@ def declare(table, rows: np.ndarray) -> tuple[int, frozenset]:
     normal_map = bool((tex[:, SLOT_NORMAL] != TEX_NONE).any())
     bump = bool((tex[:, SLOT_BUMP] != TEX_NONE).any())
     aniso = bool((table.anisotropy[rows] > 0).any())
+    coat = bool((table.clearcoat[rows] > 0).any())
+    if coat:
+        lobes |= LOBE_GLOSSY | LOBE_SPECULAR | LOBE_REFLECTION
+    has_sheen = bool((table.sheen_color[rows] > 0).any())
+    if has_sheen:
+        lobes |= LOBE_GLOSSY | LOBE_REFLECTION
     flags = {"frame", "dims.lobe"}
     flags |= {name for name, on in (("dims.fresnel", trans.any()), ("pbr.transmission", trans.any()),
                                     ("pbr.thin", table.thin[rows].any()), ("pbr.normal_map", normal_map),
-                                    ("pbr.bump", bump), ("pbr.aniso", aniso),
+                                    ("pbr.bump", bump), ("pbr.aniso", aniso), ("pbr.clearcoat", coat),
+                                    ("pbr.sheen", has_sheen),
                                     ("frame.uv", normal_map or bump or aniso)) if on}
     return lobes, frozenset(flags)
 
@@ -112,6 +125,13 @@ class PbrPoint:
     ms: int                  # multiple-scattering compensation of the reflection lobes
     prob: wp.vec4            # choice probabilities of METAL, SPEC, DIFF, TRANS at this wo
     e_avg: wp.vec3           # the layer's hemispherical albedo (the base's normalisation)
+    coat: float              # clearcoat x the coat's Fresnel at wo: its weight, and 1 - coat the rest's
+    coat_a: float            # the coat's GGX alpha
+    p_coat: float            # the coat's choice probability (the others' prob sum to 1 - p_coat)
+    sheen: float             # max(sheen colour) x the sheen's albedo at wo: 1 - sheen scales the base
+    sheen_color: wp.vec3
+    sheen_r: float           # the sheen's roughness, held
+    p_sheen: float           # the sheen's choice probability (within the coat's 1 - p_coat)
 
 
 @wp.func
@@ -136,6 +156,8 @@ def make(features: Features, base) -> SimpleNamespace:
     has_normal_map = features.needs("pbr.normal_map")
     has_bump = features.needs("pbr.bump")
     has_aniso = features.needs("pbr.aniso")
+    has_coat = features.needs("pbr.clearcoat")
+    has_sheen = features.needs("pbr.sheen")
 
     @wp.func
     def point(m: Materials, t: Textures, sf: Surface) -> PbrPoint:
@@ -184,6 +206,31 @@ def make(features: Features, base) -> SimpleNamespace:
             q.prob = wp.vec4(held(w_metal / total), held(w_spec / total), held(w_diff / total), held(w_trans / total))
         else:
             q.prob = wp.vec4(0.0, 0.0, 1.0, 0.0)
+        if wp.static(has_sheen):
+            # the sample viewer's albedo scaling: sheen + base x (1 - max(colour) E(mu_o))
+            q.sheen_color = m.sheen_color[k]
+            q.sheen_r = sheen.held_roughness(m.sheen_roughness[k])
+            e_sheen = sheen.albedo(mu, q.sheen_r)
+            c = q.sheen_color
+            q.sheen = wp.max(c[0], wp.max(c[1], c[2])) * e_sheen
+            # a floor on the albedo keeps every direction the lobe reaches sampled
+            w_sheen = luminance(c) * wp.max(e_sheen, 1.0e-3)
+            under = (1.0 - q.sheen) * total
+            if w_sheen + under > 0.0:
+                q.p_sheen = held(w_sheen / (w_sheen + under))
+                q.prob = q.prob * (1.0 - q.p_sheen)
+            total = w_sheen + under
+        if wp.static(has_coat):
+            # glTF: mix(rest, coat, clearcoat x F(mu_o)), the coat's lobe D V without Fresnel
+            q.coat = wp.clamp(m.clearcoat[k], 0.0, 1.0) * (COAT_F0 + (1.0 - COAT_F0) * wp.pow(1.0 - mu, 5.0))
+            q.coat_a = mf.ggx_alphas(wp.clamp(m.clearcoat_roughness[k], 0.0, 1.0), 0.0)[0]
+            ab = mf.ggx_split_sum(mu, q.coat_a)
+            w_coat = q.coat * (ab[0] + ab[1])
+            rest = (1.0 - q.coat) * total
+            if w_coat + rest > 0.0:
+                q.p_coat = held(w_coat / (w_coat + rest))
+                q.prob = q.prob * (1.0 - q.p_coat)
+                q.p_sheen = q.p_sheen * (1.0 - q.p_coat)
         return q
 
     @wp.func
@@ -239,6 +286,15 @@ def make(features: Features, base) -> SimpleNamespace:
             if q.delta == 0 and q.prob[3] > 0.0:
                 f += trans_eval(q, wo, wi) * ((1.0 - q.metallic) * q.trans)
                 pdf += q.prob[3] * held(trans_pdf(q, wo, wi))
+        if wp.static(has_sheen):
+            f = f * (1.0 - q.sheen) + q.sheen_color * sheen.value(wo, wi, q.sheen_r)
+            if q.p_sheen > 0.0 and wi[2] > 0.0:
+                pdf += q.p_sheen * wi[2] * INV_PI
+        if wp.static(has_coat):
+            f = f * (1.0 - q.coat)
+            if q.p_coat > 0.0 and wi[2] > 0.0:
+                f += mf.conductor_eval(wo, wi, wp.vec3(1.0), q.coat_a, q.coat_a, 0) * q.coat
+                pdf += q.p_coat * held(mf.conductor_pdf(wo, wi, q.coat_a, q.coat_a))
         return f, pdf
 
     @wp.func
@@ -303,20 +359,32 @@ def make(features: Features, base) -> SimpleNamespace:
             lobe = TRANS
             if wp.static(not has_trans):
                 lobe = DIFF
+        if wp.static(has_sheen):
+            if u_lobe >= 1.0 - q.p_coat - q.p_sheen:
+                lobe = SHEEN
+        if wp.static(has_coat):
+            if u_lobe >= 1.0 - q.p_coat:
+                lobe = COAT
         wi = wp.vec3(0.0, 0.0, 0.0)
         flags = int(0)
-        if lobe == DIFF:
+        if lobe == DIFF or lobe == SHEEN:
             wi = held_dir(cosine_hemisphere(wp.vec3(0.0, 0.0, 1.0), u_dir[0], u_dir[1]))
-            flags = LOBE_DIFFUSE | LOBE_REFLECTION
+            flags = wp.where(lobe == SHEEN, LOBE_GLOSSY, LOBE_DIFFUSE) | LOBE_REFLECTION
         else:
             ls = mf.LobeSample()
+            p_lobe = float(0.0)
+            if wp.static(has_coat):
+                if lobe == COAT:
+                    ls = mf.conductor_sample(wo, wp.vec3(1.0), q.coat_a, q.coat_a, 0, u_dir)
+                    ls.value = ls.value * q.coat
+                    p_lobe = q.p_coat
             if lobe == METAL:
                 ls = mf.conductor_sample(wo, q.base, q.ax, q.ay, q.ms, u_dir)
                 ls.value = ls.value * q.metallic
             elif lobe == SPEC:
                 ls = mf.conductor_sample(wo, q.f0, q.ax, q.ay, q.ms, u_dir)
                 ls.value = ls.value * ((1.0 - q.metallic) * (1.0 - q.trans) * q.spec)
-            else:
+            elif lobe != COAT:
                 if wp.static(has_thin):
                     if q.thin != 0:
                         ls = mf.thin_dielectric_sample(wo, q.eta, q.ax, q.ay, u_fresnel, u_dir)
@@ -337,7 +405,16 @@ def make(features: Features, base) -> SimpleNamespace:
                 if not side_ok(sf, wd, wi):
                     return out
                 out.dir = wd
-                out.weight = ls.value / (held(ls.pdf) * q.prob[lobe])
+                if wp.static(has_sheen):
+                    if lobe != COAT:
+                        ls.value = ls.value * (1.0 - q.sheen)
+                if wp.static(has_coat):
+                    if lobe != COAT:
+                        p_lobe = q.prob[lobe]
+                        ls.value = ls.value * (1.0 - q.coat)
+                    out.weight = ls.value / (held(ls.pdf) * p_lobe)
+                else:
+                    out.weight = ls.value / (held(ls.pdf) * q.prob[lobe])
                 out.alive = 1
                 return with_flags(out, flags)
         wd = to_world(fr, wi)
@@ -364,6 +441,12 @@ def make(features: Features, base) -> SimpleNamespace:
             out = out | LOBE_DIFFUSE | LOBE_REFLECTION
         if q.prob[3] > 0.0:
             out = out | kind | LOBE_REFLECTION | LOBE_TRANSMISSION
+        if wp.static(has_coat):
+            if q.p_coat > 0.0:
+                out = out | wp.where(q.coat_a < mf.DELTA_ALPHA, LOBE_SPECULAR, LOBE_GLOSSY) | LOBE_REFLECTION
+        if wp.static(has_sheen):
+            if q.p_sheen > 0.0:
+                out = out | LOBE_GLOSSY | LOBE_REFLECTION
         return out
 
     @wp.func

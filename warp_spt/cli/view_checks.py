@@ -153,7 +153,7 @@ def _environment(opts, say) -> Sky:
 
 def _file_camera(opts, scene) -> Camera:
     """The camera --camera names, for this image's aspect (the file's vertical field of view)."""
-    from warp_spt.io.gltf import choose_camera
+    from warp_spt.gltf import choose_camera
 
     try:
         return choose_camera(scene.cameras, opts.file_camera, opts.width, opts.height)

@@ -159,7 +159,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
 
 # Model readers by suffix, as "module:function" imported on first use (a scene of OBJ files imports neither)
 MODEL_READERS = {".obj": "warp_spt.io.obj:load_obj", ".ply": "warp_spt.io.ply:load_ply",
-                 ".gltf": "warp_spt.io.gltf:load_gltf", ".glb": "warp_spt.io.gltf:load_gltf"}
+                 ".gltf": "warp_spt.gltf:load_gltf", ".glb": "warp_spt.gltf:load_gltf"}
 _HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"))
 
 
@@ -281,7 +281,7 @@ def _assign_rows(data: list[ObjData], library: dict[str, Material], note: WarnFn
 
 
 def _placed(d: ObjData) -> list:
-    """The (object-space ObjData, (I, 4, 4) transforms) a model keeps instanced (glTF: io.gltf.GltfExtras.placed)."""
+    """The (object-space ObjData, (I, 4, 4) transforms) a model keeps instanced (glTF: gltf.GltfExtras.placed)."""
     return list(getattr(d.extras, "placed", ()))
 
 
@@ -422,6 +422,9 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
         text = str(err)
         if ref.image is not None:    # Pillow names in-memory bytes by their repr (<_io.BytesIO object at 0x...>)
             text = text.replace(repr(source), "(its embedded bytes)")
+        if ref.neutral:
+            note(f"{ref.mtl_file}: cannot read texture {ref.path}: {text}; a neutral texel stands for it")
+            return np.array([[[0.5, 0.5, 1.0] if decode == "normal" else [1.0, 1.0, 1.0]]], np.float32)
         raise SceneError(ref.mtl_file, ref.line, f"cannot read texture {path}: {text}") from None
     for w in caught:
         if not issubclass(w.category, Image.DecompressionBombWarning):

@@ -52,7 +52,7 @@ Every other file is **standard**: its materials are of the physically based kind
 * ``norm``: a tangent-space normal map (``-bm`` its strength); ``bump`` / ``map_Bump``: a bump map
   (height, ``-bm`` its multiplier).
 * ``aniso a`` / ``anisor r``: anisotropy strength and its rotation (a fraction of a turn).
-* ``Ps``/``Pc``/``Pcr`` (sheen, clearcoat) and ``map_Ks`` are not modelled: reported once per file.
+* ``Ps``/``Pc``/``Pcr`` and ``map_Ks`` are not read (sheen and clearcoat are ``set`` lines): reported once per file.
 
 * Texture statements may carry options (``-s 1 1 1``, ``-clamp on``...); ``-bm`` is read for bump
   and normal maps, the others are skipped. ``Ka`` (ambient: a path tracer computes the ambient light)

@@ -120,6 +120,15 @@ COLUMNS: tuple[Column, ...] = (
     Column("multiscatter", FLAG, True, None, None, "compensate the GGX reflection lobes' single-scattering "
            "energy loss (Turquin 2019); off: the bare single-scattering lobes, as most real-time viewers draw "
            "them", kinds=("pbr",)),
+    Column("clearcoat", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_clearcoat clearcoatFactor: a GGX coat of ior 1.5 "
+           "over the rest, mixed in by clearcoat x Schlick's Fresnel at the view angle", kinds=("pbr",)),
+    Column("clearcoat_roughness", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_clearcoat clearcoatRoughnessFactor: the "
+           "coat's perceptual roughness", kinds=("pbr",)),
+    Column("sheen_color", COLOR, (0.0, 0.0, 0.0), 0.0, 1.0, "KHR_materials_sheen sheenColorFactor: a Charlie "
+           "sheen lobe over the base, which is scaled by 1 - max(colour) x the lobe's albedo at the view angle",
+           kinds=("pbr",)),
+    Column("sheen_roughness", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_sheen sheenRoughnessFactor: the sheen's "
+           "perceptual roughness (held at or above 0.07)", kinds=("pbr",)),
 )
 
 COLUMN = {c.name: c for c in COLUMNS}

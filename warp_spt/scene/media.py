@@ -140,16 +140,23 @@ def open_boundary_warnings(scene) -> list[str]:
             tris = mesh.indices[mesh.face_material == row]
             if not len(tris):
                 continue
-            # edges by welded position (an OBJ's corners may repeat a point under another index)
-            _, weld = np.unique(np.asarray(mesh.positions, dtype=np.float64), axis=0, return_inverse=True)
-            t = weld.reshape(-1)[tris]
-            e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
-            _, counts = np.unique(e, axis=0, return_counts=True)
-            if (counts != 2).any():
+            n_open = open_edges(mesh.positions, tris)
+            if n_open:
                 out.append(f"material {name!r} has an interior medium but its surface in {mesh.name} is not "
-                           f"closed ({int((counts != 2).sum())} edges not shared by two triangles): the medium's "
-                           "boundary leaks")
+                           f"closed ({n_open} edges not shared by two triangles): the medium's boundary leaks")
     return out
+
+
+def open_edges(positions: np.ndarray, tris: np.ndarray) -> int:
+    """How many edges of the triangles ``tris`` are not shared by exactly two of them, edges taken by
+    welded position (an OBJ's or a glTF's corners may repeat a point under another index)."""
+    if not len(tris):
+        return 0
+    _, weld = np.unique(np.asarray(positions, dtype=np.float64), axis=0, return_inverse=True)
+    t = weld.reshape(-1)[tris]
+    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    return int((counts != 2).sum())
 
 
 def interface_rows(table) -> np.ndarray:
@@ -208,4 +215,4 @@ def parse_medium(pairs: list[str], where: str = "--fog") -> Medium:
     return Medium(**fields).check(where)
 
 
-__all__ = ["Medium", "MEDIUM_KINDS", "parse_medium", "KEYS", "check_densities", "open_boundary_warnings", "interface_rows"]
+__all__ = ["Medium", "MEDIUM_KINDS", "parse_medium", "KEYS", "check_densities", "open_boundary_warnings", "open_edges", "interface_rows"]

@@ -47,12 +47,15 @@ class TextureRef:
     ``image``, when given, is the texture itself: an encoded image file's bytes (a glTF's embedded
     PNG or JPEG) or an (H, W, 3) float32 array in [0, 1] (a PLY's baked vertex colours); ``path`` then
     only names it (it must be unique: the loader reads each name once). A baked array holds linear
-    values: the loader takes it as it is, whatever its slot's decoding."""
+    values: the loader takes it as it is, whatever its slot's decoding. ``neutral``: an image that
+    cannot be decoded is a warning and one neutral texel (white; a flat normal), as glTF viewers draw
+    a file whose texture is broken, instead of an error."""
 
     path: str
     mtl_file: str
     line: int
     image: bytes | np.ndarray | None = field(default=None, compare=False, repr=False)
+    neutral: bool = field(default=False, compare=False)
 
 
 def _material_fields() -> list[tuple]:
@@ -145,7 +148,7 @@ class ObjData:
     dropped_degenerate: int = 0  # zero-area triangles dropped while parsing
     # materials the file defines itself (PLY vertex colours, glTF), by name; an MTL of the same name wins
     materials: dict[str, Material] = field(default_factory=dict)
-    extras: object = None        # what else the format holds (glTF: io.gltf.GltfExtras, cameras and lights)
+    extras: object = None        # what else the format holds (glTF: gltf.GltfExtras, cameras and lights)
     warnings: list[str] = field(default_factory=list)   # the reader's notes; the loader passes them on
 
 
@@ -327,7 +330,7 @@ class Scene:
     # default material). Scenes built in code count as the seed's and not bare.
     seed_dialect: bool = True
     bare: bool = False
-    # cameras and lights the model files define (glTF: io.gltf.GltfCamera, GltfLight), in file order
+    # cameras and lights the model files define (glTF: gltf.GltfCamera, GltfLight), in file order
     cameras: list = field(default_factory=list)
     lights: list = field(default_factory=list)
     # participating media (warp_spt.scene.media.Medium, docs/volumes.md): the scene-wide medium the

@@ -113,7 +113,7 @@ PROBE = textwrap.dedent('''
     from warp_spt.emitters import light_table
     from warp_spt.scene.sky import Sky
     bw.bound = SimpleNamespace(lights=light_table(dev, Sky.black()))
-    bw.wants_texels = bw.wants_proc = bw.wants_env = bw.wants_media = False
+    bw.wants_texels = bw.wants_proc = bw.wants_env = bw.wants_media = bw.wants_geometry = False
     m = bw._tile_inputs(0, 1)[0]
     assert m.sheen.grad is not None and m.sheen.ptr == dev.materials.sheen.ptr          # the gradient alias
     assert m.refractable.grad is None                  # not differentiable: no alias

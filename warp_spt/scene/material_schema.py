@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from warp_spt.scene.limits import MAX_IOR, MAX_RADIANCE, MIN_IOR
 
 # Column types: what a row holds, on the host and on the device (warp_spt.device.material_table)
@@ -184,3 +186,16 @@ def _check_schema() -> None:
 
 
 _check_schema()
+
+
+def material_problem(m) -> str | None:
+    """Why one Material's values lie outside the schema's ranges (the field and its range), or None:
+    what a reader checks while it still knows the file and the place (the table check below names
+    only the column)."""
+    for c in COLUMNS:
+        if c.type == SLOTS or (c.low is None and c.high is None):
+            continue
+        a = np.asarray(getattr(m, c.name), dtype=host_dtype(c))      # as the table holds it: float32
+        if not ((c.low is None or (a >= c.low).all()) and (c.high is None or (a <= c.high).all())):
+            return f"{c.name} must {range_text(c)}, got {' '.join(f'{v:g}' for v in np.ravel(a))}"
+    return None

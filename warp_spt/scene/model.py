@@ -91,8 +91,7 @@ def _pbr(cls, name: str, **fields) -> "Material":
     """A material of the physically based kind (``kind`` = KIND_PBR) with :data:`PBR_DEFAULTS` for the
     fields not given (docs/materials.md: base_color, metallic, roughness, anisotropy, ior, specular,
     transmission, thin, emission, normal/bump/opacity maps, ...)."""
-    from warp_spt.scene.material_schema import COLUMN, KIND_PBR, SLOTS, row_shape
-    from warp_spt.scene.validate import material_problem
+    from warp_spt.scene.material_schema import COLUMN, KIND_PBR, SLOTS, material_problem, row_shape
 
     for key, value in fields.items():       # each field's shape, then its range, by name
         c = COLUMN.get(key)

@@ -170,19 +170,6 @@ def _check_materials(t: MaterialTable, n_textures: int, n_procedural: int = 0) -
             _fail(f"materials.{c.name} must {range_text(c)}")
 
 
-def material_problem(m) -> str | None:
-    """Why one Material's values lie outside the schema's ranges (the field and its range), or None:
-    what a reader checks while it still knows the file and the place (the table check below names
-    only the column)."""
-    for c in COLUMNS:
-        if c.type == SLOTS or (c.low is None and c.high is None):
-            continue
-        a = np.asarray(getattr(m, c.name), dtype=host_dtype(c))      # as the table holds it: float32
-        if not ((c.low is None or (a >= c.low).all()) and (c.high is None or (a <= c.high).all())):
-            return f"{c.name} must {range_text(c)}, got {' '.join(f'{v:g}' for v in np.ravel(a))}"
-    return None
-
-
 def _check_slots(tex: np.ndarray, n_textures: int, n_procedural: int) -> None:
     proc = (tex <= TEX_PROC_BASE) & (tex > TEX_PROC_BASE - n_procedural)
     if ((tex < 0) & (tex != TEX_NONE) & (tex != TEX_CHECKER) & ~proc).any() or (tex >= n_textures).any():

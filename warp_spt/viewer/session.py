@@ -787,10 +787,15 @@ class Session:
                 return
             acc.add(b, sums, spp, time.perf_counter() - start)
             mean, se = acc.statistics()
+            # the picture is recorded before waiters wake: one that returns from wait_for and redraws
+            # (a display setting) draws this pass, not the one before it (under load it drew the preview)
+            cleared = self._record(mean, se, {"mode": "refine", "spp": acc.spp,
+                                              "error": _finite(warp_spt.relative_error(se, mean)),
+                                              "rate": acc.spp * n / max(acc.seconds, 1e-9), "passes": acc.passes,
+                                              "size": [s.width, s.height]}, version)
             self._cond.notify_all()
-        self._show(mean, se, {"mode": "refine", "spp": acc.spp, "error": _finite(warp_spt.relative_error(se, mean)),
-                              "rate": acc.spp * n / max(acc.seconds, 1e-9), "passes": acc.passes,
-                              "size": [s.width, s.height]}, version)
+        if cleared is not None:
+            self._publish(cleared)
 
     def _timed(self, call: Callable, *args, **kw):
         """Run a render call; if it is slow (a kernel compiling), tell the page while it runs."""
@@ -894,12 +899,23 @@ class Session:
     # ------------------------------------------------------------------ publishing
     def _show(self, image: np.ndarray, std_error, meta: dict, version: int) -> None:
         with self._cond:
-            if version != self._version and meta["mode"] == "refine":
-                return
-            meta = {**meta, "camera": camera_info(self._rig), "view": [self._settings.width, self._settings.height],
-                    "version": version}
-            self._shown = _Shown(image, std_error, meta)
-            cleared, self._error = self._error is not None, None     # a render worked: the error is past
+            cleared = self._record(image, std_error, meta, version)
+        if cleared is not None:
+            self._publish(cleared)
+
+    def _record(self, image: np.ndarray, std_error, meta: dict, version: int) -> bool | None:
+        """Make this the picture shown (the caller holds the lock); whether an error was cleared, or
+        None where a refine pass of an abandoned view is not shown."""
+        if version != self._version and meta["mode"] == "refine":
+            return None
+        meta = {**meta, "camera": camera_info(self._rig), "view": [self._settings.width, self._settings.height],
+                "version": version}
+        self._shown = _Shown(image, std_error, meta)
+        cleared, self._error = self._error is not None, None     # a render worked: the error is past
+        return cleared
+
+    def _publish(self, cleared: bool) -> None:
+        """Send the recorded picture (and the state, where an error was cleared)."""
         if cleared:
             self._broadcast(self.state(), [])
         self._redraw()

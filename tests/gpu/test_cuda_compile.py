@@ -78,8 +78,7 @@ import warp as wp
 
 import warp_spt.diff.gradients  # noqa: F401  (registers the "tape" kernel kind)
 import warp_spt.diff.prb  # noqa: F401  (registers "replay")
-import warp_spt.diff.boundary  # noqa: F401  (registers "edges", the primary boundary term's paths)
-import warp_spt.diff.secondary  # noqa: F401  (registers "secondary", the secondary boundary term's)
+import warp_spt.diff.boundary_paths  # noqa: F401  (registers "boundary", the boundary terms' paths)
 import warp_spt.rendering.aux_buffers  # noqa: F401  (registers "aov")
 from warp_spt.device import proctex
 from warp_spt.upload.device_scene import Features
@@ -270,7 +269,7 @@ def test_the_variants_come_from_the_registries():
         else:
             assert {i for i, _ in fast} == set(INTEGRATORS) and {s for _, s in fast} == set(SAMPLERS)
         assert {v.kind for v in chosen} == set(KERNEL_KINDS)
-    assert {"tape", "replay", "aov", "edges", "secondary"} <= set(KERNEL_KINDS)
+    assert {"tape", "replay", "aov", "boundary"} <= set(KERNEL_KINDS)
     sets = FEATURE_SETS.values()
     for name in ("meshes", "spheres", "textures", "checker", "emitters", "smooth", "warp_meshes", "scatters"):
         assert {getattr(f, name) for f in sets} == {True, False}, name

@@ -42,51 +42,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 import warp as wp
 
-from warp_spt.device.camera_rays import CameraParams, camera_frame
-from warp_spt.device.structs import Features, Geometry, Materials, Textures
+from warp_spt.device.camera_rays import camera_frame
+from warp_spt.diff.boundary_paths import BOUNDARY, STAGE_PRIMARY
 from warp_spt.diff.forces import Forces
 from warp_spt.diff.geometry_params import MESH, SPHERE
-from warp_spt.emitters import Lights
-from warp_spt.integrators import RenderParams, get_step
-from warp_spt.rendering.setup import Bound, KernelKind, register_kind, render_features
-from warp_spt.runtime import kernel_cache
+from warp_spt.rendering.setup import Bound
 
 EDGE_OFFSET = 1e-3          # pixels either side of the curve for the two rays
 SPHERE_BINS = 64            # a silhouette circle's length table
 NEAR = 1e-6                 # edges are clipped to depth >= NEAR x the scene's extent before the eye
 SEED_SALT = 0x5EED_B0B      # the boundary's random numbers are not the image's
-
-
-def _make_kernel(step, start_path):
-    @wp.kernel(enable_backward=False, module="unique")
-    def edge_paths(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
-                   rp: RenderParams, origin: wp.vec3, dirs: wp.array(dtype=wp.vec3),
-                   out: wp.array(dtype=wp.vec3)):
-        """Ray i of the pairs (2k, 2k + 1) from ``origin``: its path's radiance (0 if not finite);
-        both rays of a pair take the random numbers of boundary sample k."""
-        i = wp.tid()
-        p = start_path(cam, i // 2, rp.width, rp.seed, rp.sample_start)
-        p.o = origin
-        p.d = dirs[i]
-        while p.alive != 0:
-            p = step(geo, mats, tex, lights, rp, p)
-        r = p.radiance
-        if not wp.isfinite(r):
-            r = wp.vec3(0.0, 0.0, 0.0)
-        out[i] = r
-
-    return edge_paths
-
-
-def get_edge_kernel(features: Features, integrator: str, sampler: str, device: str = "cpu") -> wp.Kernel:
-    """The boundary term's path kernel for (integrator, sampler, features): the fast step from given rays."""
-    k = kernel_cache.cached("edges", (integrator, sampler, features),
-                            lambda: _make_kernel(*get_step(integrator, sampler, features)))
-    return kernel_cache.load(k, device)
-
-
-EDGES = register_kind(KernelKind("edges", lambda b: get_edge_kernel(
-    b.features, b.integrator.name, b.settings.sampler, b.dev.device), render_features))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -440,12 +405,15 @@ def _trace_pairs(bound: Bound, proj: Projection, px: np.ndarray, normal: np.ndar
     pts[0::2] = px - EDGE_OFFSET * normal
     pts[1::2] = px + EDGE_OFFSET * normal
     dev = bound.dev
-    kernel = EDGES.build(bound)
     dirs = wp.array(proj.direction(pts).astype(np.float32), dtype=wp.vec3, device=dev.device)
     out = wp.zeros(len(pts), dtype=wp.vec3, device=dev.device)
     rp = bound.params(0, count=1, seed=(seed ^ SEED_SALT) & 0x7FFFFFFF)
-    wp.launch(kernel, dim=len(pts), device=dev.device,
-              inputs=[*bound.scene_args(rp), wp.vec3(*proj.origin.astype(np.float32)), dirs, out])
+    one_i = wp.zeros(1, dtype=wp.int32, device=dev.device)
+    eye = wp.array([proj.origin.astype(np.float32)], dtype=wp.vec3, device=dev.device)
+    wp.launch(BOUNDARY.build(bound), dim=len(pts), device=dev.device, inputs=[
+        *bound.scene_args(rp), STAGE_PRIMARY, wp.uint32(0), one_i, one_i, dirs, eye,
+        wp.zeros(1, dtype=wp.vec4i, device=dev.device), wp.zeros(1, dtype=wp.vec2, device=dev.device),
+        wp.zeros(1, dtype=wp.vec3, device=dev.device), out])
     return out.numpy().astype(np.float64)
 
 

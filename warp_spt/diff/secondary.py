@@ -33,95 +33,15 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_spt.accel.surface import make_surface, offset_origin
-from warp_spt.bsdfs import make_materials
-from warp_spt.bsdfs.cutout import make_hit
-from warp_spt.device.camera_rays import CameraParams
 from warp_spt.device.lobes import LOBE_TRANSMISSION
-from warp_spt.device.structs import Features, Geometry, Materials, Textures
 from warp_spt.diff.boundary import Projection, camera_derivative, mesh_edges
+from warp_spt.diff.boundary_paths import BOUNDARY, STAGE_LIGHTING, STAGE_RECEIVERS
 from warp_spt.diff.forces import Forces
-from warp_spt.emitters import Lights
-from warp_spt.integrators import RenderParams, get_step
-from warp_spt.rendering.setup import Bound, KernelKind, register_kind, render_features
-from warp_spt.runtime import kernel_cache
+from warp_spt.rendering.setup import Bound
 
 ANGLE_OFFSET = 1e-4        # radians either side of the curve for the two paths
 SEED_SALT = 0x5EC0_0D      # the receivers' random numbers are not the image's
 CHUNK = 1 << 16            # (receivers x edges) entries per block of the host's arrays
-
-
-def _make_kernel(features: Features, step, start_path):
-    hit = make_hit(features)
-    surface_at = make_surface(features)
-    mat = make_materials(features)
-
-    @wp.func
-    def along(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams, rp: RenderParams,
-              seed2: wp.uint32, i: int, x: wp.vec3, ng: wp.vec3, d: wp.vec3) -> wp.vec3:
-        """The radiance arriving at x from direction d: a path from x, its random numbers sample i's
-        (the same for both sides of a curve); 0 if not finite."""
-        q = start_path(cam, i, rp.width, seed2, 0)
-        through = int(0)
-        if wp.dot(d, ng) < 0.0:
-            through = 1
-        q.o = offset_origin(x, ng, through, geo.extent)
-        q.d = d
-        q.depth = 1
-        q.alive = int(rp.max_depth > 1)
-        while q.alive != 0:
-            q = step(geo, mats, tex, lights, rp, q)
-        r = q.radiance
-        if not wp.isfinite(r):
-            r = wp.vec3(0.0, 0.0, 0.0)
-        return r
-
-    @wp.kernel(enable_backward=False, module="unique")
-    def receivers(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
-                  rp: RenderParams, stage: int, seed2: wp.uint32, pix: wp.array(dtype=wp.int32),
-                  sample: wp.array(dtype=wp.int32), dirs: wp.array(dtype=wp.vec3),
-                  rec: wp.array(dtype=wp.vec3), info: wp.array(dtype=wp.vec4i), bary: wp.array(dtype=wp.vec2),
-                  dirs_apex: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
-        """Stage 0: receiver i's camera ray (rec 4i, 4i + 1), its hit point and geometric normal (4i + 2,
-        4i + 3), its primitive (kind, index, face, placed; kind -1: the ray escaped), barycentrics and
-        the origin of the rays it reflects (``dirs_apex``).
-        Stage 1: the same hit's f cos towards dirs[3i] (out[3i]) and the radiance along dirs[3i + 1]
-        and dirs[3i + 2] (out[3i + 1], out[3i + 2]), two paths of the same random numbers."""
-        i = wp.tid()
-        p = start_path(cam, pix[i], rp.width, rp.seed, sample[i])
-        h = hit(geo, mats, tex, p.o, p.d)
-        if h.kind < 0:
-            if stage == 0:
-                info[i] = wp.vec4i(-1, 0, 0, 0)
-            return
-        sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
-        if stage == 0:
-            rec[4 * i] = p.o
-            rec[4 * i + 1] = p.d
-            rec[4 * i + 2] = sf.p
-            rec[4 * i + 3] = sf.ng
-            # where its reflected rays start: the apex of the directions they see (offset_eps: 1e-5 of
-            # the scene's extent, which curves seen from sf.p itself would miss by as much)
-            dirs_apex[i] = offset_origin(sf.p, sf.ng, 0, geo.extent)
-            info[i] = wp.vec4i(h.kind, h.index, h.face, h.placed)
-            bary[i] = wp.vec2(h.u, h.v)
-            return
-        out[3 * i] = mat.eval(mats, tex, sf, dirs[3 * i])
-        # two calls, not a loop of two: in a loop Warp unrolled, both sides came out as one
-        out[3 * i + 1] = along(geo, mats, tex, lights, cam, rp, seed2, i, sf.p, sf.ng, dirs[3 * i + 1])
-        out[3 * i + 2] = along(geo, mats, tex, lights, cam, rp, seed2, i, sf.p, sf.ng, dirs[3 * i + 2])
-
-    return receivers
-
-
-def get_secondary_kernel(features: Features, integrator: str, sampler: str, device: str = "cpu") -> wp.Kernel:
-    k = kernel_cache.cached("secondary", (integrator, sampler, features),
-                            lambda: _make_kernel(features, *get_step(integrator, sampler, features)))
-    return kernel_cache.load(k, device)
-
-
-SECONDARY = register_kind(KernelKind("secondary", lambda b: get_secondary_kernel(
-    b.features, b.integrator.name, b.settings.sampler, b.dev.device), render_features))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -131,14 +51,15 @@ SECONDARY = register_kind(KernelKind("secondary", lambda b: get_secondary_kernel
 def _launch(bound: Bound, stage: int, pix, sample, dirs, rp, seed2):
     dev = bound.dev
     n = len(pix)
-    rec = wp.zeros(4 * n if stage == 0 else 1, dtype=wp.vec3, device=dev.device)
-    info = wp.zeros(n if stage == 0 else 1, dtype=wp.vec4i, device=dev.device)
-    bary = wp.zeros(n if stage == 0 else 1, dtype=wp.vec2, device=dev.device)
-    out = wp.zeros(3 * n if stage == 1 else 1, dtype=wp.vec3, device=dev.device)
-    apex = wp.zeros(n if stage == 0 else 1, dtype=wp.vec3, device=dev.device)
+    first = stage == STAGE_RECEIVERS
+    rec = wp.zeros(4 * n if first else 1, dtype=wp.vec3, device=dev.device)
+    info = wp.zeros(n if first else 1, dtype=wp.vec4i, device=dev.device)
+    bary = wp.zeros(n if first else 1, dtype=wp.vec2, device=dev.device)
+    out = wp.zeros(3 * n if not first else 1, dtype=wp.vec3, device=dev.device)
+    apex = wp.zeros(n if first else 1, dtype=wp.vec3, device=dev.device)
     d = wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=dev.device) if dirs is not None else \
         wp.zeros(1, dtype=wp.vec3, device=dev.device)
-    wp.launch(SECONDARY.build(bound), dim=n, device=dev.device, inputs=[
+    wp.launch(BOUNDARY.build(bound), dim=n, device=dev.device, inputs=[
         *bound.scene_args(rp), stage, wp.uint32(seed2), wp.array(pix.astype(np.int32), dtype=wp.int32, device=dev.device),
         wp.array(sample.astype(np.int32), dtype=wp.int32, device=dev.device), d, rec, info, bary, apex, out])
     return rec, info, bary, apex, out
@@ -253,7 +174,7 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     if not len(pix):
         return Forces.empty(), cams
     rp = bound.params(0, count=1, seed=(seed ^ SEED_SALT) & 0x7FFFFFFF)
-    rec, info, bary, apex, _ = _launch(bound, 0, pix, sample, None, rp, 0)
+    rec, info, bary, apex, _ = _launch(bound, STAGE_RECEIVERS, pix, sample, None, rp, 0)
     rec, info, bary = rec.numpy().astype(np.float64).reshape(-1, 4, 3), info.numpy(), bary.numpy().astype(np.float64)
     apex = apex.numpy().astype(np.float64)
     hit = info[:, 0] >= 0
@@ -339,7 +260,7 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     for k, sgn in ((1, -1.0), (2, 1.0)):
         dd = omega + sgn * ANGLE_OFFSET * pole
         dirs[:, k] = dd / np.linalg.norm(dd, axis=1, keepdims=True)
-    *_, out = _launch(bound, 1, pix[rows], sample[rows], dirs.reshape(-1, 3), rp, (seed * 2654435761 + 1) & 0x7FFFFFFF)
+    *_, out = _launch(bound, STAGE_LIGHTING, pix[rows], sample[rows], dirs.reshape(-1, 3), rp, (seed * 2654435761 + 1) & 0x7FFFFFFF)
     out = out.numpy().astype(np.float64).reshape(-1, 3, 3)
     fcos, dl = out[:, 0], out[:, 1] - out[:, 2]                # L_minus - L_plus
     wgt = np.sum(a_img[rows] * fcos * dl, axis=1) * inv_density / spp

@@ -197,7 +197,10 @@ def test_a_signal_stops_a_pass_between_its_launches(open_scene, monkeypatch, thr
         launched.append(args[0])
         if len(launched) == 3:
             os.kill(os.getpid(), signal.SIGINT)      # stop_on_signals turns it into the stop flag
-            time.sleep(0.05)                         # let it land while this launch is the one under way
+            # let it land while this launch is the one under way: the main thread runs the handler when
+            # it is next scheduled, which under a loaded machine took longer than a fixed 0.05 s (CI
+            # saw a fifth launch start with 2 threads)
+            self.stop.wait(5.0)
 
     monkeypatch.setattr(progressive._Driver, "_launch", launch)
     kw = dict(KW, width=128, height=128, threads=threads)      # 4 runs of TILE_PIXELS per batch: 8 launches

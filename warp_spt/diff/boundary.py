@@ -352,10 +352,13 @@ def draw(curves: list[Curve], scene, proj: Projection, n: int, rng: np.random.Ge
 # The estimate
 
 
-def primary_term(bound: Bound, adjoint: np.ndarray, wanted: list, boundary_spp: int, seed: int):
+def primary_term(bound: Bound, adjoint: np.ndarray, wanted: list, boundary_spp: int, seed: int,
+                 topology: dict | None = None):
     """(Forces on the geometry's points, {camera parameter name: gradient}): the boundary term of
     primary visibility for the loss whose adjoint image is ``adjoint`` (H, W, 3); ``wanted``: the
-    parameters asked for (the camera's are differentiated here, the geometry's by ``forces.chain``)."""
+    parameters asked for (the camera's are differentiated here, the geometry's by ``forces.chain``);
+    ``topology``: the meshes' edge lists by mesh (``mesh_edges``), filled here and shared with the
+    secondary term of the same call."""
     rs = bound.settings
     cams = {p.name: np.zeros(3) for p in wanted if p.kind == "camera"}
     if boundary_spp <= 0:
@@ -364,7 +367,8 @@ def primary_term(bound: Bound, adjoint: np.ndarray, wanted: list, boundary_spp: 
     scene = bound.dev.scene
     proj = Projection.of(bound.camera, w, h)
     reads_normals = bound.dev.geometry.has_corner_normals != 0
-    curves = candidate_curves(scene, reads_normals, proj, w, h, bound.dev.geometry.extent, {})
+    curves = candidate_curves(scene, reads_normals, proj, w, h, bound.dev.geometry.extent,
+                              {} if topology is None else topology)
     if not curves:
         return Forces.empty(), cams
     n = boundary_spp * w * h

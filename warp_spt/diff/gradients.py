@@ -333,8 +333,9 @@ def boundary_terms(bound: Bound, adj: np.ndarray, moved: list, poses: list, seed
     """The boundary terms of the geometry and camera parameters ``moved``: primary visibility
     (``diff.boundary``) and secondary visibility at the camera rays' hits (``diff.secondary``), as
     forces on the geometry's points chained to the parameters (``diff.forces``)."""
-    f1, cam1 = primary_term(bound, adj, moved, primary_spp, seed)
-    f2, cam2 = secondary_term(bound, adj, moved, secondary_spp, seed)
+    topology: dict = {}                  # the meshes' edge lists, built once for both terms
+    f1, cam1 = primary_term(bound, adj, moved, primary_spp, seed, topology)
+    f2, cam2 = secondary_term(bound, adj, moved, secondary_spp, seed, topology)
     out = chain_all(moved, Forces.join([f1, f2]), bound.dev.scene, poses)
     for n in cam1:
         out[n] = cam1[n] + cam2[n]

@@ -86,12 +86,14 @@ class Block:
     length: float = 0.0
 
 
-def _blocks(scene, reads_normals: bool) -> list[Block]:
+def _blocks(scene, reads_normals: bool, topology: dict) -> list[Block]:
     out = []
     for k, m in enumerate(scene.meshes):
         if not len(m.indices):
             continue
-        e = mesh_edges(m, reads_normals)
+        if k not in topology:
+            topology[k] = mesh_edges(m, reads_normals)
+        e = topology[k]
         f = np.asarray(m.indices)
         for j in range(m.placements):
             pos = np.asarray(m.world_part(j)[0], dtype=np.float64)
@@ -157,7 +159,8 @@ def _basis(axis: np.ndarray):
     return u, np.cross(axis, u)
 
 
-def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, seed: int):
+def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, seed: int,
+                   topology: dict | None = None):
     """(Forces on the geometry's points, {camera parameter name: gradient}): the boundary term of
     secondary visibility at the camera rays' hits (the module docstring)."""
     rs = bound.settings
@@ -185,7 +188,7 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     x = apex[rows]        # the directions' apex (the curves are seen from there); surf: the surface point
     opaque = not (int(bound.features.lobes) & int(LOBE_TRANSMISSION))
     up = nx if opaque else None
-    blocks = _blocks(scene, bound.dev.geometry.has_corner_normals != 0)
+    blocks = _blocks(scene, bound.dev.geometry.has_corner_normals != 0, {} if topology is None else topology)
     if not blocks:
         return Forces.empty(), cams
     # two levels: a block by its weight (exact or a bound), then an edge of it by its exact arc length

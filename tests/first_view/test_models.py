@@ -289,7 +289,7 @@ def test_a_cold_kernel_cache_is_announced_once(scene_dir, tmp_path):
     assert "compiling kernels" not in said[1], said[1]
     # Clang's precompiled header is kept in the kernel cache for the next process's compiles
     # (runtime/warp_init.share_clang_pch), in a "wp_" folder, which wp.clear_kernel_cache() removes
-    assert list((tmp_path / "cache").glob("*/wp_spt_clang_pch/*.pch")), list((tmp_path / "cache").rglob("*"))
+    assert list((tmp_path / "cache").glob("*/wp_spt_clang_pch/*/*.pch")), list((tmp_path / "cache").rglob("*"))
 
 
 # --------------------------------------------------------------------------------------------

@@ -91,9 +91,14 @@ def share_clang_pch(wp) -> str | None:
 
     Sharing is safe because warp-clang names each header by its build options and writes it to a
     unique temporary file renamed into place (checked with strace: ``O_EXCL`` ``.pch.tmp``, then
-    ``rename``), so a reader sees a whole header or none; a header whose inputs changed fails
-    Clang's validation and warp-clang rebuilds it. Renaming over a file that another process has
-    open is POSIX behaviour, hence POSIX only.
+    ``rename``), so a reader sees a whole header or none. Renaming over a file that another process
+    has open is POSIX behaviour, hence POSIX only.
+
+    A header records the absolute paths of Warp's native headers it was built from, and when those
+    are gone (the same Warp version installed in another virtual environment, the old one deleted:
+    every CI run) Clang refuses it with "malformed or corrupted precompiled file" on stderr and
+    warp-clang compiles without it, every time, without rebuilding it. So the folder is one per Warp
+    installation (:func:`pch_folder`).
     """
     from warp._src import context
 
@@ -101,13 +106,29 @@ def share_clang_pch(wp) -> str | None:
     if (os.name != "posix" or os.environ.get("WARP_SPT_SHARED_PCH", "1") == "0" or runtime is None
             or runtime.llvm is None or not wp.config.use_precompiled_headers or not wp.config.kernel_cache_dir):
         return None
-    folder = os.path.join(wp.config.kernel_cache_dir, PCH_FOLDER)
+    folder = pch_folder(wp.config.kernel_cache_dir, os.path.join(context.warp_home, "native"))
     try:
         os.makedirs(folder, exist_ok=True)
     except OSError:             # a read-only cache: keep Warp's temporary folders
         return None
     runtime.get_clang_pch_dir = lambda: folder     # the one call site is Module's CPU build
     return folder
+
+
+def pch_folder(cache_dir: str, native_dir: str) -> str:
+    """The shared precompiled-header folder for the Warp whose native headers are in ``native_dir``:
+    named by their real path and by builtin.h's size and modification time, so a header is only ever
+    read by the installation it was built from (see :func:`share_clang_pch`)."""
+    import hashlib
+
+    native = os.path.realpath(native_dir)
+    try:
+        st = os.stat(os.path.join(native, "builtin.h"))
+        stamp = f"{st.st_size}:{st.st_mtime_ns}"
+    except OSError:
+        stamp = "-"
+    key = hashlib.sha1(f"{native}\0{stamp}".encode()).hexdigest()[:16]
+    return os.path.join(cache_dir, PCH_FOLDER, key)
 
 
 def _init_capturing_stderr(wp) -> None:

@@ -9,29 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from warp_spt.gltf.document import Document, _err
+from warp_spt.scene.parts import FileCamera
 
 
-@dataclass
-class GltfCamera:
-    """A perspective camera placed by its node: ``position``, view ``direction`` (the node's -Z) and
-    ``up`` (its +Y) in world space; ``yfov`` in radians; ``aspect`` None when the file leaves it to
-    the image."""
-
-    name: str
-    index: int                   # in /cameras
-    node: int
-    position: tuple[float, float, float]
-    direction: tuple[float, float, float]
-    up: tuple[float, float, float]
-    yfov: float
-    aspect: float | None
-    znear: float
-    kind: str = "perspective"    # another type (orthographic) is listed but cannot be looked through
-
-    def fov_degrees(self, width: int, height: int) -> float:
-        """The full horizontal angle for an image of ``width`` x ``height`` (the renderer's ``fov``)."""
-        aspect = width / height
-        return math.degrees(2.0 * math.atan(math.tan(self.yfov / 2.0) * aspect))
+# a glTF camera is the readers' shared record (its ``node`` the glTF node that places it)
+GltfCamera = FileCamera
 
 
 @dataclass
@@ -88,7 +70,7 @@ class CamerasLights(Document):
         direction, up = _unit(world[:3, :3] @ [0, 0, -1]), _unit(world[:3, :3] @ [0, 1, 0])
         if direction is None or up is None:
             raise _err(self.path, f"/nodes/{node}", "the camera's node transform is singular")
-        return GltfCamera(name=name, index=k, node=node, position=tuple(float(c) for c in world[:3, 3]), direction=direction, up=up,
+        return FileCamera(name=name, index=k, node=node, position=tuple(float(c) for c in world[:3, 3]), direction=direction, up=up,
                           yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0),
                           kind=kind)
 

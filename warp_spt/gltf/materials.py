@@ -14,6 +14,7 @@ from warp_spt.gltf.accessors import Accessors
 from warp_spt.gltf.document import _err
 from warp_spt.scene.media import MAX_SIGMA, Medium
 from warp_spt.scene.model import CHECKER_NAME, Material, TextureRef
+from warp_spt.scene.parts import pbr_material
 from warp_spt.scene.validate import MAX_RADIANCE
 
 MAX_UV = 1e30          # transformed texture coordinates: float32 with room to spare (1e39 became inf)
@@ -251,9 +252,7 @@ class Materials(Accessors):
                 self.warn_once(f"{ptr}/{key}", f"{ptr}/{key} is not read: {what} has its factors alone")
 
     def _pbr_material(self, name: str, fields: dict) -> Material:
-        material = Material.pbr(name, **fields)
-        material.source, material.seed_dialect = self.path, False
-        return material
+        return pbr_material(name, self.path, fields)
 
     def _material_record(self, mat: int) -> GltfMaterial:
         m = self.item("materials", mat)

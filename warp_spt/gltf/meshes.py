@@ -10,10 +10,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from warp_spt.gltf.cameras_lights import GltfCamera, GltfLight
 from warp_spt.gltf.document import _err
 from warp_spt.gltf.materials import GltfMaterial, Materials
 from warp_spt.scene.model import Material, ObjData, TextureRef
+from warp_spt.scene.parts import ModelExtras, Part, gather
 from warp_spt.scene.validate import MAX_COORDINATE
 
 _MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
@@ -21,21 +21,13 @@ _MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triang
 
 
 @dataclass
-class GltfExtras:
-    """What a glTF holds beyond triangles: cameras, lights and materials (``ObjData.extras``)."""
+class GltfExtras(ModelExtras):
+    """What a glTF holds beyond triangles (``ObjData.extras``): :class:`ModelExtras`' cameras, lights,
+    placed meshes and time range, and its material records and mesh placements as written."""
 
-    cameras: list[GltfCamera] = field(default_factory=list)
-    lights: list[GltfLight] = field(default_factory=list)
     materials: list[GltfMaterial] = field(default_factory=list)
     # every placement of a mesh: (node, mesh index, 4x4 world matrix)
     instances: list[tuple[int, int, np.ndarray]] = field(default_factory=list)
-    # the meshes kept in their own object space and instanced (see parse_gltf_bytes): per glTF mesh,
-    # its triangles (an ObjData sharing the file's material names) and its (I, 4, 4) world matrices
-    placed: list[tuple[ObjData, np.ndarray]] = field(default_factory=list)
-    # the first animation's time range in seconds (None: the file has no animation)
-    time_range: tuple[float, float] | None = None
-    # placements of meshes scaled to nothing (a common way to hide an object), not drawn
-    hidden: int = 0
 
 
 class Meshes(Materials):
@@ -237,46 +229,15 @@ class Meshes(Materials):
 
     def _object(self, parts: list[tuple], names: list[str], materials: dict[str, Material], extras: GltfExtras
                 ) -> ObjData:
-        from warp_spt.scene.validate import nonzero_area
-
-        positions, faces, ftex, fnrm, fmat, uvs, nrms, cols = [], [], [], [], [], [], [], []
-        nv = nt = nn = 0
-        dropped = 0
-        for p, tri, uv, n, c, row in parts:
-            if len(tri) == 0:
-                continue
-            keep = nonzero_area(p, tri)
-            dropped += int(len(keep) - np.count_nonzero(keep))
-            tri = tri[keep]
-            positions.append(p)
-            faces.append(tri + nv)
-            ftex.append(tri + nt if uv is not None else np.full_like(tri, -1))
-            fnrm.append(tri + nn if n is not None else np.full_like(tri, -1))
-            fmat.append(np.full(len(tri), row, np.int32))
-            cols.append((c, len(tri)))
-            if uv is not None:
-                uvs.append(uv)
-                nt += len(uv)
-            if n is not None:
-                nrms.append(n)
-                nn += len(n)
-            nv += len(p)
-        cat = lambda xs, shape, dtype: np.concatenate(xs).astype(dtype) if xs else np.zeros(shape, dtype)  # noqa: E731
-        data = ObjData(
-            path=self.path, positions=cat(positions, (0, 3), np.float64),
-            texcoords=cat(uvs, (0, 2), np.float32), normals=cat(nrms, (0, 3), np.float32),
-            faces=cat(faces, (0, 3), np.int32), face_texcoords=cat(ftex, (0, 3), np.int32),
-            face_normals=cat(fnrm, (0, 3), np.int32), face_material=cat(fmat, (0,), np.int32),
-            spheres=np.zeros((0, 4)), sphere_material=np.zeros(0, np.int32),
-            material_names=names, material_lines=[0] * len(names), dropped_degenerate=dropped,
-            materials=materials, extras=extras, warnings=list(self.warnings),
-        )
-        if any(c is not None for c, _ in cols):
+        data, kept = gather(self.path, [Part(p, tri, uv, n, c, row) for p, tri, uv, n, c, row in parts], names,
+                            materials, extras, self.warnings)
+        shown = [(part[0], part[4], nf) for part, nf in zip(parts, kept) if nf is not None]
+        if any(c is not None for _, c, _ in shown):
             from warp_spt.io.ply import colour_texture_fits, colour_texture_note
 
-            coloured = sum(nf for c, nf in cols if c is not None)
+            coloured = sum(nf for _, c, nf in shown if c is not None)
             if colour_texture_fits(coloured):
-                self._bake_colours(data, positions, cols)
+                self._bake_colours(data, [p for p, _, _ in shown], [(c, nf) for _, c, nf in shown])
             else:
                 data.warnings.append(colour_texture_note(self.path, coloured))
         return data

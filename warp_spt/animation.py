@@ -316,9 +316,9 @@ class ObjSequence:
         return scene
 
     def _posed(self, path: str, frame: int):
-        from warp_spt.gltf import load_gltf
+        from warp_spt.io.loader import read_model
 
-        return load_gltf(path, time=frame / self.fps)
+        return read_model(path, time=frame / self.fps)
 
 
 # ---------------------------------------------------------------------------------------------

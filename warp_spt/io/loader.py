@@ -142,6 +142,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         bare=not libraries_read,
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
         lights=[c.to_scene() for d in data for c in getattr(d.extras, "lights", ())],
+        sky=next((d.extras.sky for d in data if getattr(d.extras, "sky", None) is not None), None),
         interiors={m.name: m.interior for m in table_rows if m.interior is not None},
         hidden=hidden,
     )
@@ -159,20 +160,22 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
 
 # Model readers by suffix, as "module:function" imported on first use (a scene of OBJ files imports neither)
 MODEL_READERS = {".obj": "warp_spt.io.obj:load_obj", ".ply": "warp_spt.io.ply:load_ply",
-                 ".gltf": "warp_spt.gltf:load_gltf", ".glb": "warp_spt.gltf:load_gltf"}
-_HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"))
+                 ".gltf": "warp_spt.gltf:load_gltf", ".glb": "warp_spt.gltf:load_gltf",
+                 **{s: "warp_spt.usd:load_usd" for s in (".usd", ".usda", ".usdc", ".usdz")}}
+_HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"), (b"#usda", ".usda"), (b"PXR-USDC", ".usdc"))
 
 
-def read_model(path: PathLike) -> ObjData:
+def read_model(path: PathLike, time: float | None = None) -> ObjData:
     """One model file (OBJ, PLY, glTF or GLB) as an :class:`ObjData`: the reader is chosen by the file's
-    first bytes (a PLY or binary glTF magic, a JSON object with an ``"asset"``), else by its suffix, else
-    OBJ (whose reader names any other format it recognises)."""
+    first bytes (a PLY, binary glTF or USD magic, a JSON object with an ``"asset"``), else by its suffix, else
+    OBJ (whose reader names any other format it recognises). ``time`` (seconds) poses an animated glTF or USD."""
     import importlib
 
     path = str(path)
     kind = _kind_by_content(path) or Path(path).suffix.lower()
     module, function = MODEL_READERS.get(kind, MODEL_READERS[".obj"]).split(":")
-    return getattr(importlib.import_module(module), function)(path)
+    reader = getattr(importlib.import_module(module), function)
+    return reader(path) if time is None else reader(path, time=time)
 
 
 def _kind_by_content(path: str) -> str | None:
@@ -212,7 +215,7 @@ def _require_geometry(data: list[ObjData], hidden_ok: bool = False) -> bool:
             why = f"its {d.extras.hidden} mesh placement(s) are scaled to nothing"
         elif d.dropped_degenerate:
             why = f"all {d.dropped_degenerate} triangles have zero area"
-        elif len(d.positions) and Path(d.path).suffix.lower() in (".ply", ".gltf", ".glb"):
+        elif len(d.positions) and Path(d.path).suffix.lower() in (".ply", ".gltf", ".glb", ".usd", ".usda", ".usdc", ".usdz"):
             why = f"{len(d.positions)} vertices but no faces"
         elif len(d.positions):
             why = f"{len(d.positions)} 'v' lines but no faces ('f') or spheres ('b')"

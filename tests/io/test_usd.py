@@ -1,0 +1,260 @@
+"""The USD reader (warp_spt.usd) on stages the tests write with pxr: one fixture per case."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pxr = pytest.importorskip("pxr")
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade  # noqa: E402
+
+from warp_spt.io.loader import load_scene, read_model  # noqa: E402
+from warp_spt.scene.errors import SceneError  # noqa: E402
+
+
+def _stage(tmp_path, name="s.usda", up="Y"):
+    path = str(tmp_path / name)
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up == "Y" else UsdGeom.Tokens.z)
+    return stage, path
+
+
+def _quad(stage, where, counts=(4,), indices=(0, 1, 2, 3), points=((0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0))):
+    m = UsdGeom.Mesh.Define(stage, where)
+    m.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
+    m.CreateFaceVertexCountsAttr(list(counts))
+    m.CreateFaceVertexIndicesAttr(list(indices))
+    return m
+
+
+def _material(stage, where, colour):
+    mat = UsdShade.Material.Define(stage, where)
+    sh = UsdShade.Shader.Define(stage, where + "/pbr")
+    sh.CreateIdAttr("UsdPreviewSurface")
+    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*colour))
+    sh.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.25)
+    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
+    return mat
+
+
+def test_quads_and_ngons_are_fanned_and_holes_left_out(tmp_path):
+    stage, path = _stage(tmp_path)
+    pts = [(math.cos(a), math.sin(a), 0) for a in np.linspace(0, 2 * math.pi, 6, endpoint=False)]
+    m = _quad(stage, "/ngon", counts=(6, 3, 4), indices=(0, 1, 2, 3, 4, 5, 0, 1, 2, 0, 2, 3, 4), points=pts)
+    m.CreateHoleIndicesAttr([1])
+    stage.Save()
+    d = read_model(path)
+    assert len(d.faces) == 4 + 2                    # a hexagon's 4 triangles and a quad's 2; the hole dropped
+
+
+def test_left_handed_orientation_reverses_the_winding(tmp_path):
+    stage, path = _stage(tmp_path)
+    _quad(stage, "/q").CreateOrientationAttr(UsdGeom.Tokens.leftHanded)
+    stage.Save()
+    d = read_model(path)
+    p = d.positions[d.faces]
+    assert np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 2].max() < 0     # facing -Z
+
+
+def test_face_varying_normals_and_uvs(tmp_path):
+    stage, path = _stage(tmp_path)
+    m = _quad(stage, "/q")
+    api = UsdGeom.PrimvarsAPI(m)
+    st = api.CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    st.Set([Gf.Vec2f(0.1, 0.2), Gf.Vec2f(0.3, 0.4), Gf.Vec2f(0.5, 0.6), Gf.Vec2f(0.7, 0.8)])
+    n = api.CreatePrimvar("normals", Sdf.ValueTypeNames.Normal3fArray, UsdGeom.Tokens.faceVarying)
+    n.Set([Gf.Vec3f(0, 0, 1), Gf.Vec3f(0, 1, 0), Gf.Vec3f(1, 0, 0), Gf.Vec3f(0, 0, 1)])
+    stage.Save()
+    s = load_scene([path], warn=lambda m: None)
+    mesh = s.meshes[0]
+    # first triangle: corners 0, 1, 2 of the quad
+    assert np.allclose(mesh.corner_uv[0], [[0.1, 0.2], [0.3, 0.4], [0.5, 0.6]], atol=1e-6)
+    assert np.allclose(mesh.corner_normal[0], [[0, 0, 1], [0, 1, 0], [1, 0, 0]], atol=1e-6)
+
+
+def test_a_subset_with_two_materials(tmp_path):
+    stage, path = _stage(tmp_path)
+    m = _quad(stage, "/q", counts=(3, 3), indices=(0, 1, 2, 0, 2, 3))
+    red, blue = _material(stage, "/M/red", (1, 0, 0)), _material(stage, "/M/blue", (0, 0, 1))
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(red)
+    sub = UsdGeom.Subset.CreateGeomSubset(m, "b", UsdGeom.Tokens.face, [1], "materialBind")
+    UsdShade.MaterialBindingAPI.Apply(sub.GetPrim()).Bind(blue)
+    stage.Save()
+    s = load_scene([path], warn=lambda m: None)
+    colours = [tuple(np.round(s.materials.base_color[r], 3)) for r in s.meshes[0].face_material]
+    assert sorted(colours) == [(0.0, 0.0, 1.0), (1.0, 0.0, 0.0)]
+    assert np.allclose(s.materials.roughness[s.meshes[0].face_material], 0.25)
+
+
+def test_xform_hierarchy_with_a_reset(tmp_path):
+    stage, path = _stage(tmp_path)
+    UsdGeom.Xform.Define(stage, "/a").AddTranslateOp().Set(Gf.Vec3d(10, 0, 0))
+    b = UsdGeom.Xform.Define(stage, "/a/b")
+    b.AddTranslateOp().Set(Gf.Vec3d(0, 5, 0))
+    _quad(stage, "/a/b/q")
+    c = UsdGeom.Xform.Define(stage, "/a/c")
+    c.SetResetXformStack(True)
+    c.AddTranslateOp().Set(Gf.Vec3d(0, 0, 7))
+    _quad(stage, "/a/c/q")
+    stage.Save()
+    d = read_model(path)
+    lo = d.positions.min(0)
+    assert np.allclose(sorted({tuple(p) for p in d.positions[d.faces[:2].ravel()]})[0], [10, 5, 0])
+    assert np.isclose(d.positions[:, 2].max(), 7) and np.isclose(lo[0], 0)    # the reset drops /a's translate
+
+
+def test_native_instances_and_a_point_instancer_are_placed_not_copied(tmp_path):
+    stage, path = _stage(tmp_path)
+    proto = UsdGeom.Xform.Define(stage, "/Proto")
+    _quad(stage, "/Proto/q")
+    proto.GetPrim().SetSpecifier(Sdf.SpecifierClass)
+    for k in range(3):
+        inst = UsdGeom.Xform.Define(stage, f"/i{k}")
+        inst.GetPrim().GetReferences().AddInternalReference("/Proto")
+        inst.GetPrim().SetInstanceable(True)
+        inst.AddTranslateOp().Set(Gf.Vec3d(3 * k, 0, 0))
+    pi = UsdGeom.PointInstancer.Define(stage, "/pi")
+    _quad(stage, "/pi/protos/q2")
+    pi.CreatePrototypesRel().SetTargets(["/pi/protos/q2"])
+    pi.CreateProtoIndicesAttr([0, 0])
+    pi.CreatePositionsAttr([Gf.Vec3f(0, 10, 0), Gf.Vec3f(0, 20, 0)])
+    stage.Save()
+    d = read_model(path)
+    assert len(d.faces) == 0
+    placed = sorted(((len(sub.faces), len(xf)) for sub, xf in d.extras.placed))
+    assert placed == [(2, 2), (2, 3)]
+    ys = sorted(x[1, 3] for sub, xf in d.extras.placed for x in xf)
+    assert np.allclose(ys, [0, 0, 0, 10, 20])
+
+
+def test_lights_of_each_kind(tmp_path):
+    stage, path = _stage(tmp_path)
+    _quad(stage, "/floor")
+    sun = UsdLux.DistantLight.Define(stage, "/sun")
+    sun.CreateIntensityAttr(3.0)
+    sun.CreateAngleAttr(1.0)
+    UsdLux.SphereLight.Define(stage, "/ball").CreateRadiusAttr(0.25)
+    pt = UsdLux.SphereLight.Define(stage, "/pt")
+    pt.CreateTreatAsPointAttr(True)
+    pt.CreateIntensityAttr(2.0)
+    UsdGeom.Xformable(pt).AddTranslateOp().Set(Gf.Vec3d(0, 4, 0))
+    rect = UsdLux.RectLight.Define(stage, "/rect")
+    rect.CreateWidthAttr(2.0)
+    rect.CreateHeightAttr(0.5)
+    rect.CreateExposureAttr(1.0)
+    UsdLux.DiskLight.Define(stage, "/disk").CreateRadiusAttr(0.5)
+    UsdLux.DomeLight.Define(stage, "/dome").CreateColorAttr(Gf.Vec3f(0.2, 0.3, 0.4))
+    stage.Save()
+    s = load_scene([path], warn=lambda m: None)
+    kinds = {type(x).__name__: x for x in s.lights}
+    assert kinds["SunLight"].direction == pytest.approx((0, 0, 1)) and kinds["SunLight"].color == (3, 3, 3)
+    assert kinds["SunLight"].radius_deg == pytest.approx(0.5)
+    assert kinds["PointLight"].position == pytest.approx((0, 4, 0))
+    assert np.allclose(s.spheres[:, 3], 0.25)
+    assert np.allclose(s.materials.emission[s.sphere_material[0]], 1.0)
+    total = 0.0
+    for m in s.meshes:                          # the emitting triangles (the floor's row 0 aside)
+        p = m.positions[m.indices[m.face_material > 0]]
+        total += float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2)
+    assert total == pytest.approx(2 * 0.5 + math.pi * 0.25, rel=0.01)
+    assert 2.0 in np.round(s.materials.emission[:, 0], 6)           # the rect light's exposure 1: x2
+    assert s.sky.color == pytest.approx((0.2, 0.3, 0.4))
+
+
+def test_a_camera_and_up_axis_z_and_metres_per_unit(tmp_path):
+    stage, path = _stage(tmp_path, up="Z")
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    _quad(stage, "/q", points=((0, 0, 100), (100, 0, 100), (100, 100, 100), (0, 100, 100)))
+    cam = UsdGeom.Camera.Define(stage, "/cam")
+    cam.CreateFocalLengthAttr(50.0)
+    cam.CreateVerticalApertureAttr(20.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 500))
+    stage.Save()
+    d = read_model(path)
+    assert np.allclose(d.positions[:, 1], 1.0)                  # z = 100 cm is y = 1 m
+    c = d.extras.cameras[0]
+    assert c.position == pytest.approx((0, 5, 0)) and c.direction == pytest.approx((0, -1, 0))
+    assert c.yfov == pytest.approx(2 * math.atan(10 / 50))
+
+
+def test_guides_and_proxies_are_skipped(tmp_path):
+    stage, path = _stage(tmp_path)
+    _quad(stage, "/render")
+    _quad(stage, "/proxy").CreatePurposeAttr(UsdGeom.Tokens.proxy)
+    _quad(stage, "/guide").CreatePurposeAttr(UsdGeom.Tokens.guide)
+    stage.Save()
+    assert len(read_model(path).faces) == 2
+
+
+def test_an_animated_translate_poses_each_frame(tmp_path):
+    stage, path = _stage(tmp_path)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(25)
+    stage.SetTimeCodesPerSecond(24)
+    x = UsdGeom.Xform.Define(stage, "/x")
+    op = x.AddTranslateOp()
+    op.Set(Gf.Vec3d(0, 0, 0), 1)
+    op.Set(Gf.Vec3d(24, 0, 0), 25)
+    _quad(stage, "/x/q")
+    stage.Save()
+    assert read_model(path).extras.time_range == pytest.approx((0.0, 1.0))
+    assert read_model(path, time=0.5).positions[:, 0].min() == pytest.approx(12.0)
+
+    from warp_spt.animation import ObjSequence
+
+    seq = ObjSequence([path], fps=24)
+    assert len(seq.default_frames()) == 25
+    assert seq.scene(6).meshes[0].world_bounds()[0][0] == pytest.approx(6.0)
+
+
+def test_bad_stages_name_the_file_and_the_prim(tmp_path):
+    stage, path = _stage(tmp_path)
+    _quad(stage, "/bad", counts=(4,), indices=(0, 1, 2, 9))
+    stage.Save()
+    with pytest.raises(SceneError, match=r"s\.usda.*/bad.*point 9"):
+        read_model(path)
+    junk = tmp_path / "junk.usda"
+    junk.write_text("#usda 1.0\n(\n this is not usd\n")
+    with pytest.raises(SceneError, match="junk.usda"):
+        read_model(str(junk))
+
+
+def test_a_texture_outside_the_stage_folder_is_refused(tmp_path):
+    inner = tmp_path / "scene"
+    inner.mkdir()
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (255, 0, 0)).save(tmp_path / "outside.png")
+    stage, path = _stage(inner)
+    m = _quad(stage, "/q")
+    mat = _material(stage, "/M/t", (1, 1, 1))
+    tex = UsdShade.Shader.Define(stage, "/M/t/tex")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("../outside.png")
+    sh = UsdShade.Shader(stage.GetPrimAtPath("/M/t/pbr"))
+    sh.GetInput("diffuseColor").ConnectToSource(tex.ConnectableAPI(), "rgb")
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
+    stage.Save()
+    with pytest.raises(SceneError, match=r"/M/t/tex.*outside"):
+        read_model(path)
+
+
+def test_raw_colour_space_is_not_decoded(tmp_path):
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (128, 128, 128)).save(tmp_path / "grey.png")
+    stage, path = _stage(tmp_path)
+    m = _quad(stage, "/q")
+    mat = _material(stage, "/M/t", (1, 1, 1))
+    tex = UsdShade.Shader.Define(stage, "/M/t/tex")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("grey.png")
+    tex.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
+    UsdShade.Shader(stage.GetPrimAtPath("/M/t/pbr")).GetInput("diffuseColor").ConnectToSource(
+        tex.ConnectableAPI(), "rgb")
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
+    stage.Save()
+    s = load_scene([path], warn=lambda m: None)
+    assert s.textures[-1].mean() == pytest.approx(128 / 255, abs=1e-3)     # sRGB would give 0.216

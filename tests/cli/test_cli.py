@@ -249,9 +249,9 @@ def test_help_lists_the_registries_plugins_with_their_summaries(capsys):
     assert cli_main(["--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     for name, record in INTEGRATORS.items():
-        assert f"{name} ({' '.join(record.summary.split())}" in text
+        assert f"{name} {' '.join(record.summary.split())}" in text
     for name in SAMPLERS:
-        assert f"{name} ({' '.join(get_sampler(name).summary.split())}" in text
+        assert f"{name} {' '.join(get_sampler(name).summary.split())}" in text
 
 
 def test_view_without_its_extra_says_how_to_install_it(monkeypatch, capsys):

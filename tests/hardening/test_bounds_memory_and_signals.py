@@ -83,14 +83,16 @@ def test_a_vanishing_fov_is_a_usage_error(tmp_path, capsys):
         Camera(fov=1e-300).validate(8, 8)
 
 
-def test_framing_that_would_stand_too_far_is_one_error_line(tmp_path, capsys):
-    # the narrowest fov allowed, on two small triangles 8e11 apart: framed, the camera would stand 9e17 away
+def test_the_narrowest_fov_zooms_from_where_the_default_lens_frames(tmp_path, capsys):
+    # the narrowest fov allowed, on two small triangles 8e11 apart: framed at that fov the camera
+    # would stand 9e17 away (refused); it stands where the default lens frames them and zooms (issue 43)
     far = 8e11
     (tmp_path / "t.obj").write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
                                     f"v 0 0 {far}\nv 1 0 {far}\nv 0 1 {far}\nf 4 5 6\n")
-    line = _one_line(capsys, ["-obj", str(tmp_path / "t.obj"), "--fov", "0.0001", "-res", "8", "8", "-sr", "1",
-                              "-out", str(tmp_path / "o.png")], 1)
-    assert "cannot frame" in line and "--fov" in line and "internal error" not in line
+    status = main(["-obj", str(tmp_path / "t.obj"), "--fov", "0.0001", "-res", "8", "8", "-sr", "1",
+                   "-out", str(tmp_path / "o.png")])
+    said = capsys.readouterr().err
+    assert status == 0 and "framed the scene" in said and " 0.0001 " in said, said
 
 
 # ---------------------------------------------------------------- 8: the API's arguments

@@ -258,3 +258,47 @@ def test_fast_scanner_handles_bulk_files():
 
     text = SQUARE * 3 + "vt 0 0\nvn 0 0 1\n" + "f 1/1/1 2/1/1 3/1/1 4/1/1\n" * 5 + "usemtl m\nb 0 0 0 1\n"
     assert scan_bulk(text.encode(), "x") is not None
+
+
+def _all_fields_equal(a, b):
+    for key in ("positions", "texcoords", "normals", "faces", "face_texcoords", "face_normals", "face_material",
+                "spheres", "sphere_material", "v_line" if hasattr(a, "v_line") else "faces"):
+        x, y = getattr(a, key), getattr(b, key)
+        assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y), key
+    assert a.material_names == b.material_names and a.material_lines == b.material_lines
+    assert a.dropped_degenerate == b.dropped_degenerate
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_plain_scanner_agrees_with_line_reader(seed):
+    """Issue 45's plain-file scanner (obj_bulk.scan_plain: no '/', '#' or '\\' in the file) on generated
+    files: negative indices, quads and n-gons, vt/vn lines, groups, usemtl, spheres, blank lines."""
+    from warp_spt.io.obj_bulk import scan_plain
+
+    rng = np.random.default_rng(300 + seed)
+    lines, nv = [], 0
+    for _ in range(120):
+        r = rng.random()
+        if r < 0.4 or nv < 3:
+            lines.append("v " + " ".join(f"{x:.6g}" for x in rng.normal(size=int(rng.choice([3, 4, 6])))))
+            nv += 1
+        elif r < 0.75:
+            k = int(rng.choice([3, 3, 4, 5, 7]))
+            idx = rng.choice(nv, k, replace=k > nv) + 1
+            lines.append("f " + " ".join(str(i - nv - 1 if rng.random() < 0.3 else i) for i in idx))
+        else:
+            lines.append(str(rng.choice(["vt 0.5 0.25", "vt 1", "vn 0 0 1", "g grp", "o thing", "s 1", "",
+                                         "usemtl red", "usemtl b b", "b 0 1 2 0.5", "v 1e3  -2.5e-3\t7"])))
+    text = ("\n".join(lines) + "\n").encode()
+    assert scan_plain(text, "t.obj") is not None
+    _all_fields_equal(parse(text, True), parse(text, False))
+
+
+@pytest.mark.parametrize("text", [b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 # c\n", b" v 0 0 0\n", b"f 1/2 2/3 3/4\n",
+                                  b"v 0 0 nan\n", b"v 0 0\n", b"f 1 2\n", b"f 1 2 0\n", b"f 1 - 2\n", b"v 0 0 1e39\n"])
+def test_plain_scanner_leaves_the_rest_to_the_others(text):
+    """Comments, leading blanks, slashes, bad numbers or counts: scan_plain steps aside (None) and the
+    error (if any) is the line reader's."""
+    from warp_spt.io.obj_bulk import scan_plain
+
+    assert scan_plain(text, "t.obj") is None

@@ -138,6 +138,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
 
     say = say_for(opts, err)
     objs, mtls = scene_files(opts)
+    check_files((), (), None, env=opts.env.path if opts.env else None)    # before any model is read
     path = CameraPath.load(opts.camera_path) if opts.camera_path else None
     seq = ObjSequence(objs, mtls, default_material=opts.default_material, fps=opts.fps,
                       smooth_angle=opts.smooth_angle)

@@ -168,16 +168,17 @@ def scene_files(opts) -> tuple[list[str], list[str]]:
     return list(opts.objs), list(opts.mtls)
 
 
-def check_files(objs: Sequence[str], mtls: Sequence[str], out: str | None, out_flag: str = "-out") -> None:
+def check_files(objs: Sequence[str], mtls: Sequence[str], out: str | None, out_flag: str = "-out",
+                env: str | None = None) -> None:
     """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place.
 
-    Inputs must be regular files (a FIFO or a device is refused without being opened, so nothing
-    blocks); the output (``out_flag``'s; None: none) must not be an existing non-regular file (a
-    symlink is written through).
+    Inputs (``env``: the --env map, or None) must be regular files (a FIFO or a device is refused
+    without being opened, so nothing blocks); the output (``out_flag``'s; None: none) must not be an
+    existing non-regular file (a symlink is written through).
     """
     from warp_spt.io.tokens import file_problem
 
-    for flag, paths in (("-obj", objs), ("-mtl", mtls)):
+    for flag, paths in (("-obj", objs), ("-mtl", mtls), ("--env", () if env is None else (env,))):
         for path in paths:
             problem = file_problem(path)
             if problem is None and not os.access(path, os.R_OK):
@@ -254,25 +255,32 @@ def integrator_options_of(opts) -> dict:
         raise UsageError(f"argument --integrator-option: {err}") from None
 
 
-def registry_help() -> dict[str, str]:
-    """The --integrator and --sampler help text, generated from their registries (name, one-line
-    summary, the default marked). Imports Warp (quietly): only ``--help`` asks for it."""
+def registry_help() -> str:
+    """The integrators, samplers and integrator parameters, listed from their registries under a
+    heading of their own: ``--help`` prints it after the user's flags (it imports Warp, quietly, so
+    the flags are printed and flushed first; the integrators' internal parameters, ``ears``' and
+    ``guided``'s about twenty, would drown the user's flags in the middle)."""
+    import textwrap
+
     from warp_spt.runtime.warp_init import init_warp as start_warp
 
     start_warp(False, quiet=True)
     from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
     from warp_spt.samplers import DEFAULT_SAMPLER, SAMPLERS, get_sampler
 
-    def listing(what: str, entries: dict[str, str], default: str) -> str:
-        items = [f"{n} ({s}{', default' if n == default else ''})" for n, s in sorted(entries.items())]
-        return f"{what}: " + "; ".join(items)
+    def entry(name: str, summary: str, default: str) -> str:
+        return "\n".join(textwrap.wrap(f"{name:<14} {summary}{' (default)' if name == default else ''}", 98,
+                                        initial_indent="  ", subsequent_indent=" " * 17, break_on_hyphens=False))
 
-    params = "; ".join(f"{n}: " + ", ".join(f"{p.name} ({p.allowed()}, default {p.default!r})" for p in r.params)
-                       for n, r in sorted(INTEGRATORS.items()) if r.params)
-    return {"--integrator": listing("light transport", {n: r.summary for n, r in INTEGRATORS.items()},
-                                    DEFAULT_INTEGRATOR),
-            "--integrator-option": f"a parameter of the integrator, by name (repeatable). {params}",
-            "--sampler": listing("random numbers", {n: get_sampler(n).summary for n in SAMPLERS}, DEFAULT_SAMPLER)}
+    lines = ["", "integrators (--integrator NAME) and samplers (--sampler NAME), from their registries:"]
+    lines += [entry(n, r.summary, DEFAULT_INTEGRATOR) for n, r in sorted(INTEGRATORS.items())]
+    lines += [entry(n, get_sampler(n).summary, DEFAULT_SAMPLER) for n in sorted(SAMPLERS)]
+    lines += ["", "integrator parameters (--integrator-option NAME=VALUE; internal, for experiments):"]
+    for n, r in sorted(INTEGRATORS.items()):
+        if r.params:
+            text = f"{n}: " + "; ".join(f"{q.name} ({q.allowed()}, default {q.default!r})" for q in r.params)
+            lines += textwrap.wrap(text, 98, initial_indent="  ", subsequent_indent="    ", break_on_hyphens=False)
+    return "\n".join(lines) + "\n"
 
 
 def process_start() -> float:

@@ -101,7 +101,8 @@ def _main(argv: list[str], stderr: TextIO, started: float) -> int:
     try:
         opts = parse_args(argv)
         if opts.action == "help":
-            print(build_parser(registry_help()).format_help(), end="")
+            print(build_parser().format_help(), end="", flush=True)    # the flags at once, no Warp
+            print(registry_help(), end="")
             return EXIT_OK
         if opts.action == "version":
             print(f"{PROG} {__version__}")

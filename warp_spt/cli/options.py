@@ -8,6 +8,7 @@ place where options become :class:`warp_spt.rendering.settings.RenderSettings`.
 from __future__ import annotations
 
 import argparse
+import difflib
 import os
 import re
 from dataclasses import dataclass, field, replace
@@ -71,8 +72,9 @@ any other model is Y up, as OBJ exporters write them. The "framed" line says wha
 
 Your own model (a standard OBJ, no -cam) is framed: the whole model in view, pinhole, a
 three-quarter view from the front, or face-on for a flat cut-out; --view front|back|left|right|
-top|bottom|AZ,EL (or --orbit AZ EL, degrees) chooses the side, --look-at the point looked at,
---fov the lens. The printed -cam reproduces the view. A scene in the seed's dialect keeps the
+top|bottom|AZ,EL (or --orbit AZ EL, degrees) chooses the side, --look-at the point looked at;
+--fov zooms: the camera stands where the default 38-degree lens frames the model, and a narrower
+--fov shows a detail, a wider one more around it. The printed -cam reproduces the view. A scene in the seed's dialect keeps the
 seed's default camera unless it would stand inside the scene, see almost none of it or be too
 close to see it whole; --frame always frames.
 
@@ -237,13 +239,12 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
 
 
-def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     """The argument parser; single-dash multi-letter flags are the seed's, ``--`` flags are new.
 
-    ``plugins`` maps "--integrator" and "--sampler" to help text generated from their registries
-    (:func:`warp_spt.cli.common.registry_help`, for ``--help``); parsing needs none, so it stays
-    Warp-free: the names are checked against the registries after Warp starts."""
-    plugins = plugins or {}
+    It stays Warp-free (usage errors and ``--help`` are instant): the integrators' and samplers'
+    names are checked against their registries after Warp starts, and ``--help`` lists them after
+    the flags (:func:`warp_spt.cli.common.registry_help`)."""
     p = Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
                 formatter_class=_HelpFormatter,
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
@@ -291,11 +292,11 @@ def build_parser(plugins: dict[str, str] | None = None) -> argparse.ArgumentPars
                      help="also show Warp's own messages (banner, module loads, missing CUDA driver)")
     # Names are checked against the registries in run(): importing them imports Warp, which must
     # first be initialised as --verbose says (and parsing stays Warp-free).
-    new.add_argument("--integrator", metavar="NAME", help=plugins.get("--integrator", "light transport, by name"))
-    new.add_argument("--sampler", metavar="NAME", help=plugins.get("--sampler", "random numbers, by name"))
+    new.add_argument("--integrator", metavar="NAME", help="light transport, by name (listed at the end)")
+    new.add_argument("--sampler", metavar="NAME", help="random numbers, by name (listed at the end)")
     new.add_argument("--integrator-option", action="append", default=[], type=integrator_option,
                      metavar="NAME=VALUE", dest="integrator_option",
-                     help=plugins.get("--integrator-option", "a parameter of the integrator, by name (repeatable)"))
+                     help="a parameter of the integrator, by name (repeatable; listed at the end)")
     new.add_argument("--fog", action="append", default=[], metavar="KEY=VALUE",
                      help="fill the scene with a homogeneous medium (repeatable): sigma_a=R[,G,B], "
                           "sigma_s=..., g=G (-1..1), emission=..., majorant=M; docs/volumes.md")
@@ -394,7 +395,8 @@ def _reject_unknown_flags(argv: Sequence[str], parser: argparse.ArgumentParser) 
             return
         name = token.split("=", 1)[0] if token.startswith("--") else token
         if token.startswith("-") and len(token) > 1 and name not in known and not _is_number(token):
-            raise UsageError(f"unknown flag {token!r}")
+            close = difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
+            raise UsageError(f"unknown flag {token!r}" + (f"; did you mean {close[0]}?" if close else ""))
 
 
 def _is_number(text: str) -> bool:

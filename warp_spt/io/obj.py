@@ -64,12 +64,13 @@ def parse_obj_bytes(data: bytes, path: str = "<input>", *, fast: bool = True) ->
 
     ``fast=False`` forces the line-by-line scanner (the tests compare the two).
     """
-    from warp_spt.io.obj_bulk import (
-        scan_bulk,  # the vectorised scanner builds on this module's grammar
+    from warp_spt.io.obj_bulk import (  # the vectorised scanners build on this module's grammar
+        scan_bulk,
+        scan_plain,
     )
 
     data = normalise_text(data, path, "OBJ")
-    raw = scan_bulk(data, path) if fast else None
+    raw = (scan_plain(data, path) or scan_bulk(data, path)) if fast else None
     if raw is None:
         raw = scan_lines(data, path)
     return resolve(raw, path)

@@ -146,6 +146,11 @@ def _values(buf: np.ndarray, lay: _Lines, sel: np.ndarray, integers: bool) -> np
     keep = np.zeros(len(bounds) - 1, dtype=bool)
     keep[1::2] = True
     text = buf[np.repeat(keep, np.diff(bounds))]
+    return _numbers(text, integers)
+
+
+def _numbers(text: np.ndarray, integers: bool) -> np.ndarray | None:
+    """The numbers in the bytes ``text`` (modified in place), or None on any doubt."""
     raw = text.tobytes()
     if raw.translate(None, _INDEX_CHARS if integers else _FLOAT_CHARS):
         return None
@@ -168,13 +173,21 @@ def _values(buf: np.ndarray, lay: _Lines, sel: np.ndarray, integers: bool) -> np
 def _vertex_lines(buf: np.ndarray, lay: _Lines):
     """(positions, v_line, texcoords, vt_line, normals, vn_line), or None."""
     sel = lay.is_v | lay.is_vt | lay.is_vn
-    nv = (lay.ntok - 1)[sel]
     vals = _values(buf, lay, sel, False) if sel.any() else np.zeros(0, np.float64)
+    return None if vals is None else _vertex_columns(vals, lay, sel)
+
+
+def _vertex_columns(vals: np.ndarray, lay: _Lines, sel: np.ndarray):
+    """The vertex lines' numbers ``vals`` (file order) split into their arrays, or None."""
+    nv = (lay.ntok - 1)[sel]
     # finite in float32 too (the engine's type): anything else is left to the line reader's message
-    if vals is None or len(vals) != nv.sum() or not (np.abs(vals) <= _FLOAT32_MAX).all():
+    if len(vals) != nv.sum() or not (np.abs(vals) <= _FLOAT32_MAX).all():
         return None
-    offset = np.cumsum(nv) - nv
     line = lay.line[sel] + 1
+    if lay.is_v[sel].all() and (nv == 3).all():     # the common file: positions only, 3 numbers each
+        z = np.zeros(0, np.int64)
+        return vals.reshape(-1, 3), line, np.zeros((0, 2), np.float32), z, np.zeros((0, 3), np.float32), z.copy()
+    offset = np.cumsum(nv) - nv
     out = []
     for kind, width, dtype in ((lay.is_v[sel], 3, np.float64), (lay.is_vt[sel], 2, np.float32),
                                (lay.is_vn[sel], 3, np.float32)):
@@ -221,3 +234,115 @@ def _face_lines(buf: np.ndarray, data: bytes, lay: _Lines):
     cvt = np.where((nsl >= 1) & (nds == 0), vals[np.minimum(o + 1, len(vals) - 1)], 0)
     cvn = np.where(nsl == 2, vals[o + nvals - 1], 0)
     return cv, cvt, cvn, poly_size, poly_line
+
+
+# ---------------------------------------------------------------- plain files: one pass per line, not per token
+#
+# Issue 45: on a 1M-triangle heightfield (`v x y z`, `f a b c`, 36 MB) scan_bulk's per-token layout
+# (two int64 arrays of token starts and ends, 8M tokens, 130 MB, and the per-corner gathers) made
+# the first read in a process 1.7 s, of which 1.1 s was first-touch page faults on those arrays (a
+# second read in the same process: 0.67 s). Files without '/', '#' or '\' in them (what
+# heightfield, scan and CAD exporters write: `f` with plain vertex indices) need only per-line facts:
+# each line's tag and its count of tokens (one array of token starts, searched by line), no per-token
+# ends, gathers or slash counts. Anything else goes to scan_bulk and then to the line reader, as before.
+
+def scan_plain(data: bytes, path: str) -> RawObj | None:
+    """Scan a file whose lines all start with their tag and whose faces hold plain vertex indices;
+    ``None`` when the file is anything else (scan_bulk and the line reader then read it)."""
+    if not data or b"/" in data or b"#" in data or b"\\" in data or data.translate(None, _NOT_ODD_CONTROL):
+        return None
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n = len(buf)
+    ws = buf <= _SPACE
+    if ws[0] and buf[0] != _NL:
+        return None                               # a line that starts with a blank: scan_bulk's business
+    tok_start = ~ws
+    tok_start[1:] &= ws[:-1]                      # first byte of each token
+    newline = np.flatnonzero(buf == _NL)
+    line_start = np.concatenate([[0], newline + 1])
+    if line_start[-1] == n:
+        line_start = line_start[:-1]              # the text after the final newline is no line
+    # tokens per line: where the line starts fall among the token starts (np.add.reduceat of the
+    # mask per line took 0.81 s at 1M triangles, this 0.1 s)
+    tok = np.flatnonzero(tok_start)
+    del tok_start
+    ntok = np.diff(np.searchsorted(tok, line_start), append=len(tok))
+    del tok
+    nonblank = ntok > 0
+    # a line with tokens must start with one (tag at column 0; the rest as scan_bulk reads it)
+    if (ws[line_start[nonblank]]).any():
+        return None
+    line = np.flatnonzero(nonblank)               # 0-based line number of every non-blank line
+    start, ntok = line_start[nonblank], ntok[nonblank]
+    del nonblank, line_start
+
+    def at(offset: int) -> tuple[np.ndarray, np.ndarray]:   # the byte and whether it ends a token
+        k = start + offset
+        inside = k < n
+        b = buf[np.minimum(k, n - 1)]
+        return b, ~inside | ws[np.minimum(k, n - 1)]
+
+    b0, _ = at(0)
+    b1, end1 = at(1)
+    _, end2 = at(2)
+    is_v = (b0 == ord("v")) & end1
+    is_f = (b0 == ord("f")) & end1
+    is_vt = (b0 == ord("v")) & (b1 == ord("t")) & end2
+    is_vn = (b0 == ord("v")) & (b1 == ord("n")) & end2
+    del ws, b0, b1, end1, end2
+    lay = _LineLayout(n, newline, line, ntok, is_v, is_vt, is_vn, is_f)
+    if not _counts_ok(lay):
+        return None
+    bulk = is_v | is_vt | is_vn | is_f
+    reader = LineReader(path)
+    try:
+        for k in np.flatnonzero(~bulk):
+            toks = lay.line_bytes(data, int(line[k])).split()
+            reader.statement(int(line[k]) + 1, toks)
+    except SceneError:
+        return None
+    vsel = is_v | is_vt | is_vn
+    vals = _line_values(buf, lay, start, vsel, is_vt | is_vn, False)
+    if vals is None:
+        return None
+    vertex = _vertex_columns(vals, lay, vsel)
+    if vertex is None:
+        return None
+    poly_size = (ntok - 1)[is_f]
+    poly_line = line[is_f] + 1
+    cv = _line_values(buf, lay, start, is_f, np.zeros(len(is_f), bool), True) if is_f.any() else np.zeros(0, np.int64)
+    # 0 is no index, and the reader saturates on overflow: let the line reader say so
+    if cv is None or len(cv) != poly_size.sum() or (cv == 0).any() or (np.abs(cv) >= 2**62).any():
+        return None
+    raw = reader.raw()
+    raw.positions, raw.v_line, raw.texcoords, raw.vt_line, raw.normals, raw.vn_line = vertex
+    zero = np.zeros(len(cv), np.int64)
+    raw.corner_v, raw.corner_vt, raw.corner_vn, raw.poly_size, raw.poly_line = cv, zero, zero.copy(), poly_size, poly_line
+    return raw
+
+
+class _LineLayout(_Lines):
+    """The per-line part of :class:`_Lines` (no per-token arrays), built by :func:`scan_plain`."""
+
+    def __init__(self, n, newline, line, ntok, is_v, is_vt, is_vn, is_f):   # noqa: D107 - fields as _Lines
+        self.n, self.newline, self.line, self.ntok = n, newline, line, ntok
+        self.is_v, self.is_vt, self.is_vn, self.is_f = is_v, is_vt, is_vn, is_f
+
+
+def _line_values(buf, lay, start, sel, two_byte_tag, integers: bool) -> np.ndarray | None:
+    """The numbers of the selected lines in file order: their bytes copied out in one masked gather,
+    the tag bytes blanked, then the same checks and ``np.fromstring`` as :func:`_values`."""
+    lo = start[sel]
+    hi = lay.line_end(lay.line[sel])
+    keep = np.zeros(lay.n + 1, np.int8)          # +1 at each selected line's start, -1 past its end
+    keep[lo] = 1                                  # (starts are distinct, and so are ends)
+    keep[hi] -= 1
+    mask = np.cumsum(keep[:-1], dtype=np.int8).view(bool)
+    del keep
+    text = buf[mask]
+    del mask
+    first = np.cumsum(hi - lo) - (hi - lo)       # each line's start inside text
+    text[first] = _SPACE                          # the tag: 'v' or 'f'
+    t2 = first[two_byte_tag[sel]]
+    text[t2 + 1] = _SPACE                         # the 't' or 'n' of 'vt', 'vn'
+    return _numbers(text, integers)

@@ -338,8 +338,8 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
         if why:
             try:
                 cam, side = _framed(scene, cam, choice.axis, offset, width / height, view, look_at, frame_all)
-            except ValueError as err:      # e.g. a --fov so narrow that the camera would stand too far
-                raise ValueError(f"cannot frame the scene ({why}): {err}; a wider --fov stands closer") from None
+            except ValueError as err:
+                raise ValueError(f"cannot frame the scene ({why}): {err}") from None
             note(_framed_line(why, choice, side, cam, offset))
             pr, framed = None, True
     elif fixed and not explicit and choice.reason:
@@ -390,9 +390,12 @@ def _framed(scene: Scene, camera: Camera, up: str, offset, aspect: float, view, 
     subject = None if frame_all else subject_bounds(scene, up)
     if subject is not None:
         side += "; the objects on the base, not the whole base (--frame-all to include it)"
+    # placed as the default lens frames it, then given the camera's own fov: a --fov zooms in or out
+    # from the framed view (framing at that fov would move the camera back and keep the same picture)
     framed = frame_camera(scene if subject is None else subject, up=up, aspect=aspect, template=camera,
-                          azimuth=az, elevation=el, target=target, towards=towards)
-    return framed.with_(aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture), side
+                          fov=Camera().fov, azimuth=az, elevation=el, target=target, towards=towards)
+    return framed.with_(fov=camera.fov,
+                        aperture=0.0 if camera.aperture == Camera().aperture else camera.aperture), side
 
 
 def _framed_line(why: str, up: UpChoice, side: str, camera: Camera, offset) -> str:

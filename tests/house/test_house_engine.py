@@ -81,7 +81,7 @@ def test_every_kernel_kind_is_built_once_in_the_one_cache(box):
     # the tape unrolled once (its kernel's compile grows with the depth; the cache's rule does not)
     render_gradients(p, replace(rs, max_depth=1), adjoint=np.ones((6, 8, 3), np.float32), wrt=["sky.color"],
                      mode="tape")
-    assert set(KERNEL_KINDS) == {"fast", "aov", "replay", "tape", "boundary"}
+    assert set(KERNEL_KINDS) == {"fast", "aov", "replay", "replay_pathwise", "tape", "boundary"}
     kinds = {k[0] for k in kernel_cache.entries()}
     assert {"fast", "aov", "replay", "tape", "step", "vertex", "sampler"} <= kinds
     n = len(kernel_cache.entries())

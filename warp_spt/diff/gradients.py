@@ -34,6 +34,7 @@ visibility (shadows' edges, outlines seen by bounces) is not differentiated: doc
 
 from __future__ import annotations
 
+import queue
 import time
 from dataclasses import dataclass, replace
 
@@ -73,6 +74,7 @@ from warp_spt.diff.boundary import primary_term
 from warp_spt.diff.forces import Forces, chain_all
 from warp_spt.diff.secondary import secondary_term
 from warp_spt.diff.prb import replay_inputs
+from warp_spt.diff import replay_pathwise
 
 ENV_TEXELS_KEY = "environment.texels"       # its reduced buffer among the parts of ``_Backward.run``
 from warp_spt.integrators import (
@@ -211,20 +213,32 @@ def _check_depth(max_depth: int) -> None:
 
 
 def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
-    """"prb" or "tape" for these parameters: "auto" takes path replay when it covers them all."""
+    """"prb" or "tape" for these parameters: "auto" takes path replay when it covers them all (with
+    its pathwise kernel, ``diff.replay_pathwise``, for parameters that move hits or directions)."""
     if mode not in MODES:
         raise ValueError(f"unknown gradient mode {mode!r}; choose from {', '.join(MODES)}")
+    rec = get_integrator(integrator)
     pathwise = [p.name for p in infos if not replayable(p)]
-    ok = not pathwise and get_integrator(integrator).replayable
-    if mode != "prb" and not (mode == "auto" and ok) and not get_integrator(integrator).tape:
+    ok = rec.replayable and (not pathwise or rec.pathwise)
+    # "auto" keeps parameters that move hits on the tape where it can take them: the pathwise
+    # replay gives the same values (tests/diff/test_replay_pathwise.py) and is needed past the tape's depth
+    auto_ok = ok and (not pathwise or not rec.tape)
+    if mode != "prb" and not (mode == "auto" and auto_ok) and not rec.tape:
         raise ValueError(f"integrator {integrator!r} is not differentiable through the tape")
     if mode == "auto":
-        return "prb" if ok else "tape"
+        return "prb" if auto_ok else "tape"
     if mode == "prb" and not ok:
-        why = (f"{', '.join(pathwise)} need(s) the pathwise derivative of the tape" if pathwise
+        why = (f"{', '.join(pathwise)} need(s) pathwise derivatives, which integrator {integrator!r}'s "
+               f"vertex does not have" if pathwise and rec.replayable
                else f"integrator {integrator!r} has no vertex function")
         raise ValueError(f"path replay cannot differentiate this: {why}; use mode='tape' or 'auto'")
     return mode
+
+
+def replay_kind(infos: list[ParamInfo]) -> str:
+    """Path replay's kernel kind for these parameters: the pathwise one where one moves hit points or
+    directions (geometry, the camera, fuzz, a light's position), else the forward-order one."""
+    return "replay_pathwise" if any(not replayable(p) for p in infos) else "replay"
 
 
 # ------------------------------------------------------------------------------------------------
@@ -290,8 +304,11 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     mode = choose_mode(mode, infos, rs.integrator)
     _check_estimator(rs.integrator, rs.sampler)
     _check_media(params, infos)
-    if mode == "tape":
+    kind = replay_kind(infos) if mode == "prb" else "tape"
+    if kind == "tape":
         _check_depth(rs.max_depth)
+    elif kind == "replay_pathwise":
+        replay_pathwise.check_depth(rs.max_depth)
     dev, sky, camera = params.scene, params.sky, params.camera
     rs = replace(rs, sky=sky, features=None)
     # path replay's first pass traces the very paths of the forward render: when the adjoint is known
@@ -302,7 +319,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
-    bw = _Backward(bind(dev, camera, brs, mode="replay" if mode == "prb" else "tape"),
+    bw = _Backward(bind(dev, camera, brs, mode=kind),
                    wants={p.kind for p in infos} | {(p.kind, p.field) for p in infos})
     sums = bw.run(adj.reshape(-1, 3), rs.threads, want_image=replay_image)
     if replay_image:
@@ -366,7 +383,8 @@ class _Backward:
 
     def __init__(self, bound: Bound, wants: set):
         self.bound, self.dev, self.rs, self.tex = bound, bound.dev, bound.settings, bound.tex
-        self.mode = "prb" if bound.kind.name == "replay" else "tape"
+        self.mode = "tape" if bound.kind.name == "tape" else "prb"
+        self.pathwise = bound.kind.name == "replay_pathwise"
         rs = self.rs
         self.wants_texels = "texture" in wants
         self.wants_proc = "proc" in wants
@@ -444,12 +462,27 @@ class _Backward:
         self.nbytes += adj_image.capacity
         film = wp.zeros(len(adj) if want_image else 1, dtype=wp.vec3d, device=dev.device)
         inputs = [self._tile_inputs(lo, hi) for lo, hi in self.tiles]
+        self.threads = max(1, min(threads or cores(), len(self.tiles)))
+        rows = queue.SimpleQueue()      # the pathwise kernel's scratch: one per worker, not per tile
+        if self.pathwise:
+            for _ in range(self.threads):
+                r = replay_pathwise.scratch(self.rs.tile_pixels, self.rs.max_depth, dev.device)
+                self.nbytes += sum(a.capacity for a in r)
+                rows.put(r)
 
         def work(k: int) -> None:
             lo, hi = self.tiles[k]
             m, t, lights, deltas, scratch, geo = inputs[k]
             args = self.bound.scene_args(self.bound.params(lo), materials=m, textures=t, lights=lights, geometry=geo)
             kernel = self.bound.kernel
+            if self.pathwise:            # a forward launch too, with its scratch and the camera's adjoint
+                r = rows.get()
+                try:
+                    wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=replay_pathwise.pathwise_inputs(
+                        args, adj_image[lo:hi], want_image, film[lo:hi] if want_image else film, deltas.grad, r))
+                finally:
+                    rows.put(r)
+                return
             if self.mode == "prb":       # a forward launch: the replay kernel accumulates the adjoints
                 wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=replay_inputs(
                     args, adj_image[lo:hi], want_image, film[lo:hi] if want_image else film))
@@ -457,7 +490,6 @@ class _Backward:
             wp.launch(kernel, dim=hi - lo, device=dev.device, inputs=tape_inputs(args, deltas, scratch),
                       adj_inputs=tape_inputs(adjoint_structs(args), deltas.grad, adj_image[lo:hi]), adjoint=True)
 
-        self.threads = max(1, min(threads or cores(), len(self.tiles)))
         # the renderer's tile runner: Ctrl-C stops the workers safely (no concurrent.futures, see parallel)
         run_jobs(list(range(len(self.tiles))), lambda k, stop, done: work(k), self.threads, lambda units: None)
         # reduce in tile order, in float64: independent of threads

@@ -123,13 +123,19 @@ def get_step(integrator: str, sampler: str, features: Features, differentiable: 
                                lambda: _with_start(rec.make_step, sampler, features, differentiable))
 
 
-def get_vertex(integrator: str, sampler: str, features: Features, inline: bool | None = None):
+def get_vertex(integrator: str, sampler: str, features: Features, inline: bool | None = None,
+               pathwise: bool = False):
     """``(vertex, start_path)`` Warp functions of ``integrator`` with ``sampler`` for ``features``
     (ValueError when the integrator has no vertex function: no path replay for it); ``inline``: the
-    vertex's wp.func inline hint."""
+    vertex's wp.func inline hint; ``pathwise``: the vertex with the tape's derivatives
+    (``Integrator.pathwise``)."""
     rec = get_integrator(integrator)
-    if not rec.replayable:
-        raise ValueError(f"integrator {integrator!r} has no vertex function for path replay")
+    if not rec.replayable or (pathwise and not rec.pathwise):
+        what = "pathwise vertex" if rec.replayable else "vertex function"
+        raise ValueError(f"integrator {integrator!r} has no {what} for path replay")
+    if pathwise:
+        return kernel_cache.cached("pathwise vertex", (integrator, sampler, features, inline), lambda: _with_start(
+            lambda f, s, i: rec.make_vertex(f, s, i, pathwise=True), sampler, features, inline))
     return kernel_cache.cached("vertex", (integrator, sampler, features, inline),
                                lambda: _with_start(rec.make_vertex, sampler, features, inline))
 

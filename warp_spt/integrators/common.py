@@ -153,7 +153,9 @@ class Integrator:
     own pass schedule and kernel inputs, as ``guided``'s training passes); such an integrator
     renders through the tile renderer only (no row windows, progressive batches or cluster).
     ``params``: its parameters (:class:`Param`), set by name in ``RenderSettings.integrator_options``
-    and read through :meth:`options` (e.g. ``Bound.options``).
+    and read through :meth:`options` (e.g. ``Bound.options``). ``pathwise``: its ``make_vertex`` also
+    takes ``pathwise=True``, the vertex with the tape's derivatives (hit points, normals, directions
+    and light samples that move with the scene), which ``diff.replay_pathwise`` differentiates.
     """
 
     name: str
@@ -169,6 +171,7 @@ class Integrator:
     summary: str = ""            # one line for --help and the docs
     params: tuple[Param, ...] = ()
     media: bool = False          # it tracks participating media (Features.media): volpath
+    pathwise: bool = False       # make_vertex(..., pathwise=True) exists (see above)
 
     def param(self, name: str) -> Param:
         """The parameter ``name`` (ValueError naming the integrator's parameters otherwise)."""

@@ -81,12 +81,14 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     return make_path_step(features, sampler, light_sampling=True, differentiable=differentiable)
 
 
-def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
-    """The NEE + MIS vertex (``make_path_vertex``): what path replay differentiates."""
-    return make_path_vertex(features, sampler, light_sampling=True, inline=inline, replay=True)
+def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None, pathwise: bool = False):
+    """The NEE + MIS vertex (``make_path_vertex``): what path replay differentiates (``pathwise``:
+    with every derivative the tape's has, for ``diff.replay_pathwise``)."""
+    return make_path_vertex(features, sampler, light_sampling=True, inline=inline, replay=not pathwise,
+                            differentiable=pathwise)
 
 
-INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE,
+INTEGRATOR = Integrator("nee", make, make_vertex, STRIDE, pathwise=True,
                         summary="next-event estimation: a light sample at every vertex, MIS with the BSDF")
 
 

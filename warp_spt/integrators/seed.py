@@ -19,10 +19,12 @@ def make(features: Features, sampler: Sampler, differentiable: bool = False):
     return make_path_step(features, sampler, light_sampling=False, differentiable=differentiable)
 
 
-def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None):
-    """The vertex of pure path tracing (``nee.make_path_vertex``): what path replay differentiates."""
-    return make_path_vertex(features, sampler, light_sampling=False, inline=inline, replay=True)
+def make_vertex(features: Features, sampler: Sampler, inline: bool | None = None, pathwise: bool = False):
+    """The vertex of pure path tracing (``nee.make_path_vertex``): what path replay differentiates
+    (``pathwise``: with every derivative the tape's has, for ``diff.replay_pathwise``)."""
+    return make_path_vertex(features, sampler, light_sampling=False, inline=inline, replay=not pathwise,
+                            differentiable=pathwise)
 
 
-INTEGRATOR = Integrator("seed", make, make_vertex, SEED_STRIDE,
+INTEGRATOR = Integrator("seed", make, make_vertex, SEED_STRIDE, pathwise=True,
                         summary="the seed's pure path tracing: lights are found only by bouncing into them")

@@ -39,6 +39,24 @@ def _material(stage, where, colour):
     return mat
 
 
+def _textured_quad(folder, file, colour_space=None):
+    """A stage in ``folder`` of one quad whose material's diffuse colour reads texture ``file``
+    (``colour_space``: its sourceColorSpace, unset by default); returns the stage's path."""
+    stage, path = _stage(folder)
+    m = _quad(stage, "/q")
+    mat = _material(stage, "/M/t", (1, 1, 1))
+    tex = UsdShade.Shader.Define(stage, "/M/t/tex")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(file)
+    if colour_space is not None:
+        tex.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set(colour_space)
+    UsdShade.Shader(stage.GetPrimAtPath("/M/t/pbr")).GetInput("diffuseColor").ConnectToSource(
+        tex.ConnectableAPI(), "rgb")
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
+    stage.Save()
+    return path
+
+
 def test_quads_and_ngons_are_fanned_and_holes_left_out(tmp_path):
     stage, path = _stage(tmp_path)
     pts = [(math.cos(a), math.sin(a), 0) for a in np.linspace(0, 2 * math.pi, 6, endpoint=False)]
@@ -227,16 +245,7 @@ def test_a_texture_outside_the_stage_folder_is_refused(tmp_path):
     from PIL import Image
 
     Image.new("RGB", (2, 2), (255, 0, 0)).save(tmp_path / "outside.png")
-    stage, path = _stage(inner)
-    m = _quad(stage, "/q")
-    mat = _material(stage, "/M/t", (1, 1, 1))
-    tex = UsdShade.Shader.Define(stage, "/M/t/tex")
-    tex.CreateIdAttr("UsdUVTexture")
-    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("../outside.png")
-    sh = UsdShade.Shader(stage.GetPrimAtPath("/M/t/pbr"))
-    sh.GetInput("diffuseColor").ConnectToSource(tex.ConnectableAPI(), "rgb")
-    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
-    stage.Save()
+    path = _textured_quad(inner, "../outside.png")
     with pytest.raises(SceneError, match=r"/M/t/tex.*outside"):
         read_model(path)
 
@@ -245,16 +254,6 @@ def test_raw_colour_space_is_not_decoded(tmp_path):
     from PIL import Image
 
     Image.new("RGB", (2, 2), (128, 128, 128)).save(tmp_path / "grey.png")
-    stage, path = _stage(tmp_path)
-    m = _quad(stage, "/q")
-    mat = _material(stage, "/M/t", (1, 1, 1))
-    tex = UsdShade.Shader.Define(stage, "/M/t/tex")
-    tex.CreateIdAttr("UsdUVTexture")
-    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("grey.png")
-    tex.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
-    UsdShade.Shader(stage.GetPrimAtPath("/M/t/pbr")).GetInput("diffuseColor").ConnectToSource(
-        tex.ConnectableAPI(), "rgb")
-    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
-    stage.Save()
+    path = _textured_quad(tmp_path, "grey.png", colour_space="raw")
     s = load_scene([path], warn=lambda m: None)
     assert s.textures[-1].mean() == pytest.approx(128 / 255, abs=1e-3)     # sRGB would give 0.216

@@ -79,6 +79,17 @@ def remaining(total: wp.vec3, gathered: wp.vec3, throughput: wp.vec3) -> wp.vec3
     return out
 
 
+@wp.func
+def sample_adjoint(adj_image: wp.array(dtype=wp.vec3), tid: int, sample_count: int) -> wp.vec3:
+    """d loss / d (one sample's radiance) of pixel ``tid``: its adjoint shared by its samples."""
+    return adj_image[tid] / float(sample_count)
+
+
+@wp.func
+def is_zero(a: wp.vec3) -> bool:
+    return a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0
+
+
 def _skip_replay(vertex) -> None:
     """Inside ``objective``'s adjoint, Warp replays ``vertex`` forward and then calls its adjoint,
     which replays it again; the first replay is wasted (the adjoint of ``objective``'s dot products
@@ -120,8 +131,8 @@ def _make_kernel(vertex, forward, start_path, hit, inline):
         """Each thread replays the samples of one pixel of the tile; with ``want_image`` it also adds
         the pass-1 radiance sums to ``film`` (the fast kernel's sums: same paths, same order)."""
         tid = wp.tid()
-        a = adj_image[tid] / float(rp.sample_count)       # d loss / d (one sample's radiance)
-        replay_it = not (a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0)
+        a = sample_adjoint(adj_image, tid, rp.sample_count)
+        replay_it = not is_zero(a)
         if not replay_it and want_image == 0:
             return
         pix = rp.pixel_start + tid

@@ -38,6 +38,7 @@ import warp as wp
 from warp_spt.accel.ray_queries import Hit, make_refine_hit
 from warp_spt.bsdfs.cutout import make_hit
 from warp_spt.device.camera_rays import CameraParams
+from warp_spt.diff.prb import is_zero, sample_adjoint
 from warp_spt.device.structs import Features, Geometry, Materials, Textures
 from warp_spt.emitters import Lights
 from warp_spt.integrators import PathState, RenderParams, get_vertex
@@ -82,8 +83,8 @@ def _make_kernel(vertex, forward, start_path, hit, refine_hit, depth_cap: int):
         scratch); with ``want_image`` it also adds the radiance sums to ``film``; the camera ray's
         adjoints are added to ``camera_grad`` (the deltas' order)."""
         tid = wp.tid()
-        a = adj_image[tid] / float(rp.sample_count)       # d loss / d (one sample's radiance)
-        replay_it = not (a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0)
+        a = sample_adjoint(adj_image, tid, rp.sample_count)
+        replay_it = not is_zero(a)
         if not replay_it and want_image == 0:
             return
         pix = rp.pixel_start + tid

@@ -424,7 +424,7 @@ def test_cli_env_flags(tmp_path):
     assert r.returncode == 0, r.stderr
     img = np.load(tmp_path / "e.npy")
     assert np.allclose(img[0, 0], 1.0)
-    for args, what in [(["--env", "missing.hdr"], "missing.hdr: no such environment map file"),
+    for args, what in [(["--env", "missing.hdr"], "cannot read --env file 'missing.hdr'"),
                        (["--env-strength", "2"], "--env-strength needs --env")]:
         r = _cli("-obj", "ball.obj", *args, "-res", "4", "4", "-out", "x.npy", cwd=tmp_path)
         assert r.returncode != 0 and what in r.stderr, r.stderr

@@ -26,8 +26,8 @@ Texel contention: backward time with the gradient of a 2x2, 16x16 or 256x256 tex
 filling the view, against no texel gradient (CPU kernels are serial per thread and each tile has its
 own buffer: no atomic contention is expected, and this measures it).
 Geometry (``geometry``): the Cornell box's pose (``cornell.obj.translation`` and ``.rotation``, every
-triangle moving) and the camera's position at the same spp: the forward render, the tape's interior
-term (``boundary=False``), the whole gradient with the boundary term, and the primary boundary
+triangle moving) and the camera's position at the same spp: the forward render, the interior term
+(``boundary=False``) by the tape and by path replay (``diff.replay_pathwise``), the whole gradient with the boundary term, and the primary boundary
 term's parts (the host's curves and samples, the kernel tracing its pairs of rays, the chain rule) and
 the secondary term; what setting a
 pose costs (a world-space mesh's BVH is rebuilt; an instance's only the top-level BVH).
@@ -205,15 +205,19 @@ def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: st
         render_scene(params.scene, params.camera, replace(rs, sky=params.sky))
 
     def interior():
-        return render_gradients(params, rs, adjoint=adj, wrt=names, boundary=False)
+        return render_gradients(params, rs, adjoint=adj, wrt=names, boundary=False, mode="tape")
+
+    def interior_replay():
+        return render_gradients(params, rs, adjoint=adj, wrt=names, boundary=False, mode="prb")
 
     def whole():
         return render_gradients(params, rs, adjoint=adj, wrt=names)
 
-    for fn in (forward, interior, whole):
+    for fn in (forward, interior, interior_replay, whole):
         fn()                                           # compile (or load) and warm up
     rows = [("forward (fast kernel, all threads)", forward), ("interior term (tape, boundary=False)", interior),
-            ("interior + boundary terms", whole)]
+            ("interior term (path replay, boundary=False)", interior_replay),
+            (f"interior + boundary terms ({whole().mode})", whole)]
     runs = {name: [] for name, _ in rows}
     for _ in range(3):
         for name, fn in rows:
@@ -246,7 +250,8 @@ def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: st
                      ("the whole primary term", t3 - t2), ("the secondary term (all of it)", t4 - t3)):
             parts[k] = min(parts.get(k, v), v)
     print(f"  the primary term: {len(curves)} curves, {spp * size * size} samples, {2 * spp * size * size} rays; "
-          f"the secondary term: {spp * size * size} camera-ray hits, each 2 rays and 2 paths")
+          f"the secondary term: {spp * size * size} paths, each a camera-ray hit and (depth >= 3) a deeper "
+          f"vertex, each receiver 2 rays and 2 paths")
     for k, v in parts.items():
         print(f"    {k:40s} {v * 1e3:8.0f} ms  {v / f:5.2f}x forward")
     for label, value in (("a world-space mesh's pose (its BVH rebuilt)", (0.01, 0.0, 0.0)),):

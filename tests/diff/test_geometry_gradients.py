@@ -48,16 +48,16 @@ def _params(meshes, spheres=None, sphere_materials=None, camera=gs.CAMERA, sky=g
     return parameters(gs.scene(meshes, spheres, sphere_materials), camera, sky)
 
 
-def gradient(p, name: str, direction, adjoint=ADJ, **kw) -> tuple[float, float]:
+def gradient(p, name: str, direction, adjoint=ADJ, rs=RS, **kw) -> tuple[float, float]:
     """(mean, standard error) of ``grad . direction`` over SEEDS gradient seeds."""
     u = np.asarray(direction, np.float64)
-    vals = [float(np.sum(render_gradients(p, RS, adjoint=adjoint, wrt=[name], gradient_seed=100 + k, **kw)
+    vals = [float(np.sum(render_gradients(p, rs, adjoint=adjoint, wrt=[name], gradient_seed=100 + k, **kw)
                          .grads[name] * u)) for k in range(SEEDS)]
     return float(np.mean(vals)), float(np.std(vals, ddof=1) / math.sqrt(SEEDS))
 
 
 def difference(p, name: str, direction, h: float, adjoint=ADJ, spp: int = FD_SPP,
-               seeds: int = SEEDS) -> tuple[float, float, float]:
+               seeds: int = SEEDS, rs=RS) -> tuple[float, float, float]:
     """(D(h), its standard error, the truncation bound |D(2h) - D(h)|): central differences of
     sum(adjoint x image) along ``direction``, common random numbers per seed. (A smooth objective's
     central difference errs by O(h^2), a third of that bound; one with kinks, a curve crossing a
@@ -67,7 +67,7 @@ def difference(p, name: str, direction, h: float, adjoint=ADJ, spp: int = FD_SPP
 
     def objective(v, seed):
         p[name] = v
-        img = render_scene(p.scene, p.camera, replace(RS, spp=spp, seed=seed, sky=p.sky)).film.image()
+        img = render_scene(p.scene, p.camera, replace(rs, spp=spp, seed=seed, sky=p.sky)).film.image()
         return float(np.sum(img.astype(np.float64) * adjoint))
 
     try:
@@ -87,14 +87,14 @@ def assert_matches(g, se_g, ref, se_ref, trunc=0.0, what="", resolve=0.1):
 
 
 def check_against_fd(p, name, direction, h, control=True, adjoint=ADJ, without=None, fd_spp=FD_SPP,
-                     resolve=0.1, fd_seeds=SEEDS, **kw) -> float:
+                     resolve=0.1, fd_seeds=SEEDS, rs=RS, **kw) -> float:
     """The gradient (with the boundary terms) matches the differences; without them (``without``:
     the keywords that leave a term out, default ``boundary=False``), it does not. Returns the
     gradient without them. ``resolve``: the largest tolerance accepted, relative to the reference."""
-    ref, se_ref, trunc = difference(p, name, direction, h, adjoint, fd_spp, fd_seeds)
-    g, se = gradient(p, name, direction, adjoint, **kw)
+    ref, se_ref, trunc = difference(p, name, direction, h, adjoint, fd_spp, fd_seeds, rs)
+    g, se = gradient(p, name, direction, adjoint, rs, **kw)
     tol = assert_matches(g, se, ref, se_ref, trunc, name, resolve)
-    g0, _ = gradient(p, name, direction, adjoint, **(without or {"boundary": False}))
+    g0, _ = gradient(p, name, direction, adjoint, rs, **{**kw, **(without or {"boundary": False})})
     print(f"  without the boundary term: {g0:.5f}")
     if control:
         assert abs(g0 - ref) > 2 * tol, (name, "the boundary term made no difference", g0, ref)
@@ -256,6 +256,16 @@ def test_an_area_light_moved_over_a_floor():
                      fd_spp=8192, resolve=0.2, secondary_spp=64)
 
 
+def test_an_area_light_moved_over_a_floor_under_nee():
+    """The same under next-event estimation (path replay's pathwise kernel): the lamp's light samples
+    stay where they were in world space (the light table is the host's), the split that matches a
+    boundary term taken at fixed directions (Reynolds' theorem on the sphere); the light-sample and
+    BSDF-sample MIS weights' derivatives, both held, cancel in expectation."""
+    p = _lit_floor()
+    check_against_fd(p, "lamp.translation", (1.0, 0.0, 0.0), 0.02, adjoint=RAMP, without={"secondary_spp": 0},
+                     fd_spp=8192, resolve=0.2, secondary_spp=64, rs=replace(RS, integrator="nee"), mode="prb")
+
+
 def test_an_occluder_moved_between_a_light_and_a_floor():
     """The occluder hangs out of view between the lamp and the floor: its motion reaches the image
     only through its shadow's edge (and the patch of sky it hides), the secondary term; without it
@@ -266,3 +276,19 @@ def test_an_occluder_moved_between_a_light_and_a_floor():
     p = _lit_floor(occ)
     check_against_fd(p, "occluder.translation", (1.0, 0.5, 0.0), 0.02, without={"secondary_spp": 0},
                      fd_spp=8192, fd_seeds=8, resolve=0.35, secondary_spp=512)
+
+
+def test_a_shadow_seen_in_a_mirror():
+    """The camera sees a ceiling only in a mirror (a perfect one: no lobe with a density there); a
+    lamp lights the ceiling past an occluder, both out of view directly and in the mirror. The
+    occluder moves the image only through its shadow's edge on the ceiling, a curve the ceiling (the
+    paths' second vertex) sees: the secondary term's deeper receivers. With the camera rays' hits
+    alone (``secondary_depth=1``: the mirror, whose f cos is 0 off its reflection) the gradient is 0."""
+    mirror = gs.square(3.0, 0.0, gs.MIRROR, "mirror")
+    ceiling = gs.square(3.0, 0.0, gs.WHITE, "ceiling", transform=gs.placement((np.pi, 0, 0), offset=(0.0, 0.0, 4.4)))
+    lamp = gs.square(0.4, 0.0, gs.LAMP, "lamp", transform=gs.placement(offset=(3.0, 0.0, 2.2)))
+    occ = gs.square(0.3, 0.0, gs.RED, "occluder", transform=gs.placement(offset=(3.0, 0.0, 3.3)))
+    p = _params([mirror, ceiling, lamp, occ])
+    check_against_fd(p, "occluder.translation", (1.0, 0.5, 0.0), 0.02, rs=replace(RS, max_depth=3),
+                     without={"secondary_depth": 1}, fd_spp=8192, fd_seeds=8, resolve=0.35,
+                     secondary_spp=512, mode="prb")

@@ -15,7 +15,8 @@
 * A colour channel at exactly 0: the documented limit (no gradient from later bounces), shown
   against one-sided finite differences.
 
-Parameters with a pathwise derivative (fuzz) stay on the tape: ``mode="auto"`` routes them there.
+Parameters with a pathwise derivative (fuzz) take path replay's pathwise kernel (``mode="auto"`` too),
+checked against the tape here and in tests/diff/test_replay_pathwise.py.
 """
 
 from __future__ import annotations
@@ -163,7 +164,7 @@ def test_mode_selection(quad_scene):
     p = parameters(quad_scene, QUAD_CAM, Sky.gradient())
     adj = _ones(QUAD_RS)
     assert render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.diffuse_map"]).mode == "prb"
-    assert render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.fuzz", "quad.diffuse"]).mode == "tape"
+    assert render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.fuzz", "quad.diffuse"]).mode == "prb"
     # fuzz bends the sampled direction: path replay takes it with its pathwise kernel, the tape's values
     tape = render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.fuzz"], mode="tape")
     pw = render_gradients(p, QUAD_RS, adjoint=adj, wrt=["quad.fuzz"], mode="prb")

@@ -36,5 +36,5 @@ def test_the_pathwise_replay_gives_the_tapes_geometry_and_camera_gradients(integ
         scale = np.abs(tape.grads[n]).max()
         assert scale > 1e-2, n
         np.testing.assert_allclose(pw.grads[n], tape.grads[n], rtol=0, atol=1e-5 * scale, err_msg=n)
-    # the default keeps the tape where it can take these parameters
-    assert render_gradients(p, rs, adjoint=ADJ, wrt=["cube.rotation"], boundary=False).mode == "tape"
+    # the default takes path replay (its pathwise kernel) for these parameters too
+    assert render_gradients(p, rs, adjoint=ADJ, wrt=["cube.rotation"], boundary=False).mode == "prb"

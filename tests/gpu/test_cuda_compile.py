@@ -269,7 +269,7 @@ def test_the_variants_come_from_the_registries():
         else:
             assert {i for i, _ in fast} == set(INTEGRATORS) and {s for _, s in fast} == set(SAMPLERS)
         assert {v.kind for v in chosen} == set(KERNEL_KINDS)
-    assert {"tape", "replay", "aov", "boundary"} <= set(KERNEL_KINDS)
+    assert {"tape", "replay", "replay_pathwise", "aov", "boundary"} <= set(KERNEL_KINDS)
     sets = FEATURE_SETS.values()
     for name in ("meshes", "spheres", "textures", "checker", "emitters", "smooth", "warp_meshes", "scatters"):
         assert {getattr(f, name) for f in sets} == {True, False}, name

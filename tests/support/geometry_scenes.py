@@ -19,7 +19,7 @@ from warp_spt.scene.camera import Camera
 from warp_spt.scene.model import CHECKER_NAME, Material, MaterialTable, MeshData, Scene
 from warp_spt.scene.sky import Sky
 
-WHITE, RED, GLOW, LAMP = 1, 2, 3, 4
+WHITE, RED, GLOW, LAMP, MIRROR = 1, 2, 3, 4, 5
 SKY = Sky.constant(0.25, 0.25, 0.25)
 CAMERA = Camera(position=(0.0, 0.0, 3.0), direction=(0.0, 0.0, -1.0), fov=40.0, aperture=0.0, focus=3.0,
                 up=(0.0, 1.0, 0.0))
@@ -32,6 +32,8 @@ def materials() -> MaterialTable:
         Material("red", diffuse=(0.8, 0.3, 0.2), roughness=1.0),
         Material("glow", diffuse=(0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0), roughness=1.0),
         Material("lamp", diffuse=(0.0, 0.0, 0.0), emission=(6.0, 6.0, 6.0), roughness=1.0),
+        # the seed's model: no diffuse lobe, no fuzz, a perfect mirror
+        Material("mirror", diffuse=(0.0, 0.0, 0.0), reflect=(0.9, 0.9, 0.9), roughness=0.0, fuzz=0.0),
     ])
 
 
@@ -109,7 +111,7 @@ def kit() -> tuple[list[MeshData], np.ndarray, np.ndarray]:
     """(meshes, spheres (S, 4), sphere materials): the out-of-view objects every scene carries."""
     far = np.array([0.0, 0.0, 30.0])
     tiny = ball(2, 0.01)
-    tiny = replace(tiny, name="kit_ball", face_material=np.resize(np.array([WHITE, RED], np.int32), len(tiny.indices)),
+    tiny = replace(tiny, name="kit_ball", face_material=np.resize(np.array([WHITE, RED, MIRROR], np.int32), len(tiny.indices)),
                    transforms=np.stack([placement(offset=far), placement(offset=far + [0.1, 0, 0])]))
     lamp = mesh("kit_lamp", far + [[0, 0.1, 0], [0.01, 0.1, 0], [0, 0.11, 0], [0.01, 0.11, 0]], [(0, 1, 2), (1, 3, 2)],
                 [GLOW, LAMP])

@@ -415,7 +415,7 @@ def _trace_pairs(bound: Bound, proj: Projection, px: np.ndarray, normal: np.ndar
     one_i = wp.zeros(1, dtype=wp.int32, device=dev.device)
     eye = wp.array([proj.origin.astype(np.float32)], dtype=wp.vec3, device=dev.device)
     wp.launch(BOUNDARY.build(bound), dim=len(pts), device=dev.device, inputs=[
-        *bound.scene_args(rp), STAGE_PRIMARY, wp.uint32(0), one_i, one_i, dirs, eye,
+        *bound.scene_args(rp), STAGE_PRIMARY, wp.uint32(0), one_i, one_i, one_i, dirs, eye,
         wp.zeros(1, dtype=wp.vec4i, device=dev.device), wp.zeros(1, dtype=wp.vec2, device=dev.device),
         wp.zeros(1, dtype=wp.vec3, device=dev.device), out])
     return out.numpy().astype(np.float64)

@@ -54,46 +54,56 @@ def _make_kernel(features: Features, step, start_path):
     @wp.kernel(enable_backward=False, module="unique")
     def boundary_paths(geo: Geometry, mats: Materials, tex: Textures, lights: Lights, cam: CameraParams,
                   rp: RenderParams, stage: int, seed2: wp.uint32, pix: wp.array(dtype=wp.int32),
-                  sample: wp.array(dtype=wp.int32), dirs: wp.array(dtype=wp.vec3),
+                  sample: wp.array(dtype=wp.int32), steps: wp.array(dtype=wp.int32), dirs: wp.array(dtype=wp.vec3),
                   rec: wp.array(dtype=wp.vec3), info: wp.array(dtype=wp.vec4i), bary: wp.array(dtype=wp.vec2),
                   dirs_apex: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
         """The boundary terms' paths. Stage 2 (diff.boundary): ray i from the eye ``rec[0]`` along
         dirs[i], the pairs (2k, 2k + 1) with the random numbers of sample k. Stage 0 (diff.secondary):
-        receiver i's camera ray (rec 4i, 4i + 1), its hit point and geometric normal (4i + 2,
-        4i + 3), its primitive (kind, index, face, placed; kind -1: the ray escaped), barycentrics and
-        the origin of the rays it reflects (``dirs_apex``).
-        Stage 1: the same hit's f cos towards dirs[3i] (out[3i]) and the radiance along dirs[3i + 1]
-        and dirs[3i + 2] (out[3i + 1], out[3i + 2]), two paths of the same random numbers."""
+        receiver i: the vertex its path reaches after ``steps[i]`` bounces (0: the camera ray's hit),
+        its incoming ray (rec 5i, 5i + 1), its hit point and geometric normal (5i + 2, 5i + 3), the
+        path's throughput up to it (5i + 4), its primitive (kind, index, face, placed; kind -1: the
+        ray escaped or the path ended), barycentrics and the origin of the rays it reflects
+        (``dirs_apex``).
+        Stage 1: the same vertex's throughput x f cos towards dirs[3i] (out[3i]) and the radiance
+        along dirs[3i + 1] and dirs[3i + 2] (out[3i + 1], out[3i + 2]), two paths of the same random
+        numbers."""
         i = wp.tid()
         if stage == 2:
             out[i] = along(geo, mats, tex, lights, cam, rp, rp.seed, i // 2, rec[0], dirs[i], 0)
             return
         p = start_path(cam, pix[i], rp.width, rp.seed, sample[i])
+        # the bounces before the receiver, with the integrator's own step (the same in both stages)
+        s = int(0)
+        while s < steps[i]:
+            if p.alive != 0:
+                p = step(geo, mats, tex, lights, rp, p)
+            s += 1
         h = hit(geo, mats, tex, p.o, p.d)
-        if h.kind < 0:
+        if p.alive == 0 or h.kind < 0:
             if stage == 0:
                 info[i] = wp.vec4i(-1, 0, 0, 0)
             return
         sf = mat.shade(mats, tex, surface_at(geo, h, p.o, p.d))
         if stage == 0:
-            rec[4 * i] = p.o
-            rec[4 * i + 1] = p.d
-            rec[4 * i + 2] = sf.p
-            rec[4 * i + 3] = sf.ng
+            rec[5 * i] = p.o
+            rec[5 * i + 1] = p.d
+            rec[5 * i + 2] = sf.p
+            rec[5 * i + 3] = sf.ng
+            rec[5 * i + 4] = p.throughput
             # where its reflected rays start: the apex of the directions they see (offset_eps: 1e-5 of
             # the scene's extent, which curves seen from sf.p itself would miss by as much)
             dirs_apex[i] = offset_origin(sf.p, sf.ng, 0, geo.extent)
             info[i] = wp.vec4i(h.kind, h.index, h.face, h.placed)
             bary[i] = wp.vec2(h.u, h.v)
             return
-        out[3 * i] = mat.eval(mats, tex, sf, dirs[3 * i])
+        out[3 * i] = wp.cw_mul(p.throughput, mat.eval(mats, tex, sf, dirs[3 * i]))
         # two calls, not a loop of two: in a loop Warp unrolled, both sides came out as one
         for_side = dirs[3 * i + 1]
         out[3 * i + 1] = along(geo, mats, tex, lights, cam, rp, seed2, i, side_origin(sf, for_side, geo.extent),
-                               for_side, 1)
+                               for_side, steps[i] + 1)
         for_side = dirs[3 * i + 2]
         out[3 * i + 2] = along(geo, mats, tex, lights, cam, rp, seed2, i, side_origin(sf, for_side, geo.extent),
-                               for_side, 1)
+                               for_side, steps[i] + 1)
 
     return boundary_paths
 

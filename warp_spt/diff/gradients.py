@@ -7,15 +7,18 @@ backward passes over tiles from a thread pool:
 * ``mode="prb"``: path-replay backpropagation (``warp_spt.diff.prb``): a forward-only kernel traces each
   path again with the same random numbers and differentiates the integrator's own ``vertex``
   function at each vertex, with what arrives from beyond it held constant. Any depth; nothing is
-  stored per vertex or sample; about the cost of two forward passes.
+  stored per vertex or sample; about the cost of two forward passes. Parameters that move hit points
+  or directions (geometry, the camera, fuzz, a light's position) take its pathwise kernel
+  (``warp_spt.diff.replay_pathwise``): each path's states are stored in a per-thread row and walked
+  backwards, each vertex's adjoint handed to the one before it.
 * ``mode="tape"``: Warp's adjoint of a kernel that runs the integrator's ``step`` in a loop unrolled
   to a fixed depth (at most MAX_UNROLLED_DEPTH) with the path's ``alive`` flag instead of a dynamic
   loop (Warp differentiates a dynamic loop correctly only when the carried state is additive). It is
   launched directly (``wp.launch(adjoint=True)``; no ``wp.Tape``, which is one global in Warp 1.19
-  and cannot be shared by threads). It alone has pathwise derivatives (fuzz bends directions, the
-  camera moves hits).
+  and cannot be shared by threads). It is the reference the pathwise replay is checked against, and
+  the mode of integrators without a vertex function.
 
-``mode="auto"`` (the default) takes path replay unless a parameter needs the tape. Either way each
+``mode="auto"`` (the default) takes path replay where the integrator has a vertex function. Either way each
 tile accumulates into its own gradient buffers, aliased onto the parameter arrays, summed in tile
 order in float64, so the gradients are bit-identical whatever the number of threads, and the
 backward pass allocates the adjoint image and per-tile buffers whatever the spp and depth
@@ -23,13 +26,13 @@ backward pass allocates the adjoint image and per-tile buffers whatever the spp 
 
 What is differentiated (see docs/gradients.md): material colours and emission (exact: paths do not
 depend on them), texture texels (nearest and bilinear), ``Roughness`` (the lobe choice is discrete:
-``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz`` (tape),
+``materials.lobe_weight`` adds the score term so the *expected* derivative is right), ``Fuzz``,
 the constant sky colour and the gradient sky's zenith and nadir colours, procedural-texture
 parameters, the camera's position and direction and geometry (a mesh's positions, an object's pose,
-a sphere; tape only: the tape's kernel re-intersects each hit primitive in closed form,
-``ray_queries.make_refine_hit``, because the traversal's dynamic loop drops its adjoint), with the
-boundary term of the curves the camera sees (``warp_spt.diff.boundary``, edge sampling). Secondary
-visibility (shadows' edges, outlines seen by bounces) is not differentiated: docs/gradients.md, Limits.
+a sphere: each hit primitive re-intersected in closed form, ``ray_queries.make_refine_hit``, because
+the traversal's dynamic loop drops its adjoint), with the boundary terms of the curves the camera
+sees (``warp_spt.diff.boundary``, edge sampling) and of those the paths' vertices see
+(``warp_spt.diff.secondary``: shadows' edges, outlines seen by bounces); docs/gradients.md, Limits.
 """
 
 from __future__ import annotations
@@ -72,7 +75,7 @@ from warp_spt.diff import geometry_params as geo_params
 from warp_spt.diff.geometry_params import GEOMETRY_KINDS, MESH, SPHERE
 from warp_spt.diff.boundary import primary_term
 from warp_spt.diff.forces import Forces, chain_all
-from warp_spt.diff.secondary import secondary_term
+from warp_spt.diff.secondary import receiver_depth, secondary_term
 from warp_spt.diff.prb import replay_inputs
 from warp_spt.diff import replay_pathwise
 
@@ -220,9 +223,10 @@ def choose_mode(mode: str, infos: list[ParamInfo], integrator: str) -> str:
     rec = get_integrator(integrator)
     pathwise = [p.name for p in infos if not replayable(p)]
     ok = rec.replayable and (not pathwise or rec.pathwise)
-    # "auto" keeps parameters that move hits on the tape where it can take them: the pathwise
-    # replay gives the same values (tests/diff/test_replay_pathwise.py) and is needed past the tape's depth
-    auto_ok = ok and (not pathwise or not rec.tape)
+    # "auto" takes path replay for parameters that move hits too: the pathwise replay gives the tape's
+    # values (tests/diff/test_replay_pathwise.py: 3e-8) at about half its backward time and at any
+    # depth (benchmarks/bench_gradients.py, geometry)
+    auto_ok = ok
     if mode != "prb" and not (mode == "auto" and auto_ok) and not rec.tape:
         raise ValueError(f"integrator {integrator!r} is not differentiable through the tape")
     if mode == "auto":
@@ -270,7 +274,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
                      wrt: list[str] | None = None, gradient_seed: int | None = None,
                      mode: str = "auto", boundary: bool = True, boundary_spp: int | None = None,
-                     secondary_spp: int | None = None) -> GradientResult:
+                     secondary_spp: int | None = None, secondary_depth: int | None = None) -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``).
@@ -278,16 +282,19 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     survival probability is held constant, which keeps the gradient unbiased (docs/gradients.md).
 
     ``mode``: "prb" (path replay, ``warp_spt.diff.prb``: any depth, about the cost of two forward
-    passes), "tape" (Warp's adjoint of the step unrolled to ``max_depth`` <= MAX_UNROLLED_DEPTH; it
-    alone has the pathwise derivatives of fuzz and the camera), or "auto": "prb" unless a parameter
-    in ``wrt`` needs the tape.
+    passes; its pathwise kernel, ``diff.replay_pathwise``, for parameters that move hits or
+    directions, at most ``MAX_PATHWISE_DEPTH`` bounces), "tape" (Warp's adjoint of the step unrolled
+    to ``max_depth`` <= MAX_UNROLLED_DEPTH), or "auto": "prb" where the integrator has a vertex
+    function (the pathwise one where a parameter needs it), else "tape".
 
     ``boundary``: add the boundary terms to geometry and camera parameters (False: the interior term
     alone): primary visibility (``warp_spt.diff.boundary``), estimated with ``boundary_spp`` samples
     per pixel along the image's silhouettes and edges, and secondary visibility at the camera rays'
-    hits (``warp_spt.diff.secondary``: shadows' edges, outlines seen from the surface) with
-    ``secondary_spp`` hits per pixel; both default to ``settings.spp``, 0 leaves one out. (The
-    interior term takes ``settings.spp``: Mitsuba's sppc, sppp and sppi.)
+    hits and later vertices (``warp_spt.diff.secondary``: shadows' edges, outlines seen from the
+    surface) with ``secondary_spp`` paths per pixel, each giving its camera ray's hit and one vertex
+    of depth 2 to ``secondary_depth`` (default ``max_depth - 1``; 1: the camera rays' hits alone);
+    both budgets default to ``settings.spp``, 0 leaves one out. (The interior term takes
+    ``settings.spp``: Mitsuba's sppc, sppp and sppi.)
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -304,6 +311,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     mode = choose_mode(mode, infos, rs.integrator)
     _check_estimator(rs.integrator, rs.sampler)
     _check_media(params, infos)
+    receiver_depth(secondary_depth, rs.max_depth)           # refused before any render
     kind = replay_kind(infos) if mode == "prb" else "tape"
     if kind == "tape":
         _check_depth(rs.max_depth)
@@ -329,7 +337,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     if boundary and moved:           # the curves they move: estimates of their own
         for n, g in boundary_terms(bw.bound, adj, moved, params._poses, brs.seed,
                                    _budget(boundary_spp, rs.spp, "boundary_spp"),
-                                   _budget(secondary_spp, rs.spp, "secondary_spp")).items():
+                                   _budget(secondary_spp, rs.spp, "secondary_spp"), secondary_depth).items():
             grads[n] = grads[n] + g
     backward_seconds = time.perf_counter() - t0
     return GradientResult(image, value, grads, forward_seconds, backward_seconds, bw.nbytes, len(bw.tiles),
@@ -346,13 +354,13 @@ def _budget(value: int | None, default: int, name: str) -> int:
 
 
 def boundary_terms(bound: Bound, adj: np.ndarray, moved: list, poses: list, seed: int, primary_spp: int,
-                   secondary_spp: int) -> dict[str, np.ndarray]:
+                   secondary_spp: int, secondary_depth: int | None = None) -> dict[str, np.ndarray]:
     """The boundary terms of the geometry and camera parameters ``moved``: primary visibility
     (``diff.boundary``) and secondary visibility at the camera rays' hits (``diff.secondary``), as
     forces on the geometry's points chained to the parameters (``diff.forces``)."""
     topology: dict = {}                  # the meshes' edge lists, built once for both terms
     f1, cam1 = primary_term(bound, adj, moved, primary_spp, seed, topology)
-    f2, cam2 = secondary_term(bound, adj, moved, secondary_spp, seed, topology)
+    f2, cam2 = secondary_term(bound, adj, moved, secondary_spp, seed, topology, secondary_depth)
     out = chain_all(moved, Forces.join([f1, f2]), bound.dev.scene, poses)
     for n in cam1:
         out[n] = cam1[n] + cam2[n]

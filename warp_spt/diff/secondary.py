@@ -1,7 +1,7 @@
-"""The boundary term of secondary visibility at the camera rays' hits: shadows' edges, and the outlines
+"""The boundary term of secondary visibility at the paths' vertices: shadows' edges, and the outlines
 a surface sees, by edge sampling on the sphere of directions.
 
-The light a camera ray's hit x sends back, ``L_o(x) = integral f(x, w) cos L_in(x, w) dw``, jumps
+The light a path's vertex x sends back, ``L_o(x) = integral f(x, w) cos L_in(x, w) dw``, jumps
 where ``w`` crosses a curve of the sphere of directions at x: an object's outline as seen from x (an
 occluder in front of a light, of the sky, of another surface), its border, a crease, or a sphere's
 silhouette cone. When a parameter moves such a curve, ``L_o`` gains (Reynolds' theorem on the sphere)
@@ -11,8 +11,11 @@ silhouette cone. When a parameter moves such a curve, ``L_o`` gains (Reynolds' t
 with ``n`` the curve's unit normal on the sphere. A straight edge seen from x is a great-circle arc
 (the angle between its ends' directions is its length), and the direction to its point X moves as
 ``dw = (I - w w^T)(dX - dx) / |X - x|``: the curve moves when the occluder moves (X) and when the
-receiver does (x slides along its camera ray as its surface, or the camera, moves). So, per pixel,
-``secondary_spp`` camera-ray hits are taken (a kernel returns their points, normals and primitives);
+receiver does (x slides along its incoming ray as its surface, or the camera, moves). So, per
+pixel, ``secondary_spp`` paths are traced: each gives its camera ray's hit and, where ``max_depth``
+leaves room, one later vertex of a depth drawn uniformly in 2..``secondary_depth`` (weighted by the
+number of depths; the path's throughput up to it multiplies its f cos). A kernel returns the
+receivers' points, normals, throughputs and primitives;
 for each the host lists the candidate curves for that x (the edges whose faces face opposite ways from
 x, borders, creases, sphere cones, as ``diff.boundary`` does for the eye) with their arc lengths, and
 draws one point by length (density 1 / total length, exact); the kernel then evaluates the surface's
@@ -22,8 +25,10 @@ integrator's own step and the same random numbers. The sample becomes two forces
 sphere's tangency point) and its opposite on x, taken to x's own surface point by the ray-space rule
 ``dx = d (n_x . v) / (n_x . d)``; the camera's own term moves x directly.
 
-Only the camera rays' hits are receivers here: the curves seen by later bounces (a shadow seen in a
-mirror, indirect occlusion after a bounce) are not estimated (docs/gradients.md, Limits).
+A deeper receiver moves with its own surface along its incoming ray, the vertex before it held
+(the camera's motion reaches the camera rays' hits alone): exact where what moves is an occluder,
+a lamp or the receiver's own surface, not where an earlier vertex's motion swings the ray that
+reaches it (docs/gradients.md, Limits).
 """
 
 from __future__ import annotations
@@ -48,11 +53,11 @@ CHUNK = 1 << 16            # (receivers x edges) entries per block of the host's
 # The host: receivers, their curves, one sample each
 
 
-def _launch(bound: Bound, stage: int, pix, sample, dirs, rp, seed2):
+def _launch(bound: Bound, stage: int, pix, sample, steps, dirs, rp, seed2):
     dev = bound.dev
     n = len(pix)
     first = stage == STAGE_RECEIVERS
-    rec = wp.zeros(4 * n if first else 1, dtype=wp.vec3, device=dev.device)
+    rec = wp.zeros(5 * n if first else 1, dtype=wp.vec3, device=dev.device)
     info = wp.zeros(n if first else 1, dtype=wp.vec4i, device=dev.device)
     bary = wp.zeros(n if first else 1, dtype=wp.vec2, device=dev.device)
     out = wp.zeros(3 * n if not first else 1, dtype=wp.vec3, device=dev.device)
@@ -61,7 +66,8 @@ def _launch(bound: Bound, stage: int, pix, sample, dirs, rp, seed2):
         wp.zeros(1, dtype=wp.vec3, device=dev.device)
     wp.launch(BOUNDARY.build(bound), dim=n, device=dev.device, inputs=[
         *bound.scene_args(rp), stage, wp.uint32(seed2), wp.array(pix.astype(np.int32), dtype=wp.int32, device=dev.device),
-        wp.array(sample.astype(np.int32), dtype=wp.int32, device=dev.device), d, rec, info, bary, apex, out])
+        wp.array(sample.astype(np.int32), dtype=wp.int32, device=dev.device),
+        wp.array(steps.astype(np.int32), dtype=wp.int32, device=dev.device), d, rec, info, bary, apex, out])
     return rec, info, bary, apex, out
 
 
@@ -159,12 +165,25 @@ def _basis(axis: np.ndarray):
     return u, np.cross(axis, u)
 
 
+def receiver_depth(depth: int | None, max_depth: int) -> int:
+    """The deepest receiver (``secondary_depth``): 1 the camera rays' hits alone; default, and at
+    most, ``max_depth - 1`` (a receiver needs a bounce after it)."""
+    top = max(1, max_depth - 1)
+    if depth is None:
+        return top
+    if isinstance(depth, bool) or not isinstance(depth, (int, np.integer)) or depth < 1:
+        raise ValueError(f"secondary_depth must be an integer >= 1, got {depth!r}")
+    return min(int(depth), top)
+
+
 def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, seed: int,
-                   topology: dict | None = None):
+                   topology: dict | None = None, depth: int | None = None):
     """(Forces on the geometry's points, {camera parameter name: gradient}): the boundary term of
-    secondary visibility at the camera rays' hits (the module docstring)."""
+    secondary visibility at the paths' vertices up to ``depth`` (``receiver_depth``; the module
+    docstring)."""
     rs = bound.settings
     cams = {p.name: np.zeros(3) for p in wanted if p.kind == "camera"}
+    deepest = receiver_depth(depth, rs.max_depth)
     if spp <= 0 or rs.max_depth < 2:
         return Forces.empty(), cams
     w, h = rs.width, rs.height
@@ -176,9 +195,18 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     pix, sample, a_img = pix[keep], sample[keep], a_img[keep]
     if not len(pix):
         return Forces.empty(), cams
+    # each sample's camera-ray hit, and (deeper receivers) the vertex at a depth drawn uniformly in
+    # 2..deepest, weighted by the number of depths: one unbiased estimate of the sum over them
+    steps = np.zeros(len(pix), np.int64)
+    scale = np.ones(len(pix))
+    if deepest >= 2:
+        drawn = np.random.default_rng([seed, SEED_SALT, 2]).integers(1, deepest, len(pix))
+        pix, sample, a_img = np.concatenate([pix, pix]), np.concatenate([sample, sample]), np.concatenate([a_img, a_img])
+        steps = np.concatenate([steps, drawn])
+        scale = np.concatenate([scale, np.full(len(drawn), float(deepest - 1))])
     rp = bound.params(0, count=1, seed=(seed ^ SEED_SALT) & 0x7FFFFFFF)
-    rec, info, bary, apex, _ = _launch(bound, STAGE_RECEIVERS, pix, sample, None, rp, 0)
-    rec, info, bary = rec.numpy().astype(np.float64).reshape(-1, 4, 3), info.numpy(), bary.numpy().astype(np.float64)
+    rec, info, bary, apex, _ = _launch(bound, STAGE_RECEIVERS, pix, sample, steps, None, rp, 0)
+    rec, info, bary = rec.numpy().astype(np.float64).reshape(-1, 5, 3), info.numpy(), bary.numpy().astype(np.float64)
     apex = apex.numpy().astype(np.float64)
     hit = info[:, 0] >= 0
     rows = np.flatnonzero(hit)
@@ -263,10 +291,11 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     for k, sgn in ((1, -1.0), (2, 1.0)):
         dd = omega + sgn * ANGLE_OFFSET * pole
         dirs[:, k] = dd / np.linalg.norm(dd, axis=1, keepdims=True)
-    *_, out = _launch(bound, STAGE_LIGHTING, pix[rows], sample[rows], dirs.reshape(-1, 3), rp, (seed * 2654435761 + 1) & 0x7FFFFFFF)
+    *_, out = _launch(bound, STAGE_LIGHTING, pix[rows], sample[rows], steps[rows], dirs.reshape(-1, 3), rp,
+                      (seed * 2654435761 + 1) & 0x7FFFFFFF)
     out = out.numpy().astype(np.float64).reshape(-1, 3, 3)
-    fcos, dl = out[:, 0], out[:, 1] - out[:, 2]                # L_minus - L_plus
-    wgt = np.sum(a_img[rows] * fcos * dl, axis=1) * inv_density / spp
+    fcos, dl = out[:, 0], out[:, 1] - out[:, 2]                # throughput x f cos; L_minus - L_plus
+    wgt = np.sum(a_img[rows] * fcos * dl, axis=1) * inv_density * scale[rows] / spp
     rho = np.linalg.norm(point - x, axis=1)
     force = (wgt / np.maximum(rho, 1e-300))[:, None] * pole   # on the curve's point X; its opposite on x
     parts = [Forces(point, force, is_sph, index, place, vids, blend)]
@@ -280,9 +309,10 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     r_index = rinfo[:, 1].astype(np.int64)
     r_place, r_vids, r_w = _receiver_points(scene, rinfo, bary[rows])
     parts.append(Forces(surf, mat_force, r_sph, r_index, r_place, r_vids, r_w))
+    first = steps[rows] == 0                  # the camera moves its rays' hits; deeper ones: Limits
     for p in wanted:
         if p.kind == "camera":
-            cams[p.name] = _camera_receivers(p, bound, o, d, surf, nx, recv)
+            cams[p.name] = _camera_receivers(p, bound, o[first], d[first], surf[first], nx[first], recv[first])
     return Forces.join(parts), cams
 
 

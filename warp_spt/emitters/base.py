@@ -104,7 +104,8 @@ class LightKind:
       lack is not even looked at by rays that miss; its ``le`` is then no part of the kernel).
     * ``params``: the field of ``data`` holding its differentiable parameters, an array whose rows
       ``diff.params`` names (e.g. the sky's colours), or None; ``pathwise``: those of its parameter
-      fields that move directions (a light's position), whose derivative needs the tape.
+      fields that move directions (a light's position), whose derivative needs a pathwise kernel
+      (the tape or ``diff.replay_pathwise``).
     * ``delta``: no ray can meet it (its samples have hit kind KIND_PUNCTUAL, its ``hit_kind``): the
       dispatch's ``le`` asks its ``radiance(lights, ls, x)``, and neither a miss nor a hit counts it.
       Several delta kinds may be compiled in: the dispatch then tells their samples apart by the

@@ -26,7 +26,7 @@ KindInts = wp.types.vector(length=len(KINDS), dtype=wp.int32)
 # the kinds with differentiable parameters (``LightKind.params``): the ``kind`` of their ParamInfo
 # (``warp_spt.diff.params``), whose ``index`` is the row of the parameter array
 PARAMETER_KINDS = tuple(k.name for k in KINDS if k.params)
-# their fields whose derivative needs the tape (``LightKind.pathwise``: a light's position moves directions)
+# their fields whose derivative needs a pathwise kernel (``LightKind.pathwise``: a light's position moves directions)
 PATHWISE_FIELDS = {k.name: k.pathwise for k in KINDS if k.params}
 
 

@@ -229,6 +229,7 @@ def test_the_pages_sun_replaces_the_studios_key_and_gives_it_back(tmp_path):
     """Turned on after the first view, the page's sun takes the key sphere out (and dims the sky to
     the fill), as the command line's rule does for --sun; turned off, the key is back."""
     from tests.support.models import write_model
+    from warp_spt.images.hdr import write_hdr
     from warp_spt.scene.studio import FILL_SKY, SKY
 
     write_model(tmp_path / "cow.obj", "cow", up="y")
@@ -242,5 +243,9 @@ def test_the_pages_sun_replaces_the_studios_key_and_gives_it_back(tmp_path):
         assert len(s._params.scene.scene.spheres) == 0 and s._make_sky(s.settings).color == FILL_SKY
         _after(s, "sun", False, spp=1)
         assert np.array_equal(s._params.scene.scene.spheres, key) and s._make_sky(s.settings).color == SKY
+        write_hdr(tmp_path / "sky.hdr", np.full((8, 16, 3), 0.5, dtype=np.float32))
+        s.handle({"type": "set", "key": "env_path", "value": str(tmp_path / "sky.hdr")})
+        _after(s, "sky", "environment", spp=1)          # an environment map is a light of the user's too
+        assert len(s._params.scene.scene.spheres) == 0
     finally:
         s.close()

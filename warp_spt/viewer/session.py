@@ -534,7 +534,8 @@ class Session:
                 self._environment = environment
             if key == "integrator":
                 self._integrator_given = True
-            if key in lighting.LIGHT_KEYS or key in lighting.FOG_KEYS:
+            # the sky too: an environment map, like the page's lights, replaces the studio's key
+            if key in lighting.LIGHT_KEYS or key in lighting.FOG_KEYS or (key == "sky" and self._key is not None):
                 self._relight = True
                 if key == "fog":
                     self._settings = self._media_integrator(self._settings)

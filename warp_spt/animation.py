@@ -281,6 +281,22 @@ class ObjSequence:
                 hidden.append(k)
         return hidden
 
+    def bounds(self, frames: Sequence[int]) -> np.ndarray | None:
+        """(2, 3) float64 world bounds of ``frames``' scenes together (frames that hide everything
+        left out), or None when none has geometry: what an animation without a camera is framed
+        over, once (``cli.view_checks.frame_view``). Costs one more load of each frame's scene."""
+        from warp_spt.scene.camera import exact_bounds
+
+        boxes = []
+        for k in frames:
+            scene = self.scene(k)
+            if not scene.hidden:
+                boxes.append(exact_bounds(scene))
+        if not boxes:
+            return None
+        boxes = np.asarray(boxes)
+        return np.stack([boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)])
+
     @staticmethod
     def _has_geometry(d: ObjData) -> bool:
         return bool(len(d.faces) or len(d.spheres) or getattr(d.extras, "placed", ()))

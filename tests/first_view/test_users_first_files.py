@@ -71,18 +71,6 @@ def test_no_studio_and_a_scene_with_its_own_light(tmp_path):
     assert "studio look" not in said                 # emitters of its own: rendered as it is
 
 
-def test_the_studio_rule_follows_what_the_scene_lacks():
-    from warp_spt.scene.conventions import wants_studio
-
-    assert wants_studio(None, lit=False, seed_dialect=False, sky_given=False)
-    assert not wants_studio(None, lit=True, seed_dialect=False, sky_given=False)
-    assert not wants_studio(None, lit=False, seed_dialect=True, sky_given=False)   # the seed's look
-    assert not wants_studio(None, lit=False, seed_dialect=False, sky_given=True)
-    assert wants_studio(True, lit=True, seed_dialect=True, sky_given=True)
-    assert not wants_studio(False, lit=False, seed_dialect=False, sky_given=False)
-
-
-# ---------------------------------------------------------------- 2, 3. the viewer and the API see what the CLI sees
 def test_the_viewer_the_cli_and_the_api_give_the_same_first_image(tmp_path):
     import warp_spt
     from warp_spt.viewer.session import open_session

@@ -2,7 +2,9 @@
 
 1. ``--frames`` and ``--workers``/``--cluster`` render what a single render renders: the same files,
    camera, settings and seed give the same image through every front end (a bare OBJ gets clay,
-   framing and --studio everywhere, not only in a single render).
+   framing and --studio everywhere, not only in a single render). Several frames without a camera
+   share one view, framed over all their bounds (issue 43): each is the single render of its files
+   through the camera the run printed.
 2. A scene far from the origin keeps its precision: OBJ coordinates stay float64 until the scene is
    recentred, and are rounded to float32 once, at upload. Before, they were rounded when parsed, so a
    room whose light hangs just under its ceiling, moved 1e5 away, lost its light gap and rendered darker.
@@ -82,11 +84,30 @@ def _bare_frames(tmp_path):
 def test_frames_render_what_a_single_render_renders(tmp_path, look):
     template = _bare_frames(tmp_path)
     _cli(tmp_path, "-obj", str(tmp_path / "cow_1.obj"), *look, out="single.npy")
-    _cli(tmp_path, "-obj", template, "--frames", "0:2", *look, out="seq_{frame}.npy")
     _cli(tmp_path, "-obj", template, "--frames", "1", *look, out="alone_{frame}.npy")
     single = np.load(tmp_path / "single.npy")
-    assert np.array_equal(np.load(tmp_path / "seq_1.npy"), single), "frame 1 of a sequence differs from a single render"
     assert np.array_equal(np.load(tmp_path / "alone_1.npy"), single), "frame 1 alone differs from a single render"
+
+
+def test_a_sequence_is_framed_once_and_its_printed_camera_renders_each_frame(tmp_path, capsys):
+    """Several frames without a camera are framed once, over all their bounds (issue 43): each frame
+    is then the single render of its files through the printed -cam (without the studio, whose
+    ground and key the animation places from the same union of bounds)."""
+    import re
+
+    from warp_spt.cli.main import main
+
+    template = _bare_frames(tmp_path)
+    capsys.readouterr()
+    assert main(["-obj", template, "--frames", "0:2", "--no-studio", "-res", "16", "12", "-sr", "2", "-depth", "3",
+                 "-out", str(tmp_path / "seq_{frame}.npy")]) == 0
+    said = capsys.readouterr().err
+    assert said.count("framed the scene") == 1, said
+    cam = re.search(r"-cam ((?:\S+ ){8}\S+) --up y", said).group(1).split()
+    for k in range(2):
+        _cli(tmp_path, "-obj", str(tmp_path / f"cow_{k}.obj"), "--no-studio", "-cam", *cam, "--up", "y",
+             out=f"single_{k}.npy")
+        assert np.array_equal(np.load(tmp_path / f"seq_{k}.npy"), np.load(tmp_path / f"single_{k}.npy")), k
 
 
 def test_workers_render_what_a_single_render_renders(tmp_path):

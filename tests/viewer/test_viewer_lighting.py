@@ -154,8 +154,9 @@ def test_the_environment_background_is_set_by_message(tmp_path):
 
     write_hdr(tmp_path / "sky.hdr", np.full((8, 16, 3), 0.5, dtype=np.float32))
     objs, mtls = write_scene_files(tmp_path, "box", box_obj(material="m"), material("m", Kd=(0.5, 0.5, 0.5)))
+    # no studio: its ground under the map would hide the background this test sets
     s = Session(warp_spt.load_scene(objs, mtls), width=16, height=16, max_spp=4, sky="environment",
-                env_path=str(tmp_path / "sky.hdr"))
+                env_path=str(tmp_path / "sky.hdr"), studio=False)
     try:
         plain = s.wait_for(4, timeout=TIMEOUT)
         grey = warp_spt.load_environment(str(tmp_path / "sky.hdr")).env.image[0, 0]   # 0.5 as RGBE stores it
@@ -203,9 +204,10 @@ def test_the_view_command_refuses_what_the_page_cannot_hold_in_one_line(argv, me
     assert err.count("\n") == 1 and mentions in err and "Traceback" not in err
 
 
-def test_a_light_from_the_start_turns_the_studio_look_off_as_on_the_command_line(tmp_path):
-    """A bare model gets the studio look; with a sun from the start it is lit, as ``warp-spt --sun``
-    makes it (and the copied command, with --sun and no --studio, renders it so)."""
+def test_a_light_from_the_start_lights_the_studio_as_on_the_command_line(tmp_path):
+    """A bare model gets the studio look; with a sun from the start the sun is its key, as
+    ``warp-spt --sun`` makes it (issue 43): the ground and the fill sky stay, the key sphere is left
+    out, and the copied command (--sun, --studio) says the same."""
     from tests.support.models import write_model
 
     write_model(tmp_path / "cow.obj", "cow", up="y")
@@ -215,8 +217,35 @@ def test_a_light_from_the_start_turns_the_studio_look_off_as_on_the_command_line
                     objs=[str(tmp_path / "cow.obj")], width=16, height=12, max_spp=1, **kw)
         try:
             s.wait_for(1, timeout=TIMEOUT)
-            looks[name] = (s.settings.sky, s.command_line(spp=1))
+            looks[name] = (s.settings.sky, s.command_line(spp=1), len(s._params.scene.scene.spheres))
         finally:
             s.close()
-    assert looks["bare"][0] == "studio" and looks["sun"][0] != "studio"
-    assert "--sun 0.3 1 0.4" in looks["sun"][1] and "--studio" not in looks["sun"][1]
+    assert looks["bare"][0] == "studio" and looks["sun"][0] == "studio"
+    assert looks["bare"][2] == 1 and looks["sun"][2] == 0           # the key sphere, then none
+    assert "--sun 0.3 1 0.4" in looks["sun"][1] and "--studio" in looks["sun"][1]
+
+
+def test_the_pages_sun_replaces_the_studios_key_and_gives_it_back(tmp_path):
+    """Turned on after the first view, the page's sun takes the key sphere out (and dims the sky to
+    the fill), as the command line's rule does for --sun; turned off, the key is back."""
+    from tests.support.models import write_model
+    from warp_spt.images.hdr import write_hdr
+    from warp_spt.scene.studio import FILL_SKY, SKY
+
+    write_model(tmp_path / "cow.obj", "cow", up="y")
+    s = Session(loader=lambda: warp_spt.load_scene([str(tmp_path / "cow.obj")], default_material="auto"),
+                objs=[str(tmp_path / "cow.obj")], width=16, height=12, max_spp=1)
+    try:
+        s.wait_for(1, timeout=TIMEOUT)
+        key = s._params.scene.scene.spheres.copy()
+        assert len(key) == 1 and s._make_sky(s.settings).color == SKY
+        _after(s, "sun", True, spp=1)
+        assert len(s._params.scene.scene.spheres) == 0 and s._make_sky(s.settings).color == FILL_SKY
+        _after(s, "sun", False, spp=1)
+        assert np.array_equal(s._params.scene.scene.spheres, key) and s._make_sky(s.settings).color == SKY
+        write_hdr(tmp_path / "sky.hdr", np.full((8, 16, 3), 0.5, dtype=np.float32))
+        s.handle({"type": "set", "key": "env_path", "value": str(tmp_path / "sky.hdr")})
+        _after(s, "sky", "environment", spp=1)          # an environment map is a light of the user's too
+        assert len(s._params.scene.scene.spheres) == 0
+    finally:
+        s.close()

@@ -169,9 +169,14 @@ def run_cli(opts, err, started: float | None = None) -> int:
         say(warning)
     opts = media_integrator(opts, with_flag_lights(opts, first), say)   # a fog or interiors: volpath for every frame
     if opts.animated:
+        # no camera given: one framing over every frame's bounds, so that what moves moves in the picture
+        free = not (opts.cam_explicit or path is not None or opts.file_camera is not None or opts.uses_demo_scene)
+        bounds = seq.bounds(shown) if free and len(frames) > 1 else None
+        view = frame_view(opts, say, standin, bounds)
+
         def images(client, progress):
             return render_animation(seq, mtls, frames, path or opts.camera, settings_of(opts), client=client,
-                                    progress=progress, view=frame_view(opts, say, standin))
+                                    progress=progress, view=view)
     else:            # one image on a cluster: the view (recentring, framing, sky) of the single-process CLI
         from warp_spt.cli.common import CompileNotice
         with CompileNotice(say):

@@ -81,7 +81,9 @@ close to see it whole; --frame always frames.
 A model with no light of its own (no emitting material; an exporter's MTL has none) and no sky
 flag gets the studio look: its own materials (grey clay for a bare model), a ground, a key light
 placed from the camera (above, to the left, in front), a soft grey sky; the seed's scenes keep
-their look. --no-studio or a sky flag turns it off; --studio turns it on for any model. --exposure EV brightens (or, negative,
+their look. A light of yours (--sun, --light, --lights, a glTF file's lights, --env) is the key
+instead: the ground stays, with a dimmer grey fill (or the map), and no key light of the studio's.
+--no-studio or a sky flag turns it off; --studio turns it on for any model. --exposure EV brightens (or, negative,
 darkens) the tone-mapped .png/.jpg by 2^EV; linear .npy/.pfm/.exr keep the scene's radiance.
 """
 
@@ -150,7 +152,7 @@ class Options:
     view: tuple[float, float] | None = None   # --view / --orbit: (azimuth, elevation) in degrees
     frame: bool = False              # --frame: always frame
     frame_all: bool = False          # --frame-all: frame a wide base (a ground) too
-    studio: bool | None = None       # --studio / --no-studio; None: wants_studio's rule
+    studio: bool | None = None       # --studio / --no-studio; None: studio_look's rule
     sky_given: bool = False          # -sky, --sky-color or a --demo preset chose the sky
     exposure: float = 0.0            # --exposure, in stops, for tone-mapped outputs
     default_material: str = "auto"

@@ -46,17 +46,23 @@ def prepare_view(opts, scene, say, notice: "CompileNotice | None" = None) -> tup
     return DeviceScene(scene), camera, sky
 
 
-def frame_view(opts, say, standin=None):
+def frame_view(opts, say, standin=None, bounds=None):
     """The view of each frame of an animation: :func:`_view`, the very preparation of a single image,
     with the frame's camera; a camera path, like -cam, is never replaced by framing, but its up
     axis is the model's (Y for a standard OBJ, Z for the seed's scenes; --up to choose), said once.
     A message that every frame repeats is said once.
+
+    ``bounds``: the (2, 3) world bounds of every frame together (:meth:`ObjSequence.bounds`), given
+    when no camera is: the first frame is framed over them, once, and every later frame keeps that
+    camera and up axis (an object that moves moves in the picture; a morph does not zoom), with the
+    studio's ground and key light placed from them too.
 
     A frame whose objects are all hidden (:attr:`Scene.hidden`) has nothing to frame or to stand a
     studio ground under: it is viewed as the last frame that has something (before the first,
     ``standin()``'s scene), with that frame's objects taken out and its own lights; with neither, through
     the camera as given."""
     fixed = opts.cam_given or bool(opts.camera_path)
+    held: list = [None]             # (camera in world coordinates, up axis) the first frame chose, with bounds
     said: set[str] = set()
     lit: list = [None, None]        # (a frame's loaded scene, it with the flags' lights): one upload while it stays
     shown: list = [None]            # the last frame's scene that has something to draw
@@ -72,7 +78,20 @@ def frame_view(opts, say, standin=None):
         shown[0] = scene
         if lit[0] is not scene:
             lit[:] = [scene, with_flag_lights(opts, scene)]
-        return _view(replace(opts, camera=camera, cam_given=fixed), lit[1], say_once)
+        return framed(lit[1], camera)
+
+    def framed(scene, camera):
+        if bounds is None:
+            return _view(replace(opts, camera=camera, cam_given=fixed), scene, say_once)
+        if held[0] is None:
+            fv, env = _first_view(replace(opts, camera=camera, cam_given=fixed), scene, say_once, bounds)
+            world = fv.camera.with_(position=tuple(float(p + o) for p, o in zip(fv.camera.position, fv.offset)))
+            held[0] = (world, fv.up.axis)
+        else:
+            world, up = held[0]
+            fv, env = _first_view(replace(opts, camera=world, cam_given=True, cam_explicit=True, up=up, frame=False,
+                                          view=None, look_at=None), scene, say_once, bounds)
+        return _prepared(fv, env, opts)
 
     def hidden_view(scene, camera):
         if shown[0] is None and standin is not None:
@@ -81,8 +100,7 @@ def frame_view(opts, say, standin=None):
         if source is None:
             return with_flag_lights(opts, scene), camera, None
         own = replace(source, lights=scene.lights, fog=scene.fog, sky=scene.sky)
-        prepared, cam, sky = _view(replace(opts, camera=camera, cam_given=fixed), with_flag_lights(opts, own),
-                                   say_once)
+        prepared, cam, sky = framed(with_flag_lights(opts, own), camera)
         # the preparation (recentring, the studio) keeps the scene's own geometry first, in order
         n_spheres = len(source.spheres)
         return replace(prepared, meshes=prepared.meshes[len(source.meshes):], spheres=prepared.spheres[n_spheres:],
@@ -118,6 +136,12 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
     :func:`first_view` with the command's options (``--camera``: the model files' camera, never framed).
     ``scene`` already holds the flags' lights and fog (:func:`with_flag_lights`): they count as its
     own light for the studio rule."""
+    return _prepared(*_first_view(opts, scene, say), opts)
+
+
+def _first_view(opts, scene, say, bounds=None):
+    """(:func:`first_view` of ``scene`` with the command's options, the --env sky or None);
+    ``bounds``: an animation's, see :func:`frame_view`."""
     file_camera = None
     if getattr(opts, "file_camera", None) is not None:
         file_camera = _file_camera(opts, scene)
@@ -129,9 +153,14 @@ def _view(opts, scene, say) -> tuple[object, Camera, Sky]:
                         look_at=opts.look_at, frame_all=opts.frame_all, demo=opts.uses_demo_scene,
                         keep_camera=opts.cam_given, seed_camera=opts.cam_explicit,
                         fixed=opts.cam_explicit or bool(opts.camera_path) or file_camera is not None,
-                        quiet_demo=opts.quiet, say=say)
+                        quiet_demo=opts.quiet, bounds=bounds, say=say)
     except ValueError as err:
         raise RunError(str(err)) from None
+    return fv, env
+
+
+def _prepared(fv, env, opts) -> tuple[object, Camera, Sky]:
+    """The scene, camera and sky to render of a first view."""
     if env is not None:     # a light of the scene, shipped with it (a cluster's workers too), not a setting
         return replace(fv.scene, sky=env), fv.camera, None
     return fv.scene, fv.camera, fv.sky if fv.sky is not None else opts.sky

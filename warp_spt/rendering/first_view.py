@@ -5,7 +5,8 @@ every front end, what the first image shows: the scene recentred if it lies far 
 (in float64), which way is up (:func:`warp_spt.scene.conventions.up_axis`), whether the camera is
 kept or the scene framed (:func:`should_frame`, ``Camera.frame``), warnings about a view that shows
 nothing, and the studio look for a scene with no light of its own
-(:func:`warp_spt.scene.conventions.wants_studio`); the tone map is the command line's PNG curve,
+(:func:`warp_spt.scene.conventions.studio_look`: with the studio's key light,
+or the user's lights as the key); the tone map is the command line's PNG curve,
 :data:`TONEMAP`. ``warp-spt`` (``cli/view_checks.py``), ``warp-spt view`` and the viewer widget
 (``viewer/session.py``) and :func:`quick_view` call it.
 
@@ -24,10 +25,11 @@ import numpy as np
 
 from warp_spt.runtime import kernel_cache
 from warp_spt.scene.camera import AXES, Camera, frame_camera, looks_z_up
-from warp_spt.scene.conventions import UpChoice, has_own_light, up_axis, wants_studio
+from warp_spt.scene.conventions import STUDIO_LIGHTS, UpChoice, emits_light, studio_look, up_axis
 from warp_spt.scene.model import Scene
 from warp_spt.scene.recentre import describe_extent, format_point, recentre
-from warp_spt.scene.sky import Sky
+from warp_spt.scene.lights import punctual_lights
+from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 
 # The display transform of a first image: the command line's PNG curve (the seed's), which the
 # viewer shows too, so a first look and the file it saves agree.
@@ -294,7 +296,8 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
                frame: bool = False, view: tuple[float, float] | None = None,
                look_at: Sequence[float] | None = None, frame_all: bool = False, demo: bool = False,
                keep_camera: bool | None = None, seed_camera: bool | None = None, fixed: bool | None = None,
-               quiet_demo: bool = False, say: Callable[[str], None] | None = None) -> FirstView:
+               quiet_demo: bool = False, user_lights: bool = False, bounds: np.ndarray | None = None,
+               say: Callable[[str], None] | None = None) -> FirstView:
     """The first view of ``scene`` (see the module's docs): recentre, choose the up axis, keep or
     frame the camera, warn, add the studio look.
 
@@ -307,7 +310,12 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     ``frame``/``view``/``look_at``/``frame_all``: the command line's ``--frame``/``--view``/
     ``--look-at``/``--frame-all`` (a base much wider than what stands on it, such as a ground, is
     left out of the framing unless ``frame_all``). ``demo``: the built-in demo (the seed's look, no
-    checks). ``say`` gets each line the command line prints (they are also in ``FirstView.notes``).
+    checks). ``user_lights``: the caller adds lights of the user's beside the scene's (the viewer's
+    page); the scene's own sun, point and spot lights (``--sun``, ``--light``, a glTF file's) and an
+    environment map ``sky`` count without it: with any of them the studio is lit by them, not by its
+    key light. ``bounds``: (2, 3) world bounds to frame and to stand the studio under instead of the
+    scene's (an animation's union over its frames, so that the camera and the ground stay put).
+    ``say`` gets each line the command line prints (they are also in ``FirstView.notes``).
     Raises ValueError when the scene cannot be framed (e.g. a field of view too narrow).
     """
     notes: list[str] = []
@@ -321,6 +329,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     explicit = keep if seed_camera is None else seed_camera
     fixed = explicit if fixed is None else fixed
     scene, cam, offset = recentre(scene, camera)
+    local = None if bounds is None else np.asarray(bounds, np.float64) - offset
     if offset.any():
         note(f"recentred the scene by {format_point(-offset)} for precision (far from the origin)")
     z_scan = not (up or demo or scene.seed_dialect or explicit) and looks_z_up(scene)
@@ -337,7 +346,8 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
                 why = "the default camera would not show it whole; -cam or --look-at to choose"
         if why:
             try:
-                cam, side = _framed(scene, cam, choice.axis, offset, width / height, view, look_at, frame_all)
+                cam, side = _framed(scene, cam, choice.axis, offset, width / height, view, look_at, frame_all,
+                                    local)
             except ValueError as err:
                 raise ValueError(f"cannot frame the scene ({why}): {err}") from None
             note(_framed_line(why, choice, side, cam, offset))
@@ -347,16 +357,34 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     for warning in view_warnings(scene, cam, width, height, pr, offset):
         note(f"warning: {warning}")
     subject = scene
-    lit = has_own_light(scene)
-    on = wants_studio(studio, lit=lit or demo, seed_dialect=scene.seed_dialect, sky_given=sky is not None)
+    env = sky is not None and sky.kind == SKY_ENVIRONMENT
+    theirs = punctual_lights(scene.lights)
+    look = studio_look(studio, emitting=demo or emits_light(scene), user_lights=user_lights or bool(theirs),
+                       seed_dialect=scene.seed_dialect, sky_given=sky is not None, env_given=env)
+    on = bool(look)
     if on:
         from warp_spt.scene.studio import add_studio, studio_sky
-        if studio is None:
+        if look == STUDIO_LIGHTS:
+            note(_lights_line(theirs, user_lights, env, scene.bare))
+        elif studio is None:
             note(f"studio look: the scene has no light of its own; a ground, a key light and a grey sky"
                  f"{'' if scene.bare else ', with its own materials'} (--no-studio to turn off)")
-        scene = add_studio(scene, up=choice.axis, camera=cam)
-        sky = sky if sky is not None else studio_sky()
+        scene = add_studio(scene, up=choice.axis, camera=cam, key=look != STUDIO_LIGHTS, bounds=local)
+        sky = sky if sky is not None else studio_sky(key=look != STUDIO_LIGHTS)
     return FirstView(scene, cam, sky, TONEMAP, offset, choice, on, framed, tuple(notes), subject)
+
+
+def _lights_line(lights, page: bool, env: bool, bare: bool) -> str:
+    """The one line of the studio lit by the user's lights (conventions.STUDIO_LIGHTS)."""
+    kinds = [type(light).__name__.removesuffix("Light").lower() for light in lights]
+    named = [f"{n} {k} lights" if n > 1 else f"a {k} light" for k in ("sun", "point", "spot")
+             for n in [kinds.count(k)] if n]
+    named += ["the page's lights"] if page else []
+    named += ["the environment map"] if env else []
+    key = " and ".join(named) if len(named) < 3 else ", ".join(named[:-1]) + " and " + named[-1]
+    fill = "" if env else " and a dim grey fill sky"
+    return (f"studio look with your lights: no light of its own; a ground{fill} under {key} as the key, "
+            f"no studio key light{'' if bare else ', with its own materials'} (--no-studio to turn off)")
 
 
 def _why_frame(frame: bool, view, scene: Scene, up: str) -> str:
@@ -373,7 +401,7 @@ def _why_frame(frame: bool, view, scene: Scene, up: str) -> str:
 
 
 def _framed(scene: Scene, camera: Camera, up: str, offset, aspect: float, view, look_at,
-            frame_all: bool = False) -> tuple[Camera, str]:
+            frame_all: bool = False, bounds: np.ndarray | None = None) -> tuple[Camera, str]:
     """The framing camera and the words for its side: --view's angles, or a three-quarter view
     from the front (face-on for a flat cut-out), looking at --look-at's point or the centre; the
     objects on a wide base rather than the base (unless ``frame_all``)."""
@@ -387,8 +415,10 @@ def _framed(scene: Scene, camera: Camera, up: str, offset, aspect: float, view, 
         towards = flat_normal(scene, orbit_vector(up, AZIMUTH, ELEVATION))
         if towards is not None:
             side = "face-on: a flat model (--view to choose)"
-    subject = None if frame_all else subject_bounds(scene, up)
-    if subject is not None:
+    subject = bounds if bounds is not None or frame_all else subject_bounds(scene, up)
+    if bounds is not None:
+        side += "; over every frame's bounds, once"
+    elif subject is not None:
         side += "; the objects on the base, not the whole base (--frame-all to include it)"
     # placed as the default lens frames it, then given the camera's own fov: a --fov zooms in or out
     # from the framed view (framing at that fov would move the camera back and keep the same picture)

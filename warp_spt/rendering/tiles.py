@@ -58,7 +58,8 @@ def quick_view(scene, *, width: int = 384, height: int = 288, spp: int = 16, cam
     ``scene`` is a :class:`Scene` or OBJ file names (loaded as ``warp-spt -obj`` loads them: a bare
     model gets clay, a mesh without normals smooth ones by angle). The view is
     :func:`warp_spt.first_view`'s: recentred, Y up for a standard OBJ, framed,
-    and the studio look for a scene with no light of its own; its notes are Python warnings
+    and the studio look for a scene with no light of its own (its key left out for the scene's
+    sun, point or spot lights, or an environment map ``sky``: they light it); its notes are Python warnings
     (``UserWarning``) when they warn. ``save_image(path, image)`` writes it with the same tone map
     as the command line. Other keywords are :class:`RenderSettings` fields."""
     from warp_spt.rendering.first_view import first_view

@@ -4,7 +4,7 @@ Two kinds of scene reach ``warp-spt``: the seed's own (its demo, its OBJ spheres
 usually with an explicit ``-cam``), which must render exactly as the seed renders them, and users'
 models exported by other tools, which are Y-up (the convention of OBJ exporters and glTF) and
 usually come without lights (an exporter's MTL has colours only). :func:`up_axis` and
-:func:`wants_studio` are the rules, written
+:func:`studio_look` are the rules, written
 once; ``warp-spt``, its animations and ``warp-spt view`` all apply them. Pure functions of what the
 loader recorded (:attr:`Scene.seed_dialect`), of the scene's lights and of the flags given.
 """
@@ -52,26 +52,32 @@ def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: boo
     return UpChoice(MODEL_UP, "a standard OBJ model")
 
 
-def wants_studio(given: bool | None, *, lit: bool, seed_dialect: bool, sky_given: bool) -> bool:
-    """The studio look (a ground, a key light, a soft grey sky, the scene's own materials):
-    ``--studio``/``--no-studio`` win; else on for a scene with no light of its own (``lit``: no
-    emitting material on any face or sphere) and no sky flag, unless it is written in the seed's
-    dialect (the seed's scenes are lit by the seed's sky). Whether an MTL file was read, and what
-    kind its materials are, does not matter: an exporter's MTL has colours, not lights."""
-    if given is not None:
-        return given
-    return not lit and not seed_dialect and not sky_given
+# The studio's two forms (studio_look): with its own key light, or lit by the user's lights.
+STUDIO_KEY, STUDIO_LIGHTS = "key", "lights"
 
 
-def has_own_light(scene) -> bool:
+def studio_look(given: bool | None, *, emitting: bool, user_lights: bool, seed_dialect: bool,
+                sky_given: bool, env_given: bool = False) -> str:
+    """The studio look's form, or "" for none: a ground and a soft grey sky under the scene's own
+    materials, with the studio's key light (STUDIO_KEY) or, when the user brought lights (a sun,
+    point or spot light: the command line's, the viewer's or a glTF file's; or an environment map,
+    ``env_given``), with those as the key and no key light of the studio's (STUDIO_LIGHTS: the
+    environment map then replaces the grey sky). ``--studio``/``--no-studio`` (``given``) win; else
+    on for a scene with no emitting material (``emitting``) and no sky flag (an environment map is
+    a light, not a sky flag), unless it is written in the seed's dialect (the seed's scenes are lit
+    by the seed's sky). Whether an MTL file was read, and what kind its materials are, does not
+    matter: an exporter's MTL has colours, not lights."""
+    if given is False:
+        return ""
+    if given is None and (emitting or seed_dialect or (sky_given and not env_given)):
+        return ""
+    return STUDIO_LIGHTS if user_lights or env_given else STUDIO_KEY
+
+
+def emits_light(scene) -> bool:
     """Whether some face or sphere of ``scene`` has an emitting material: an emission colour above
-    zero or a texture in the emission slot (what makes the device scene compile its emitters), or
-    the scene has a sun, point or spot light (a glTF file's, or the command line's)."""
-    from warp_spt.scene.lights import punctual_lights
+    zero or a texture in the emission slot (what makes the device scene compile its emitters)."""
     from warp_spt.scene.model import SLOT_EMISSION, TEX_PROC_BASE
-
-    if punctual_lights(getattr(scene, "lights", ())):
-        return True
 
     used = np.unique(np.concatenate([m.face_material for m in scene.meshes if len(m.indices)]
                                     + [scene.sphere_material]).astype(np.int64))

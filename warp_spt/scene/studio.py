@@ -5,7 +5,9 @@ square ground under the model's bounds (along the up axis) in a mid-grey diffuse
 emissive sphere above, to the left and in front of the model as the camera sees it, sized and placed
 from the bounds, so a bare scanned model renders like a product shot with a soft shadow, from
 whichever side it is seen (a camera below the ground sees the model without it). The key light is an ordinary emitter: renders find it by path tracing
-(and by light sampling, where the integrator offers it).
+(and by light sampling, where the integrator offers it). When the user brings lights of their own
+(a sun, a lamp, a glTF file's lights, an environment map) they are the key: the ground and the sky
+stay, the sphere is left out (``key=False``), so it neither shows in the frame nor shades the ground.
 """
 
 from __future__ import annotations
@@ -24,25 +26,35 @@ from warp_spt.scene.sky import Sky
 # map, which reaches 255 only well above 1); the clay (0.6) about 0.55; the backdrop is darker than
 # the clay (the sky 0.2, the ground 0.4 x its light), so a white or a grey model stands out from it.
 SKY = (0.2, 0.2, 0.2)             # a neutral grey sky
+# the sky when the user's lights are the key (no key sphere): half the key's sky, so that a unit sun
+# (irradiance 1) stands to the fill about as the key stands to SKY
+FILL_SKY = (0.1, 0.1, 0.1)
 GROUND_ALBEDO = 0.4
 GROUND_HALF_SIZE = 40.0           # in units of the model's bounding radius
 LIGHT_DISTANCE, LIGHT_RADIUS = 3.0, 1.5    # in units of the model's bounding radius: a big, soft key
 LIGHT_EMISSION = 2.0              # about 3.5x the sky's contribution on a surface facing it
+LIGHT_NAME = "studio light"       # the key light's material row
 
 
-def studio_sky() -> Sky:
-    """The studio's neutral constant sky."""
-    return Sky.constant(*SKY)
+def studio_sky(key: bool = True) -> Sky:
+    """The studio's neutral constant sky: with its key light (``key``), or the dimmer fill beside
+    the user's lights."""
+    return Sky.constant(*(SKY if key else FILL_SKY))
 
 
-def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | None = None) -> Scene:
-    """``scene`` plus a ground plane and a key-light sphere placed from its bounds and ``camera``.
+def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | None = None, *, key: bool = True,
+               bounds: np.ndarray | None = None) -> Scene:
+    """``scene`` plus a ground plane and (``key``) a key-light sphere placed from its bounds and ``camera``.
 
     The light keeps its place relative to the camera: where the default framing sees it (in front
     of the model, to the image's left and top), whatever side the camera is on, so turning the view
-    keeps the model lit. Without a camera it stands where the default framing would see it so."""
+    keeps the model lit. Without a camera it stands where the default framing would see it so.
+    ``key=False`` is the studio lit by the user's lights (``conventions.STUDIO_LIGHTS``): the
+    ground, no sphere (its material row is added all the same, so a viewer can put the key back,
+    :func:`with_key`, without renumbering materials). ``bounds``: what to stand the ground under
+    and place the key from (an animation's union over its frames); default the scene's."""
     u = up_vector(up)
-    b = scene.bounds
+    b = scene.bounds if bounds is None else np.asarray(bounds, np.float64)
     centre = 0.5 * (b[0] + b[1])
     radius = max(0.5 * float(np.linalg.norm(b[1] - b[0])), 1e-6)
     front = front_vector(u)
@@ -58,20 +70,42 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | N
     faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32)
     if np.dot(np.cross(quad[1] - quad[0], quad[2] - quad[0]), u) < 0:
         faces = faces[:, ::-1].copy()
-    ground_row, light_row = len(scene.materials), len(scene.materials) + 1
+    ground_row = len(scene.materials)
     ground = MeshData(name="studio ground", positions=quad.astype(np.float32), indices=faces,
                       corner_uv=np.zeros((2, 3, 2), np.float32), corner_normal=None,
                       face_material=np.full(2, ground_row, np.int32))
+    below = camera is not None and float(np.dot(np.asarray(camera.position) - floor, u)) < 0.0
+    dressed = replace(scene, meshes=[*scene.meshes, *([] if below else [ground])],   # seen from below: no floor
+                      materials=_with_rows(scene.materials))
+    return with_key(dressed, key_sphere(b, u, camera) if key else None)
+
+
+def key_sphere(bounds: np.ndarray, up: str | Sequence[float], camera: Camera | None = None) -> np.ndarray:
+    """The studio's key light for ``bounds`` seen by ``camera``: (4,) float32, centre and radius."""
+    u = up_vector(up)
+    b = np.asarray(bounds, np.float64)
+    centre = 0.5 * (b[0] + b[1])
+    radius = max(0.5 * float(np.linalg.norm(b[1] - b[0])), 1e-6)
+    front = front_vector(u)
+    side = np.cross(u, front)
     key_dir = 0.7 * front - 0.6 * side + 1.2 * u       # as the default framing sees it
     if camera is not None:
         key_dir = _as_seen_by(key_dir, Camera.look_at(orbit_vector(u, AZIMUTH, ELEVATION), (0, 0, 0), up=u), camera)
     key = centre + LIGHT_DISTANCE * radius * key_dir / np.linalg.norm(key_dir)
-    light = np.array([[*key, LIGHT_RADIUS * radius]], dtype=np.float32)
-    below = camera is not None and float(np.dot(np.asarray(camera.position) - floor, u)) < 0.0
-    return replace(scene, meshes=[*scene.meshes, *([] if below else [ground])],   # seen from below: no floor
-                   spheres=np.concatenate([scene.spheres, light]).astype(np.float32),
-                   sphere_material=np.concatenate([scene.sphere_material, [light_row]]).astype(np.int32),
-                   materials=_with_rows(scene.materials))
+    return np.array([*key, LIGHT_RADIUS * radius], dtype=np.float32)
+
+
+def with_key(scene: Scene, sphere: np.ndarray | None) -> Scene:
+    """A studio scene (:func:`add_studio`'s) with its key light ``sphere``, or without one (None):
+    the studio's one rule for the user's lights, that they replace the key (a viewer's page turning
+    its sun on or off goes through here)."""
+    row = scene.materials.names.index(LIGHT_NAME, len(scene.materials.names) - 2)
+    keep = scene.sphere_material != row
+    spheres, rows = scene.spheres[keep], scene.sphere_material[keep]
+    if sphere is not None:
+        spheres = np.concatenate([spheres, np.asarray(sphere, np.float32).reshape(1, 4)])
+        rows = np.concatenate([rows, [row]])
+    return replace(scene, spheres=spheres.astype(np.float32), sphere_material=rows.astype(np.int32))
 
 
 def _as_seen_by(v: np.ndarray, seen: Camera, camera: Camera) -> np.ndarray:
@@ -86,4 +120,4 @@ def _with_rows(t: MaterialTable) -> MaterialTable:
     grey, black = (GROUND_ALBEDO,) * 3, (0.0, 0.0, 0.0)
     plain = dict(refract=black, roughness=1.0, fuzz=0.0, ior=1.0)    # diffuse only, no glass
     return t.with_rows([Material("studio ground", diffuse=grey, reflect=grey, emission=black, **plain),
-                        Material("studio light", diffuse=black, reflect=black, emission=(LIGHT_EMISSION,) * 3, **plain)])
+                        Material(LIGHT_NAME, diffuse=black, reflect=black, emission=(LIGHT_EMISSION,) * 3, **plain)])

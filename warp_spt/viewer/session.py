@@ -97,10 +97,11 @@ class ViewSettings:
     error_map: bool = False
 
 
-def make_sky(settings: ViewSettings, environment=None):
+def make_sky(settings: ViewSettings, environment=None, keyed: bool = True):
     """The :class:`warp_spt.Sky` the settings name; ``environment``: the "environment" sky's map (an
     :class:`warp_spt.scene.environment.EnvironmentMap` read from ``env_path``, kept by the session so
-    that the light table built for it is reused)."""
+    that the light table built for it is reused); ``keyed``: the studio's key light is shown (else
+    its sky is the dimmer fill beside the user's lights, ``studio.studio_sky``)."""
     from warp_spt import Sky
     from warp_spt.scene.studio import studio_sky
 
@@ -110,7 +111,7 @@ def make_sky(settings: ViewSettings, environment=None):
         return Sky.environment(environment, rotate=settings.env_rotate, strength=settings.env_strength,
                                background=settings.env_background)
     return {"blue": Sky.black, "gradient": Sky.gradient, "pink": Sky.pink,
-            "studio": studio_sky, "black": lambda: Sky.constant(0.0, 0.0, 0.0),
+            "studio": lambda: studio_sky(keyed), "black": lambda: Sky.constant(0.0, 0.0, 0.0),
             "color": lambda: Sky.constant(*settings.sky_color)}[settings.sky]()
 
 
@@ -284,6 +285,7 @@ class Session:
         self._studio_given = studio      # --studio / --no-studio; None: the rule
         self._smooth_angle = smooth_angle
         self._studio = False             # the first view added the studio look
+        self._key = None                 # then the studio's key light, shown while no light of the user's is on
         self._offset = np.zeros(3)       # world = the session's coordinates + offset (recentring)
         self._given_camera = camera
         self._up = up or _axis_name(camera.up if camera is not None else (0.0, 0.0, 1.0))
@@ -532,7 +534,8 @@ class Session:
                 self._environment = environment
             if key == "integrator":
                 self._integrator_given = True
-            if key in lighting.LIGHT_KEYS or key in lighting.FOG_KEYS:
+            # the sky too: an environment map, like the page's lights, replaces the studio's key
+            if key in lighting.LIGHT_KEYS or key in lighting.FOG_KEYS or (key == "sky" and self._key is not None):
                 self._relight = True
                 if key == "fog":
                     self._settings = self._media_integrator(self._settings)
@@ -553,12 +556,29 @@ class Session:
         return replace(s, integrator=ViewSettings.integrator) if s.integrator == "volpath" else s
 
     def _lit(self, scene, s: ViewSettings):
-        """``scene`` with the page's lights beside its own lights and the page's fog."""
+        """``scene`` with the page's lights beside its own lights and the page's fog; in the studio,
+        its key light there or not as the command line's rule says (conventions.studio_look): the
+        page's sun or lamp turned on replaces it, turned off brings it back."""
+        from warp_spt.scene.studio import with_key
+
+        if self._key is not None:
+            scene = with_key(scene, self._key if self._key_on(s) else None)
         return replace(scene, lights=[*self._own_lights, *lighting.lights(s, self._offset)],
                        fog=lighting.fog(s, self._own_fog))
 
     def _make_sky(self, s: ViewSettings):
-        return make_sky(s, self._environment)
+        return make_sky(s, self._environment, keyed=self._key is None or self._key_on(s))
+
+    def _key_on(self, s: ViewSettings) -> bool:
+        """Whether the studio's key light shows with the page's lights ``s``: the command line's rule
+        (conventions.studio_look), under which any light of the user's (the page's, the scene's own
+        sun, point or spot lights, an environment map) replaces it."""
+        from warp_spt.scene.conventions import STUDIO_KEY, studio_look
+        from warp_spt.scene.lights import punctual_lights
+
+        lights = [*self._own_lights, *lighting.lights(s, self._offset)]
+        return studio_look(True, emitting=False, user_lights=bool(punctual_lights(lights)), seed_dialect=False,
+                           sky_given=True, env_given=s.sky == "environment") == STUDIO_KEY
 
     def _on_param(self, msg, reply) -> None:
         name = str(msg["name"])
@@ -638,16 +658,18 @@ class Session:
             cam = replace(cam, position=tuple(float(p + o) for p, o in zip(cam.position, self._offset)))
             return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, fixed=True,
                               sky=self._make_sky(s) if self._sky_given else None,
-                              studio=self._studio if not demo else False)
+                              studio=self._studio if not demo else False, user_lights=self._page_lit(s))
         cam = self._given_camera
         if cam is None and demo:
             from warp_spt import Camera
             cam = Camera()                  # the built-in demo keeps the seed's camera, as the CLI does
-        studio = self._studio_given
-        if studio is None and (s.sun or s.lamp != "off"):
-            studio = False          # a light from the start makes the scene lit, as --sun does for warp-spt
-        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=studio,
-                          sky=self._make_sky(s) if self._sky_given else None)
+        # a light from the start lights the studio instead of its key, as --sun does for warp-spt
+        return first_view(scene, cam, width=s.width, height=s.height, up=up, demo=demo, studio=self._studio_given,
+                          sky=self._make_sky(s) if self._sky_given else None, user_lights=self._page_lit(s))
+
+    @staticmethod
+    def _page_lit(s: ViewSettings) -> bool:
+        return bool(s.sun or s.lamp != "off")
 
     def _initial_rig(self, cam):
         """The first view's camera with its pivot at the scene centre's depth."""
@@ -852,8 +874,9 @@ class Session:
         except Exception as err:
             self._fail(str(err) if _is_scene_error(err) else f"{type(err).__name__}: {err}", scene_lost=True)
             return
-        from warp_spt.upload.device_scene import DeviceScene
         from warp_spt.scene.camera import AXES
+        from warp_spt.scene.studio import key_sphere
+        from warp_spt.upload.device_scene import DeviceScene
 
         first = self._rig is None
         fv = self._first_view(scene)
@@ -866,6 +889,7 @@ class Session:
         placed = {k: getattr(s, k) for k in (*lighting.LIGHT_KEYS, *lighting.FOG_KEYS)
                   if getattr(s, k) != getattr(before, k)}
         self._own_lights, self._own_fog = list(fv.scene.lights), getattr(fv.scene, "fog", None)
+        self._key = key_sphere(fv.subject.bounds, fv.up.axis, fv.camera) if fv.studio else None
         self._meshes = {}
         self._offset = fv.offset
         dev = DeviceScene(self._lit(fv.scene, s), meshes=self._meshes)

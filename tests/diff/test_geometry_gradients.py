@@ -292,3 +292,43 @@ def test_a_shadow_seen_in_a_mirror():
     check_against_fd(p, "occluder.translation", (1.0, 0.5, 0.0), 0.02, rs=replace(RS, max_depth=3),
                      without={"secondary_depth": 1}, fd_spp=8192, fd_seeds=8, resolve=0.35,
                      secondary_spp=512, mode="prb")
+
+
+def _shadowed_floor(light):
+    """A white floor and a square hanging out of view between it and ``light`` (a sun or a bright
+    point light: light selection under nee picks it in most samples), the square's hard shadow in view."""
+    floor = gs.square(3.0, 0.0, gs.WHITE, "floor")
+    occ = gs.square(0.2, 0.0, gs.RED, "occluder", transform=gs.placement(offset=(1.1, 0.1, 1.6)))
+    return parameters(replace(gs.scene([floor, occ]), lights=[light]), gs.CAMERA, gs.SKY)
+
+
+@pytest.mark.parametrize("light", ["point", "sun"])
+def test_a_punctual_light_and_an_occluder_moved_over_a_floor(light):
+    """Moving the light or the square moves the hard shadow's edge across the image: a jump no
+    sampled direction crosses (a delta light), the shadow term's (diff.shadows); without the
+    boundary terms the gradient keeps only the smooth change of the irradiance (the light) or
+    nothing (the square)."""
+    from warp_spt.scene.lights import PointLight, SunLight
+
+    if light == "point":
+        p = _shadowed_floor(PointLight(position=(1.4, 0.2, 2.2), intensity=(20.0, 20.0, 20.0), name="bulb"))
+        own = "bulb.position"
+    else:
+        # turned about the vertical (the direction below, orthogonal to it and to its elevation's
+        # gradient): the floor's irradiance holds to first order, the shadow moves. (The kit's own
+        # shadows fall out of view at this elevation; from overhead they would fall in it.)
+        p = _shadowed_floor(SunLight(direction=(0.3, 0.1, 1.0), color=(3.0, 3.0, 3.0), name="sun"))
+        own = "sun.direction"
+    rs = replace(RS, integrator="nee")
+    turn = (-1.0, 3.0, 0.0) if light == "sun" else (1.0, 0.5, 0.0)
+    # (a shadow's edge crossing pixel sides under the random adjoint makes the differences O(h): the
+    # sun's check takes a small step and resolves its reference to a third; a point light's shadow
+    # magnifies the square's motion 3.7 times: a ramp, not a random adjoint, and a smaller step)
+    # (the square's forces are checked under the point light, whose shadow magnifies its motion; under
+    # the sun its shadow's translation changes this image's sum too little to resolve)
+    sun = light == "sun"
+    checks = ((own, turn, ADJ, 0.003, 0.35),) if sun else \
+        ((own, turn, ADJ, 0.01, 0.2), ("occluder.translation", (1.0, 0.5, 0.0), RAMP, 0.005, 0.2))
+    for name, direction, adjoint, h, resolve in checks:
+        check_against_fd(p, name, direction, h, rs=rs, adjoint=adjoint, fd_spp=4096, resolve=resolve,
+                         boundary_spp=2048)

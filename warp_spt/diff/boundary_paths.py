@@ -1,6 +1,6 @@
-"""The one kernel of the boundary terms (``diff.boundary``, ``diff.secondary``): paths from given rays
-with the integrator's own step. One kernel kind, ``boundary``, with three stages, so that a scene
-compiles one module for both terms (each of its kernels holds the whole path step: two kinds took two
+"""The one kernel of the boundary terms (``diff.boundary``, ``diff.secondary``, ``diff.shadows``): paths
+and hits from given rays with the integrator's own step. One kernel kind, ``boundary``, with four
+stages, so that a scene compiles one module for the three terms (each of its kernels holds the whole path step: two kinds took two
 compiles of it, 20-40 s each on 2 cores)."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from warp_spt.integrators import RenderParams, get_step
 from warp_spt.rendering.setup import KernelKind, register_kind, render_features
 from warp_spt.runtime import kernel_cache
 
-STAGE_RECEIVERS, STAGE_LIGHTING, STAGE_PRIMARY = 0, 1, 2
+STAGE_RECEIVERS, STAGE_LIGHTING, STAGE_PRIMARY, STAGE_RAYS = 0, 1, 2, 3
 
 
 @wp.func
@@ -66,10 +66,21 @@ def _make_kernel(features: Features, step, start_path):
         (``dirs_apex``).
         Stage 1: the same vertex's throughput x f cos towards dirs[3i] (out[3i]) and the radiance
         along dirs[3i + 1] and dirs[3i + 2] (out[3i + 1], out[3i + 2]), two paths of the same random
-        numbers."""
+        numbers. Stage 3 (diff.shadows): the first hit of the ray from rec[i] along dirs[i], its
+        point (``dirs_apex[i]``), geometric normal (out[i]) and primitive (info[i], kind -1: none)."""
         i = wp.tid()
         if stage == 2:
             out[i] = along(geo, mats, tex, lights, cam, rp, rp.seed, i // 2, rec[0], dirs[i], 0)
+            return
+        if stage == 3:
+            r = hit(geo, mats, tex, rec[i], dirs[i])
+            if r.kind < 0:
+                info[i] = wp.vec4i(-1, 0, 0, 0)
+                return
+            hs = surface_at(geo, r, rec[i], dirs[i])
+            dirs_apex[i] = hs.p
+            out[i] = hs.ng
+            info[i] = wp.vec4i(r.kind, r.index, r.face, r.placed)
             return
         p = start_path(cam, pix[i], rp.width, rp.seed, sample[i])
         # the bounces before the receiver, with the integrator's own step (the same in both stages)

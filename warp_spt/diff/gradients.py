@@ -76,6 +76,7 @@ from warp_spt.diff.geometry_params import GEOMETRY_KINDS, MESH, SPHERE
 from warp_spt.diff.boundary import primary_term
 from warp_spt.diff.forces import Forces, chain_all
 from warp_spt.diff.secondary import receiver_depth, secondary_term
+from warp_spt.diff.shadows import shadow_term
 from warp_spt.diff.prb import replay_inputs
 from warp_spt.diff import replay_pathwise
 
@@ -333,7 +334,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     if replay_image:
         image = Film(sums.pop("film").reshape(shape), rs.spp).image()
     grads = {p.name: _pick(p, sums, dev, camera, rs, params._poses, params._base_meshes) for p in infos}
-    moved = [p for p in infos if p.kind in (*GEOMETRY_KINDS, "camera")]
+    moved = [p for p in infos if p.kind in (*GEOMETRY_KINDS, "camera")
+             or (p.kind == "punctual" and p.field in ("position", "direction"))]
     if boundary and moved:           # the curves they move: estimates of their own
         for n, g in boundary_terms(bw.bound, adj, moved, params._poses, brs.seed,
                                    _budget(boundary_spp, rs.spp, "boundary_spp"),
@@ -355,15 +357,19 @@ def _budget(value: int | None, default: int, name: str) -> int:
 
 def boundary_terms(bound: Bound, adj: np.ndarray, moved: list, poses: list, seed: int, primary_spp: int,
                    secondary_spp: int, secondary_depth: int | None = None) -> dict[str, np.ndarray]:
-    """The boundary terms of the geometry and camera parameters ``moved``: primary visibility
-    (``diff.boundary``) and secondary visibility at the camera rays' hits (``diff.secondary``), as
-    forces on the geometry's points chained to the parameters (``diff.forces``)."""
-    topology: dict = {}                  # the meshes' edge lists, built once for both terms
-    f1, cam1 = primary_term(bound, adj, moved, primary_spp, seed, topology)
-    f2, cam2 = secondary_term(bound, adj, moved, secondary_spp, seed, topology, secondary_depth)
-    out = chain_all(moved, Forces.join([f1, f2]), bound.dev.scene, poses)
+    """The boundary terms of the geometry, camera and punctual-light parameters ``moved``: primary
+    visibility (``diff.boundary``), secondary visibility at the paths' vertices (``diff.secondary``)
+    and the punctual lights' hard shadows (``diff.shadows``), as forces on the geometry's points
+    chained to the parameters (``diff.forces``) and the camera's and lights' own gradients."""
+    topology: dict = {}                  # the meshes' edge lists, built once for the terms
+    visible = [p for p in moved if p.kind != "punctual"]
+    f1, cam1 = primary_term(bound, adj, visible, primary_spp if visible else 0, seed, topology)
+    f2, cam2 = secondary_term(bound, adj, visible, secondary_spp if visible else 0, seed, topology, secondary_depth)
+    f3, lit = shadow_term(bound, adj, moved, primary_spp, seed, topology)
+    out = chain_all(moved, Forces.join([f1, f2, f3]), bound.dev.scene, poses)
     for n in cam1:
         out[n] = cam1[n] + cam2[n]
+    out.update(lit)
     return out
 
 

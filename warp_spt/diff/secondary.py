@@ -92,7 +92,7 @@ class Block:
     length: float = 0.0
 
 
-def _blocks(scene, reads_normals: bool, topology: dict) -> list[Block]:
+def blocks_of(scene, reads_normals: bool, topology: dict) -> list[Block]:
     out = []
     for k, m in enumerate(scene.meshes):
         if not len(m.indices):
@@ -216,7 +216,7 @@ def secondary_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, se
     x = apex[rows]        # the directions' apex (the curves are seen from there); surf: the surface point
     opaque = not (int(bound.features.lobes) & int(LOBE_TRANSMISSION))
     up = nx if opaque else None
-    blocks = _blocks(scene, bound.dev.geometry.has_corner_normals != 0, {} if topology is None else topology)
+    blocks = blocks_of(scene, bound.dev.geometry.has_corner_normals != 0, {} if topology is None else topology)
     if not blocks:
         return Forces.empty(), cams
     # two levels: a block by its weight (exact or a bound), then an edge of it by its exact arc length

@@ -28,6 +28,9 @@ def _err(path: str, pointer: str, message: str) -> SceneError:
     return SceneError(path, 0, f"{pointer}: {message}" if pointer else message)
 
 
+_NUMBER_TYPES = frozenset((int, float))
+
+
 class Document:
     def __init__(self, data: bytes, path: str, time: float | None = None) -> None:
         if time is not None and not math.isfinite(time):
@@ -145,7 +148,9 @@ class Document:
         value = self.get(obj, key, list, pointer, None)
         if value is None:
             return default
-        if len(value) != n or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                      and math.isfinite(v) for v in value):
+        # JSON numbers are exactly int and float here (bool, a subclass of int, is not one); checked
+        # by whole-list builtins: a 200,000-node file checks 600,000 of these lists
+        if len(value) != n or not set(map(type, value)) <= _NUMBER_TYPES or \
+                not all(map(math.isfinite, value)):
             raise _err(self.path, f"{pointer}/{key}", f"expected {n} finite numbers, got {json.dumps(value)[:80]}")
-        return [float(v) for v in value]
+        return list(map(float, value))

@@ -46,10 +46,19 @@ class Reader(Animation, CamerasLights):
         names = [CHECKER_NAME]
         materials: dict[str, Material] = {}
         seen: set[int] = set()
-        worlds: dict[int, np.ndarray] = {}
+        # The walk checks each node and keeps its local transform (3 x 4, row-major) and its parent's
+        # place in the walk; the world matrices are then composed level by level in whole arrays, and
+        # cameras and lights read after: per-node numpy calls were most of a 200,000-node file's
+        # reading time (64 of its 100 us per node; benchmarks/bench_instances.py)
         order: list[int] = []
-        stack = [(k, np.eye(4), 0, f"/scenes/{self._scene_index()}/nodes", False) for k in reversed(roots)]
+        local_rows: list[list[float]] = []
+        parent_at: list[int] = []         # the parent's position in ``order`` (-1: a root)
+        depth_at: list[int] = []
+        attached: list[tuple] = []        # (position in order, "camera" or "light", what, pointer)
+        scene_ptr = f"/scenes/{self._scene_index()}/nodes"
+        stack = [(k, -1, 0, scene_ptr, False) for k in reversed(roots)]
         moving: dict[int, bool] = {}      # the node or an ancestor has a TRS channel
+        for_mesh: list[int | None] = []
         while stack:
             k, parent, depth, via, parent_moves = stack.pop()
             ptr = f"/nodes/{k}"
@@ -60,36 +69,49 @@ class Reader(Animation, CamerasLights):
             if depth > MAX_NODE_DEPTH:
                 raise _err(self.path, ptr, f"nodes nest more than {MAX_NODE_DEPTH} deep")
             node = self.item("nodes", k)
-            world = parent @ self._local(node, ptr, channels.get(k))
-            worlds[k] = world
+            at = len(order)
+            local_rows.append(self._local_rows(node, ptr, channels.get(k)))
+            parent_at.append(parent)
+            depth_at.append(depth)
             moving[k] = parent_moves or (self.time is not None and any(
                 c in channels.get(k, {}) for c in ("translation", "rotation", "scale")))
             order.append(k)
+            for_mesh.append(self.index(node, "mesh", ptr, "meshes"))
             cam = self.index(node, "camera", ptr, "cameras")
             if cam is not None:
-                extras.cameras.append(self._camera(cam, k, world))
-            light = self.get(self.obj(node, "extensions", ptr), "KHR_lights_punctual", dict, f"{ptr}/extensions")
-            if light is not None:
-                extras.lights.append(self._light(light, f"{ptr}/extensions/KHR_lights_punctual", world))
+                attached.append((at, "camera", cam, ptr))
+            if "extensions" in node:
+                light = self.get(self.obj(node, "extensions", ptr), "KHR_lights_punctual", dict, f"{ptr}/extensions")
+                if light is not None:
+                    attached.append((at, "light", light, f"{ptr}/extensions/KHR_lights_punctual"))
             children = self.get(node, "children", list, ptr, [])
             for c, child in reversed(list(enumerate(children))):
                 if not isinstance(child, int) or isinstance(child, bool) or not 0 <= child < len(nodes):
                     raise _err(self.path, f"{ptr}/children/{c}", f"expected a node index in 0..{len(nodes) - 1}, got "
                                f"{json.dumps(child)[:40]}")
-                stack.append((child, world, depth + 1, f"{ptr}/children/{c}", moving[k]))
+                stack.append((child, at, depth + 1, f"{ptr}/children/{c}", moving[k]))
+        world_at = _compose(local_rows, parent_at, depth_at)
+        worlds: dict[int, np.ndarray] = dict(zip(order, world_at))
+        for at, what, ref, ptr in attached:       # in the walk's order, as the file lists them
+            if what == "camera":
+                extras.cameras.append(self._camera(ref, order[at], world_at[at]))
+            else:
+                extras.lights.append(self._light(ref, ptr, world_at[at]))
+        # a node scaled to nothing (a common way to hide one) draws nothing, as its flattened
+        # triangles of zero area would not be drawn
+        visible = np.abs(np.linalg.det(world_at[:, :3, :3])) > 1e-30 if len(order) else np.zeros(0, bool)
         # meshes after the walk: a skin needs its joints' world matrices, wherever they are in the tree
         users: dict[int, int] = {}
-        for k in order:
-            mesh = self.index(self.item("nodes", k), "mesh", f"/nodes/{k}", "meshes")
+        for mesh in for_mesh:
             if mesh is not None:
                 users[mesh] = users.get(mesh, 0) + 1
         placed: dict[int, tuple[list, list]] = {}        # mesh -> (object-space parts, world matrices)
-        for k in order:
-            node, ptr = self.item("nodes", k), f"/nodes/{k}"
-            mesh = self.index(node, "mesh", ptr, "meshes")
+        for at, k in enumerate(order):
+            mesh = for_mesh[at]
             if mesh is None:
                 continue
-            world = worlds[k]
+            node, ptr = self.item("nodes", k), f"/nodes/{k}"
+            world = world_at[at]
             extras.instances.append((k, mesh, world))
             skin = self._skin(node, ptr, worlds)
             weights = self._morph_weights(node, ptr, mesh, channels.get(k, {}).get("weights"))
@@ -97,9 +119,7 @@ class Reader(Animation, CamerasLights):
                 if mesh not in placed:
                     placed[mesh] = (self._object_parts(mesh, material_rows, names, materials), [])
                 if placed[mesh][0] is not None:
-                    # a node scaled to nothing (a common way to hide one) draws nothing, as its
-                    # flattened triangles of zero area would not be drawn
-                    if abs(np.linalg.det(world[:3, :3])) > 1e-30:
+                    if visible[at]:
                         placed[mesh][1].append(world)
                     else:
                         extras.hidden += 1
@@ -196,30 +216,65 @@ class Reader(Animation, CamerasLights):
         return roots
 
     def _local(self, node: dict, ptr: str, animated: dict | None = None) -> np.ndarray:
+        """The node's local transform (4, 4)."""
+        m = np.eye(4)
+        m[:3] = np.array(self._local_rows(node, ptr, animated), np.float64).reshape(3, 4)
+        return m
+
+    def _local_rows(self, node: dict, ptr: str, animated: dict | None = None) -> list[float]:
+        """The node's local transform's top three rows, row-major (12 floats): in Python floats, the
+        same operations in the same order as a 4 x 4 array's, so the same bits."""
         matrix = self.numbers(node, "matrix", ptr, 16, None)
         if matrix is not None and animated:
             raise _err(self.path, f"{ptr}/matrix", "a node with a matrix cannot be animated (glTF: use TRS)")
         if matrix is not None:
-            m = np.array(matrix, np.float64).reshape(4, 4).T          # column-major
-            if not np.allclose(m[3], [0, 0, 0, 1]):
-                raise _err(self.path, f"{ptr}/matrix", "the last row must be 0, 0, 0, 1 (an affine transform)")
-            return m
-        t = self.numbers(node, "translation", ptr, 3, [0.0, 0.0, 0.0])
-        q = self.numbers(node, "rotation", ptr, 4, [0.0, 0.0, 0.0, 1.0])
-        s = self.numbers(node, "scale", ptr, 3, [1.0, 1.0, 1.0])
+            if matrix[3] != 0 or matrix[7] != 0 or matrix[11] != 0 or matrix[15] != 1:   # column-major
+                if not np.allclose(np.array(matrix, np.float64)[3::4], [0, 0, 0, 1]):
+                    raise _err(self.path, f"{ptr}/matrix", "the last row must be 0, 0, 0, 1 (an affine transform)")
+            return [matrix[c * 4 + r] for r in range(3) for c in range(4)]
+        t = self.numbers(node, "translation", ptr, 3, None) if "translation" in node else [0.0, 0.0, 0.0]
+        q = self.numbers(node, "rotation", ptr, 4, None) if "rotation" in node else [0.0, 0.0, 0.0, 1.0]
+        s = self.numbers(node, "scale", ptr, 3, None) if "scale" in node else [1.0, 1.0, 1.0]
         if animated and self.time is not None:
             t = animated["translation"](self.time) if "translation" in animated else t
             q = animated["rotation"](self.time) if "rotation" in animated else q
             s = animated["scale"](self.time) if "scale" in animated else s
-        norm = math.sqrt(sum(v * v for v in q))
+        q0, q1, q2, q3 = float(q[0]), float(q[1]), float(q[2]), float(q[3])
+        norm = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         if not norm > 0:
             raise _err(self.path, f"{ptr}/rotation", "a rotation quaternion must not be zero")
-        m = np.eye(4)
-        m[:3, :3] = quaternion_matrix(np.array(q) / norm) * np.array(s)
-        m[:3, 3] = t
-        if not np.isfinite(m).all():        # animated values far out of range
+        r = quaternion_rows(q0 / norm, q1 / norm, q2 / norm, q3 / norm)
+        s0, s1, s2 = float(s[0]), float(s[1]), float(s[2])
+        rows = [r[0] * s0, r[1] * s1, r[2] * s2, float(t[0]),
+                r[3] * s0, r[4] * s1, r[5] * s2, float(t[1]),
+                r[6] * s0, r[7] * s1, r[8] * s2, float(t[2])]
+        if not all(map(math.isfinite, rows)):              # animated values far out of range
             raise _err(self.path, ptr, "the node's transform is not finite")
-        return m
+        return rows
+
+
+def _compose(local_rows: list, parent_at: list, depth_at: list) -> np.ndarray:
+    """(N, 4, 4) world matrices of the walked nodes from their local rows, level by level: a node's
+    world is its parent's times its own (a root's its own)."""
+    n = len(local_rows)
+    world = np.zeros((n, 4, 4))
+    if not n:
+        return world
+    world[:, :3] = np.asarray(local_rows, np.float64).reshape(n, 3, 4)
+    world[:, 3, 3] = 1.0
+    parent = np.asarray(parent_at, np.int64)
+    depth = np.asarray(depth_at, np.int64)
+    for d in range(1, int(depth.max()) + 1):
+        (rows,) = np.nonzero(depth == d)
+        world[rows] = np.matmul(world[parent[rows]], world[rows])
+    return world
+
+
+def quaternion_rows(x: float, y: float, z: float, w: float) -> tuple:
+    """The rotation matrix of a unit quaternion (x, y, z, w), row-major, in Python floats."""
+    return (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+            2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+            2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y))
 
 
 def quaternion_matrix(q: np.ndarray) -> np.ndarray:

@@ -140,6 +140,8 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
         seed_dialect=seed_dialect,
         bare=not libraries_read,
+        formats=tuple(d.format for d in data if d.format),
+        up_hint=next((d.up_hint for d in data if d.up_hint is not None), None),
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
         lights=[c.to_scene() for d in data for c in getattr(d.extras, "lights", ())],
         sky=next((d.extras.sky for d in data if getattr(d.extras, "sky", None) is not None), None),
@@ -162,6 +164,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
 MODEL_READERS = {".obj": "warp_spt.io.obj:load_obj", ".ply": "warp_spt.io.ply:load_ply",
                  ".gltf": "warp_spt.gltf:load_gltf", ".glb": "warp_spt.gltf:load_gltf",
                  **{s: "warp_spt.usd:load_usd" for s in (".usd", ".usda", ".usdc", ".usdz")}}
+# The formats as users name them (ObjData.format, the up-axis line), by the reader's suffix
+FORMAT_NAMES = {".obj": "OBJ", ".ply": "PLY", ".gltf": "glTF", ".glb": "glTF",
+                **{s: "USD" for s in (".usd", ".usda", ".usdc", ".usdz")}}
 _HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"), (b"#usda", ".usda"), (b"PXR-USDC", ".usdc"))
 
 
@@ -175,7 +180,10 @@ def read_model(path: PathLike, time: float | None = None) -> ObjData:
     kind = _kind_by_content(path) or Path(path).suffix.lower()
     module, function = MODEL_READERS.get(kind, MODEL_READERS[".obj"]).split(":")
     reader = getattr(importlib.import_module(module), function)
-    return reader(path) if time is None else reader(path, time=time)
+    data = reader(path) if time is None else reader(path, time=time)
+    if not data.format:
+        data.format = FORMAT_NAMES.get(kind, "OBJ")
+    return data
 
 
 def _kind_by_content(path: str) -> str | None:

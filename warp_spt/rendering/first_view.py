@@ -23,7 +23,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from warp_spt.runtime import kernel_cache
-from warp_spt.scene.camera import AXES, Camera, frame_camera, looks_z_up
+from warp_spt.scene.camera import AXES, Camera, frame_camera, looks_z_up, stands_up
 from warp_spt.scene.conventions import UpChoice, has_own_light, up_axis, wants_studio
 from warp_spt.scene.model import Scene
 from warp_spt.scene.recentre import describe_extent, format_point, recentre
@@ -323,8 +323,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     scene, cam, offset = recentre(scene, camera)
     if offset.any():
         note(f"recentred the scene by {format_point(-offset)} for precision (far from the origin)")
-    z_scan = not (up or demo or scene.seed_dialect or explicit) and looks_z_up(scene)
-    choice = up_axis(up, demo=demo, seed_dialect=scene.seed_dialect, cam_given=explicit, z_scan=z_scan)
+    choice = choose_up(scene, up, demo=demo, cam_given=explicit)
     cam = cam.with_(up=AXES[choice.axis])
     if demo and quiet_demo:
         return FirstView(scene, cam, sky, TONEMAP, offset, choice, False, False, tuple(notes))
@@ -357,6 +356,19 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
         scene = add_studio(scene, up=choice.axis, camera=cam)
         sky = sky if sky is not None else studio_sky()
     return FirstView(scene, cam, sky, TONEMAP, offset, choice, on, framed, tuple(notes), subject)
+
+
+def choose_up(scene: Scene, up: str | None = None, *, demo: bool = False, cam_given: bool = False) -> UpChoice:
+    """:func:`warp_spt.scene.conventions.up_axis` for ``scene``, its geometric cues computed only
+    where the rule reads them (none for glTF and USD files, whose axis their format fixes)."""
+    formats = tuple(getattr(scene, "formats", ()))
+    decided = up or demo or scene.seed_dialect or cam_given or (formats and set(formats) <= {"glTF", "USD"})
+    hint = getattr(scene, "up_hint", None)
+    ply = "PLY" in formats and hint is None
+    z_scan = not decided and not ("PLY" in formats and hint is not None) and looks_z_up(scene)
+    stands = stands_up(scene) if ply and not decided and not z_scan else None
+    return up_axis(up, demo=demo, seed_dialect=scene.seed_dialect, cam_given=cam_given, z_scan=z_scan,
+                   formats=formats, hint=hint, stands=stands)
 
 
 def _why_frame(frame: bool, view, scene: Scene, up: str) -> str:

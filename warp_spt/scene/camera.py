@@ -417,27 +417,42 @@ def looks_z_up(scene: Scene) -> bool:
         or subject_bounds(scene, "z") is not None
 
 
-def support(scene: Scene, up: str | Sequence[float]) -> tuple[float, bool]:
+def _mass(scene: Scene) -> tuple[np.ndarray, np.ndarray] | None:
+    """(every vertex (V, 3) float64, the surface's area centroid (3,)) of a scene of plain meshes, or
+    None (instances, spheres, no area). The centroid is of at most 2^16 triangles, every k-th: a
+    scan of millions costs what 65,536 triangles do."""
+    if len(scene.spheres) or scene.instanced or not scene.meshes:
+        return None
+    pts = np.concatenate([np.asarray(m.positions, np.float64) for m in scene.meshes])
+    total = sum(len(m.indices) for m in scene.meshes)
+    step = max(1, -(-total // (1 << 16)))
+    tris = [np.asarray(m.positions, np.float64)[m.indices[::step]] for m in scene.meshes if len(m.indices)]
+    if not tris:
+        return None
+    t = np.concatenate(tris)
+    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    if not area.sum() > 0:
+        return None
+    return pts, (t.mean(1) * area[:, None]).sum(0) / area.sum()
+
+
+def support(scene: Scene, up: str | Sequence[float], mass=None) -> tuple[float, bool]:
     """What the scene stands on with ``up`` up: (the convex hull of its points within SUPPORT_BAND of
     its height above the lowest, over the bounds' rectangle across ``up``; whether that hull holds the
     surface's area centroid, i.e. it stands without tipping over). (0, False) for instanced meshes,
     spheres or no area. The hull is of the points' extremes per row of a SUPPORT_GRID-row raster, so
-    a scan of millions of points costs a few array passes."""
+    a scan of millions of points costs a few array passes. ``mass``: :func:`_mass`'s, if known."""
     u = up_vector(up)
-    if len(scene.spheres) or scene.instanced or not scene.meshes:
-        return 0.0, False
+    mass = _mass(scene) if mass is None else mass
     across = [k for k in range(3) if abs(u[k]) < 0.5]
-    pts = np.concatenate([np.asarray(m.positions, np.float64) for m in scene.meshes])
-    tris = [np.asarray(m.positions, np.float64)[m.indices] for m in scene.meshes if len(m.indices)]
-    if len(across) != 2 or not tris:
+    if mass is None or len(across) != 2:
         return 0.0, False
-    t = np.concatenate(tris)
-    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    pts, centre = mass
+    centroid = centre[across]
     lo, hi = pts.min(0), pts.max(0)
     rect = float(np.prod((hi - lo)[across]))
-    if not (area.sum() > 0 and rect > 0):
+    if not rect > 0:
         return 0.0, False
-    centroid = (t.mean(1) * area[:, None]).sum(0)[across] / area.sum()
     h = pts @ u
     foot = pts[h <= h.min() + SUPPORT_BAND * (h.max() - h.min())][:, across]
     a0, a1 = lo[across[0]], hi[across[0]]
@@ -486,7 +501,8 @@ def stands_up(scene: Scene) -> str | None:
     is at least SUPPORT_MIN_SHARE of the rectangle and
     SUPPORT_RATIO times the other axis's (or the other tips over); None when the shape does not tell
     (the rule of PLY files, which have no up convention: a horse on its hooves, Z up)."""
-    (zs, zok), (ys, yok) = support(scene, "z"), support(scene, "y")
+    mass = _mass(scene)
+    (zs, zok), (ys, yok) = support(scene, "z", mass), support(scene, "y", mass)
     ext = np.ptp(scene.bounds, axis=0)
     zok = zok and ext[2] >= STAND_MIN_HEIGHT * max(ext[0], ext[1])
     yok = yok and ext[1] >= STAND_MIN_HEIGHT * max(ext[0], ext[2])

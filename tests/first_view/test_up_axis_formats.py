@@ -6,7 +6,8 @@ shape: a flat base or floor in the XY plane, or the axis it stands on without ti
 "likely"; else Y, "a guess". glTF (and USD, turned Y up when read) is Y up by its specification:
 its line never suggests --up. Each line names the file's format. A standard OBJ's cut base is
 found when it is tilted a little (a scan's, not quite a plane of the file's axes), and the
-project's own Z-up smoke scenes (scripts/make_smoke.py) stand on their floor.
+project's own Z-up smoke scenes (scripts/make_smoke.py) stand on their floor. A standard OBJ
+stays Y up unless it stands only with Z up (a bust whose base is open, a horse).
 
 The models are tests/support/models.py's; whether an image is upright is judged by
 tests/support/first_image.judge, which shares no shading or framing code with the renderer.
@@ -84,6 +85,21 @@ def test_a_scans_slightly_tilted_cut_base_is_found(tmp_path, tilt):
     choice = _up(write_model(tmp_path / "bust.obj", "bust", tilt=tilt))
     assert choice.axis == "z" and "flat base" in choice.note, choice.note
     assert _up(write_model(tmp_path / "bust_y.obj", "bust", up="y", tilt=tilt)).axis == "y"
+
+
+@pytest.mark.parametrize("shape, up, axis", [("bust_open", "z", "z"), ("cow", "z", "z"), ("bust_open", "y", "y"),
+                                             ("cow", "y", "y"), ("teapot", "z", "y"), ("bunny", "z", "y")])
+def test_a_standard_obj_that_stands_only_z_up_is_z_up(tmp_path, shape, up, axis):
+    """OBJ's convention is Y up: a model turns Z up only when it stands with Z up and tips over with
+    Y up (a bust whose cut base is left open, no faces across it; a horse on its hooves); a shape
+    that does not tell (the teapot, the blob) keeps the convention, as any Y-up model does."""
+    choice = _up(write_model(tmp_path / f"{shape}.obj", shape, up=up))
+    assert choice.axis == axis, choice.note
+    if axis == "z":
+        assert "a standard OBJ model that stands on its lowest points only with Z up" in choice.note
+        assert "likely; --up y to change" in choice.note
+    else:
+        assert choice.note == "Y up (a standard OBJ model; --up z to change)"
 
 
 def test_the_projects_own_smoke_scenes_are_z_up(tmp_path):

@@ -88,6 +88,13 @@ def bust():
     return parts
 
 
+def bust_open():
+    """:func:`bust` as many scans come: its cut base left open (no faces across it, only its rim)."""
+    parts = bust()
+    pts, faces = parts[-1]
+    return parts[:-1] + [(pts[1:], faces[40:] - 1)]
+
+
 def plaque():
     """A relief plaque standing upright, its flat back towards +Y: thin (2 x 0.15 x 1.4, Z up)."""
     n_u, n_v = 24, 16
@@ -116,7 +123,7 @@ def spheres_on_floor():
     return parts
 
 
-SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow, "bust": bust, "plaque": plaque,
+SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow, "bust": bust, "bust_open": bust_open, "plaque": plaque,
           "spheres_on_floor": spheres_on_floor}
 
 

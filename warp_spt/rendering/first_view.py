@@ -364,9 +364,9 @@ def choose_up(scene: Scene, up: str | None = None, *, demo: bool = False, cam_gi
     formats = tuple(getattr(scene, "formats", ()))
     decided = up or demo or scene.seed_dialect or cam_given or (formats and set(formats) <= {"glTF", "USD"})
     hint = getattr(scene, "up_hint", None)
-    ply = "PLY" in formats and hint is None
-    z_scan = not decided and not ("PLY" in formats and hint is not None) and looks_z_up(scene)
-    stands = stands_up(scene) if ply and not decided and not z_scan else None
+    hinted = "PLY" in formats and hint is not None         # a PLY header that states it: no shape read
+    z_scan = not (decided or hinted) and looks_z_up(scene)
+    stands = None if decided or hinted or z_scan else stands_up(scene, strict="PLY" not in formats)
     return up_axis(up, demo=demo, seed_dialect=scene.seed_dialect, cam_given=cam_given, z_scan=z_scan,
                    formats=formats, hint=hint, stands=stands)
 

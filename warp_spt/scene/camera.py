@@ -448,14 +448,14 @@ def support(scene: Scene, up: str | Sequence[float], mass=None) -> tuple[float, 
     if mass is None or len(across) != 2:
         return 0.0, False
     pts, centre = mass
-    centroid = centre[across]
     lo, hi = pts.min(0), pts.max(0)
+    centroid = (centre - lo)[across]              # coordinates from the bounds' corner: no cancellation far off
     rect = float(np.prod((hi - lo)[across]))
     if not rect > 0:
         return 0.0, False
     h = pts @ u
-    foot = pts[h <= h.min() + SUPPORT_BAND * (h.max() - h.min())][:, across]
-    a0, a1 = lo[across[0]], hi[across[0]]
+    foot = (pts[h <= h.min() + SUPPORT_BAND * (h.max() - h.min())] - lo)[:, across]
+    a0, a1 = 0.0, hi[across[0]] - lo[across[0]]
     row = np.minimum(((foot[:, 0] - a0) / max(a1 - a0, 1e-300) * SUPPORT_GRID).astype(np.int64), SUPPORT_GRID - 1)
     first, last = np.full(SUPPORT_GRID, np.inf), np.full(SUPPORT_GRID, -np.inf)
     np.minimum.at(first, row, foot[:, 1])
@@ -495,16 +495,20 @@ def _convex_hull(p: np.ndarray) -> np.ndarray:
     return np.array(lower[:-1] + upper[:-1])
 
 
-def stands_up(scene: Scene) -> str | None:
+def stands_up(scene: Scene, strict: bool = False) -> str | None:
     """The axis, ``"z"`` or ``"y"``, the scene clearly stands on (:func:`support`): it stands without
     tipping along that axis, is at least STAND_MIN_HEIGHT as tall as wide along it, its support
     is at least SUPPORT_MIN_SHARE of the rectangle and
     SUPPORT_RATIO times the other axis's (or the other tips over); None when the shape does not tell
-    (the rule of PLY files, which have no up convention: a horse on its hooves, Z up)."""
+    (the rule of PLY files, which have no up convention: a horse on its hooves, Z up). ``strict`` (a
+    format whose convention is Y up, OBJ): ``"z"`` only when it also tips over with Y up (a bust
+    whose cut base is open, a horse), else None."""
     mass = _mass(scene)
     (zs, zok), (ys, yok) = support(scene, "z", mass), support(scene, "y", mass)
     ext = np.ptp(scene.bounds, axis=0)
     zok = zok and ext[2] >= STAND_MIN_HEIGHT * max(ext[0], ext[1])
+    if strict:
+        return "z" if zok and not yok and zs >= max(SUPPORT_MIN_SHARE, SUPPORT_RATIO * ys) else None
     yok = yok and ext[1] >= STAND_MIN_HEIGHT * max(ext[0], ext[2])
     if zok and zs >= SUPPORT_MIN_SHARE and (not yok or zs >= SUPPORT_RATIO * ys):
         return "z"

@@ -64,8 +64,9 @@ def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: boo
       :func:`warp_spt.io.ply.up_hint`, "sure"), else Z when it stands on a flat base in the XY
       plane (``z_scan``: :func:`warp_spt.scene.camera.looks_z_up`) and otherwise the axis it stands
       on (``stands``: :func:`warp_spt.scene.camera.stands_up`; both "likely"), else Y ("a guess");
-    * anything else (a standard OBJ): Z for a scan on a flat base in the XY plane (``z_scan``), else Y,
-      as OBJ exporters write them.
+    * anything else (a standard OBJ): Z for a scan on a flat base in the XY plane (``z_scan``) or a
+      model that stands only with Z up (``stands``, :func:`~warp_spt.scene.camera.stands_up`'s strict
+      rule: a bust with an open cut base, a horse; "likely"), else Y, as OBJ exporters write them.
     """
     if given:
         return UpChoice(given, "")
@@ -82,6 +83,9 @@ def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: boo
     if "PLY" not in kinds:
         if z_scan:
             return UpChoice(SEED_UP, "a scan or a set standing on a flat base or floor in the XY plane")
+        if stands == SEED_UP:
+            return UpChoice(SEED_UP, f"{what} that stands on its lowest points only with Z up (Y up, it would "
+                                     "tip over); likely")
         return UpChoice(MODEL_UP, what)
     if hint is not None:
         return UpChoice(hint[0], f"{what}: {hint[1]}; sure")

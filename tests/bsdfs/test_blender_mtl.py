@@ -49,7 +49,8 @@ def _quad_image(folder, mtl: str, name: str = "q") -> tuple[np.ndarray, list[str
     (folder / f"{name}.obj").write_text(f"mtllib {name}.mtl\n" + quad_obj(QUAD, material="m"))
     (folder / f"{name}.mtl").write_text(mtl)
     scene = load_scene([str(folder / f"{name}.obj")], warn=said.append)
-    res = R.render_scene(DeviceScene(scene), QUAD_CAM, RenderSettings(width=16, height=16, spp=8, seed=3, sky=Sky.gradient()))
+    settings = RenderSettings(width=16, height=16, spp=8, seed=3, sky=Sky.gradient())
+    res = R.render_scene(DeviceScene(scene), QUAD_CAM, settings)
     return res.image, said
 
 
@@ -104,8 +105,8 @@ def _sphere_rim_and_centre(folder, name: str, mtl: str, spp: int = 64):
     """Mean and standard error of the sphere's pixels in a uniform sky, for its centre (image radius
     under half the disc's) and its rim (0.75..0.92 of it: cos between view and normal about 0.4-0.65)."""
     objs, mtls = write_scene_files(folder, name, "usemtl m\nb 0 0 0 1\n", "newmtl m\n" + mtl)
-    res = R.render_scene(DeviceScene(load_scene(objs, mtls)), SPHERE_CAM,
-                         RenderSettings(width=48, height=48, spp=spp, max_depth=8, seed=1, integrator="nee", sky=UNIFORM))
+    settings = RenderSettings(width=48, height=48, spp=spp, max_depth=8, seed=1, integrator="nee", sky=UNIFORM)
+    res = R.render_scene(DeviceScene(load_scene(objs, mtls)), SPHERE_CAM, settings)
     img = res.image.astype(np.float64).mean(-1)
     disc = img < 0.9                                     # the sky is 1, the sphere about 0.5
     radius = np.sqrt(disc.sum() / np.pi)

@@ -38,14 +38,17 @@ def _up(path: Path, mtls=()):
 
 @pytest.mark.parametrize("shape, up, comments, axis, words", [
     ("bust", "z", (), "z", "a PLY model standing on a flat base or floor in the XY plane; likely"),
-    ("cow", "z", (), "z", "a PLY model that stands on its lowest points with Z up; likely"),      # a horse on its hooves
+    # a horse on its hooves
+    ("cow", "z", (), "z", "a PLY model that stands on its lowest points with Z up; likely"),
     ("cow", "y", (), "y", "a PLY model that stands on its lowest points with Y up; likely"),
     ("bust", "y", (), "y", "likely"),
-    ("plaque", "y", (), "y", "likely"),                         # a relief lying on its back stands too: not Z
-    ("teapot", "z", ("Created by Blender 3.6.0 - www.blender.org",), "z", "written by Blender, which exports Z up; sure"),
+    ("plaque", "y", (), "y", "likely"),             # a relief lying on its back stands too: not Z
+    ("teapot", "z", ("Created by Blender 3.6.0 - www.blender.org",), "z",
+     "written by Blender, which exports Z up; sure"),
     ("bunny", "y", ("zipper output",), "y", "a Stanford zippered scan, which are Y up; sure"),
     ("bunny", "z", ("up_axis: Z",), "z", "its header says 'up_axis: Z'; sure"),
-    ("teapot", "z", ("VCGLIB generated",), "y", "PLY has no up convention and neither its header nor its shape tells; a guess"),
+    ("teapot", "z", ("VCGLIB generated",), "y",
+     "PLY has no up convention and neither its header nor its shape tells; a guess"),
 ])
 def test_a_ply_files_up_axis_comes_from_its_header_or_its_shape(tmp_path, shape, up, comments, axis, words):
     choice = _up(write_model(tmp_path / "scan.ply", shape, up=up, ply_comments=comments))

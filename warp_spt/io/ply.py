@@ -101,7 +101,8 @@ def parse_ply_bytes(data: bytes, path: str = "<input>") -> ObjData:
 # Blender's exporters write Z up (their default axes: -Y forward, Z up); the Stanford scanning
 # repository's zippered scans ("zipper output") are Y up. Other writers (MeshLab's "VCGLIB
 # generated", scanners) say nothing about it.
-_UP_WORDS = (re.compile(rb"\bup(?:[ _-]?axis)?\s*[:=]?\s*\+?([xyz])\b", re.I), re.compile(rb"\b\+?([xyz])[ _-]up\b", re.I))
+_UP_WORDS = (re.compile(rb"\bup(?:[ _-]?axis)?\s*[:=]?\s*\+?([xyz])\b", re.I),
+             re.compile(rb"\b\+?([xyz])[ _-]up\b", re.I))
 _WRITERS = ((re.compile(rb"\bblender\b", re.I), "z", "written by Blender, which exports Z up"),
             (re.compile(rb"\bzipper\b", re.I), "y", "a Stanford zippered scan, which are Y up"))
 
@@ -109,8 +110,8 @@ _WRITERS = ((re.compile(rb"\bblender\b", re.I), "z", "written by Blender, which 
 def up_hint(header: bytes) -> tuple[str, str] | None:
     """(axis, what says so) from a PLY header's ``comment``/``obj_info`` lines, or None when they
     say nothing about the up axis (see _UP_WORDS, _WRITERS)."""
-    comments = [raw.split(None, 1)[1] if len(raw.split(None, 1)) > 1 else b""
-                for raw in header.replace(b"\r", b"\n").split(b"\n") if raw.split()[:1] in ([b"comment"], [b"obj_info"])]
+    lines = header.replace(b"\r", b"\n").split(b"\n")
+    comments = [(raw.split(None, 1) + [b""])[1] for raw in lines if raw.split()[:1] in ([b"comment"], [b"obj_info"])]
     for text in comments:
         for pattern in _UP_WORDS:
             m = pattern.search(text)

@@ -3,8 +3,8 @@
 Two kinds of scene reach ``warp-spt``: the seed's own (its demo, its OBJ spheres ``b`` and MTL tags,
 usually with an explicit ``-cam``), which must render exactly as the seed renders them, and users'
 models exported by other tools, which are Y-up (the convention of OBJ exporters, and glTF's by
-definition; a PLY file has none, so its header and shape decide) and usually come without lights (an exporter's MTL has colours only). :func:`up_axis` and
-:func:`wants_studio` are the rules, written
+definition; a PLY file has none, so its header and shape decide) and usually come without lights
+(an exporter's MTL has colours only). :func:`up_axis` and :func:`wants_studio` are the rules, written
 once; ``warp-spt``, its animations and ``warp-spt view`` all apply them. Pure functions of what the
 loader recorded (:attr:`Scene.seed_dialect`), of the scene's lights and of the flags given.
 """

@@ -130,3 +130,21 @@ def test_a_z_up_ply_horse_stands_upright_in_the_first_image(tmp_path):
     assert "Z up (a PLY model that stands on its lowest points with Z up; likely; --up y to change)" in said, said
     v = judge(ply, "z", np.load(out), said, "z")
     assert v.up == "z" and v.upright and v.in_frame, v.row()
+
+
+def test_each_reader_records_its_format_for_the_api_too(tmp_path):
+    """``ObjData.format`` comes from the reader itself, so load_scene of parsed files (the API, OBJ
+    sequences) names the format as ``-obj`` does; a PLY file under an .obj name is a PLY model."""
+    from warp_spt.gltf import load_gltf
+    from warp_spt.io.obj import load_obj
+    from warp_spt.io.ply import load_ply
+
+    ply = write_model(tmp_path / "scan.ply", "cow", ply_comments=())
+    obj = write_model(tmp_path / "cow.obj", "cow", up="y")
+    g = GltfBuilder()
+    g.node(mesh=g.mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]])))
+    (tmp_path / "t.gltf").write_bytes(g.gltf()[0])
+    assert [load_ply(ply).format, load_obj(obj).format, load_gltf(tmp_path / "t.gltf").format] == ["PLY", "OBJ", "glTF"]
+    (tmp_path / "scan_as.obj").write_bytes(ply.read_bytes())
+    scene = load_scene([load_gltf(tmp_path / "t.gltf"), str(tmp_path / "scan_as.obj")], warn=lambda m: None)
+    assert scene.formats == ("glTF", "PLY")

@@ -92,7 +92,7 @@ def parse_ply_bytes(data: bytes, path: str = "<input>") -> ObjData:
     else:
         values = _read_binary(data, body_start, fmt, elements, path)
     obj = _assemble(values, elements, path)
-    obj.up_hint = up_hint(data[:body_start])
+    obj.format, obj.up_hint = "PLY", up_hint(data[:body_start])
     return obj
 
 

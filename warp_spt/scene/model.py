@@ -149,9 +149,9 @@ class ObjData:
     materials: dict[str, Material] = field(default_factory=dict)
     extras: object = None        # what else the format holds (glTF: gltf.GltfExtras, cameras and lights)
     warnings: list[str] = field(default_factory=list)   # the reader's notes; the loader passes them on
-    # the file's format as users name it ("OBJ", "PLY", "glTF", "USD"; set by io.loader.read_model), and an
-    # up axis the file itself states with what states it, e.g. ("z", "written by Blender") from a PLY
-    # header (scene.conventions.up_axis)
+    # the file's format as users name it ("OBJ", "PLY", "glTF", "USD"; set by its reader, or by
+    # io.loader.read_model), and an up axis the file itself states with what states it, e.g.
+    # ("z", "written by Blender") from a PLY header (scene.conventions.up_axis)
     format: str = ""
     up_hint: tuple[str, str] | None = None
 

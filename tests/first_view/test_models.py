@@ -185,7 +185,7 @@ def test_the_demos_raise_no_warning(seed_demo):
 def test_mtl_reports_unsupported_tags_once_per_file(scene_dir):
     from PIL import Image
 
-    Image.new("RGB", (2, 2), (128, 128, 255)).save(scene_dir / "n.png")
+    Image.new("RGB", (2, 2), (128, 128, 128)).save(scene_dir / "n.png")   # height, not normal
     mtl = scene_dir / "exported.mtl"
     mtl.write_text("newmtl a\nKa 1 1 1\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 98\nmap_Bump -bm 0.3 n.png\nPs 0.2\n"
                    "newmtl b\nKa 0 0 0\nKd 1 1 1\nPr 0.3\nPm 1\nmap_Kd -s 2 2 1 t.png\n")

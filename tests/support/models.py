@@ -88,6 +88,13 @@ def bust():
     return parts
 
 
+def bust_open():
+    """:func:`bust` as many scans come: its cut base left open (no faces across it, only its rim)."""
+    parts = bust()
+    pts, faces = parts[-1]
+    return parts[:-1] + [(pts[1:], faces[40:] - 1)]
+
+
 def plaque():
     """A relief plaque standing upright, its flat back towards +Y: thin (2 x 0.15 x 1.4, Z up)."""
     n_u, n_v = 24, 16
@@ -116,14 +123,22 @@ def spheres_on_floor():
     return parts
 
 
-SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow, "bust": bust, "plaque": plaque,
+SHAPES = {"bunny": bunny, "teapot": teapot, "cow": cow, "bust": bust, "bust_open": bust_open, "plaque": plaque,
           "spheres_on_floor": spheres_on_floor}
 
 
 def write_model(path: Path, shape: str, *, up: str = "z", scale: float = 1.0, offset=(0.0, 0.0, 0.0),
-                marker: bool = False) -> Path:
-    """Write one generated model as an OBJ file and return its path."""
+                marker: bool = False, tilt: float = 0.0, ply_comments: tuple[str, ...] | None = None) -> Path:
+    """Write one generated model as an OBJ file and return its path. ``tilt``: degrees the model is
+    turned about X first (a scan whose cut base is not quite a plane of the file's axes);
+    ``ply_comments``: write an ascii PLY instead, with these header comments."""
     parts = SHAPES[shape]()
+    if tilt:
+        c, s_ = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+        turn = np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])
+        parts = [(p @ turn.T, f) for p, f in parts]
+    if ply_comments is not None:
+        return _write_ply(path, parts, up, ply_comments)
     top = max(p[:, 2].max() for p, _ in parts)
     lines, base = [], 1
     for pts, faces in parts:
@@ -151,3 +166,19 @@ newmtl bottom
 Kd 0 0 0
 Ke 0 1 0
 """
+
+
+def _write_ply(path: Path, parts, up: str, comments: tuple[str, ...]) -> Path:
+    """The parts as one ascii PLY (vertices and triangles), Y-up turned as write_model does."""
+    pts, faces, base = [], [], 0
+    for p, f in parts:
+        pts.append(np.stack([p[:, 0], p[:, 2], -p[:, 1]], -1) if up == "y" else p)
+        faces.append(f + base)
+        base += len(p)
+    v, f = np.concatenate(pts), np.concatenate(faces)
+    head = ["ply", "format ascii 1.0", *(f"comment {c}" for c in comments), f"element vertex {len(v)}",
+            "property float x", "property float y", "property float z", f"element face {len(f)}",
+            "property list uchar int vertex_indices", "end_header"]
+    body = [f"{x:.7g} {y:.7g} {z:.7g}" for x, y, z in v] + [f"3 {a} {b} {c}" for a, b, c in f]
+    path.write_text("\n".join(head + body) + "\n")
+    return path

@@ -68,7 +68,8 @@ Exit status: 0 ok, 1 failure, 2 bad arguments, 130 interrupted (Ctrl-C, SIGINT),
 
 Up axis: --up wins (x y z -x -y -z). Otherwise the seed's scenes (the demo, OBJ spheres 'b', MTL
 files with the seed's tags such as Roughness or Kl) and any command with -cam keep the seed's Z up;
-any other model is Y up, as OBJ exporters write them. The "framed" line says what was assumed.
+any other model is Y up, as OBJ exporters write them (glTF always; a PLY file by its header or its
+shape, or Z for a scan on a flat base). The "framed" line says what was assumed, and how sure.
 
 Your own model (a standard OBJ, no -cam) is framed: the whole model in view, pinhole, a
 three-quarter view from the front, or face-on for a flat cut-out; --view front|back|left|right|

@@ -57,5 +57,7 @@ def load_gltf(path: str | os.PathLike[str], time: float | None = None) -> ObjDat
 
 def parse_gltf_bytes(data: bytes, path: str = "<input>", time: float | None = None) -> ObjData:
     """Parse glTF JSON or GLB bytes; ``path`` names the file in errors and anchors relative URIs."""
-    return Reader(data, path, time).run()
+    obj = Reader(data, path, time).run()
+    obj.format = "glTF"             # Y up by definition (scene/conventions.up_axis)
+    return obj
 

@@ -123,6 +123,7 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)
     table_rows, obj_rows = _assign_rows(data, library, note, builtin_clay() if clay else builtin_checker())
     textures = _TextureCache(note)
+    table_rows = _normal_maps_named_bump(table_rows, textures, note)
     meshes, sources = [], []             # each mesh and the file it came from (named in its errors)
     for d, rows in zip(data, obj_rows):
         for m in _meshes(d, rows, note, angle):
@@ -140,6 +141,8 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         dropped_degenerate=sum(d.dropped_degenerate for d in data),
         seed_dialect=seed_dialect,
         bare=not libraries_read,
+        formats=tuple(d.format for d in data if d.format),
+        up_hint=next((d.up_hint for d in data if d.up_hint is not None), None),
         cameras=[c for d in data for c in getattr(d.extras, "cameras", ())],
         lights=[c.to_scene() for d in data for c in getattr(d.extras, "lights", ())],
         sky=next((d.extras.sky for d in data if getattr(d.extras, "sky", None) is not None), None),
@@ -162,6 +165,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
 MODEL_READERS = {".obj": "warp_spt.io.obj:load_obj", ".ply": "warp_spt.io.ply:load_ply",
                  ".gltf": "warp_spt.gltf:load_gltf", ".glb": "warp_spt.gltf:load_gltf",
                  **{s: "warp_spt.usd:load_usd" for s in (".usd", ".usda", ".usdc", ".usdz")}}
+# The formats as users name them (ObjData.format, the up-axis line), by the reader's suffix
+FORMAT_NAMES = {".obj": "OBJ", ".ply": "PLY", ".gltf": "glTF", ".glb": "glTF",
+                **{s: "USD" for s in (".usd", ".usda", ".usdc", ".usdz")}}
 _HEADS = ((b"ply\n", ".ply"), (b"ply\r", ".ply"), (b"glTF", ".glb"), (b"#usda", ".usda"), (b"PXR-USDC", ".usdc"))
 
 
@@ -175,7 +181,10 @@ def read_model(path: PathLike, time: float | None = None) -> ObjData:
     kind = _kind_by_content(path) or Path(path).suffix.lower()
     module, function = MODEL_READERS.get(kind, MODEL_READERS[".obj"]).split(":")
     reader = getattr(importlib.import_module(module), function)
-    return reader(path) if time is None else reader(path, time=time)
+    data = reader(path) if time is None else reader(path, time=time)
+    if not data.format:
+        data.format = FORMAT_NAMES.get(kind, "OBJ")
+    return data
 
 
 def _kind_by_content(path: str) -> str | None:
@@ -335,6 +344,26 @@ def _corner_normals(d: ObjData, note: WarnFn) -> np.ndarray | None:
     return out.astype(np.float32)
 
 
+def _normal_maps_named_bump(rows: list[Material], textures: "_TextureCache", note: WarnFn) -> list[Material]:
+    """``rows`` with every bump map that is a tangent-space normal map (:func:`looks_like_normal_map`;
+    Blender's OBJ exporter, and many others, write one under ``map_Bump``) moved to the normal-map
+    slot, its ``-bm`` the strength; said once per file. A seed-kind material has no maps of either."""
+    from warp_spt.scene.material_schema import KIND_SEED
+
+    said: set[str] = set()
+    out = []
+    for m in rows:
+        ref = m.bump_map
+        if m.kind != KIND_SEED and isinstance(ref, TextureRef) and m.normal_map is None and textures.is_normal_map(ref):
+            if ref.path not in said:
+                said.add(ref.path)
+                note(f"{ref.mtl_file}:{ref.line}: the bump map {ref.path} is a tangent-space normal map (RGB, blue "
+                     "near 1, red and green about 0.5), as Blender's exporter writes under map_Bump; read as one")
+            m = replace(m, normal_map=ref, normal=m.bump, bump_map=None, bump=1.0)
+        out.append(m)
+    return out
+
+
 class _TextureCache:
     """Images read once per resolved path, in the order first needed, within the texel budget."""
 
@@ -344,6 +373,7 @@ class _TextureCache:
         self._index: dict[str, int] = {}
         self._note = note
         self.procedural: list = []          # procedural instances (warp_spt.scene.proctex_registry.ProcRef)
+        self._peeked: dict[tuple[str, str], np.ndarray] = {}    # read by is_normal_map, not yet placed
 
     def index(self, ref: TextureRef, decode: str = "raw") -> int:
         """The texture's index, reading it (``decode``: ``scene.model.texture_decode``'s modes) the
@@ -355,11 +385,25 @@ class _TextureCache:
         path = _find_texture(ref) if ref.image is None else f"{ref.mtl_file}#{ref.path}"
         key = (path, decode)
         if key not in self._index:
-            image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h), decode)
+            image = self._peeked.pop(key, None)
+            if image is None:
+                image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h), decode)
             self._index[key] = len(self.images)
             self.images.append(image)
             self.refs.append(ref)
         return self._index[key]
+
+    def is_normal_map(self, ref: TextureRef) -> bool:
+        """Whether the image ``ref`` names looks like a tangent-space normal map; read once (kept for its
+        use as one), without a place in the atlas."""
+        path = _find_texture(ref) if ref.image is None else f"{ref.mtl_file}#{ref.path}"
+        if (path, "normal") in self._peeked:
+            return True
+        image = _read_image(path, ref, self._note, lambda w, h: self._check_atlas(ref, w, h), "linear")
+        if looks_like_normal_map(image):
+            self._peeked[(path, "normal")] = image
+            return True
+        return False
 
     def _check_atlas(self, ref: TextureRef, w: int, h: int) -> None:
         """All textures so far plus a new w x h one (from its header) must fit the texel budget."""
@@ -441,6 +485,19 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
 # in nearly every texel; a height, roughness or colour image given as one (mid-grey: b = 0.5) does not.
 NORMAL_MAP_MIN_BLUE = 0.55
 NORMAL_MAP_MIN_SHARE = 0.95
+
+
+# A bump map that is in fact a normal map (looks_like_normal_map): besides the blue test above, the
+# mean blue at least this, and red and green each within this of 0.5 on average (a normal map's
+# tilts average out; a grey height map has r = g = b, so it cannot pass both).
+NORMAL_MAP_MEAN_BLUE, NORMAL_MAP_RG_OFF = 0.75, 0.1
+
+
+def looks_like_normal_map(rgb: np.ndarray) -> bool:
+    """Whether ``rgb`` (linear values in [0, 1]) is a tangent-space normal map rather than a height map."""
+    r, g, b = (float(rgb[..., k].mean()) for k in range(3))
+    return (float((rgb[..., 2] > NORMAL_MAP_MIN_BLUE).mean()) >= NORMAL_MAP_MIN_SHARE and b >= NORMAL_MAP_MEAN_BLUE
+            and abs(r - 0.5) <= NORMAL_MAP_RG_OFF and abs(g - 0.5) <= NORMAL_MAP_RG_OFF)
 
 
 def _check_normal_map(rgb: np.ndarray, path: str, ref: TextureRef) -> None:

@@ -42,8 +42,11 @@ Every other file is **standard**: its materials are of the physically based kind
   ``Pr``, the Phong exponent gives it: alpha = sqrt(2 / (Ns + 2)) (Walter et al. 2007's Phong-Beckmann
   correspondence, which GGX shares near the peak), roughness = sqrt(alpha); without either, roughness 1.
 * ``Ks``: Blender's "Specular" (0.5 is a 4% reflection at normal incidence): specular colour = 2 Ks,
-  so F0 = ((Ni - 1)/(Ni + 1))^2 x 2 Ks; ``Ks 0`` has no specular reflection. ``Ni``: the IOR (1.5
-  when absent).
+  so F0 = ((Ni - 1)/(Ni + 1))^2 x 2 Ks. ``Ni``: the IOR (1.5 when absent).
+* A pure Lambertian surface (no specular layer at all, not even Schlick's grazing reflection of an
+  F0 of 0): ``illum 0`` or ``1`` (colour on, no highlight), or a material without ``Ks`` (MTL's
+  default Ks is 0) or with ``Ks 0``, unless ``illum`` 3-7 or the PBR extension's ``Pr``/``Pm``
+  ask for a reflection.
 * ``illum 3`` or ``5`` (ray-traced reflection): a metal (metallic 1, base colour Ks if given, else Kd);
   with ``illum`` 3 to 7 the roughness is 0 unless ``Pr`` or ``Ns`` say otherwise.
 * ``d a`` / ``Tr t`` (= ``d 1-t``): transmission 1 - d (glass, tinted by ``Tf`` where given);
@@ -209,6 +212,8 @@ class _Draft:
                       metallic=p.get("pm", 0.0), ior=m.ior if self.pbr.get("ni") else PBR_DEFAULTS["ior"])
         if self.ks is not None:
             fields["specular_color"] = tuple(min(2.0 * c, 1000.0) for c in self.ks)
+        if self._lambertian():
+            fields["specular"] = 0.0
         if self.illum in (3, 5) and "pm" not in p:
             fields["metallic"] = 1.0
             if self.ks is not None:
@@ -225,6 +230,15 @@ class _Draft:
             if key in self.pbr:
                 fields[key] = self.pbr[key]
         return Material.pbr(**fields)
+
+    def _lambertian(self) -> bool:
+        """A standard material with no specular layer (module docs): ``illum 0`` or ``1`` (colour, no
+        highlight), or no ``Ks`` (or ``Ks 0``) with neither ``illum`` 3-7 (ray-traced reflection or
+        refraction) nor the PBR extension's ``Pr``/``Pm`` (whose dielectrics keep glTF's 4%)."""
+        if self.illum in (0, 1):
+            return True
+        no_ks = self.ks is None or max(self.ks) == 0.0
+        return no_ks and self.illum not in (3, 4, 5, 6, 7) and "pr" not in self.phong and "pm" not in self.phong
 
     def _phong_and_pbr(self) -> dict[str, object]:
         """Roughness (diffuse probability) and fuzz from Ks/Ns or Pm/Pr; see the module docs."""

@@ -98,7 +98,7 @@ def resolve(raw: RawObj, path: str) -> ObjData:
     sphere_mat = _material_at(raw.usemtl, event_index, raw.sphere_line)
     libs = _mtllib_paths(raw.mtllib, path)
     return ObjData(
-        path=path,
+        path=path, format="OBJ",
         positions=raw.positions, texcoords=raw.texcoords, normals=raw.normals,
         faces=faces[keep], face_texcoords=ftex[keep], face_normals=fnrm[keep],
         face_material=face_mat,

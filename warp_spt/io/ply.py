@@ -10,7 +10,9 @@ What is read:
 * ``tristrips``: a list property ``vertex_indices`` of strips, ``-1`` restarting a strip; triangle k
   of a strip is (i_k, i_k+1, i_k+2), with the first two swapped for odd k so that every triangle has
   the strip's winding. Triangles that repeat an index join strips and are dropped silently;
-* any other element, and any other property, is skipped by its declared size.
+* any other element, and any other property, is skipped by its declared size;
+* ``comment`` and ``obj_info`` lines: what they say about the up axis (:func:`up_hint`, into
+  ``ObjData.up_hint``; PLY has no convention of its own, scene/conventions.py).
 
 Vertex colours become a baked texture (:func:`vertex_colour_texture`): each triangle owns a 2x2 texel
 block whose three used texels hold its corners' colours at their centres, so bilinear filtering
@@ -28,6 +30,7 @@ what was expected.
 from __future__ import annotations
 
 import os
+import re
 import struct
 from dataclasses import dataclass, field
 
@@ -88,7 +91,36 @@ def parse_ply_bytes(data: bytes, path: str = "<input>") -> ObjData:
         values = _read_ascii(data, body_start, header_lines, elements, path)
     else:
         values = _read_binary(data, body_start, fmt, elements, path)
-    return _assemble(values, elements, path)
+    obj = _assemble(values, elements, path)
+    obj.format, obj.up_hint = "PLY", up_hint(data[:body_start])
+    return obj
+
+
+# What a PLY header's comments may say about the up axis (PLY itself has no convention): an axis
+# named with the word "up" ("comment up z", "comment up_axis: Z", "comment Z-up"), else the writer:
+# Blender's exporters write Z up (their default axes: -Y forward, Z up); the Stanford scanning
+# repository's zippered scans ("zipper output") are Y up. Other writers (MeshLab's "VCGLIB
+# generated", scanners) say nothing about it.
+_UP_WORDS = (re.compile(rb"\bup(?:[ _-]?axis)?\s*[:=]?\s*\+?([xyz])\b", re.I),
+             re.compile(rb"\b\+?([xyz])[ _-]up\b", re.I))
+_WRITERS = ((re.compile(rb"\bblender\b", re.I), "z", "written by Blender, which exports Z up"),
+            (re.compile(rb"\bzipper\b", re.I), "y", "a Stanford zippered scan, which are Y up"))
+
+
+def up_hint(header: bytes) -> tuple[str, str] | None:
+    """(axis, what says so) from a PLY header's ``comment``/``obj_info`` lines, or None when they
+    say nothing about the up axis (see _UP_WORDS, _WRITERS)."""
+    lines = header.replace(b"\r", b"\n").split(b"\n")
+    comments = [(raw.split(None, 1) + [b""])[1] for raw in lines if raw.split()[:1] in ([b"comment"], [b"obj_info"])]
+    for text in comments:
+        for pattern in _UP_WORDS:
+            m = pattern.search(text)
+            if m:
+                return m.group(1).decode().lower(), f"its header says {text.decode('latin-1').strip()[:60]!r}"
+    for pattern, axis, why in _WRITERS:
+        if any(pattern.search(text) for text in comments):
+            return axis, why
+    return None
 
 
 # ----------------------------------------------------------------------------------------------- header

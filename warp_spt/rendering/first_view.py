@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from warp_spt.runtime import kernel_cache
-from warp_spt.scene.camera import AXES, Camera, frame_camera, looks_z_up
+from warp_spt.scene.camera import AXES, Camera, frame_camera, looks_z_up, stands_up
 from warp_spt.scene.conventions import STUDIO_LIGHTS, UpChoice, emits_light, studio_look, up_axis
 from warp_spt.scene.model import Scene
 from warp_spt.scene.recentre import describe_extent, format_point, recentre
@@ -332,8 +332,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     local = None if bounds is None else np.asarray(bounds, np.float64) - offset
     if offset.any():
         note(f"recentred the scene by {format_point(-offset)} for precision (far from the origin)")
-    z_scan = not (up or demo or scene.seed_dialect or explicit) and looks_z_up(scene)
-    choice = up_axis(up, demo=demo, seed_dialect=scene.seed_dialect, cam_given=explicit, z_scan=z_scan)
+    choice = choose_up(scene, up, demo=demo, cam_given=explicit)
     cam = cam.with_(up=AXES[choice.axis])
     if demo and quiet_demo:
         return FirstView(scene, cam, sky, TONEMAP, offset, choice, False, False, tuple(notes))
@@ -385,6 +384,19 @@ def _lights_line(lights, page: bool, env: bool, bare: bool) -> str:
     fill = "" if env else " and a dim grey fill sky"
     return (f"studio look with your lights: no light of its own; a ground{fill} under {key} as the key, "
             f"no studio key light{'' if bare else ', with its own materials'} (--no-studio to turn off)")
+
+
+def choose_up(scene: Scene, up: str | None = None, *, demo: bool = False, cam_given: bool = False) -> UpChoice:
+    """:func:`warp_spt.scene.conventions.up_axis` for ``scene``, its geometric cues computed only
+    where the rule reads them (none for glTF and USD files, whose axis their format fixes)."""
+    formats = tuple(getattr(scene, "formats", ()))
+    decided = up or demo or scene.seed_dialect or cam_given or (formats and set(formats) <= {"glTF", "USD"})
+    hint = getattr(scene, "up_hint", None)
+    hinted = "PLY" in formats and hint is not None         # a PLY header that states it: no shape read
+    z_scan = not (decided or hinted) and looks_z_up(scene)
+    stands = None if decided or hinted or z_scan else stands_up(scene, strict="PLY" not in formats)
+    return up_axis(up, demo=demo, seed_dialect=scene.seed_dialect, cam_given=cam_given, z_scan=z_scan,
+                   formats=formats, hint=hint, stands=stands)
 
 
 def _why_frame(frame: bool, view, scene: Scene, up: str) -> str:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from warp_spt.runtime import kernel_cache
 from warp_spt.samplers import independent, sobol, sobol_affine
+from warp_spt.scene.families import DEFAULT_SAMPLER
 from warp_spt.samplers.base import Sampler, SamplerState, batch_lanes, detach_requests, sampler_state
 
 __all__ = ["SAMPLERS", "DEFAULT_SAMPLER", "Sampler", "SamplerState", "batch_lanes", "check_sampler", "detach_requests",
@@ -34,8 +35,9 @@ SAMPLERS = {
 # than nee + independent at 256^2 and 512^2 (docs/performance.md, Light transport). sobol-affine: the
 # same points, a scramble with Owen's pair law (so Owen's variance) at 9 hashes a 2-D request instead
 # of 15: RMSE over sobol's 0.94-1.02 on three scenes (within 1.6 standard errors, bench_scramble.py),
-# whole renders 1.10-1.19x faster (bench_sampler.py --render).
-DEFAULT_SAMPLER = "sobol-affine"
+# whole renders 1.10-1.19x faster (bench_sampler.py --render). The name lives in scene/families.py,
+# where the viewer reads it without Warp: one default for every front end.
+assert DEFAULT_SAMPLER in SAMPLERS
 
 
 def check_sampler(name: str) -> None:

@@ -335,6 +335,19 @@ BASE_RATIO = 3.0
 # Up-axis cue of a scan: its faces in the lowest XY plane cover at least this share of the bounds'
 # XY rectangle (a bust's cut base), it has no such base in XZ, and it is at least this tall for its width.
 SCAN_BASE_SHARE, SCAN_MIN_HEIGHT = 0.05, 0.5
+# A scan's cut base is rarely exactly one plane of the file's axes: its faces count when they lie
+# within BASE_BAND of the scene's size above the lowest point and face within BASE_TILT degrees of
+# the axis (a base tilted by 1-2 degrees, a few stray points below it).
+BASE_BAND, BASE_TILT = 0.02, 10.0
+# A ground under everything (the base covers this share of the rectangle) is a Z-up cue at this
+# height for its width too: a room or a set on a floor, not a relief (whose depth is a few percent).
+GROUND_SHARE, GROUND_MIN_HEIGHT = 0.9, 0.25
+# Standing (PLY files, which have no up convention): the points within SUPPORT_BAND of the height
+# above the lowest one are what the model stands on; their convex hull, on a SUPPORT_GRID-row
+# raster, must hold the surface's centroid, and one axis's hull must be SUPPORT_RATIO times the other's.
+SUPPORT_BAND, SUPPORT_GRID, SUPPORT_RATIO, SUPPORT_MIN_SHARE = 0.02, 64, 2.0, 0.02
+# ... and be at least this tall for its width along it (a relief lying on its back stands too)
+STAND_MIN_HEIGHT = 0.25
 
 
 def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> Iterator[tuple]:
@@ -361,9 +374,11 @@ def _bottom_faces(scene: Scene, axis: np.ndarray, tol: float = 1e-4) -> Iterator
             yield world, tri, mask
 
 
-def base_share(scene: Scene, up: str | Sequence[float]) -> float:
+def base_share(scene: Scene, up: str | Sequence[float], tolerant: bool = False) -> float:
     """The area of the faces lying in the scene's lowest plane along ``up`` over the area of the
-    bounds' rectangle across ``up`` (0: no flat base; a ground under everything: about 1)."""
+    bounds' rectangle across ``up`` (0: no flat base; a ground under everything: about 1).
+    ``tolerant``: the faces within BASE_BAND of it facing within BASE_TILT of ``up``, by their
+    footprint across it (a scan's cut base, slightly tilted or rough)."""
     u = up_vector(up)
     b = scene.bounds
     across = [k for k in range(3) if abs(u[k]) < 0.5]
@@ -371,23 +386,135 @@ def base_share(scene: Scene, up: str | Sequence[float]) -> float:
     if not rect > 0.0:
         return 0.0
     area = 0.0
-    for world, tri, mask in _bottom_faces(scene, u):
+    for world, tri, mask in _bottom_faces(scene, u, BASE_BAND if tolerant else 1e-4):
         if mask.any():
             rows, faces = np.nonzero(mask)
             t = world[rows[:, None], tri[faces]]                  # (N, 3, 3): the base's triangles
-            area += 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            if tolerant:
+                along = np.abs(n @ u)
+                area += 0.5 * float(along[along >= math.cos(math.radians(BASE_TILT)) * np.linalg.norm(n, axis=1)].sum())
+            else:
+                area += 0.5 * float(np.linalg.norm(n, axis=1).sum())
     return area / rect
 
 
 def looks_z_up(scene: Scene) -> bool:
     """A model written Z up: it stands on a flat base in the XY plane (its lowest faces along Z cover
-    SCAN_BASE_SHARE of its XY rectangle), has none in XZ (lowest along Y), and is either at least
-    SCAN_MIN_HEIGHT times as tall (Z) as it is wide (a scanned bust on its cut base) or the base is a
-    ground much wider than what stands on it; so a flat relief whose back faces -Z is not taken for one."""
-    if len(scene.spheres) or not (base_share(scene, "z") >= SCAN_BASE_SHARE > base_share(scene, "y")):
+    SCAN_BASE_SHARE of its XY rectangle, within BASE_BAND and BASE_TILT: ``base_share(tolerant=True)``),
+    has none in XZ (lowest along Y), and is either at least SCAN_MIN_HEIGHT times as tall (Z) as it is
+    wide (a scanned bust on its cut base), or the base is a ground much wider than what stands on it,
+    or a ground under everything (GROUND_SHARE) at least GROUND_MIN_HEIGHT as tall as wide (a set on
+    a floor); so a flat relief whose back faces -Z is not taken for one."""
+    if len(scene.spheres):
+        return False
+    z = base_share(scene, "z", tolerant=True)
+    if not z >= SCAN_BASE_SHARE > base_share(scene, "y", tolerant=True):
         return False
     ext = np.ptp(scene.bounds, axis=0)
-    return bool(ext[2] >= SCAN_MIN_HEIGHT * max(ext[0], ext[1])) or subject_bounds(scene, "z") is not None
+    wide = max(ext[0], ext[1])
+    return bool(ext[2] >= SCAN_MIN_HEIGHT * wide or (z >= GROUND_SHARE and ext[2] >= GROUND_MIN_HEIGHT * wide)) \
+        or subject_bounds(scene, "z") is not None
+
+
+def _mass(scene: Scene) -> tuple[np.ndarray, np.ndarray] | None:
+    """(every vertex (V, 3) float64, the surface's area centroid (3,)) of a scene of plain meshes, or
+    None (instances, spheres, no area). The centroid is of at most 2^16 triangles, every k-th: a
+    scan of millions costs what 65,536 triangles do."""
+    if len(scene.spheres) or scene.instanced or not scene.meshes:
+        return None
+    pts = np.concatenate([np.asarray(m.positions, np.float64) for m in scene.meshes])
+    total = sum(len(m.indices) for m in scene.meshes)
+    step = max(1, -(-total // (1 << 16)))
+    tris = [np.asarray(m.positions, np.float64)[m.indices[::step]] for m in scene.meshes if len(m.indices)]
+    if not tris:
+        return None
+    t = np.concatenate(tris)
+    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    if not area.sum() > 0:
+        return None
+    return pts, (t.mean(1) * area[:, None]).sum(0) / area.sum()
+
+
+def support(scene: Scene, up: str | Sequence[float], mass=None) -> tuple[float, bool]:
+    """What the scene stands on with ``up`` up: (the convex hull of its points within SUPPORT_BAND of
+    its height above the lowest, over the bounds' rectangle across ``up``; whether that hull holds the
+    surface's area centroid, i.e. it stands without tipping over). (0, False) for instanced meshes,
+    spheres or no area. The hull is of the points' extremes per row of a SUPPORT_GRID-row raster, so
+    a scan of millions of points costs a few array passes. ``mass``: :func:`_mass`'s, if known."""
+    u = up_vector(up)
+    mass = _mass(scene) if mass is None else mass
+    across = [k for k in range(3) if abs(u[k]) < 0.5]
+    if mass is None or len(across) != 2:
+        return 0.0, False
+    pts, centre = mass
+    lo, hi = pts.min(0), pts.max(0)
+    centroid = (centre - lo)[across]              # coordinates from the bounds' corner: no cancellation far off
+    rect = float(np.prod((hi - lo)[across]))
+    if not rect > 0:
+        return 0.0, False
+    h = pts @ u
+    foot = (pts[h <= h.min() + SUPPORT_BAND * (h.max() - h.min())] - lo)[:, across]
+    a0, a1 = 0.0, hi[across[0]] - lo[across[0]]
+    row = np.minimum(((foot[:, 0] - a0) / max(a1 - a0, 1e-300) * SUPPORT_GRID).astype(np.int64), SUPPORT_GRID - 1)
+    first, last = np.full(SUPPORT_GRID, np.inf), np.full(SUPPORT_GRID, -np.inf)
+    np.minimum.at(first, row, foot[:, 1])
+    np.maximum.at(last, row, foot[:, 1])
+    xmin, xmax = np.full(SUPPORT_GRID, np.inf), np.full(SUPPORT_GRID, -np.inf)
+    np.minimum.at(xmin, row, foot[:, 0])
+    np.maximum.at(xmax, row, foot[:, 0])
+    used = np.isfinite(first)
+    corners = np.concatenate([np.column_stack([xmin[used], first[used]]), np.column_stack([xmax[used], last[used]]),
+                              np.column_stack([xmin[used], last[used]]), np.column_stack([xmax[used], first[used]])])
+    hull = _convex_hull(corners)
+    if len(hull) < 3:
+        return 0.0, False
+    x, y = hull[:, 0], hull[:, 1]
+    hull_area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    edges = np.roll(hull, -1, axis=0) - hull
+    inside = bool(np.all(edges[:, 0] * (centroid[1] - y) - edges[:, 1] * (centroid[0] - x) >= 0))
+    return hull_area / rect, inside
+
+
+def _convex_hull(p: np.ndarray) -> np.ndarray:
+    """The convex hull of 2-D points, counter-clockwise (Andrew's monotone chain)."""
+    p = np.unique(p, axis=0)
+    if len(p) < 3:
+        return p
+
+    def chain(points):
+        out: list = []
+        for q in points:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (q[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (q[0] - out[-2][0])) <= 0:
+                out.pop()
+            out.append(q)
+        return out
+
+    lower, upper = chain(p), chain(p[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def stands_up(scene: Scene, strict: bool = False) -> str | None:
+    """The axis, ``"z"`` or ``"y"``, the scene clearly stands on (:func:`support`): it stands without
+    tipping along that axis, is at least STAND_MIN_HEIGHT as tall as wide along it, its support
+    is at least SUPPORT_MIN_SHARE of the rectangle and
+    SUPPORT_RATIO times the other axis's (or the other tips over); None when the shape does not tell
+    (the rule of PLY files, which have no up convention: a horse on its hooves, Z up). ``strict`` (a
+    format whose convention is Y up, OBJ): ``"z"`` only when it also tips over with Y up (a bust
+    whose cut base is open, a horse), else None."""
+    mass = _mass(scene)
+    (zs, zok), (ys, yok) = support(scene, "z", mass), support(scene, "y", mass)
+    ext = np.ptp(scene.bounds, axis=0)
+    zok = zok and ext[2] >= STAND_MIN_HEIGHT * max(ext[0], ext[1])
+    if strict:
+        return "z" if zok and not yok and zs >= max(SUPPORT_MIN_SHARE, SUPPORT_RATIO * ys) else None
+    yok = yok and ext[1] >= STAND_MIN_HEIGHT * max(ext[0], ext[2])
+    if zok and zs >= SUPPORT_MIN_SHARE and (not yok or zs >= SUPPORT_RATIO * ys):
+        return "z"
+    if yok and ys >= SUPPORT_MIN_SHARE and (not zok or ys >= SUPPORT_RATIO * zs):
+        return "y"
+    return None
 
 
 def subject_bounds(scene: Scene, up: str | Sequence[float]) -> np.ndarray | None:

@@ -2,9 +2,9 @@
 
 Two kinds of scene reach ``warp-spt``: the seed's own (its demo, its OBJ spheres ``b`` and MTL tags,
 usually with an explicit ``-cam``), which must render exactly as the seed renders them, and users'
-models exported by other tools, which are Y-up (the convention of OBJ exporters and glTF) and
-usually come without lights (an exporter's MTL has colours only). :func:`up_axis` and
-:func:`studio_look` are the rules, written
+models exported by other tools, which are Y-up (the convention of OBJ exporters, and glTF's by
+definition; a PLY file has none, so its header and shape decide) and usually come without lights
+(an exporter's MTL has colours only). :func:`up_axis` and :func:`studio_look` are the rules, written
 once; ``warp-spt``, its animations and ``warp-spt view`` all apply them. Pure functions of what the
 loader recorded (:attr:`Scene.seed_dialect`), of the scene's lights and of the flags given.
 """
@@ -18,27 +18,56 @@ import numpy as np
 SEED_UP, MODEL_UP = "z", "y"
 
 
+# Formats whose up axis is fixed by their specification once read: glTF is Y up by definition, and
+# the USD reader turns a stage's upAxis to Y (usd/stage.py); --up is never suggested for them.
+_DEFINITE = {"glTF": "glTF is Y up by definition", "USD": "a USD stage, turned Y up from its upAxis when read"}
+
+
 @dataclass(frozen=True)
 class UpChoice:
     """The up axis a command uses and why, for its "framed" line."""
 
     axis: str
     reason: str          # "" when the user gave --up
+    definite: bool = False   # the format fixes it (glTF): no "--up ... to change"
 
     @property
     def note(self) -> str:
         """E.g. ``Y up (a standard OBJ model; --up z to change)``; empty for an explicit --up."""
         if not self.reason:
             return ""
+        if self.definite:
+            return f"{self.axis.upper()} up ({self.reason})"
         other = SEED_UP if self.axis == MODEL_UP else MODEL_UP
         return f"{self.axis.upper()} up ({self.reason}; --up {other} to change)"
 
 
-def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: bool, z_scan: bool = False) -> UpChoice:
+def describe_formats(formats) -> str:
+    """The scene's model files in the words of the up-axis line: "a standard OBJ model" (also a
+    scene built in code), "a PLY model", "OBJ and PLY models"."""
+    kinds = list(dict.fromkeys(formats))
+    if not kinds or kinds == ["OBJ"]:
+        return "a standard OBJ model"
+    if len(kinds) == 1:
+        return f"a {kinds[0]} model"
+    return f"{' and '.join(kinds)} models"
+
+
+def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: bool, z_scan: bool = False,
+            formats=(), hint: tuple[str, str] | None = None, stands: str | None = None) -> UpChoice:
     """The world's up axis: ``--up`` always wins; the built-in demo, a scene in the seed's dialect
-    or an explicit ``-cam`` (the seed's camera convention) keep the seed's Z; so does a scan that
-    stands on a flat base in the XY plane (``z_scan``: :func:`warp_spt.scene.camera.looks_z_up`);
-    any other model (a standard OBJ) is Y up, as OBJ exporters and glTF write them."""
+    or an explicit ``-cam`` (the seed's camera convention) keep the seed's Z. Otherwise by the
+    model files' ``formats`` (:attr:`Scene.formats`):
+
+    * glTF and USD only: Y, by their specifications (the USD reader has applied the stage's axis);
+    * a PLY file (no convention of its own): the axis its header states (``hint``:
+      :func:`warp_spt.io.ply.up_hint`, "sure"), else Z when it stands on a flat base in the XY
+      plane (``z_scan``: :func:`warp_spt.scene.camera.looks_z_up`) and otherwise the axis it stands
+      on (``stands``: :func:`warp_spt.scene.camera.stands_up`; both "likely"), else Y ("a guess");
+    * anything else (a standard OBJ): Z for a scan on a flat base in the XY plane (``z_scan``) or a
+      model that stands only with Z up (``stands``, :func:`~warp_spt.scene.camera.stands_up`'s strict
+      rule: a bust with an open cut base, a horse; "likely"), else Y, as OBJ exporters write them.
+    """
     if given:
         return UpChoice(given, "")
     if demo:
@@ -47,9 +76,24 @@ def up_axis(given: str | None, *, demo: bool, seed_dialect: bool, cam_given: boo
         return UpChoice(SEED_UP, "the seed's OBJ/MTL dialect")
     if cam_given:
         return UpChoice(SEED_UP, "-cam uses the seed's Z-up convention")
+    kinds = list(dict.fromkeys(formats))
+    if kinds and all(k in _DEFINITE for k in kinds):
+        return UpChoice(MODEL_UP, "; ".join(_DEFINITE[k] for k in kinds), definite=True)
+    what = describe_formats(kinds)
+    if "PLY" not in kinds:
+        if z_scan:
+            return UpChoice(SEED_UP, "a scan or a set standing on a flat base or floor in the XY plane")
+        if stands == SEED_UP:
+            return UpChoice(SEED_UP, f"{what} that stands on its lowest points only with Z up (Y up, it would "
+                                     "tip over); likely")
+        return UpChoice(MODEL_UP, what)
+    if hint is not None:
+        return UpChoice(hint[0], f"{what}: {hint[1]}; sure")
     if z_scan:
-        return UpChoice(SEED_UP, "a scan standing on a flat base in the XY plane")
-    return UpChoice(MODEL_UP, "a standard OBJ model")
+        return UpChoice(SEED_UP, f"{what} standing on a flat base or floor in the XY plane; likely")
+    if stands is not None:
+        return UpChoice(stands, f"{what} that stands on its lowest points with {stands.upper()} up; likely")
+    return UpChoice(MODEL_UP, f"{what}: PLY has no up convention and neither its header nor its shape tells; a guess")
 
 
 # The studio's two forms (studio_look): with its own key light, or lit by the user's lights.

@@ -149,6 +149,11 @@ class ObjData:
     materials: dict[str, Material] = field(default_factory=dict)
     extras: object = None        # what else the format holds (glTF: gltf.GltfExtras, cameras and lights)
     warnings: list[str] = field(default_factory=list)   # the reader's notes; the loader passes them on
+    # the file's format as users name it ("OBJ", "PLY", "glTF", "USD"; set by its reader, or by
+    # io.loader.read_model), and an up axis the file itself states with what states it, e.g.
+    # ("z", "written by Blender") from a PLY header (scene.conventions.up_axis)
+    format: str = ""
+    up_hint: tuple[str, str] | None = None
 
 
 @dataclass
@@ -329,6 +334,10 @@ class Scene:
     # default material). Scenes built in code count as the seed's and not bare.
     seed_dialect: bool = True
     bare: bool = False
+    # the model files' formats in file order (ObjData.format; empty for a scene built in code) and the
+    # first up axis a file states (ObjData.up_hint): what the up-axis rule reads besides the geometry
+    formats: tuple[str, ...] = ()
+    up_hint: tuple[str, str] | None = None
     # cameras and lights the model files define (glTF: gltf.GltfCamera, GltfLight), in file order
     cameras: list = field(default_factory=list)
     lights: list = field(default_factory=list)

@@ -13,6 +13,8 @@ import shlex
 from dataclasses import dataclass
 from typing import Sequence
 
+from warp_spt.scene.families import DEFAULT_SAMPLER
+
 SKY_FLAGS = {"blue": ["-sky", "0"], "gradient": ["-sky", "1"], "pink": ["-sky", "2"]}
 
 
@@ -34,7 +36,7 @@ class CommandSpec:
     sky: str | None = "blue"
     sky_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     integrator: str = "nee"
-    sampler: str = "sobol"
+    sampler: str = DEFAULT_SAMPLER
     tonemap: str = "seed"
     out: str = "view.png"
     exposure: float = 0.0       # stops, for a tone-mapped output

@@ -35,6 +35,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from warp_spt.rendering.schedule import batch_seed
+from warp_spt.scene.families import DEFAULT_SAMPLER
 from warp_spt.scene.limits import MAX_DEPTH, MAX_RADIANCE, MAX_SPP, MAX_VIEW_PIXELS
 
 from . import display, lighting, messages, navigation
@@ -67,7 +68,7 @@ class ViewSettings:
     width: int = 384
     height: int = 288
     integrator: str = "nee"
-    sampler: str = "sobol"
+    sampler: str = DEFAULT_SAMPLER
     max_depth: int = 6
     sky: str = "blue"
     sky_color: tuple = (0.5, 0.5, 0.5)

@@ -257,3 +257,26 @@ def test_raw_colour_space_is_not_decoded(tmp_path):
     path = _textured_quad(tmp_path, "grey.png", colour_space="raw")
     s = load_scene([path], warn=lambda m: None)
     assert s.textures[-1].mean() == pytest.approx(128 / 255, abs=1e-3)     # sRGB would give 0.216
+
+
+def test_a_stretched_sphere_and_a_cube_become_polygons(tmp_path):
+    """A sphere under a non-uniform scale cannot be the renderer's exact sphere: its polygons, whose
+    extent is the radius times the scale (to the polygons' 0.22% sag at the equator's edges); a
+    Cube of size 2 is the box from -1 to 1."""
+    stage, path = _stage(tmp_path)
+    ball = UsdGeom.Sphere.Define(stage, "/egg")
+    ball.CreateRadiusAttr(0.5)
+    ball.AddScaleOp().Set(Gf.Vec3f(2.0, 1.0, 1.0))
+    box = UsdGeom.Cube.Define(stage, "/box")
+    box.AddTranslateOp().Set(Gf.Vec3d(5.0, 0.0, 0.0))
+    stage.Save()
+    d = read_model(path)
+    assert len(d.spheres) == 0
+    egg = d.positions[d.positions[:, 0] < 2.5]
+    assert np.allclose(egg.max(0), [1.0, 0.5, 0.5], rtol=3e-3) and np.allclose(egg.min(0), [-1.0, -0.5, -0.5], rtol=3e-3)
+    cube = d.positions[d.positions[:, 0] > 2.5]
+    assert np.allclose(cube.min(0), [4, -1, -1]) and np.allclose(cube.max(0), [6, 1, 1])
+    p = d.positions[d.faces]
+    outward = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
+                        p.mean(1) - np.where(p.mean(1)[:, :1] > 2.5, [5.0, 0, 0], 0.0))
+    assert (outward > 0).all()                       # every face counter-clockwise seen from outside

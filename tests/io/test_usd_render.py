@@ -104,3 +104,74 @@ def test_a_stage_renders_as_its_obj_twin(tmp_path):
     a, b = _render(usd), _render(twin)
     assert a.shape == (30, 40, 3) and a.max() > 0.05              # lit: not an empty frame
     assert np.array_equal(a, b), f"largest difference {np.abs(a - b).max():.3g}"
+
+
+def _warp_stage(path: str) -> None:
+    """A stage written by Warp's UsdRenderer as a simulation writes one: Z up, 30 frames a second, a
+    ground, a ball that moves from z = 1 to 2 over one second, a box, a mesh, two particles and a capsule."""
+    render = pytest.importorskip("warp.render")
+    if not hasattr(render, "UsdRenderer"):
+        pytest.skip("this warp-lang has no warp.render.UsdRenderer")
+    r = render.UsdRenderer(path, up_axis="Z", fps=30)
+    still = (0.0, 0.0, 0.0, 1.0)
+    r.begin_frame(0.0)
+    r.render_ground(size=5.0)
+    r.render_sphere("ball", pos=(0.0, 0.0, 1.0), rot=still, radius=0.5, color=(0.9, 0.1, 0.1))
+    r.render_box("crate", pos=(1.5, 0.0, 0.25), rot=still, extents=(0.25, 0.5, 0.25), color=(0.1, 0.2, 0.9))
+    r.render_mesh("tri", points=np.array([[0, 2, 0], [1, 2, 0], [0, 2, 1]], np.float32), indices=np.array([0, 1, 2]),
+                  colors=(0.2, 0.8, 0.2))
+    r.render_points("dots", points=np.array([[-1, -1, 0.1], [-1.5, -1, 0.1]], np.float32), radius=0.1,
+                    colors=(0.9, 0.9, 0.1))
+    r.render_capsule("cap", pos=(0.0, 0.0, 3.0), rot=still, radius=0.1, half_height=0.3)
+    r.end_frame()
+    r.begin_frame(1.0)
+    r.render_sphere("ball", pos=(0.0, 0.0, 2.0), rot=still, radius=0.5, color=(0.9, 0.1, 0.1))
+    r.end_frame()
+    r.save()
+
+
+def test_a_stage_written_by_warps_usd_renderer(tmp_path):
+    """What warp.render.UsdRenderer writes is read where it matters: spheres (exact ones, or as polygons
+    under a PointInstancer), cubes scaled to boxes, meshes, displayColor as the base colour, its dome
+    and distant lights with their colour temperature, its frames; capsules are named in a warning.
+    The expected values are the writer's inputs, turned from Z up to Y up: (x, y, z) -> (x, z, -y)."""
+    path = str(tmp_path / "sim.usda")
+    _warp_stage(path)
+    from warp_spt.io.loader import read_model
+    from warp_spt.usd.shapes import SPHERE_SEGMENTS
+
+    d = read_model(path)
+    assert any("/root/cap: Capsule" in w for w in d.warnings)
+    assert np.allclose(d.spheres, [[0.0, 1.0, 0.0, 0.5]])
+    assert np.allclose(read_model(path, time=1.0).spheres, [[0.0, 2.0, 0.0, 0.5]])
+    assert d.extras.time_range == pytest.approx((0.0, 1.0))
+    (dots, placements), = d.extras.placed
+    assert np.allclose(placements[:, :3, 3], [[-1.0, 0.1, 1.0], [-1.5, 0.1, 1.0]])
+    assert np.allclose(placements[:, :3, :3], 0.1 * np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]))
+    assert np.allclose(np.linalg.norm(dots.positions, axis=1), 1.0)            # the unit sphere's polygons
+    assert len(dots.faces) == 2 * SPHERE_SEGMENTS * (SPHERE_SEGMENTS // 2 - 1)
+
+    s = load_scene([path], warn=lambda m: None)
+    assert not s.seed_dialect                  # the stage's spheres do not make it an OBJ of the seed's
+    corners = {}                                # base colour -> the corners of its triangles
+    for m in s.meshes:
+        for row in np.unique(m.face_material):
+            key = tuple(round(float(c), 3) for c in s.materials.base_color[row])
+            corners.setdefault(key, []).append(m.positions[m.indices[m.face_material == row]].reshape(-1, 3))
+    corners = {k: np.concatenate(v) for k, v in corners.items()}
+    assert set(corners) >= {(0.1, 0.2, 0.9), (0.2, 0.8, 0.2), (0.9, 0.9, 0.1)}
+    assert np.allclose(s.materials.base_color[s.sphere_material[0]], (0.9, 0.1, 0.1))
+    crate = corners[(0.1, 0.2, 0.9)]
+    assert np.allclose(crate.min(0), [1.25, 0.0, -0.5]) and np.allclose(crate.max(0), [1.75, 0.5, 0.5])
+    assert np.allclose(np.unique(corners[(0.2, 0.8, 0.2)], axis=0), [[0, 0, -2], [0, 1, -2], [1, 0, -2]])
+    # the dome (6150 K) and the sun (7250 K) tinted by UsdLux's blackbody: warm and cool, exposure 9 and 10
+    sun, = s.lights
+    assert s.sky.color[0] > s.sky.color[2] and sun.color[2] > sun.color[0]
+    assert sum(s.sky.color) / 3 == pytest.approx(2.0 ** 9, rel=0.1)
+    assert sun.direction[1] > 0                                                 # above the ground
+
+    camera = Camera.look_at((0.0, 1.0, 4.0), (0.0, 1.0, 0.0), up="y", fov=30.0)
+    image = render_scene(s, camera, RenderSettings(width=24, height=24, spp=4, max_depth=3, threads=1)).image
+    assert np.isfinite(image).all()
+    r, g, b = image[12, 12]
+    assert r > 3 * g and r > 3 * b                       # the ball in the middle, in its displayColor

@@ -57,6 +57,18 @@ class Materials:
             names.append(name)
         return self._row[key]
 
+    def display(self, colour: tuple[float, float, float], names: list[str]) -> int:
+        """The row of an unbound prim's displayColor: UsdPreviewSurface's defaults in that colour (one
+        row per colour)."""
+        colour = tuple(min(max(c, 0.0), 1.0) for c in colour)
+        key = "displayColor {:.6g} {:.6g} {:.6g}".format(*colour)
+        if key not in self._row:
+            name = f"{Path(self.path).name}: {key}"
+            self.materials[name] = pbr_material(name, self.path, dict(base_color=colour, metallic=0.0, roughness=0.5))
+            self._row[key] = len(names)
+            names.append(name)
+        return self._row[key]
+
     def emitter(self, name: str, radiance: tuple[float, float, float], names: list[str]) -> int:
         """A row for a UsdLux area light's surface: black, emitting ``radiance``."""
         names.append(name)

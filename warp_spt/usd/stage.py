@@ -18,11 +18,20 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import CHECKER_NAME, ObjData
 from warp_spt.scene.parts import ModelExtras, Part, gather
 from warp_spt.usd import lights_cameras as lc
+from warp_spt.usd import shapes
 from warp_spt.usd.materials import Materials
 from warp_spt.usd.meshes import corner_values, triangulate
 
 # the prim types that are read; any other typed prim that is not a grouping warns once
 _GROUPS = {"Xform", "Scope", "", "Material", "Shader", "NodeGraph", "GeomSubset", "Skeleton", "SkelRoot"}
+
+
+def _uniform_scale(m: np.ndarray) -> float | None:
+    """s where ``m`` is s times a rotation (a sphere stays a sphere), else None."""
+    s = abs(np.linalg.det(m)) ** (1.0 / 3.0)
+    if not s > 0 or not np.allclose(m.T @ m, np.eye(3) * s * s, rtol=0.0, atol=1e-9 * s * s):
+        return None
+    return float(s)
 
 
 def _matrix(m) -> np.ndarray:
@@ -59,6 +68,7 @@ class Reader:
         self.spheres: list[tuple] = []
         self.extras = ModelExtras(time_range=self.time_range)
         self.placed: dict[str, tuple[list[Part], list[np.ndarray]]] = {}
+        self.instancer_row = 0          # the row of the PointInstancer's displayColor while its prototypes are read
 
     def warn(self, prim: str, message: str) -> None:
         if (prim, message) not in self._warned:
@@ -110,6 +120,8 @@ class Reader:
                 continue
             if child.IsA(UsdGeom.Mesh):
                 self._mesh(child, proto_root, placements)
+            elif child.IsA(UsdGeom.Sphere) or child.IsA(UsdGeom.Cube):
+                self._shape(child, proto_root, placements)
             elif child.IsA(UsdGeom.Camera):
                 if placements is None:
                     self.extras.cameras.append(lc.camera(child, self.world(child), len(self.extras.cameras),
@@ -143,6 +155,9 @@ class Reader:
         if len(indices) and (indices.min() < 0 or indices.max() >= len(targets)):
             raise SceneError(self.path, 0, f"{where}: protoIndices names prototype {int(indices.max())}, but it has "
                              f"{len(targets)} prototypes")
+        outer_row = self.instancer_row
+        own = self._display_row(prim)
+        self.instancer_row = outer_row if own is None else own
         base = self.world(prim) if placements is None else None
         outer = [base] if base is not None else [p @ self._relative(prim, proto_root) for p in placements]
         for k, target in enumerate(targets):
@@ -155,7 +170,10 @@ class Reader:
                 # the prototype prim's own transform is part of each instance's; its meshes in its space
                 if proto.IsA(UsdGeom.Mesh):
                     self._mesh(proto, proto, mine)
+                elif proto.IsA(UsdGeom.Sphere) or proto.IsA(UsdGeom.Cube):
+                    self._shape(proto, proto, mine)
                 self._walk(proto, proto, mine)
+        self.instancer_row = outer_row
 
     def _mesh(self, prim, proto_root, placements) -> None:
         from pxr import UsdGeom, UsdShade
@@ -168,14 +186,9 @@ class Reader:
         indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
         holes = np.asarray(mesh.GetHoleIndicesAttr().Get(t) or [], np.int64)
         left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
-        try:
-            tri, corners, face = triangulate(points, counts, indices, holes, left, where)
-        except SceneError as err:
-            raise SceneError(self.path, 0, err.message if err.path is None else f"{where}: {err.message}") from None
+        tri, corners, face = self._triangles(points, counts, indices, holes, left, where)
         if not len(tri):
             return
-        if not np.isfinite(points).all():
-            raise SceneError(self.path, 0, f"{where}: the points are not finite")
         api = UsdGeom.PrimvarsAPI(prim)
         uv = uv_index = normals = normal_index = None
         st = api.GetPrimvar("st")
@@ -188,7 +201,7 @@ class Reader:
             normals, normal_index = corner_values(np.asarray(mesh.GetNormalsAttr().Get(t), np.float64).reshape(-1, 3),
                                                   mesh.GetNormalsInterpolation(), corners, face, indices,
                                                   self.path, f"{where}.normals")
-        rows = np.full(len(counts), self.materials.row(self._bound(prim), self.names), np.int32)
+        rows = np.full(len(counts), self._row(prim), np.int32)
         for subset in UsdGeom.Subset.GetAllGeomSubsets(mesh):
             if subset.GetFamilyNameAttr().Get() != "materialBind":
                 continue
@@ -198,6 +211,48 @@ class Reader:
                 raise SceneError(self.path, 0, f"{subset.GetPath()}: face {int(faces.max())} is out of range: the "
                                  f"mesh has {len(counts)} faces")
             rows[faces] = self.materials.row(bound if bound else None, self.names) if bound else rows[faces]
+        self._place(prim, proto_root, placements, points, tri, uv, uv_index, normals, normal_index, face, rows)
+
+    def _triangles(self, points, counts, indices, holes, left, where):
+        try:
+            tri, corners, face = triangulate(points, counts, indices, holes, left, where)
+        except SceneError as err:
+            raise SceneError(self.path, 0, err.message if err.path is None else f"{where}: {err.message}") from None
+        if len(tri) and not np.isfinite(points).all():
+            raise SceneError(self.path, 0, f"{where}: the points are not finite")
+        return tri, corners, face
+
+    def _shape(self, prim, proto_root, placements) -> None:
+        """A Sphere or Cube: an exact sphere where nothing instances or stretches it, else polygons."""
+        from pxr import UsdGeom
+
+        where = str(prim.GetPath())
+        row = self._row(prim)
+        if prim.IsA(UsdGeom.Sphere):
+            radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get(self.time))
+            if not (math.isfinite(radius) and radius >= 0):
+                raise SceneError(self.path, 0, f"{where}: radius must be finite and not negative, got {radius:g}")
+            world = self.world(prim) if placements is None else None
+            scale = None if world is None else _uniform_scale(world[:3, :3])
+            if scale is not None:
+                if radius * scale > 0:
+                    self.spheres.append((*(float(c) for c in world[:3, 3]), radius * scale, row))
+                return
+            points, counts, indices, normals = shapes.sphere(radius)
+        else:
+            size = float(UsdGeom.Cube(prim).GetSizeAttr().Get(self.time))
+            if not (math.isfinite(size) and size >= 0):
+                raise SceneError(self.path, 0, f"{where}: size must be finite and not negative, got {size:g}")
+            (points, counts, indices), normals = shapes.cube(size), None
+        tri, corners, face = self._triangles(points, counts, indices, np.zeros(0, np.int64), False, where)
+        normal_index = None if normals is None else tri
+        self._place(prim, proto_root, placements, points, tri, None, None, normals, normal_index, face,
+                    np.full(len(counts), row, np.int32))
+
+    def _place(self, prim, proto_root, placements, points, tri, uv, uv_index, normals, normal_index, face,
+               rows) -> None:
+        """A prim's triangles into world space, or (under instances) once into its prototype's space."""
+        where = str(prim.GetPath())
         if placements is None:
             world = self.world(prim)
             p = points @ world[:3, :3].T + world[:3, 3]
@@ -216,6 +271,33 @@ class Reader:
             self.placed[key] = ([], [])
             self._add(self.placed[key][0], p, tri, uv, uv_index, normals, normal_index, face, rows)
         self.placed[key][1].extend(placements)
+
+    def _row(self, prim) -> int:
+        """The material row of a gprim: its bound material, else its displayColor (as Hydra draws an
+        unbound prim), else that of the PointInstancer it is a prototype of, else the default (row 0)."""
+        bound = self._bound(prim)
+        if bound is not None:
+            return self.materials.row(bound, self.names)
+        own = self._display_row(prim)
+        return self.instancer_row if own is None else own
+
+    def _display_row(self, prim) -> int | None:
+        """The row of ``prim``'s displayColor primvar (its mean where it varies), None if it has none."""
+        from pxr import UsdGeom
+
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+        if not pv or not pv.HasValue():
+            return None
+        where = str(prim.GetPath())
+        values = np.asarray(pv.ComputeFlattened(self.time) or [], np.float64).reshape(-1, 3)
+        if not len(values):
+            return None
+        if not np.isfinite(values).all():
+            raise SceneError(self.path, 0, f"{where}.primvars:displayColor: the colours are not finite")
+        if len(values) > 1 and np.ptp(values, axis=0).max() > 0:
+            self.warn(where, f"{where}: displayColor varies over the prim ({pv.GetInterpolation()}): drawn in its "
+                      "mean colour")
+        return self.materials.display(tuple(float(c) for c in values.mean(axis=0)), self.names)
 
     @staticmethod
     def _add(out: list, p, tri, uv, uv_index, normals, normal_index, face, rows) -> None:

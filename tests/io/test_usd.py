@@ -39,10 +39,10 @@ def _material(stage, where, colour):
     return mat
 
 
-def _textured_quad(folder, file, colour_space=None):
-    """A stage in ``folder`` of one quad whose material's diffuse colour reads texture ``file``
+def _textured_quad(folder, file, colour_space=None, name="s.usda"):
+    """A stage ``name`` in ``folder`` of one quad whose material's diffuse colour reads texture ``file``
     (``colour_space``: its sourceColorSpace, unset by default); returns the stage's path."""
-    stage, path = _stage(folder)
+    stage, path = _stage(folder, name)
     m = _quad(stage, "/q")
     mat = _material(stage, "/M/t", (1, 1, 1))
     tex = UsdShade.Shader.Define(stage, "/M/t/tex")
@@ -301,3 +301,72 @@ def test_the_public_samples_warp_lang_ships(name):
     d = read_model(str(path))
     assert expected > 0 and len(d.faces) + d.dropped_degenerate == expected
     assert np.isfinite(d.positions).all()
+
+
+def _package(folder, name, files):
+    """A .usdz in ``folder`` of ``files`` (paths, the stage first), each under its own name."""
+    out = str(folder / name)
+    with Sdf.ZipFileWriter.CreateNew(out) as zw:
+        for f in files:
+            zw.AddFile(str(f), f.name)
+    return out
+
+
+def test_a_usdz_with_its_textures_is_read_from_the_package(tmp_path, monkeypatch):
+    """A packaged stage's colour texture and dome light map are read from the archive: the files it was
+    made of are gone before it is opened, and nothing is left extracted (the map readers' temporary
+    folder, under a temp root of the test's, is removed)."""
+    from PIL import Image
+
+    from warp_spt.images.hdr import write_hdr
+
+    src, out, temp = tmp_path / "src", tmp_path / "out", tmp_path / "temp"
+    for f in (src, out, temp):
+        f.mkdir()
+    Image.new("RGB", (2, 2), (200, 100, 50)).save(src / "wood.png")
+    sky = np.zeros((4, 8, 3), np.float32)
+    sky[:2] = (1.0, 0.5, 0.25)
+    sky[2:] = 0.25
+    write_hdr(src / "sky.hdr", sky)
+    write_hdr(tmp_path / "same.hdr", sky)                      # the same map as a plain file, read after
+    path = _textured_quad(src, "wood.png")
+    stage = Usd.Stage.Open(path)
+    UsdLux.DomeLight.Define(stage, "/dome").CreateTextureFileAttr("sky.hdr")
+    stage.Save()
+    package = _package(out, "scene.usdz", [src / "s.usda", src / "wood.png", src / "sky.hdr"])
+    import shutil
+    import tempfile
+
+    shutil.rmtree(src)
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    s = load_scene([package], warn=lambda m: None)
+    from warp_spt.io.loader import srgb_to_linear
+
+    expected = srgb_to_linear(np.array([200, 100, 50], np.float32) / 255)
+    assert np.allclose(s.textures[-1][..., :3].reshape(-1, 3), expected, atol=1e-6)
+    from warp_spt.images.hdr import read_hdr
+
+    assert np.array_equal(s.sky.env.image, read_hdr(tmp_path / "same.hdr"))
+    assert sorted(p.name for p in out.iterdir()) == ["scene.usdz"] and not any(temp.iterdir())
+
+
+def test_a_packaged_texture_outside_the_stage_folder_is_refused(tmp_path):
+    """The rule for files holds for packages: a package outside the stage's folder, named by '..', by
+    an absolute path or through a link in the folder, is refused before anything is read from it."""
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (255, 0, 0)).save(tmp_path / "tex.png")
+    outside = _package(tmp_path, "pkg.usdz", [tmp_path / "tex.png"])
+    inner = tmp_path / "scene"
+    inner.mkdir()
+    (inner / "link.usdz").symlink_to(outside)
+    for k, name in enumerate(("../pkg.usdz[tex.png]", f"{outside}[tex.png]", "link.usdz[tex.png]")):
+        path = _textured_quad(inner, name, name=f"s{k}.usda")
+        with pytest.raises(SceneError, match=r"/M/t/tex.*texture's package .*(outside|leads outside)"):
+            read_model(path)
+    # the same package inside the folder is read
+    (inner / "link.usdz").unlink()
+    (inner / "pkg.usdz").write_bytes((tmp_path / "pkg.usdz").read_bytes())
+    path = _textured_quad(inner, "pkg.usdz[tex.png]", name="inside.usda")
+    s = load_scene([path], warn=lambda m: None)
+    assert np.allclose(s.textures[-1][..., :3], [1.0, 0.0, 0.0])

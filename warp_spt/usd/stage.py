@@ -19,6 +19,7 @@ from warp_spt.scene.model import CHECKER_NAME, ObjData
 from warp_spt.scene.parts import ModelExtras, Part, gather
 from warp_spt.usd import lights_cameras as lc
 from warp_spt.usd import shapes
+from warp_spt.usd.assets import locate, package_bytes
 from warp_spt.usd.materials import Materials
 from warp_spt.usd.meshes import corner_values, triangulate
 
@@ -365,11 +366,8 @@ class Reader:
             self.warn(where, f"{where}: {prim.GetTypeName()} lights are not read")
 
     def _dome(self, prim) -> None:
-        from pathlib import Path
-
         from pxr import UsdLux
 
-        from warp_spt.io.paths import confine
         from warp_spt.scene.sky import Sky
 
         where = str(prim.GetPath())
@@ -384,16 +382,35 @@ class Reader:
                       "its colour stands for it")
             self.extras.sky = Sky.constant(*radiance)
             return
-        found, refused = confine(asset.resolvedPath, Path(self.path).parent, "dome light texture")
+        name, packaged, refused = locate(asset.resolvedPath, self.path, "dome light texture")
         if refused:
             raise SceneError(self.path, 0, f"{where}: {refused}")
-        from warp_spt.images.environment import load_environment
+        from warp_spt.images.environment import read_environment_image
+        from warp_spt.scene.environment import EnvironmentMap
 
         strength = max(radiance) if max(radiance) > 0 else 0.0
         if len(set(radiance)) > 1:
             self.warn(where, f"{where}: the dome light's colour tints are not read: its brightest channel scales "
                       "the map")
-        self.extras.sky = load_environment(found[0], strength=strength, warn=lambda m: self.warn(where, m))
+        note = lambda m: self.warn(where, m)           # noqa: E731
+        try:
+            if packaged:
+                import tempfile
+                from pathlib import Path
+
+                # the map readers take a file: the packaged bytes go to a private temporary folder, gone after
+                with tempfile.TemporaryDirectory(prefix="warp_spt_usdz_") as folder:
+                    inner = Path(folder) / ("map" + Path(name[:-1].rsplit("[", 1)[-1]).suffix.lower())
+                    inner.write_bytes(package_bytes(asset.resolvedPath))
+                    try:
+                        image = read_environment_image(inner, note)
+                    except ValueError as err:
+                        raise ValueError(str(err).replace(str(inner), name)) from None
+            else:
+                image = read_environment_image(name, note)
+        except ValueError as err:
+            raise SceneError(self.path, 0, f"{where}: the dome light's texture: {err}") from None
+        self.extras.sky = Sky.environment(EnvironmentMap(image, name, "importance"), strength=strength)
 
 
 def _predicate():

@@ -197,6 +197,18 @@ def test_a_camera_and_up_axis_z_and_metres_per_unit(tmp_path):
     assert c.yfov == pytest.approx(2 * math.atan(10 / 50))
 
 
+def test_an_authored_subdivision_scheme_is_named_in_a_warning(tmp_path):
+    stage, path = _stage(tmp_path)
+    _quad(stage, "/plain")                                          # the fallback catmullClark: no warning
+    _quad(stage, "/smooth").CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
+    _quad(stage, "/flat").CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    stage.Save()
+    d = read_model(path)
+    assert len(d.faces) == 6
+    assert [w.split(": ", 1)[1] for w in d.warnings] == [
+        "/smooth: subdivisionScheme catmullClark is not applied: drawn as its control cage"]
+
+
 def test_guides_and_proxies_are_skipped(tmp_path):
     stage, path = _stage(tmp_path)
     _quad(stage, "/render")

@@ -190,6 +190,10 @@ class Reader:
         tri, corners, face = self._triangles(points, counts, indices, holes, left, where)
         if not len(tri):
             return
+        scheme = mesh.GetSubdivisionSchemeAttr()
+        # only an authored scheme: its fallback is catmullClark, which exporters of polygon meshes leave unset
+        if scheme.HasAuthoredValue() and scheme.Get(t) != UsdGeom.Tokens.none:
+            self.warn(where, f"{where}: subdivisionScheme {scheme.Get(t)} is not applied: drawn as its control cage")
         api = UsdGeom.PrimvarsAPI(prim)
         uv = uv_index = normals = normal_index = None
         st = api.GetPrimvar("st")

@@ -148,7 +148,8 @@ def _coat_rows(tmp_path, coat_map: bool, base_map: bool):
     n_coat = _tilted_png(tmp_path / "coat_n.png", 25.0)
     _tilted_png(tmp_path / "base_n.png", -35.0)
     base = "Kd 0.6 0.3 0.2\nPm 0.3\nPr 0.5\n" + ("norm base_n.png\n" if base_map else "")
-    coat = "set clearcoat 0.8\nset clearcoat_roughness 0.3\n" + ("set clearcoat_normal_map coat_n.png\n" if coat_map else "")
+    coat = "set clearcoat 0.8\nset clearcoat_roughness 0.3\n"
+    coat += "set clearcoat_normal_map coat_n.png\n" if coat_map else ""
     quad = (quad_obj([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], material="coated")
             + "v 3 0 0\nv 4 0 0\nv 4 0 1\nusemtl bare\nf -3 -2 -1\n")
     objs, mtls = write_scene_files(tmp_path, "coat", quad, f"newmtl coated\n{base}{coat}\nnewmtl bare\n{base}")

@@ -285,7 +285,8 @@ def test_a_stretched_sphere_and_a_cube_become_polygons(tmp_path):
     d = read_model(path)
     assert len(d.spheres) == 0
     egg = d.positions[d.positions[:, 0] < 2.5]
-    assert np.allclose(egg.max(0), [1.0, 0.5, 0.5], rtol=3e-3) and np.allclose(egg.min(0), [-1.0, -0.5, -0.5], rtol=3e-3)
+    assert np.allclose(egg.max(0), [1.0, 0.5, 0.5], rtol=3e-3)
+    assert np.allclose(egg.min(0), [-1.0, -0.5, -0.5], rtol=3e-3)
     cube = d.positions[d.positions[:, 0] > 2.5]
     assert np.allclose(cube.min(0), [4, -1, -1]) and np.allclose(cube.max(0), [6, 1, 1])
     p = d.positions[d.faces]

@@ -383,3 +383,31 @@ def test_a_packaged_texture_outside_the_stage_folder_is_refused(tmp_path):
     path = _textured_quad(inner, "pkg.usdz[tex.png]", name="inside.usda")
     s = load_scene([path], warn=lambda m: None)
     assert np.allclose(s.textures[-1][..., :3], [1.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("axis", ["X", "Y", "Z"])
+def test_cylinders_cones_and_capsules_about_their_axis(tmp_path, axis):
+    """Each shape's extent along its axis and across it, from its radius and height (UsdGeom's
+    definitions: centred on the origin; a capsule's height is its spine without the caps); every face
+    counter-clockwise seen from outside."""
+    stage, path = _stage(tmp_path)
+    shapes = ((UsdGeom.Cylinder, 0.5, 2.0), (UsdGeom.Cone, 0.4, 1.5), (UsdGeom.Capsule, 0.25, 1.0))
+    for k, (kind, radius, height) in enumerate(shapes):
+        prim = kind.Define(stage, f"/s{k}")
+        prim.CreateRadiusAttr(radius)
+        prim.CreateHeightAttr(height)
+        prim.CreateAxisAttr(axis)
+        prim.AddTranslateOp().Set(Gf.Vec3d(10.0 * k, 0.0, 0.0))
+    stage.Save()
+    d = read_model(path)
+    a = "XYZ".index(axis)
+    for k, (radius, along) in enumerate(((0.5, 1.0), (0.4, 0.75), (0.25, 0.75))):
+        p = d.positions - [10.0 * k, 0.0, 0.0]
+        p = p[np.abs(p[:, 0]) < 5]
+        want = np.full(3, radius)
+        want[a] = along
+        assert np.allclose(p.max(0), want, atol=1e-9) and np.allclose(p.min(0), -want, atol=1e-9), k
+    t = d.positions[d.faces]
+    centre = np.round(t.mean(1)[:, :1] / 10.0) * [10.0, 0, 0]
+    outward = np.einsum("ij,ij->i", np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), t.mean(1) - centre)
+    assert (outward > 0).all()

@@ -108,7 +108,8 @@ def test_a_stage_renders_as_its_obj_twin(tmp_path):
 
 def _warp_stage(path: str) -> None:
     """A stage written by Warp's UsdRenderer as a simulation writes one: Z up, 30 frames a second, a
-    ground, a ball that moves from z = 1 to 2 over one second, a box, a mesh, two particles and a capsule."""
+    ground, a ball that moves from z = 1 to 2 over one second, a box, a mesh, two particles, a capsule
+    (along the stage's Y: the writer's default up_axis 1) and a cloud of points."""
     render = pytest.importorskip("warp.render")
     if not hasattr(render, "UsdRenderer"):
         pytest.skip("this warp-lang has no warp.render.UsdRenderer")
@@ -122,7 +123,8 @@ def _warp_stage(path: str) -> None:
                   colors=(0.2, 0.8, 0.2))
     r.render_points("dots", points=np.array([[-1, -1, 0.1], [-1.5, -1, 0.1]], np.float32), radius=0.1,
                     colors=(0.9, 0.9, 0.1))
-    r.render_capsule("cap", pos=(0.0, 0.0, 3.0), rot=still, radius=0.1, half_height=0.3)
+    r.render_capsule("cap", pos=(0.0, 0.0, 3.0), rot=still, radius=0.1, half_height=0.3, color=(0.5, 0.5, 0.5))
+    r.render_points("cloud", points=np.array([[2, 2, 2]], np.float32), radius=0.05, as_spheres=False)
     r.end_frame()
     r.begin_frame(1.0)
     r.render_sphere("ball", pos=(0.0, 0.0, 2.0), rot=still, radius=0.5, color=(0.9, 0.1, 0.1))
@@ -133,7 +135,8 @@ def _warp_stage(path: str) -> None:
 def test_a_stage_written_by_warps_usd_renderer(tmp_path):
     """What warp.render.UsdRenderer writes is read where it matters: spheres (exact ones, or as polygons
     under a PointInstancer), cubes scaled to boxes, meshes, displayColor as the base colour, its dome
-    and distant lights with their colour temperature, its frames; capsules are named in a warning.
+    and distant lights with their colour temperature, its frames, capsules as polygons; a cloud of
+    ``Points`` is named in a warning.
     The expected values are the writer's inputs, turned from Z up to Y up: (x, y, z) -> (x, z, -y)."""
     path = str(tmp_path / "sim.usda")
     _warp_stage(path)
@@ -141,7 +144,7 @@ def test_a_stage_written_by_warps_usd_renderer(tmp_path):
     from warp_spt.usd.shapes import SPHERE_SEGMENTS
 
     d = read_model(path)
-    assert any("/root/cap: Capsule" in w for w in d.warnings)
+    assert [w.split(": ", 1)[1] for w in d.warnings] == ["/root/cloud: Points prims are not read (meshes are)"]
     assert np.allclose(d.spheres, [[0.0, 1.0, 0.0, 0.5]])
     assert np.allclose(read_model(path, time=1.0).spheres, [[0.0, 2.0, 0.0, 0.5]])
     assert d.extras.time_range == pytest.approx((0.0, 1.0))
@@ -164,6 +167,8 @@ def test_a_stage_written_by_warps_usd_renderer(tmp_path):
     crate = corners[(0.1, 0.2, 0.9)]
     assert np.allclose(crate.min(0), [1.25, 0.0, -0.5]) and np.allclose(crate.max(0), [1.75, 0.5, 0.5])
     assert np.allclose(np.unique(corners[(0.2, 0.8, 0.2)], axis=0), [[0, 0, -2], [0, 1, -2], [1, 0, -2]])
+    cap = corners[(0.5, 0.5, 0.5)]                 # the stage's Y is our -Z: the spine 0.6 plus two caps of 0.1
+    assert np.allclose(cap.min(0), [-0.1, 2.9, -0.4], atol=1e-6) and np.allclose(cap.max(0), [0.1, 3.1, 0.4], atol=1e-6)
     # the dome (6150 K) and the sun (7250 K) tinted by UsdLux's blackbody: warm and cool, exposure 9 and 10
     sun, = s.lights
     assert s.sky.color[0] > s.sky.color[2] and sun.color[2] > sun.color[0]

@@ -121,7 +121,7 @@ class Reader:
                 continue
             if child.IsA(UsdGeom.Mesh):
                 self._mesh(child, proto_root, placements)
-            elif child.IsA(UsdGeom.Sphere) or child.IsA(UsdGeom.Cube):
+            elif _is_shape(child):
                 self._shape(child, proto_root, placements)
             elif child.IsA(UsdGeom.Camera):
                 if placements is None:
@@ -171,7 +171,7 @@ class Reader:
                 # the prototype prim's own transform is part of each instance's; its meshes in its space
                 if proto.IsA(UsdGeom.Mesh):
                     self._mesh(proto, proto, mine)
-                elif proto.IsA(UsdGeom.Sphere) or proto.IsA(UsdGeom.Cube):
+                elif _is_shape(proto):
                     self._shape(proto, proto, mine)
                 self._walk(proto, proto, mine)
         self.instancer_row = outer_row
@@ -228,15 +228,21 @@ class Reader:
         return tri, corners, face
 
     def _shape(self, prim, proto_root, placements) -> None:
-        """A Sphere or Cube: an exact sphere where nothing instances or stretches it, else polygons."""
+        """An implicit shape: an exact sphere where nothing instances or stretches it, else polygons."""
         from pxr import UsdGeom
 
         where = str(prim.GetPath())
         row = self._row(prim)
+
+        def size(attr, name):
+            v = float(attr.Get(self.time))
+            if not (math.isfinite(v) and v >= 0):
+                raise SceneError(self.path, 0, f"{where}: {name} must be finite and not negative, got {v:g}")
+            return v
+
+        normals = None
         if prim.IsA(UsdGeom.Sphere):
-            radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get(self.time))
-            if not (math.isfinite(radius) and radius >= 0):
-                raise SceneError(self.path, 0, f"{where}: radius must be finite and not negative, got {radius:g}")
+            radius = size(UsdGeom.Sphere(prim).GetRadiusAttr(), "radius")
             world = self.world(prim) if placements is None else None
             scale = None if world is None else _uniform_scale(world[:3, :3])
             if scale is not None:
@@ -244,11 +250,14 @@ class Reader:
                     self.spheres.append((*(float(c) for c in world[:3, 3]), radius * scale, row))
                 return
             points, counts, indices, normals = shapes.sphere(radius)
+        elif prim.IsA(UsdGeom.Cube):
+            points, counts, indices = shapes.cube(size(UsdGeom.Cube(prim).GetSizeAttr(), "size"))
         else:
-            size = float(UsdGeom.Cube(prim).GetSizeAttr().Get(self.time))
-            if not (math.isfinite(size) and size >= 0):
-                raise SceneError(self.path, 0, f"{where}: size must be finite and not negative, got {size:g}")
-            (points, counts, indices), normals = shapes.cube(size), None
+            kind = next(k for k in (UsdGeom.Capsule, UsdGeom.Cylinder, UsdGeom.Cone) if prim.IsA(k))
+            shape = kind(prim)
+            make = {UsdGeom.Capsule: shapes.capsule, UsdGeom.Cylinder: shapes.cylinder, UsdGeom.Cone: shapes.cone}[kind]
+            points, counts, indices = make(size(shape.GetRadiusAttr(), "radius"), size(shape.GetHeightAttr(), "height"),
+                                           str(shape.GetAxisAttr().Get(self.time)))
         tri, corners, face = self._triangles(points, counts, indices, np.zeros(0, np.int64), False, where)
         normal_index = None if normals is None else tri
         self._place(prim, proto_root, placements, points, tri, None, None, normals, normal_index, face,
@@ -415,6 +424,13 @@ class Reader:
         except ValueError as err:
             raise SceneError(self.path, 0, f"{where}: the dome light's texture: {err}") from None
         self.extras.sky = Sky.environment(EnvironmentMap(image, name, "importance"), strength=strength)
+
+
+def _is_shape(prim) -> bool:
+    """An implicit shape that is read (``shapes.py``)."""
+    from pxr import UsdGeom
+
+    return any(prim.IsA(k) for k in (UsdGeom.Sphere, UsdGeom.Cube, UsdGeom.Capsule, UsdGeom.Cylinder, UsdGeom.Cone))
 
 
 def _predicate():

@@ -411,3 +411,33 @@ def test_cylinders_cones_and_capsules_about_their_axis(tmp_path, axis):
     centre = np.round(t.mean(1)[:, :1] / 10.0) * [10.0, 0, 0]
     outward = np.einsum("ij,ij->i", np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), t.mean(1) - centre)
     assert (outward > 0).all()
+
+
+def test_a_point_instancers_colours_per_instance(tmp_path):
+    """Warp's render_points writes one displayColor per particle on the instancer: an unbound prototype
+    is drawn in each instance's colour (one placed mesh per colour); more colours than
+    MAX_INSTANCE_COLOURS are drawn in their mean, with a warning."""
+    from warp_spt.usd.stage import MAX_INSTANCE_COLOURS
+
+    def instancer(path, colours):
+        stage, _ = _stage(tmp_path, path)
+        pi = UsdGeom.PointInstancer.Define(stage, "/pi")
+        UsdGeom.Cube.Define(stage, "/pi/protos/box")
+        pi.CreatePrototypesRel().SetTargets(["/pi/protos/box"])
+        pi.CreateProtoIndicesAttr([0] * len(colours))
+        pi.CreatePositionsAttr([Gf.Vec3f(3.0 * k, 0, 0) for k in range(len(colours))])
+        pv = UsdGeom.PrimvarsAPI(pi).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                                                   UsdGeom.Tokens.vertex)
+        pv.Set([Gf.Vec3f(*c) for c in colours])
+        stage.Save()
+        return load_scene([str(tmp_path / path)], warn=lambda m: None)
+
+    s = instancer("few.usda", [(1, 0, 0), (0, 0, 1), (1, 0, 0)])
+    drawn = sorted((tuple(np.round(s.materials.base_color[m.face_material[0]], 3)), sorted(m.transforms[:, 0, 3]))
+                   for m in s.meshes)
+    assert drawn == [((0.0, 0.0, 1.0), [3.0]), ((1.0, 0.0, 0.0), [0.0, 6.0])]
+    many = [(k / (MAX_INSTANCE_COLOURS + 1), 0.5, 0.5) for k in range(MAX_INSTANCE_COLOURS + 1)]
+    s = instancer("many.usda", many)
+    assert len(s.meshes) == 1 and np.allclose(s.materials.base_color[s.meshes[0].face_material[0]],
+                                              np.mean(many, axis=0), atol=1e-6)
+    assert any(f"{MAX_INSTANCE_COLOURS + 1} colours over its instances" in w for w in s.warnings)

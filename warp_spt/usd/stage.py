@@ -23,6 +23,7 @@ from warp_spt.usd.assets import locate, package_bytes
 from warp_spt.usd.materials import Materials
 from warp_spt.usd.meshes import corner_values, triangulate
 
+MAX_INSTANCE_COLOURS = 64     # a PointInstancer's colours drawn apart (each one more mesh in the TLAS)
 # the prim types that are read; any other typed prim that is not a grouping warns once
 _GROUPS = {"Xform", "Scope", "", "Material", "Shader", "NodeGraph", "GeomSubset", "Skeleton", "SkelRoot"}
 
@@ -157,17 +158,20 @@ class Reader:
             raise SceneError(self.path, 0, f"{where}: protoIndices names prototype {int(indices.max())}, but it has "
                              f"{len(targets)} prototypes")
         outer_row = self.instancer_row
-        own = self._display_row(prim)
-        self.instancer_row = outer_row if own is None else own
+        rows = self._instance_rows(prim, len(indices), outer_row)
         base = self.world(prim) if placements is None else None
         outer = [base] if base is not None else [p @ self._relative(prim, proto_root) for p in placements]
         for k, target in enumerate(targets):
             proto = self.stage.GetPrimAtPath(target)
             if not proto:
                 raise SceneError(self.path, 0, f"{where}: prototype {target} does not exist")
-            mine = [outer_m @ _matrix(xforms[i]) @ _matrix(UsdGeom.Xformable(proto).GetLocalTransformation(self.time))
-                    for outer_m in outer for i in np.flatnonzero(indices == k).tolist()]
-            if mine:
+            picked = np.flatnonzero(indices == k)
+            # the prototype read once per colour its instances are drawn in (unbound prototypes take it)
+            for row in np.unique(rows[picked]).tolist():
+                own = _matrix(UsdGeom.Xformable(proto).GetLocalTransformation(self.time))
+                mine = [outer_m @ _matrix(xforms[i]) @ own for outer_m in outer
+                        for i in picked[rows[picked] == row].tolist()]
+                self.instancer_row = row
                 # the prototype prim's own transform is part of each instance's; its meshes in its space
                 if proto.IsA(UsdGeom.Mesh):
                     self._mesh(proto, proto, mine)
@@ -175,6 +179,27 @@ class Reader:
                     self._shape(proto, proto, mine)
                 self._walk(proto, proto, mine)
         self.instancer_row = outer_row
+
+    def _instance_rows(self, prim, count: int, outer_row: int) -> np.ndarray:
+        """(count,) the row each instance of a PointInstancer is drawn in where its prototype has no
+        material or colour of its own: the instancer's displayColor, one per instance where it has one per
+        instance and at most MAX_INSTANCE_COLOURS of them (else its mean, with a warning), else the
+        enclosing instancer's row."""
+        values = self._display_colours(prim)
+        if values is None:
+            return np.full(count, outer_row, np.int32)
+        if len(values) == count and count > 1:
+            codes, inverse = np.unique(np.round(np.clip(values, 0.0, 1.0) * 255.0), axis=0, return_inverse=True)
+            if len(codes) <= MAX_INSTANCE_COLOURS:
+                rows = [self.materials.display(tuple(float(c) for c in values[inverse.ravel() == j].mean(axis=0)),
+                                               self.names) for j in range(len(codes))]
+                return np.asarray(rows, np.int32)[inverse.ravel()]
+            where = str(prim.GetPath())
+            self.warn(where, f"{where}: displayColor has {len(codes)} colours over its instances, more than "
+                      f"{MAX_INSTANCE_COLOURS}: drawn in their mean colour")
+            return np.full(count, self.materials.display(tuple(float(c) for c in values.mean(axis=0)), self.names),
+                           np.int32)
+        return np.full(count, self._display_row(prim), np.int32)
 
     def _mesh(self, prim, proto_root, placements) -> None:
         from pxr import UsdGeom, UsdShade
@@ -276,7 +301,7 @@ class Reader:
                 normals = normals @ np.linalg.inv(world[:3, :3])      # the inverse transpose, row vectors
             self._add(self.parts, p, tri, uv, uv_index, normals, normal_index, face, rows)
             return
-        key = where
+        key = where if self.instancer_row == 0 else f"{where} (row {self.instancer_row})"
         if key not in self.placed:
             local = self._relative(prim, proto_root) if proto_root is not None and prim != proto_root else np.eye(4)
             p = points @ local[:3, :3].T + local[:3, 3]
@@ -295,22 +320,26 @@ class Reader:
         own = self._display_row(prim)
         return self.instancer_row if own is None else own
 
-    def _display_row(self, prim) -> int | None:
-        """The row of ``prim``'s displayColor primvar (its mean where it varies), None if it has none."""
+    def _display_colours(self, prim) -> np.ndarray | None:
+        """(N, 3) the values of ``prim``'s displayColor primvar, None if it has none."""
         from pxr import UsdGeom
 
         pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
         if not pv or not pv.HasValue():
             return None
-        where = str(prim.GetPath())
         values = np.asarray(pv.ComputeFlattened(self.time) or [], np.float64).reshape(-1, 3)
-        if not len(values):
-            return None
         if not np.isfinite(values).all():
-            raise SceneError(self.path, 0, f"{where}.primvars:displayColor: the colours are not finite")
+            raise SceneError(self.path, 0, f"{prim.GetPath()}.primvars:displayColor: the colours are not finite")
+        return values if len(values) else None
+
+    def _display_row(self, prim) -> int | None:
+        """The row of ``prim``'s displayColor primvar (its mean where it varies), None if it has none."""
+        values = self._display_colours(prim)
+        if values is None:
+            return None
         if len(values) > 1 and np.ptp(values, axis=0).max() > 0:
-            self.warn(where, f"{where}: displayColor varies over the prim ({pv.GetInterpolation()}): drawn in its "
-                      "mean colour")
+            where = str(prim.GetPath())
+            self.warn(where, f"{where}: displayColor varies over the prim: drawn in its mean colour")
         return self.materials.display(tuple(float(c) for c in values.mean(axis=0)), self.names)
 
     @staticmethod

@@ -180,3 +180,25 @@ def test_a_stage_written_by_warps_usd_renderer(tmp_path):
     assert np.isfinite(image).all()
     r, g, b = image[12, 12]
     assert r > 3 * g and r > 3 * b                       # the ball in the middle, in its displayColor
+
+
+def test_the_command_line_renders_a_stage_through_its_camera(tmp_path, capsys, monkeypatch):
+    """``-obj stage.usda --camera NAME`` renders and exits 0; without usd-core the same command line is
+    one line saying how to install it, exit status 1, no traceback."""
+    from warp_spt.cli.main import main
+
+    _write_usd(str(tmp_path / "twin.usda"))
+    stage = Usd.Stage.Open(str(tmp_path / "twin.usda"))
+    cam = UsdGeom.Camera.Define(stage, "/World/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0.0, 1.5, 6.0))
+    stage.Save()
+    out = tmp_path / "o.png"
+    argv = ["-obj", str(tmp_path / "twin.usda"), "-res", "16", "12", "-sr", "1", "--camera", "cam", "-out", str(out)]
+    assert main(argv) == 0 and out.stat().st_size > 0
+    capsys.readouterr()
+    monkeypatch.setitem(__import__("sys").modules, "pxr", None)             # usd-core not installed
+    assert main(argv[:-1] + [str(tmp_path / "p.png")]) == 1
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "error" in line]
+    assert len(lines) == 1 and 'pip install ".[usd]"' in lines[0] and "Traceback" not in err, err
+    assert not (tmp_path / "p.png").exists()

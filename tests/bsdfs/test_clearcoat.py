@@ -185,3 +185,16 @@ def test_a_coat_without_maps_keeps_the_shared_frame(tmp_path):
     """No map anywhere on a coated row: the coat shares the base's frame and compiles no frame of its own."""
     dev, _, _ = _coat_rows(tmp_path, False, False)
     assert dev.features.needs("pbr.clearcoat") and not dev.features.needs("pbr.coat_frame")
+
+
+@pytest.mark.parametrize("rough", [0.0, 0.4])
+def test_a_tilted_coat_over_the_white_dielectric_creates_no_light(scene_dir, rough):
+    """A white furnace through a coat whose normal map tilts it 30 degrees: the layering never reflects
+    more than comes in (at most 1, to the render's error), and loses little (directions between the
+    coat's and the base's horizons, and the rough coat's single-scattering shortfall)."""
+    _tilted_png(scene_dir / "tilt30.png", 30.0)
+    dev = _sphere_scene(scene_dir, f"tilted_coat_{rough}", "Kd 1 1 1\nPr 0.4\nset clearcoat 1\n"
+                        f"set clearcoat_roughness {rough}\nset clearcoat_normal_map tilt30.png\n")
+    assert dev.features.needs("pbr.coat_frame")
+    mean, se = _disc_mean(dev)
+    assert np.all(mean <= 1.0 + 0.003 + 4 * se) and np.all(mean >= 0.98), (mean, se)

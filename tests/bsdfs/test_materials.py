@@ -174,6 +174,7 @@ def flat(row: int, wo: wp.vec3) -> Surface:
     sf = Surface()
     sf.ng = wp.vec3(0.0, 0.0, 1.0)
     sf.ns = sf.ng
+    sf.ns0 = sf.ng
     sf.t = wp.vec3(1.0, 0.0, 0.0)
     sf.b = wp.vec3(0.0, 1.0, 0.0)
     sf.front = 1
@@ -215,8 +216,16 @@ def _mixture_kernels(features):
                                  "Kd 0.8 0.6 0.2\nPm 0.8\nPr 0.6\naniso 0.7\nanisor 0.1\n",
                                  "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset clearcoat 0.8\nset clearcoat_roughness 0.3\n",
                                  "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset sheen_color 0.9 0.6 0.4\nset sheen_roughness 0.3\n"
-                                 "set clearcoat 0.5\nset clearcoat_roughness 0.2\n"])
+                                 "set clearcoat 0.5\nset clearcoat_roughness 0.2\n",
+                                 "Kd 0.7 0.5 0.3\nPm 0.3\nPr 0.5\nset clearcoat 0.8\nset clearcoat_roughness 0.3\n"
+                                 "set clearcoat_normal_map tilt.png\n"])
 def test_mixture_samples_follow_its_pdf_and_weights_are_eval_over_pdf(tmp_path, mtl):
+    from PIL import Image
+
+    # the coat's own normal map: a constant normal tilted 20 degrees towards +u
+    tilt = np.array([np.sin(np.radians(20.0)), 0.0, np.cos(np.radians(20.0))])
+    Image.fromarray(np.round((tilt * 0.5 + 0.5) * 255).astype(np.uint8)[None, None].repeat(2, 0).repeat(2, 1)).save(
+        tmp_path / "tilt.png")
     quad = quad_obj([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], material="m")
     objs, mtls = write_scene_files(tmp_path, "mix", quad, "newmtl m\n" + mtl)
     dev = DeviceScene(load_scene(objs, mtls))

@@ -104,3 +104,27 @@ def test_specular_glossiness_reads_its_diffuse_texture_and_names_the_one_it_does
                           "specularGlossinessTexture is not read: the material's specular and glossiness factors "
                           "are converted to metal-rough, its texture not"]
     assert json.loads(json.dumps(d.extras.materials[0].extensions))          # kept as written
+
+
+def test_the_clearcoat_normal_texture_is_read(tmp_path):
+    """KHR_materials_clearcoat's clearcoatNormalTexture becomes the coat's normal map with its scale
+    (the renderer's frame for it: tests/bsdfs/test_clearcoat.py); its other textures are still named."""
+    g = gltf_textured_box()
+    g.doc["images"].append({"uri": "data:image/png;base64," + base64.b64encode(png_2x2(NORMAL_2X2)).decode()})
+    g.doc["textures"].append({"source": len(g.doc["images"]) - 1})
+    g.doc["materials"][0]["extensions"] = {"KHR_materials_clearcoat": {
+        "clearcoatFactor": 1.0, "clearcoatNormalTexture": {"index": len(g.doc["textures"]) - 1, "scale": 0.5},
+        "clearcoatRoughnessTexture": {"index": 0}}}
+    g.doc["extensionsUsed"] = ["KHR_materials_clearcoat"]
+    d = load_gltf(_write(tmp_path, g))
+    m = d.materials["scene.gltf: checker"]
+    assert m.clearcoat == 1.0 and m.clearcoat_normal == 0.5 and m.clearcoat_normal_map is not None
+    assert [w.split(": ", 1)[1] for w in d.warnings] == [
+        "/materials/0/extensions/KHR_materials_clearcoat/clearcoatRoughnessTexture is not read: the coat has its "
+        "factors alone"]
+    scene, _ = _quiet(d)
+    row = scene.materials.names.index("scene.gltf: checker")
+    from warp_spt.scene.material_schema import COLUMN
+
+    slot = scene.materials.tex[row][COLUMN["clearcoat_normal"].slot]
+    assert slot >= 0 and np.allclose(scene.textures[slot][..., 2], 1.0, atol=0.2)     # a normal map, mostly +z

@@ -313,14 +313,15 @@ def test_kind_and_set_errors_name_file_line_and_expectation(text, line, message)
 # A probe kind with two columns of its own, written into the schema's source (its MATERIAL_KINDS line
 # and two Column lines, as tests/scene/test_material_schema.py does); the MTL reader is not edited.
 PROBE_KIND = textwrap.dedent('''
-    import importlib.util, sys
+    import importlib.util, re, sys
     path, folder = sys.argv[1:3]
     src = open(path).read()
     line = 'MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr")'
     assert line in src
     src = src.replace(line, 'MATERIAL_KINDS: tuple[str, ...] = ("seed", "pbr", "probe")')
     end = src.index("\\n)\\n", src.index("COLUMNS: tuple[Column, ...] = (")) + 1
-    extra = ('    Column("glow", COLOR, (0.0, 0.0, 0.0), 0.0, 1.0, "probe", slot=10, kinds=("probe",)),\\n'
+    NEXT_SLOT = len(re.findall(r"slot=[0-9]", src))       # the next free texture slot (they are 0..n-1)
+    extra = (f'    Column("glow", COLOR, (0.0, 0.0, 0.0), 0.0, 1.0, "probe", slot={NEXT_SLOT}, kinds=("probe",)),\\n'
              '    Column("haze", SCALAR, 0.5, 0.0, 2.0, "probe", kinds=("probe",)),\\n')
     spec = importlib.util.spec_from_loader("warp_spt.scene.material_schema", loader=None)
     schema = importlib.util.module_from_spec(spec)

@@ -44,6 +44,7 @@ class Surface:
     wo: wp.vec3        # unit direction back towards where the ray came from (-d)
     t: wp.vec3         # shading tangent, orthogonal to ns (Features.needs("frame") only; else zero)
     b: wp.vec3         # the uv's bitangent direction, orthogonal to ns and t (normal maps' y axis)
+    ns0: wp.vec3       # ns as interpolated, before a material's maps change ns (a clearcoat's own frame)
 
 
 @wp.func
@@ -177,6 +178,7 @@ def make_surface(features: Features, differentiable: bool = False):
         if wp.dot(ns, sf.ng) < 0.0:
             ns = -ns
         sf.ns = ns
+        sf.ns0 = ns
         sf.wo = -d
         if wp.static(features.needs("frame")):
             hint = wp.vec3(0.0, 0.0, 0.0)

@@ -17,7 +17,9 @@ mapping tables). At a point it mixes, in the local shading frame (``common.to_lo
 
 Over them, where a scene has them: a **sheen** (KHR_materials_sheen, ``bsdfs.sheen``: the sample
 viewer's Charlie lobe, the rest scaled by 1 - max(colour) E_sheen(mu_o)), and over everything a
-**clearcoat** (KHR_materials_clearcoat: mix(rest, coat, clearcoat x F(mu_o))).
+**clearcoat** (KHR_materials_clearcoat: mix(rest, coat, clearcoat x F(mu_o))), about a normal of its own where
+its row has a map (``pbr.coat_frame``): its clearcoat normal map about the interpolated normal
+(``Surface.ns0``), else that interpolated normal rather than the base's normal or bump map.
 
 Roughness is perceptual (alpha = roughness^2); anisotropy stretches alpha along the tangent rotated by
 ``anisotropy_rotation`` (KHR_materials_anisotropy). Below ``microfacet.DELTA_ALPHA`` a lobe is a
@@ -67,6 +69,7 @@ SLOT_METALLIC, CH_METALLIC = COLUMN["metallic"].slot, COLUMN["metallic"].channel
 SLOT_ROUGHNESS, CH_ROUGHNESS = COLUMN["roughness"].slot, COLUMN["roughness"].channel
 SLOT_NORMAL = COLUMN["normal"].slot
 SLOT_BUMP, CH_BUMP = COLUMN["bump"].slot, COLUMN["bump"].channel
+SLOT_COAT_NORMAL = COLUMN["clearcoat_normal"].slot
 
 # lobe indices of the mixture
 METAL, SPEC, DIFF, TRANS, COAT, SHEEN = 0, 1, 2, 3, 4, 5
@@ -93,7 +96,12 @@ def declare(table, rows: np.ndarray) -> tuple[int, frozenset]:
     normal_map = bool((tex[:, SLOT_NORMAL] != TEX_NONE).any())
     bump = bool((tex[:, SLOT_BUMP] != TEX_NONE).any())
     aniso = bool((table.anisotropy[rows] > 0).any())
-    coat = bool((table.clearcoat[rows] > 0).any())
+    coated = table.clearcoat[rows] > 0
+    coat = bool(coated.any())
+    coat_map = bool((coated & (tex[:, SLOT_COAT_NORMAL] != TEX_NONE)).any())
+    # a coat whose normal differs from the base's: its own map, or a base map it does not follow
+    coat_frame = bool((coated & ((tex[:, SLOT_COAT_NORMAL] != TEX_NONE) | (tex[:, SLOT_NORMAL] != TEX_NONE)
+                                 | (tex[:, SLOT_BUMP] != TEX_NONE))).any())
     if coat:
         lobes |= LOBE_GLOSSY | LOBE_SPECULAR | LOBE_REFLECTION
     has_sheen = bool((table.sheen_color[rows] > 0).any())
@@ -103,8 +111,8 @@ def declare(table, rows: np.ndarray) -> tuple[int, frozenset]:
     flags |= {name for name, on in (("dims.fresnel", trans.any()), ("pbr.transmission", trans.any()),
                                     ("pbr.thin", table.thin[rows].any()), ("pbr.normal_map", normal_map),
                                     ("pbr.bump", bump), ("pbr.aniso", aniso), ("pbr.clearcoat", coat),
-                                    ("pbr.sheen", has_sheen),
-                                    ("frame.uv", normal_map or bump or aniso)) if on}
+                                    ("pbr.coat_frame", coat_frame), ("pbr.sheen", has_sheen),
+                                    ("frame.uv", normal_map or bump or aniso or coat_map)) if on}
     return lobes, frozenset(flags)
 
 
@@ -132,6 +140,10 @@ class PbrPoint:
     sheen_color: wp.vec3
     sheen_r: float           # the sheen's roughness, held
     p_sheen: float           # the sheen's choice probability (within the coat's 1 - p_coat)
+    cframe: int              # the coat has a normal of its own: cn, with ct and cb about it (in the base's frame)
+    ct: wp.vec3
+    cb: wp.vec3
+    cn: wp.vec3
 
 
 @wp.func
@@ -148,6 +160,19 @@ def rotated(sf: Surface, angle: float) -> Surface:
     return out
 
 
+@wp.func
+def bend(sf: Surface, n: wp.vec3) -> wp.vec3:
+    """``n`` (unit, on wo's side) tilted towards the geometric normal until wo lies at least a
+    quarter of its height over the geometric surface above it."""
+    a = wp.dot(sf.wo, n)
+    c = wp.dot(sf.wo, sf.ng)
+    h = 0.25 * c
+    if a >= h:
+        return n
+    s = (h - a) / wp.max(c - a, 1.0e-12)
+    return wp.normalize(n * (1.0 - s) + sf.ng * s)
+
+
 def make(features: Features, base) -> SimpleNamespace:
     """The contract's functions of the pbr kind for these features (``base``: the colour look-ups)."""
     color, scalar = base.color, base.scalar
@@ -158,6 +183,49 @@ def make(features: Features, base) -> SimpleNamespace:
     has_aniso = features.needs("pbr.aniso")
     has_coat = features.needs("pbr.clearcoat")
     has_sheen = features.needs("pbr.sheen")
+    has_coat_frame = features.needs("pbr.coat_frame")
+
+    @wp.func
+    def frame_of(m: Materials, sf: Surface) -> Surface:
+        """The frame the lobes see: the tangent turned to the anisotropy direction."""
+        if wp.static(has_aniso):
+            return rotated(sf, m.anisotropy_rotation[sf.mat])
+        return sf
+
+    @wp.func
+    def coat_normal(m: Materials, t: Textures, sf: Surface) -> wp.vec3:
+        """The coat's world normal (KHR_materials_clearcoat): its own tangent-space map about the
+        interpolated normal ``sf.ns0`` (the frame of the base's map before ``shade`` turned it), else
+        that interpolated normal, not the base's map; bent as the base's is, so that wo stays above it."""
+        k = sf.mat
+        n = sf.ns0
+        slot = m.tex[k][wp.static(SLOT_COAT_NORMAL)]
+        if slot != TEX_NONE:
+            c = color(t, slot, wp.vec3(0.5, 0.5, 1.0), sf)
+            s = m.clearcoat_normal[k]
+            v = wp.vec3((2.0 * c[0] - 1.0) * s, (2.0 * c[1] - 1.0) * s, 2.0 * c[2] - 1.0)
+            n_face = wp.where(sf.front != 0, sf.ns0, -sf.ns0)
+            # the map's tangent about ns0: b is still the one surface_at made (orthogonal to ns0 and the
+            # tangent), while shade turned t to the base's mapped normal
+            t0 = wp.cross(sf.b, n_face)
+            if wp.dot(t0, sf.t) < 0.0:
+                t0 = -t0
+            mapped = wp.normalize(t0) * v[0] + sf.b * v[1] + n_face * v[2]
+            if wp.length(mapped) > 1.0e-8:
+                n = wp.normalize(mapped)
+                if sf.front == 0:
+                    n = -n
+        return bend(sf, n)
+
+    @wp.func
+    def coat_in(q: PbrPoint, w: wp.vec3) -> wp.vec3:
+        """A direction of the base's frame in the coat's."""
+        return wp.vec3(wp.dot(w, q.ct), wp.dot(w, q.cb), wp.dot(w, q.cn))
+
+    @wp.func
+    def coat_out(q: PbrPoint, w: wp.vec3) -> wp.vec3:
+        """A direction of the coat's frame in the base's."""
+        return q.ct * w[0] + q.cb * w[1] + q.cn * w[2]
 
     @wp.func
     def point(m: Materials, t: Textures, sf: Surface) -> PbrPoint:
@@ -221,10 +289,22 @@ def make(features: Features, base) -> SimpleNamespace:
                 q.prob = q.prob * (1.0 - q.p_sheen)
             total = w_sheen + under
         if wp.static(has_coat):
-            # glTF: mix(rest, coat, clearcoat x F(mu_o)), the coat's lobe D V without Fresnel
-            q.coat = wp.clamp(m.clearcoat[k], 0.0, 1.0) * (COAT_F0 + (1.0 - COAT_F0) * wp.pow(1.0 - mu, 5.0))
+            mu_c = mu
+            if wp.static(has_coat_frame):
+                q.cframe = 0
+                if m.clearcoat[k] > 0.0 and (tex[wp.static(SLOT_COAT_NORMAL)] != TEX_NONE
+                                             or tex[wp.static(SLOT_NORMAL)] != TEX_NONE
+                                             or tex[wp.static(SLOT_BUMP)] != TEX_NONE):
+                    nc = coat_normal(m, t, sf)
+                    q.cn = to_local(frame_of(m, sf), nc)
+                    q.ct = frame_from(q.cn, wp.vec3(1.0, 0.0, 0.0))
+                    q.cb = wp.cross(q.cn, q.ct)
+                    q.cframe = 1
+                    mu_c = wp.clamp(wp.dot(sf.wo, nc), 1.0e-4, 1.0)
+            # glTF: mix(rest, coat, clearcoat x F(mu_o)), the coat's lobe D V without Fresnel, mu_o about its normal
+            q.coat = wp.clamp(m.clearcoat[k], 0.0, 1.0) * (COAT_F0 + (1.0 - COAT_F0) * wp.pow(1.0 - mu_c, 5.0))
             q.coat_a = mf.ggx_alphas(wp.clamp(m.clearcoat_roughness[k], 0.0, 1.0), 0.0)[0]
-            ab = mf.ggx_split_sum(mu, q.coat_a)
+            ab = mf.ggx_split_sum(mu_c, q.coat_a)
             w_coat = q.coat * (ab[0] + ab[1])
             rest = (1.0 - q.coat) * total
             if w_coat + rest > 0.0:
@@ -292,17 +372,16 @@ def make(features: Features, base) -> SimpleNamespace:
                 pdf += q.p_sheen * wi[2] * INV_PI
         if wp.static(has_coat):
             f = f * (1.0 - q.coat)
-            if q.p_coat > 0.0 and wi[2] > 0.0:
-                f += mf.conductor_eval(wo, wi, wp.vec3(1.0), q.coat_a, q.coat_a, 0) * q.coat
-                pdf += q.p_coat * held(mf.conductor_pdf(wo, wi, q.coat_a, q.coat_a))
+            wo_c = wo
+            wi_c = wi
+            if wp.static(has_coat_frame):
+                if q.cframe != 0:
+                    wo_c = coat_in(q, wo)
+                    wi_c = coat_in(q, wi)
+            if q.p_coat > 0.0 and wi_c[2] > 0.0:
+                f += mf.conductor_eval(wo_c, wi_c, wp.vec3(1.0), q.coat_a, q.coat_a, 0) * q.coat
+                pdf += q.p_coat * held(mf.conductor_pdf(wo_c, wi_c, q.coat_a, q.coat_a))
         return f, pdf
-
-    @wp.func
-    def frame_of(m: Materials, sf: Surface) -> Surface:
-        """The frame the lobes see: the tangent turned to the anisotropy direction."""
-        if wp.static(has_aniso):
-            return rotated(sf, m.anisotropy_rotation[sf.mat])
-        return sf
 
     @wp.func
     def side_ok(sf: Surface, wi: wp.vec3, wi_local: wp.vec3) -> bool:
@@ -375,7 +454,14 @@ def make(features: Features, base) -> SimpleNamespace:
             p_lobe = float(0.0)
             if wp.static(has_coat):
                 if lobe == COAT:
-                    ls = mf.conductor_sample(wo, wp.vec3(1.0), q.coat_a, q.coat_a, 0, u_dir)
+                    wo_c = wo
+                    if wp.static(has_coat_frame):
+                        if q.cframe != 0:
+                            wo_c = coat_in(q, wo)
+                    ls = mf.conductor_sample(wo_c, wp.vec3(1.0), q.coat_a, q.coat_a, 0, u_dir)
+                    if wp.static(has_coat_frame):
+                        if q.cframe != 0:
+                            ls.wi = coat_out(q, ls.wi)
                     ls.value = ls.value * q.coat
                     p_lobe = q.p_coat
             if lobe == METAL:
@@ -453,18 +539,6 @@ def make(features: Features, base) -> SimpleNamespace:
     def albedo(m: Materials, t: Textures, sf: Surface) -> wp.vec3:
         """The base colour (glTF's albedo for metals and dielectrics alike), in [0, 1]."""
         return color(t, m.tex[sf.mat][wp.static(SLOT_BASE)], m.base_color[sf.mat], sf)
-
-    @wp.func
-    def bend(sf: Surface, n: wp.vec3) -> wp.vec3:
-        """``n`` (unit, on wo's side) tilted towards the geometric normal until wo lies at least a
-        quarter of its height over the geometric surface above it."""
-        a = wp.dot(sf.wo, n)
-        c = wp.dot(sf.wo, sf.ng)
-        h = 0.25 * c
-        if a >= h:
-            return n
-        s = (h - a) / wp.max(c - a, 1.0e-12)
-        return wp.normalize(n * (1.0 - s) + sf.ng * s)
 
     @wp.func
     def shade(m: Materials, t: Textures, sf: Surface) -> Surface:

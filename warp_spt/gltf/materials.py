@@ -219,8 +219,13 @@ class Materials(Accessors):
             fields["clearcoat"] = min(max(self.get(clearcoat, "clearcoatFactor", float, cptr, 0.0), 0.0), 1.0)
             fields["clearcoat_roughness"] = min(max(self.get(clearcoat, "clearcoatRoughnessFactor", float, cptr,
                                                              0.0), 0.0), 1.0)
-            self._unread_textures(clearcoat, cptr, ("clearcoatTexture", "clearcoatRoughnessTexture",
-                                                    "clearcoatNormalTexture"), "the coat")
+            info = self.get(clearcoat, "clearcoatNormalTexture", dict, cptr)
+            if info is not None:
+                nptr = f"{cptr}/clearcoatNormalTexture"
+                fields["clearcoat_normal_map"] = image(self.index(info, "index", nptr, "textures", required=True),
+                                                       "extensions/KHR_materials_clearcoat/clearcoatNormalTexture")
+                fields["clearcoat_normal"] = min(max(self.get(info, "scale", float, nptr, 1.0), 0.0), 10.0)
+            self._unread_textures(clearcoat, cptr, ("clearcoatTexture", "clearcoatRoughnessTexture"), "the coat")
         sheen = ext("KHR_materials_sheen")
         if sheen:
             shptr = f"{eptr}/KHR_materials_sheen"

@@ -117,7 +117,9 @@ def load_scene(objs: Iterable[PathLike | ObjData], mtls: Iterable[PathLike] = ()
         for message in d.warnings:
             note(message)
     library, libraries_read = _read_materials(data, mtls, note)
-    seed_dialect = any(len(d.spheres) for d in data) or any(m.seed_dialect for m in library.values())
+    # an OBJ's spheres are the seed's ('b' lines); a stage's or glTF's (extras set) are their own
+    seed_dialect = any(len(d.spheres) and d.extras is None for d in data) or any(
+        m.seed_dialect for m in library.values())
     if auto_smooth and seed_dialect:
         angle = None
     clay = default_material == "clay" or (default_material == "auto" and not libraries_read)

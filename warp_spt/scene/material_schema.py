@@ -126,6 +126,10 @@ COLUMNS: tuple[Column, ...] = (
            "over the rest, mixed in by clearcoat x Schlick's Fresnel at the view angle", kinds=("pbr",)),
     Column("clearcoat_roughness", SCALAR, 0.0, 0.0, 1.0, "KHR_materials_clearcoat clearcoatRoughnessFactor: the "
            "coat's perceptual roughness", kinds=("pbr",)),
+    Column("clearcoat_normal", SCALAR, 1.0, 0.0, 10.0, "KHR_materials_clearcoat clearcoatNormalTexture.scale: "
+           "the coat's normal-map strength (the map is clearcoat_normal_map, tangent space, about the "
+           "interpolated normal; without it the coat follows the interpolated normal, not the base's map)",
+           slot=10, kinds=("pbr",)),
     Column("sheen_color", COLOR, (0.0, 0.0, 0.0), 0.0, 1.0, "KHR_materials_sheen sheenColorFactor: a Charlie "
            "sheen lobe over the base, which is scaled by 1 - max(colour) x the lobe's albedo at the view angle",
            kinds=("pbr",)),
@@ -134,6 +138,7 @@ COLUMNS: tuple[Column, ...] = (
 )
 
 COLUMN = {c.name: c for c in COLUMNS}
+NORMAL_MAPS = ("normal", "clearcoat_normal")      # the scalars whose maps are tangent-space normal maps
 SLOT_COLUMNS: tuple[Column, ...] = tuple(sorted((c for c in COLUMNS if c.slot is not None), key=lambda c: c.slot))
 NUM_SLOTS = len(SLOT_COLUMNS)
 DIFFERENTIABLE: tuple[Column, ...] = tuple(c for c in COLUMNS if c.differentiable)
@@ -179,7 +184,7 @@ def _check_schema() -> None:
     """Slots number 0..NUM_SLOTS-1 once each and belong to colours; names are unique."""
     assert len(COLUMN) == len(COLUMNS), "duplicate column names"
     assert [c.slot for c in SLOT_COLUMNS] == list(range(NUM_SLOTS)), "slots must be 0..n-1"
-    assert all(c.type == COLOR or (c.type == SCALAR and c.channel is not None) or c.name == "normal"
+    assert all(c.type == COLOR or (c.type == SCALAR and c.channel is not None) or c.name in NORMAL_MAPS
                for c in SLOT_COLUMNS), "texture slots belong to colours and to scalars that name their channel"
     assert all(set(c.kinds) <= set(MATERIAL_KINDS) for c in COLUMNS), "columns name registered kinds"
     assert sum(c.type == SLOTS for c in COLUMNS) == 1, "one slots column"

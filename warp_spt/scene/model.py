@@ -286,12 +286,12 @@ def texture_decode(m, column: str) -> str:
     decoded from sRGB), ``"alpha"`` (an opacity map: its alpha channel, else its grey value) or
     ``"linear"`` (a data map: roughness, metallic, bump), ``"normal"`` (a tangent-space normal map:
     linear, checked to be one)."""
-    from warp_spt.scene.material_schema import COLUMN, KIND_SEED
+    from warp_spt.scene.material_schema import COLUMN, KIND_SEED, NORMAL_MAPS
     if m.kind == KIND_SEED:
         return "raw"
     if column == "opacity":
         return "alpha"
-    if column == "normal":
+    if column in NORMAL_MAPS:
         return "normal"
     return "srgb" if COLUMN[column].srgb else "linear"
 

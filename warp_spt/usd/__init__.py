@@ -1,11 +1,13 @@
 """USD stages (``.usd``, ``.usda``, ``.usdc``, ``.usdz``) read through Pixar's ``usd-core`` (the optional
 extra ``pip install ".[usd]"``: the only well-kept reader of the format) into an :class:`ObjData`,
 as glTF files are: meshes (subsets, face-varying normals and texture coordinates, orientation,
-holes, n-gons fanned), Xform hierarchies, native and PointInstancer instances kept as TLAS
-instances, UsdPreviewSurface materials, UsdLux lights, cameras, the up axis and metres per unit,
-purposes, and time samples (``time``: seconds since the stage's start time code, at its
-timeCodesPerSecond). See ``stage.py`` for the walk, ``meshes.py``, ``materials.py`` and
-``lights_cameras.py`` for the rest; docs/formats.md says what is read and what is not.
+holes, n-gons fanned), implicit shapes (spheres exact where they can be, cubes, capsules,
+cylinders, cones as polygons), Xform hierarchies, native and PointInstancer instances kept as TLAS
+instances, UsdPreviewSurface materials (displayColor where none is bound), UsdLux lights, cameras,
+the up axis and metres per unit, purposes, and time samples (``time``: seconds since the stage's
+start time code, at its timeCodesPerSecond). See ``stage.py`` for the walk, ``meshes.py``,
+``materials.py``, ``lights_cameras.py``, ``shapes.py`` and ``assets.py`` for the rest;
+docs/formats.md says what is read and what is not.
 
 Errors are :class:`SceneError` naming the file (line 0) and the prim path."""
 

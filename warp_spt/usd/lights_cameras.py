@@ -2,7 +2,8 @@
 emitting sphere (a point light with ``treatAsPoint``), rect and disk lights emitting surfaces, a dome
 light the sky (its texture the environment map); a camera the shared :class:`FileCamera` record.
 
-A light's radiance is ``color * intensity * 2^exposure`` (UsdLux), divided by its area where it is
+A light's radiance is ``color * intensity * 2^exposure`` (UsdLux), tinted by the blackbody colour of
+its ``colorTemperature`` where ``enableColorTemperature`` is set, divided by its area where it is
 ``normalize``d; a distant light's is taken as the sun's irradiance, as glTF's lux are."""
 
 from __future__ import annotations
@@ -34,14 +35,20 @@ def _unit(v) -> tuple[float, float, float]:
 
 
 def radiance(lux, time) -> tuple[float, float, float]:
-    """``color * intensity * 2^exposure`` of a UsdLux.LightAPI."""
+    """``color * intensity * 2^exposure`` of a UsdLux.LightAPI, tinted by its colour temperature."""
     def get(attr, default):
         v = attr.Get(time) if attr else None
         return default if v is None else v
 
-    colour = get(lux.GetColorAttr(), (1.0, 1.0, 1.0))
+    from pxr import UsdLux
+
+    colour = tuple(float(c) for c in get(lux.GetColorAttr(), (1.0, 1.0, 1.0)))
+    if get(lux.GetEnableColorTemperatureAttr(), False):
+        # UsdLux's own blackbody colour (linear Rec. 709, luminance 1) tints the colour
+        tint = UsdLux.BlackbodyTemperatureAsRgb(float(get(lux.GetColorTemperatureAttr(), 6500.0)))
+        colour = tuple(c * float(t) for c, t in zip(colour, tint))
     scale = float(get(lux.GetIntensityAttr(), 1.0)) * 2.0 ** float(get(lux.GetExposureAttr(), 0.0))
-    return tuple(float(c) * scale for c in colour)
+    return tuple(c * scale for c in colour)
 
 
 def normalized(lux, time) -> bool:

@@ -6,7 +6,8 @@ from sRGB by the loader as every colour map is; a texture whose ``sourceColorSpa
 scalar input (metallic, roughness, opacity) reads the one channel it is connected to (r, g, b or a),
 read here into a grey image: the kind reads metallic and roughness from the blue and green channels
 of a packed map, which a USD file need not have. Asset paths resolve through USD's resolver and must
-lie in the stage's folder (``io.paths.confine``); a texture inside a ``.usdz`` is read from the package.
+lie in the stage's folder (``usd/assets.py``, through ``io.paths.confine``); a texture inside a ``.usdz``
+is read from the package in memory, its package confined as a file is.
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_spt.io.paths import confine
 from warp_spt.scene.atlas_layout import TEXEL_BUDGET
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import TextureRef
 from warp_spt.scene.parts import pbr_material
 from warp_spt.scene.validate import MAX_RADIANCE
+from warp_spt.usd.assets import locate, package_bytes
 
 # UsdPreviewSurface inputs read, and the pbr kind's field each becomes; the others warn once
 _COLOURS = {"diffuseColor": "base_color", "emissiveColor": "emission"}
@@ -53,6 +54,18 @@ class Materials:
                 self.materials[name] = pbr_material(name, self.path, fields)
             except MaterialValueError as err:
                 raise SceneError(self.path, 0, f"{key}: {err.problem}") from None
+            self._row[key] = len(names)
+            names.append(name)
+        return self._row[key]
+
+    def display(self, colour: tuple[float, float, float], names: list[str]) -> int:
+        """The row of an unbound prim's displayColor: UsdPreviewSurface's defaults in that colour (one
+        row per colour)."""
+        colour = tuple(min(max(c, 0.0), 1.0) for c in colour)
+        key = "displayColor {:.6g} {:.6g} {:.6g}".format(*colour)
+        if key not in self._row:
+            name = f"{Path(self.path).name}: {key}"
+            self.materials[name] = pbr_material(name, self.path, dict(base_color=colour, metallic=0.0, roughness=0.5))
             self._row[key] = len(names)
             names.append(name)
         return self._row[key]
@@ -129,15 +142,10 @@ class Materials:
         if not resolved:
             self.warn(where, f"{where}: texture {asset.path!r} not found: a neutral texel stands for it")
             return None
-        data = None
-        if "[" in resolved and resolved.endswith("]"):            # inside a .usdz package: read from it
-            data = _package_bytes(resolved)
-            name = resolved
-        else:
-            found, refused = confine(resolved, Path(self.path).parent, "texture")
-            if refused:
-                raise SceneError(self.path, 0, f"{where}: {refused}")
-            name = str(found[0])
+        name, packaged, refused = locate(resolved, self.path, "texture")
+        if refused:
+            raise SceneError(self.path, 0, f"{where}: {refused}")
+        data = package_bytes(resolved) if packaged else None        # inside a .usdz: read from it in memory
         channel = output if output in ("r", "g", "b", "a") else "rgb"
         if colour and channel == "rgb" and space != "raw" and data is None:
             return TextureRef(name, self.path, 0, neutral=True)   # the loader decodes a colour map from sRGB
@@ -157,13 +165,6 @@ class Materials:
 
             image = srgb_to_linear(image)
         return TextureRef(f"{name}:{channel}:{space}", self.path, 0, image=np.ascontiguousarray(image, np.float32))
-
-
-def _package_bytes(resolved: str) -> bytes:
-    from pxr import Ar
-
-    asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
-    return bytes(memoryview(asset.GetBuffer())) if asset else b""
 
 
 def _read(source, path: str, where: str) -> np.ndarray | None:

@@ -18,11 +18,22 @@ from warp_spt.scene.errors import SceneError
 from warp_spt.scene.model import CHECKER_NAME, ObjData
 from warp_spt.scene.parts import ModelExtras, Part, gather
 from warp_spt.usd import lights_cameras as lc
+from warp_spt.usd import shapes
+from warp_spt.usd.assets import locate, package_bytes
 from warp_spt.usd.materials import Materials
 from warp_spt.usd.meshes import corner_values, triangulate
 
+MAX_INSTANCE_COLOURS = 64     # a PointInstancer's colours drawn apart (each one more mesh in the TLAS)
 # the prim types that are read; any other typed prim that is not a grouping warns once
 _GROUPS = {"Xform", "Scope", "", "Material", "Shader", "NodeGraph", "GeomSubset", "Skeleton", "SkelRoot"}
+
+
+def _uniform_scale(m: np.ndarray) -> float | None:
+    """s where ``m`` is s times a rotation (a sphere stays a sphere), else None."""
+    s = abs(np.linalg.det(m)) ** (1.0 / 3.0)
+    if not s > 0 or not np.allclose(m.T @ m, np.eye(3) * s * s, rtol=0.0, atol=1e-9 * s * s):
+        return None
+    return float(s)
 
 
 def _matrix(m) -> np.ndarray:
@@ -59,6 +70,7 @@ class Reader:
         self.spheres: list[tuple] = []
         self.extras = ModelExtras(time_range=self.time_range)
         self.placed: dict[str, tuple[list[Part], list[np.ndarray]]] = {}
+        self.instancer_row = 0          # the row of the PointInstancer's displayColor while its prototypes are read
 
     def warn(self, prim: str, message: str) -> None:
         if (prim, message) not in self._warned:
@@ -110,6 +122,8 @@ class Reader:
                 continue
             if child.IsA(UsdGeom.Mesh):
                 self._mesh(child, proto_root, placements)
+            elif _is_shape(child):
+                self._shape(child, proto_root, placements)
             elif child.IsA(UsdGeom.Camera):
                 if placements is None:
                     self.extras.cameras.append(lc.camera(child, self.world(child), len(self.extras.cameras),
@@ -143,19 +157,49 @@ class Reader:
         if len(indices) and (indices.min() < 0 or indices.max() >= len(targets)):
             raise SceneError(self.path, 0, f"{where}: protoIndices names prototype {int(indices.max())}, but it has "
                              f"{len(targets)} prototypes")
+        outer_row = self.instancer_row
+        rows = self._instance_rows(prim, len(indices), outer_row)
         base = self.world(prim) if placements is None else None
         outer = [base] if base is not None else [p @ self._relative(prim, proto_root) for p in placements]
         for k, target in enumerate(targets):
             proto = self.stage.GetPrimAtPath(target)
             if not proto:
                 raise SceneError(self.path, 0, f"{where}: prototype {target} does not exist")
-            mine = [outer_m @ _matrix(xforms[i]) @ _matrix(UsdGeom.Xformable(proto).GetLocalTransformation(self.time))
-                    for outer_m in outer for i in np.flatnonzero(indices == k).tolist()]
-            if mine:
+            picked = np.flatnonzero(indices == k)
+            # the prototype read once per colour its instances are drawn in (unbound prototypes take it)
+            for row in np.unique(rows[picked]).tolist():
+                own = _matrix(UsdGeom.Xformable(proto).GetLocalTransformation(self.time))
+                mine = [outer_m @ _matrix(xforms[i]) @ own for outer_m in outer
+                        for i in picked[rows[picked] == row].tolist()]
+                self.instancer_row = row
                 # the prototype prim's own transform is part of each instance's; its meshes in its space
                 if proto.IsA(UsdGeom.Mesh):
                     self._mesh(proto, proto, mine)
+                elif _is_shape(proto):
+                    self._shape(proto, proto, mine)
                 self._walk(proto, proto, mine)
+        self.instancer_row = outer_row
+
+    def _instance_rows(self, prim, count: int, outer_row: int) -> np.ndarray:
+        """(count,) the row each instance of a PointInstancer is drawn in where its prototype has no
+        material or colour of its own: the instancer's displayColor, one per instance where it has one per
+        instance and at most MAX_INSTANCE_COLOURS of them (else its mean, with a warning), else the
+        enclosing instancer's row."""
+        values = self._display_colours(prim)
+        if values is None:
+            return np.full(count, outer_row, np.int32)
+        if len(values) == count and count > 1:
+            codes, inverse = np.unique(np.round(np.clip(values, 0.0, 1.0) * 255.0), axis=0, return_inverse=True)
+            if len(codes) <= MAX_INSTANCE_COLOURS:
+                rows = [self.materials.display(tuple(float(c) for c in values[inverse.ravel() == j].mean(axis=0)),
+                                               self.names) for j in range(len(codes))]
+                return np.asarray(rows, np.int32)[inverse.ravel()]
+            where = str(prim.GetPath())
+            self.warn(where, f"{where}: displayColor has {len(codes)} colours over its instances, more than "
+                      f"{MAX_INSTANCE_COLOURS}: drawn in their mean colour")
+            return np.full(count, self.materials.display(tuple(float(c) for c in values.mean(axis=0)), self.names),
+                           np.int32)
+        return np.full(count, self._display_row(prim), np.int32)
 
     def _mesh(self, prim, proto_root, placements) -> None:
         from pxr import UsdGeom, UsdShade
@@ -168,14 +212,13 @@ class Reader:
         indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
         holes = np.asarray(mesh.GetHoleIndicesAttr().Get(t) or [], np.int64)
         left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
-        try:
-            tri, corners, face = triangulate(points, counts, indices, holes, left, where)
-        except SceneError as err:
-            raise SceneError(self.path, 0, err.message if err.path is None else f"{where}: {err.message}") from None
+        tri, corners, face = self._triangles(points, counts, indices, holes, left, where)
         if not len(tri):
             return
-        if not np.isfinite(points).all():
-            raise SceneError(self.path, 0, f"{where}: the points are not finite")
+        scheme = mesh.GetSubdivisionSchemeAttr()
+        # only an authored scheme: its fallback is catmullClark, which exporters of polygon meshes leave unset
+        if scheme.HasAuthoredValue() and scheme.Get(t) != UsdGeom.Tokens.none:
+            self.warn(where, f"{where}: subdivisionScheme {scheme.Get(t)} is not applied: drawn as its control cage")
         api = UsdGeom.PrimvarsAPI(prim)
         uv = uv_index = normals = normal_index = None
         st = api.GetPrimvar("st")
@@ -188,7 +231,7 @@ class Reader:
             normals, normal_index = corner_values(np.asarray(mesh.GetNormalsAttr().Get(t), np.float64).reshape(-1, 3),
                                                   mesh.GetNormalsInterpolation(), corners, face, indices,
                                                   self.path, f"{where}.normals")
-        rows = np.full(len(counts), self.materials.row(self._bound(prim), self.names), np.int32)
+        rows = np.full(len(counts), self._row(prim), np.int32)
         for subset in UsdGeom.Subset.GetAllGeomSubsets(mesh):
             if subset.GetFamilyNameAttr().Get() != "materialBind":
                 continue
@@ -198,6 +241,57 @@ class Reader:
                 raise SceneError(self.path, 0, f"{subset.GetPath()}: face {int(faces.max())} is out of range: the "
                                  f"mesh has {len(counts)} faces")
             rows[faces] = self.materials.row(bound if bound else None, self.names) if bound else rows[faces]
+        self._place(prim, proto_root, placements, points, tri, uv, uv_index, normals, normal_index, face, rows)
+
+    def _triangles(self, points, counts, indices, holes, left, where):
+        try:
+            tri, corners, face = triangulate(points, counts, indices, holes, left, where)
+        except SceneError as err:
+            raise SceneError(self.path, 0, err.message if err.path is None else f"{where}: {err.message}") from None
+        if len(tri) and not np.isfinite(points).all():
+            raise SceneError(self.path, 0, f"{where}: the points are not finite")
+        return tri, corners, face
+
+    def _shape(self, prim, proto_root, placements) -> None:
+        """An implicit shape: an exact sphere where nothing instances or stretches it, else polygons."""
+        from pxr import UsdGeom
+
+        where = str(prim.GetPath())
+        row = self._row(prim)
+
+        def size(attr, name):
+            v = float(attr.Get(self.time))
+            if not (math.isfinite(v) and v >= 0):
+                raise SceneError(self.path, 0, f"{where}: {name} must be finite and not negative, got {v:g}")
+            return v
+
+        normals = None
+        if prim.IsA(UsdGeom.Sphere):
+            radius = size(UsdGeom.Sphere(prim).GetRadiusAttr(), "radius")
+            world = self.world(prim) if placements is None else None
+            scale = None if world is None else _uniform_scale(world[:3, :3])
+            if scale is not None:
+                if radius * scale > 0:
+                    self.spheres.append((*(float(c) for c in world[:3, 3]), radius * scale, row))
+                return
+            points, counts, indices, normals = shapes.sphere(radius)
+        elif prim.IsA(UsdGeom.Cube):
+            points, counts, indices = shapes.cube(size(UsdGeom.Cube(prim).GetSizeAttr(), "size"))
+        else:
+            kind = next(k for k in (UsdGeom.Capsule, UsdGeom.Cylinder, UsdGeom.Cone) if prim.IsA(k))
+            shape = kind(prim)
+            make = {UsdGeom.Capsule: shapes.capsule, UsdGeom.Cylinder: shapes.cylinder, UsdGeom.Cone: shapes.cone}[kind]
+            points, counts, indices = make(size(shape.GetRadiusAttr(), "radius"), size(shape.GetHeightAttr(), "height"),
+                                           str(shape.GetAxisAttr().Get(self.time)))
+        tri, corners, face = self._triangles(points, counts, indices, np.zeros(0, np.int64), False, where)
+        normal_index = None if normals is None else tri
+        self._place(prim, proto_root, placements, points, tri, None, None, normals, normal_index, face,
+                    np.full(len(counts), row, np.int32))
+
+    def _place(self, prim, proto_root, placements, points, tri, uv, uv_index, normals, normal_index, face,
+               rows) -> None:
+        """A prim's triangles into world space, or (under instances) once into its prototype's space."""
+        where = str(prim.GetPath())
         if placements is None:
             world = self.world(prim)
             p = points @ world[:3, :3].T + world[:3, 3]
@@ -207,7 +301,7 @@ class Reader:
                 normals = normals @ np.linalg.inv(world[:3, :3])      # the inverse transpose, row vectors
             self._add(self.parts, p, tri, uv, uv_index, normals, normal_index, face, rows)
             return
-        key = where
+        key = where if self.instancer_row == 0 else f"{where} (row {self.instancer_row})"
         if key not in self.placed:
             local = self._relative(prim, proto_root) if proto_root is not None and prim != proto_root else np.eye(4)
             p = points @ local[:3, :3].T + local[:3, 3]
@@ -216,6 +310,37 @@ class Reader:
             self.placed[key] = ([], [])
             self._add(self.placed[key][0], p, tri, uv, uv_index, normals, normal_index, face, rows)
         self.placed[key][1].extend(placements)
+
+    def _row(self, prim) -> int:
+        """The material row of a gprim: its bound material, else its displayColor (as Hydra draws an
+        unbound prim), else that of the PointInstancer it is a prototype of, else the default (row 0)."""
+        bound = self._bound(prim)
+        if bound is not None:
+            return self.materials.row(bound, self.names)
+        own = self._display_row(prim)
+        return self.instancer_row if own is None else own
+
+    def _display_colours(self, prim) -> np.ndarray | None:
+        """(N, 3) the values of ``prim``'s displayColor primvar, None if it has none."""
+        from pxr import UsdGeom
+
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+        if not pv or not pv.HasValue():
+            return None
+        values = np.asarray(pv.ComputeFlattened(self.time) or [], np.float64).reshape(-1, 3)
+        if not np.isfinite(values).all():
+            raise SceneError(self.path, 0, f"{prim.GetPath()}.primvars:displayColor: the colours are not finite")
+        return values if len(values) else None
+
+    def _display_row(self, prim) -> int | None:
+        """The row of ``prim``'s displayColor primvar (its mean where it varies), None if it has none."""
+        values = self._display_colours(prim)
+        if values is None:
+            return None
+        if len(values) > 1 and np.ptp(values, axis=0).max() > 0:
+            where = str(prim.GetPath())
+            self.warn(where, f"{where}: displayColor varies over the prim: drawn in its mean colour")
+        return self.materials.display(tuple(float(c) for c in values.mean(axis=0)), self.names)
 
     @staticmethod
     def _add(out: list, p, tri, uv, uv_index, normals, normal_index, face, rows) -> None:
@@ -283,11 +408,8 @@ class Reader:
             self.warn(where, f"{where}: {prim.GetTypeName()} lights are not read")
 
     def _dome(self, prim) -> None:
-        from pathlib import Path
-
         from pxr import UsdLux
 
-        from warp_spt.io.paths import confine
         from warp_spt.scene.sky import Sky
 
         where = str(prim.GetPath())
@@ -302,16 +424,42 @@ class Reader:
                       "its colour stands for it")
             self.extras.sky = Sky.constant(*radiance)
             return
-        found, refused = confine(asset.resolvedPath, Path(self.path).parent, "dome light texture")
+        name, packaged, refused = locate(asset.resolvedPath, self.path, "dome light texture")
         if refused:
             raise SceneError(self.path, 0, f"{where}: {refused}")
-        from warp_spt.images.environment import load_environment
+        from warp_spt.images.environment import read_environment_image
+        from warp_spt.scene.environment import EnvironmentMap
 
         strength = max(radiance) if max(radiance) > 0 else 0.0
         if len(set(radiance)) > 1:
             self.warn(where, f"{where}: the dome light's colour tints are not read: its brightest channel scales "
                       "the map")
-        self.extras.sky = load_environment(found[0], strength=strength, warn=lambda m: self.warn(where, m))
+        note = lambda m: self.warn(where, m)           # noqa: E731
+        try:
+            if packaged:
+                import tempfile
+                from pathlib import Path
+
+                # the map readers take a file: the packaged bytes go to a private temporary folder, gone after
+                with tempfile.TemporaryDirectory(prefix="warp_spt_usdz_") as folder:
+                    inner = Path(folder) / ("map" + Path(name[:-1].rsplit("[", 1)[-1]).suffix.lower())
+                    inner.write_bytes(package_bytes(asset.resolvedPath))
+                    try:
+                        image = read_environment_image(inner, note)
+                    except ValueError as err:
+                        raise ValueError(str(err).replace(str(inner), name)) from None
+            else:
+                image = read_environment_image(name, note)
+        except ValueError as err:
+            raise SceneError(self.path, 0, f"{where}: the dome light's texture: {err}") from None
+        self.extras.sky = Sky.environment(EnvironmentMap(image, name, "importance"), strength=strength)
+
+
+def _is_shape(prim) -> bool:
+    """An implicit shape that is read (``shapes.py``)."""
+    from pxr import UsdGeom
+
+    return any(prim.IsA(k) for k in (UsdGeom.Sphere, UsdGeom.Cube, UsdGeom.Capsule, UsdGeom.Cylinder, UsdGeom.Cone))
 
 
 def _predicate():

@@ -138,3 +138,47 @@ def test_fog_without_coefficients_looks_the_same_at_any_scale(tmp_path, capsys):
     fixed = ["--fog", "sigma_s=0.2", "--fog", "sigma_a=0.05"]
     small_abs, large_abs = (_framed_means(tmp_path, s, fixed) for s in (1.0, 100.0))
     assert abs(small_abs.mean() - large_abs.mean()) > 10 * se, (small_abs, large_abs)
+
+
+def test_the_api_places_the_same_box_and_a_missing_file_is_one_line_before_loading(tmp_path, capsys):
+    import warp_spt
+    from warp_spt.io.mtl import builtin_clay
+    from warp_spt.scene.media import interface_rows
+
+    a = _blob()
+    path = _write_grid(tmp_path / "blob.nvdb", a)
+    scene, box = warp_spt.add_volume(warp_spt.Scene.empty(builtin_clay()), str(path), sigma_a=0.5)
+    assert np.allclose(box, _expected_bounds(a), atol=1e-6) and np.allclose(scene.bounds, box, atol=1e-6)
+    (name,) = scene.interiors
+    m = scene.interiors[name]
+    assert name == "volume blob.nvdb"
+    assert m.sigma_s == (1.0,) * 3 and m.sigma_a == (0.5,) * 3 and m.density == str(path)
+    assert interface_rows(scene.materials)[scene.materials.names.index(name)]     # pass-through walls
+    again, _ = warp_spt.add_volume(scene, str(path))      # a second one gets a name of its own
+    assert len(again.interiors) == 2
+    status = main(["--volume", str(tmp_path / "missing.nvdb"), "-out", str(tmp_path / "x.png")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(err) == 1 and "cannot read --volume file" in err[0], err
+    assert main(["--volume", "sigma_s=2", "-out", str(tmp_path / "x.png")]) == 2
+    assert "expected a .nvdb file first" in capsys.readouterr().err
+
+
+def test_the_viewer_takes_the_same_fog_rule():
+    """The viewer's --fog without coefficients leaves them to its scene-sized default, which is the
+    command line's (scene.media.scene_fog); coefficients given are kept as they are."""
+    from types import SimpleNamespace
+
+    from warp_spt.cli.view import build_parser, lighting_settings
+    from warp_spt.scene.media import scene_fog
+    from warp_spt.viewer import lighting
+    from warp_spt.viewer.session import ViewSettings
+
+    bare = lighting_settings(build_parser().parse_args(["--fog", "g=0.4"]))
+    assert bare["fog"] and bare["fog_g"] == 0.4 and not {"fog_sigma_s", "fog_sigma_a"} & set(bare)
+    given = lighting_settings(build_parser().parse_args(["--fog", "sigma_s=0.2"]))
+    assert given["fog_sigma_s"] == (0.2,) * 3 and "fog_sigma_a" not in given
+    camera = SimpleNamespace(direction=(0.0, 1.0, 0.0))
+    for size in (0.15, 500.0):
+        s = lighting.placed(ViewSettings(), set(bare), (0.0, 0.0, 1.0), camera, (0.0, 0.0, 0.0), size)
+        assert (s.fog_sigma_s, s.fog_sigma_a) == (scene_fog(size)["sigma_s"], scene_fog(size)["sigma_a"])
+        assert abs(max(s.fog_sigma_s) * size - 0.5) < 1e-6

@@ -31,7 +31,8 @@ from warp_spt.runtime.signals import deferred_signals
 def run_image(opts: Options, err: TextIO, started: float) -> int:
     """Load, render and save one image on this machine as ``opts`` says (errors propagate)."""
     objs, mtls = scene_files(opts)
-    check_files(objs, mtls, opts.out, env=opts.env.path if opts.env else None)
+    check_files(objs, mtls, opts.out, env=opts.env.path if opts.env else None,
+                volume=opts.volume[0] if opts.volume else None)
     check_outputs(opts.budget, RunError)
     check_denoiser(opts.budget, RunError)
     say = say_for(opts, err)

@@ -303,7 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="a parameter of the integrator, by name (repeatable; listed at the end)")
     new.add_argument("--fog", action="append", default=[], metavar="KEY=VALUE",
                      help="fill the scene with a homogeneous medium (repeatable): sigma_a=R[,G,B], "
-                          "sigma_s=..., g=G (-1..1), emission=..., majorant=M; docs/volumes.md")
+                          "sigma_s=... per scene unit, g=G (-1..1), emission=..., majorant=M; without sigma_s "
+                          "and sigma_a, an optical depth of about 0.6 across the scene; docs/volumes.md")
     new.add_argument("--volume", nargs="+", metavar=("FILE.nvdb", "KEY=VALUE"),
                      help="a density grid in the box of its own bounds, as that box's interior medium: "
                           "sigma_s=... (default 1), sigma_a=..., g=..., emission=..., majorant=..., per unit "

@@ -161,6 +161,8 @@ def test_the_api_places_the_same_box_and_a_missing_file_is_one_line_before_loadi
     assert status == 1 and len(err) == 1 and "cannot read --volume file" in err[0], err
     assert main(["--volume", "sigma_s=2", "-out", str(tmp_path / "x.png")]) == 2
     assert "expected a .nvdb file first" in capsys.readouterr().err
+    assert main(["--volume", str(path), "--frames", "0:2", "-out", str(tmp_path / "f_{frame}.png")]) == 2
+    assert "--volume alone renders one image" in capsys.readouterr().err
 
 
 def test_the_viewer_takes_the_same_fog_rule():

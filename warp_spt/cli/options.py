@@ -380,7 +380,10 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
         lights=light_options(ns, UsageError),
     )
-    return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
+    opts = _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
+    if opts.volume is not None and not opts.objs and opts.demo is None and opts.animated:
+        raise UsageError("--volume alone renders one image: give -obj (the frames' models) for an animation")
+    return opts
 
 
 MAX_EXPOSURE = 20.0     # stops: 2^20 either way is far past any display; the viewer's range too

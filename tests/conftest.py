@@ -27,6 +27,7 @@ NEEDS = {
     "tests/house/test_notebooks.py": ("notebook",),
     "tests/viewer/test_viewer_widget.py": ("notebook",),
     "tests/library/test_cluster.py": ("cluster",),
+    "tests/house/test_readme.py::test_every_python_block_runs_as_a_script_from_an_empty_folder[cluster]": ("cluster",),
 }
 # The slow tier: node-id prefixes (a file, or "file::test"), each with why. Cold figures are from a
 # run on 2 cores with an empty Warp kernel cache. A test stays in the default tier unless it alone

@@ -57,6 +57,7 @@ _EXPORTS = {
     "SceneError": "scene.errors",
     "Sky": "scene.sky",
     "load_environment": "images.environment",
+    "add_volume": "media.grid",
     "SunLight": "scene.lights",
     "PointLight": "scene.lights",
     "SpotLight": "scene.lights",
@@ -102,6 +103,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.images.files import save_image, to_display, tonemap_seed, tonemap_srgb
     from warp_spt.images.environment import load_environment
+    from warp_spt.media.grid import add_volume
     from warp_spt.gltf import load_gltf
     from warp_spt.io.loader import load_scene
     from warp_spt.io.mtl import load_mtl

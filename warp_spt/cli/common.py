@@ -169,16 +169,17 @@ def scene_files(opts) -> tuple[list[str], list[str]]:
 
 
 def check_files(objs: Sequence[str], mtls: Sequence[str], out: str | None, out_flag: str = "-out",
-                env: str | None = None) -> None:
+                env: str | None = None, volume: str | None = None) -> None:
     """Fail early, before any loading or rendering, on unreadable inputs or an unwritable output place.
 
-    Inputs (``env``: the --env map, or None) must be regular files (a FIFO or a device is refused
+    Inputs (``env``: the --env map, ``volume``: the --volume grid, or None) must be regular files (a FIFO or a device is refused
     without being opened, so nothing blocks); the output (``out_flag``'s; None: none) must not be an
     existing non-regular file (a symlink is written through).
     """
     from warp_spt.io.tokens import file_problem
 
-    for flag, paths in (("-obj", objs), ("-mtl", mtls), ("--env", () if env is None else (env,))):
+    for flag, paths in (("-obj", objs), ("-mtl", mtls), ("--env", () if env is None else (env,)),
+                        ("--volume", () if volume is None else (volume,))):
         for path in paths:
             problem = file_problem(path)
             if problem is None and not os.access(path, os.R_OK):

@@ -146,6 +146,8 @@ class Options:
     sampler: str | None = None
     integrator_options: tuple[tuple[str, str], ...] = ()   # --integrator-option NAME=VALUE, as typed
     fog: object = None               # --fog: a warp_spt.scene.media.Medium filling the scene
+    fog_scaled: bool = False         # --fog gave no sigma_a, sigma_s: the scene's default fog (scene_fog)
+    volume: tuple | None = None      # --volume: (the .nvdb path, the Medium fields of its words)
     up: str | None = None            # --up; None: the rule of warp_spt.scene.conventions.up_axis
     cam_given: bool = False          # -cam or --look-at placed the camera: never frame automatically
     cam_explicit: bool = False       # -cam itself (the seed's Z-up convention)
@@ -179,8 +181,8 @@ class Options:
 
     @property
     def uses_demo_scene(self) -> bool:
-        """No ``-obj`` given: the built-in demo scene is rendered."""
-        return not self.objs
+        """No ``-obj`` given (nor ``--volume`` without ``--demo``): the built-in demo scene is rendered."""
+        return not self.objs and (self.volume is None or self.demo is not None)
 
 
 _ADDRESS = re.compile(r"(?:tcp://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):([0-9]{1,5})")
@@ -302,7 +304,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="a parameter of the integrator, by name (repeatable; listed at the end)")
     new.add_argument("--fog", action="append", default=[], metavar="KEY=VALUE",
                      help="fill the scene with a homogeneous medium (repeatable): sigma_a=R[,G,B], "
-                          "sigma_s=..., g=G (-1..1), emission=..., majorant=M; docs/volumes.md")
+                          "sigma_s=... per scene unit, g=G (-1..1), emission=..., majorant=M; without sigma_s "
+                          "and sigma_a, an optical depth of about 0.6 across the scene; docs/volumes.md")
+    new.add_argument("--volume", nargs="+", metavar=("FILE.nvdb", "KEY=VALUE"),
+                     help="a density grid in the box of its own bounds, as that box's interior medium: "
+                          "sigma_s=... (default 1), sigma_a=..., g=..., emission=..., majorant=..., per unit "
+                          "density and scene unit; alone, or beside -obj; docs/volumes.md")
     new.add_argument("--textures", action="append", default=[], metavar="FILE.py",
                      help="Python module registering procedural textures (map_Kd proc:NAME; repeatable)")
     add_flags(p, int_at_least)
@@ -362,6 +369,7 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         texture_filter=ns.texture_filter, quiet=ns.quiet, verbose=ns.verbose, demo=ns.demo,
         integrator=ns.integrator, sampler=ns.sampler, texture_modules=tuple(ns.textures),
         integrator_options=_unique_options(ns.integrator_option), fog=_fog(ns.fog),
+        fog_scaled=_fog_scaled(ns.fog), volume=_volume(ns.volume),
         up=ns.up, cam_given=ns.cam is not None or ns.look_at is not None, cam_explicit=ns.cam is not None,
         look_at=tuple(ns.look_at) if ns.look_at is not None else None, view=_view_angles(ns), frame=ns.frame,
         frame_all=ns.frame_all,
@@ -373,7 +381,10 @@ def parse_args(argv: Sequence[str], *, memory_bytes: int | None = None) -> Optio
         budget=options(ns, UsageError, OUTPUT_SUFFIXES),
         lights=light_options(ns, UsageError),
     )
-    return _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
+    opts = _check_exposure(with_animation_options(opts, ns, explicit_out=ns.out is not None))
+    if opts.volume is not None and not opts.objs and opts.demo is None and opts.animated:
+        raise UsageError("--volume alone renders one image: give -obj (the frames' models) for an animation")
+    return opts
 
 
 MAX_EXPOSURE = 20.0     # stops: 2^20 either way is far past any display; the viewer's range too
@@ -580,6 +591,29 @@ def _fog(words: list[str]):
         return parse_medium(words, "--fog")
     except ValueError as err:
         raise UsageError(str(err)) from None
+
+
+def _volume(words: list[str] | None):
+    """(path, Medium fields) of --volume FILE [KEY=VALUE ...], or None (UsageError naming the word)."""
+    if not words:
+        return None
+    from warp_spt.scene.media import given_keys, parse_medium
+
+    path, pairs = words[0], words[1:]
+    if "=" in path or not path.lower().endswith(".nvdb"):
+        raise UsageError(f"--volume: expected a .nvdb file first, then KEY=VALUE words, got {path!r}")
+    try:
+        medium = parse_medium(pairs, "--volume")
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    return path, {k: getattr(medium, k) for k in sorted(given_keys(pairs))}
+
+
+def _fog_scaled(words: list[str]) -> bool:
+    """--fog was given without sigma_a or sigma_s: the scene's default fog (scene.media.scene_fog)."""
+    from warp_spt.scene.media import SIGMA_KEYS, given_keys
+
+    return bool(words) and not given_keys(words) & set(SIGMA_KEYS)
 
 
 def settings_of(opts, **overrides):

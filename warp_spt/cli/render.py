@@ -31,7 +31,8 @@ from warp_spt.runtime.signals import deferred_signals
 def run_image(opts: Options, err: TextIO, started: float) -> int:
     """Load, render and save one image on this machine as ``opts`` says (errors propagate)."""
     objs, mtls = scene_files(opts)
-    check_files(objs, mtls, opts.out, env=opts.env.path if opts.env else None)
+    check_files(objs, mtls, opts.out, env=opts.env.path if opts.env else None,
+                volume=opts.volume[0] if opts.volume else None)
     check_outputs(opts.budget, RunError)
     check_denoiser(opts.budget, RunError)
     say = say_for(opts, err)
@@ -42,21 +43,25 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     from warp_spt.images.files import save_image
     from warp_spt.io.loader import load_scene
     from warp_spt.rendering.tiles import render_scene
+    from warp_spt.io.mtl import builtin_clay
+    from warp_spt.scene.model import Scene
     from warp_spt.scene.recentre import describe_bounds
 
     load_texture_modules(opts, say)
     start = time.perf_counter()
     try:
         scene = load_scene(objs, mtls, warn=lambda message: None,   # collected in scene.warnings, shown below
-                           default_material=opts.default_material, smooth_angle=opts.smooth_angle)
+                           default_material=opts.default_material, smooth_angle=opts.smooth_angle) \
+            if objs else Scene.empty(builtin_clay())      # --volume alone
     except MemoryError:
         raise RunError("out of memory while loading the scene: its files or textures are too large for "
                        "this machine's memory") from None
     for warning in scene.warnings:
         say(f"warning: {warning}")
-    scene = with_flag_lights(opts, scene)   # --sun, --light, --lights beside the scene's own; --fog
+    scene = with_flag_lights(opts, scene, say)   # --sun, --light, --lights beside the scene's own; --volume; --fog
     opts = media_integrator(opts, scene, say)
-    what = f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else f"{len(objs)} model file(s)"
+    what = (f"the built-in demo ({opts.demo or 'default'})" if opts.uses_demo_scene else
+            f"{len(objs)} model file(s)" if objs else "the volume alone")
     dropped = f" ({scene.dropped_degenerate:,} of zero area dropped)" if scene.dropped_degenerate else ""
     if scene.instanced:         # the triangles held, then as many as the instances place
         dropped += f", {sum(len(m.indices) * m.placements for m in scene.meshes):,} placed by instances"

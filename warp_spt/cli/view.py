@@ -28,6 +28,7 @@ from warp_spt.cli.options import UP_AXES, _camera, _fog, _join_up_operand, _smoo
 from warp_spt.runtime.extras import install_hint
 from warp_spt.runtime.signals import exit_status
 from warp_spt.scene.errors import SceneError
+from warp_spt.scene.media import SIGMA_KEYS, given_keys
 from warp_spt.scene.limits import MAX_VIEW_PIXELS
 
 PROG = "warp-spt view"
@@ -143,5 +144,7 @@ def lighting_settings(ns) -> dict:
         if any(fog.emission) or fog.majorant != 1.0:
             raise UsageError("the viewer's fog takes sigma_a, sigma_s and g (render emission and majorant "
                              "with warp-spt)")
-        out.update(fog=True, fog_sigma_a=fog.sigma_a, fog_sigma_s=fog.sigma_s, fog_g=fog.g)
+        out.update(fog=True, fog_g=fog.g)
+        given = given_keys(ns.fog)      # the others are the scene's default fog, as warp-spt's
+        out.update({f"fog_{k}": getattr(fog, k) for k in SIGMA_KEYS if k in given})
     return out

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from warp_spt.cli.common import CompileNotice, RunError, refuse_without_media
 from warp_spt.rendering.first_view import (
     PROBE_SIZE,
@@ -24,6 +26,7 @@ from warp_spt.rendering.first_view import (
     view_warnings,
 )
 from warp_spt.scene.camera import Camera
+from warp_spt.scene.media import FOG_DEPTH_ABSORB, FOG_DEPTH_SCATTER, scene_fog
 from warp_spt.scene.sky import Sky
 
 # the checks' names, where the command line's callers and tests have found them
@@ -108,15 +111,40 @@ def frame_view(opts, say, standin=None, bounds=None):
     return view
 
 
-def with_flag_lights(opts, scene):
-    """``scene`` with the lights of --sun, --light and --lights beside its own, and the --fog medium:
-    part of the scene, so the probe, every frame and a cluster's workers (the scene travels to them)
-    see them as a single image does."""
+def with_flag_lights(opts, scene, say=None):
+    """``scene`` with the lights of --sun, --light and --lights beside its own, the --volume box and
+    the --fog medium: part of the scene, so the probe, every frame and a cluster's workers (the scene
+    travels to them) see them as a single image does. ``say``: where the volume's place and the
+    fog's coefficients are told (once: a frame's call passes none)."""
+    say = say or (lambda line: None)
     if opts.lights:
         scene = replace(scene, lights=[*scene.lights, *opts.lights])
+    if getattr(opts, "volume", None) is not None:
+        from warp_spt.media.grid import add_volume
+
+        path, fields = opts.volume
+        scene, box = add_volume(scene, path, **fields)
+        corner = lambda v: "(" + ", ".join(f"{x:.4g}" for x in v) + ")"    # noqa: E731
+        say(f"--volume {path}: a box from {corner(box[0])} to {corner(box[1])}, the grid's own bounds, "
+            f"filled with its density (sigma_s {_grey(fields.get('sigma_s', (1.0,) * 3))} per unit density "
+            "and scene unit)")
     if getattr(opts, "fog", None) is not None:
-        scene = replace(scene, fog=opts.fog)
+        fog = opts.fog
+        extent = np.ptp(scene.bounds, axis=0)
+        size = float(np.linalg.norm(extent)) if np.isfinite(extent).all() and extent.any() else 1.0
+        if opts.fog_scaled:
+            fog = replace(fog, **scene_fog(size))
+        depth = max(fog.sigma_t) * size
+        say(f"fog: sigma_s {_grey(fog.sigma_s)}, sigma_a {_grey(fog.sigma_a)} per scene unit, an optical depth "
+            f"of {depth:.3g} across the scene ({size:.4g} across)"
+            + (f" ({FOG_DEPTH_SCATTER} and {FOG_DEPTH_ABSORB} over its size: --fog without sigma_s and sigma_a)"
+               if opts.fog_scaled else ""))
+        scene = replace(scene, fog=fog)
     return scene
+
+
+def _grey(rgb) -> str:
+    return f"{rgb[0]:.3g}" if rgb[0] == rgb[1] == rgb[2] else ",".join(f"{x:.3g}" for x in rgb)
 
 
 def media_integrator(opts, scene, say):

@@ -114,6 +114,9 @@ def load_grid(medium: Medium, device: str, where: str):
         # a regular file (not /dev/zero) of at most MAX_GRID_BYTES, whose zip chunks are inflated here
         # within that budget: Warp's loader inflates them without a bound (4.2 MB took it to 8.7 GB)
         data = nvdb_uncompressed(read_file(path, "density grid", limit=MAX_GRID_BYTES, binary=True), path)
+        if grid_class(data) == LEVEL_SET:      # its values are distances, negative inside: not densities
+            raise SceneError(path, 0, "a signed-distance (level-set) grid; a density (fog) grid is expected "
+                                      "(OpenVDB's tools::sdfToFogVolume makes one from it)")
         try:
             vol = wp.Volume.load_from_nvdb(data, device=device)
             kind = vol.get_grid_info().type_str
@@ -133,10 +136,11 @@ def load_grid(medium: Medium, device: str, where: str):
             wp.launch(_lookup, dim=len(ijk), inputs=[vol.id, wp.array(ijk, dtype=wp.vec3i, device=device), vals],
                       device=device)
         vals = vals.numpy()
-        try:
-            check_densities(vals, "densities")
-        except ValueError as err:
-            raise SceneError(path, 0, str(err)) from None
+        bad = ~np.isfinite(vals) | (vals < 0)
+        if bad.any():               # the voxel by its index coordinates, as a dense grid's are named
+            k = int(np.argmax(bad))
+            raise SceneError(path, 0, f"densities must be finite and >= 0; voxel {tuple(int(i) for i in ijk[k])} "
+                                      f"is {vals[k]}")
         return vol, ijk, vals
     a = np.ascontiguousarray(np.asarray(src, dtype=np.float32))
     check_densities(a, where)
@@ -144,6 +148,78 @@ def load_grid(medium: Medium, device: str, where: str):
                                     device=device)
     ijk = np.argwhere(a != 0).astype(np.int32)
     return vol, ijk, a[a != 0]
+
+
+# NanoVDB's GridClass values (its file header's per-grid metadata, a uint32 at byte 36 of each)
+LEVEL_SET = 1
+
+
+def grid_class(data: bytes) -> int | None:
+    """The first grid's class in a NanoVDB file's header (None for data too short to say)."""
+    if len(data) < 16 + 40 or data[:8] not in (b"NanoVDB0", b"NanoVDB2"):
+        return None
+    return struct.unpack("<I", data[16 + 36:16 + 40])[0]
+
+
+def grid_bounds(medium: Medium, device: str = "cpu", where: str = "volume") -> np.ndarray:
+    """(2, 3) float64: the scene box the medium's grid can be non-zero in (its active voxels, and one
+    voxel more on every side, the reach of trilinear interpolation), through the grid's own
+    index-to-world map and the medium's ``to_world``. SceneError as :func:`load_grid`'s."""
+    vol, ijk, vals = load_grid(medium, device, where)
+    ijk = ijk[vals != 0]            # a file's active voxels include zeros (a dense grid's whole leaves)
+    if not len(ijk):
+        raise SceneError(os.fsdecode(medium.density) if isinstance(medium.density, (str, bytes, os.PathLike))
+                         else None, 0, "the grid holds no density above 0: there is nothing to place")
+    lo, hi = ijk.min(0) - 1.0, ijk.max(0) + 1.0
+    corners = np.array([[(lo, hi)[(k >> a) & 1][a] for a in range(3)] + [1.0] for k in range(8)])
+    world = (np.linalg.inv(grid_index_transform(vol, medium)) @ corners.T).T[:, :3]
+    return np.array([world.min(0), world.max(0)])
+
+
+def add_volume(scene, density, *, name: str | None = None, device: str = "cpu", **medium):
+    """``scene`` (a host :class:`~warp_spt.scene.model.Scene`) plus a density grid in the box of its
+    own bounds (:func:`grid_bounds`): a closed pass-through box (MTL ``index_matched``) whose
+    interior medium is the grid. ``density``: a ``.nvdb`` path or a dense array (with ``origin`` and
+    ``voxel_size``); ``medium``: the other :class:`Medium` fields (coefficients per unit density and
+    scene unit; default ``sigma_s=1``). Returns (the new scene, the box's (2, 3) bounds)."""
+    from dataclasses import replace
+
+    from warp_spt.scene.model import Material, MeshData
+
+    medium.setdefault("sigma_s", 1.0)
+    m = Medium(density=density, **medium).check("volume")
+    box = grid_bounds(m, device)
+    names = set(scene.materials.names)
+    base = name or (f"volume {os.path.basename(os.fsdecode(density))}" if isinstance(density, (str, os.PathLike))
+                    else "volume")
+    label = next(n for n in (base, *(f"{base} {k}" for k in range(2, len(names) + 3))) if n not in names)
+    wall = Material.pbr(label, base_color=(1.0, 1.0, 1.0), transmission=1.0, ior=1.0, roughness=0.0,
+                        specular=0.0, metallic=0.0)
+    row = len(scene.materials)
+    positions, faces = box_triangles(box)
+    mesh = MeshData(name=label, positions=positions, indices=faces,
+                    corner_uv=np.zeros((len(faces), 3, 2), np.float32), corner_normal=None,
+                    face_material=np.full(len(faces), row, np.int32))
+    return replace(scene, meshes=[*scene.meshes, mesh], materials=scene.materials.with_rows([replace(wall, interior=m)]),
+                   interiors={**scene.interiors, label: m}), box
+
+
+def box_triangles(box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(8, 3) corners and (12, 3) int32 triangles of the closed axis-aligned box ``box`` ((2, 3):
+    lower, upper), each wound counter-clockwise seen from outside."""
+    lo, hi = np.asarray(box, np.float64)
+    corners = np.array([[(lo, hi)[(k >> a) & 1][a] for a in range(3)] for k in range(8)])
+    faces = []
+    for axis in range(3):
+        a, b = (axis + 1) % 3, (axis + 2) % 3
+        for side in (0, 1):
+            quad = [k for k in range(8) if (k >> axis) & 1 == side]
+            # the quad's corners in order around it: (0,0), (1,0), (1,1), (0,1) in the (a, b) plane
+            ring = sorted(quad, key=lambda k: [(0, 0), (1, 0), (1, 1), (0, 1)].index(((k >> a) & 1, (k >> b) & 1)))
+            if not side:
+                ring = ring[::-1]           # the lower face looks the other way
+            faces += [(ring[0], ring[1], ring[2]), (ring[0], ring[2], ring[3])]
+    return corners, np.array(faces, np.int32)
 
 
 def nvdb_uncompressed(data: bytes, path: str) -> bytes:

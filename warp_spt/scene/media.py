@@ -190,6 +190,27 @@ def _rgb(value, name: str) -> tuple[float, float, float]:
 KEYS = ("sigma_a", "sigma_s", "g", "emission", "majorant")
 
 
+# A fog given without coefficients (the command line's and the viewer's alike) gets these optical
+# depths across the scene (its bounds' diagonal), whatever the scene's units: about 0.6 in all,
+# mostly scattering. Coefficients that are given are per scene unit, as everywhere.
+FOG_DEPTH_SCATTER = 0.5
+FOG_DEPTH_ABSORB = 0.1
+SIGMA_KEYS = ("sigma_a", "sigma_s")
+
+
+def scene_fog(size: float) -> dict:
+    """The ``sigma_s`` and ``sigma_a`` (grey, per scene unit) of the default fog for a scene ``size``
+    across (its bounds' diagonal)."""
+    size = max(float(size), 1.0 / MAX_SIGMA)
+    return {"sigma_s": (min(FOG_DEPTH_SCATTER / size, MAX_SIGMA),) * 3,
+            "sigma_a": (min(FOG_DEPTH_ABSORB / size, MAX_SIGMA),) * 3}
+
+
+def given_keys(pairs: list[str]) -> set[str]:
+    """The keys that ``KEY=VALUE`` words name."""
+    return {item.partition("=")[0] for word in pairs for item in word.split()}
+
+
 def parse_medium(pairs: list[str], where: str = "--fog") -> Medium:
     """A Medium from ``KEY=VALUE`` words (``sigma_s=0.1``, ``sigma_a=0.01,0.02,0.05``, ``g=0.5``,
     ``emission=...``, ``majorant=2``), checked; ValueError naming ``where``, the word and what
@@ -215,4 +236,4 @@ def parse_medium(pairs: list[str], where: str = "--fog") -> Medium:
     return Medium(**fields).check(where)
 
 
-__all__ = ["Medium", "MEDIUM_KINDS", "parse_medium", "KEYS", "check_densities", "open_boundary_warnings", "open_edges", "interface_rows"]
+__all__ = ["Medium", "MEDIUM_KINDS", "parse_medium", "scene_fog", "given_keys", "SIGMA_KEYS", "KEYS", "check_densities", "open_boundary_warnings", "open_edges", "interface_rows"]

@@ -353,6 +353,15 @@ class Scene:
     # no geometry at all, and renders empty (every ray misses); otherwise that is an error
     hidden: bool = False
 
+    @classmethod
+    def empty(cls, row0: Material) -> "Scene":
+        """A scene of nothing yet, to add to (a volume alone: ``warp_spt.add_volume``); ``row0``: the
+        table's reserved first row (``io.mtl.builtin_clay()`` or ``builtin_checker()``)."""
+        if row0.name != CHECKER_NAME:
+            raise ValueError(f"materials row 0 must be {CHECKER_NAME}, got {row0.name!r}")
+        return cls(meshes=[], spheres=np.zeros((0, 4)), sphere_material=np.zeros(0, np.int32),
+                   materials=MaterialTable.from_rows([row0]), textures=[], seed_dialect=False)
+
     def add_light(self, light) -> "Scene":
         """Add a sun, point or spot light (``warp_spt.SunLight``, ``PointLight``, ``SpotLight``, made
         with their parameters by name) and return the scene; before it is uploaded (a DeviceScene

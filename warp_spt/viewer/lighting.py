@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from warp_spt.scene.limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
-from warp_spt.scene.media import MAX_SIGMA
+from warp_spt.scene.media import scene_fog
 
 LAMP_KINDS = ("off", "point", "spot")
 VECTORS = ("sun_direction", "sun_color", "lamp_position", "lamp_intensity", "lamp_direction",
@@ -101,7 +101,8 @@ def placed(s, given, up, camera, centre, size: float):
     the sun behind the camera's left shoulder and high (towards it: up, back, left); the lamp a
     quarter of the size above the centre (under a room's ceiling, above a model), shining down, with
     an intensity that gives irradiance 1 at the centre; a fog whose optical depth across the scene
-    is about 0.6 (sigma_s 0.5 / size, sigma_a 0.1 / size), whatever the scene's units."""
+    is about 0.6 (``scene.media.scene_fog``: sigma_s 0.5 / size, sigma_a 0.1 / size), whatever the
+    scene's units."""
     u = np.asarray(up, np.float64)
     d = np.asarray(camera.direction, np.float64)
     d /= np.linalg.norm(d)
@@ -117,10 +118,9 @@ def placed(s, given, up, camera, centre, size: float):
         fields["lamp_direction"] = tuple(float(-x) for x in u)
     if "lamp_intensity" not in given:
         fields["lamp_intensity"] = (min(float((0.25 * size) ** 2), MAX_RADIANCE),) * 3
-    if "fog_sigma_s" not in given:      # within the medium's bounds for a scene of any size
-        fields["fog_sigma_s"] = (min(0.5 / size, MAX_SIGMA),) * 3
-    if "fog_sigma_a" not in given:
-        fields["fog_sigma_a"] = (min(0.1 / size, MAX_SIGMA),) * 3
+    for key, value in scene_fog(size).items():      # the command line's rule for a --fog without them
+        if f"fog_{key}" not in given:
+            fields[f"fog_{key}"] = value
     return replace(s, **fields)
 
 

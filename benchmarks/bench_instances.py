@@ -4,8 +4,8 @@ over 400 s before the first sample of a 24x24 render, about 0.5 ms of host work 
 The budget: at most 100 us of host work per instance from the file to the first sample on a
 2-core machine, of which everything after reading the file (the command line's view checks:
 probe, up-axis and base cues, the insideness check; the upload and the top-level BVH) at most
-15 us: those are array operations and one probe launch per mesh, not a Python loop or a kernel
-launch per placement. The glTF reader's node walk (JSON checked node by node, the world matrices
+50 us (45 measured under load): those are array operations and one probe launch per mesh, not a
+Python loop or a kernel launch per placement. The glTF reader's node walk (JSON checked node by node, the world matrices
 composed level by level in whole arrays) is the rest: about 34 us per node at 200,000.
 
 Run: python benchmarks/bench_instances.py [N ...]    (default 2000 20000 200000)

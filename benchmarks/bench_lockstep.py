@@ -10,7 +10,9 @@ dimension), same sums in the same order). ``--asm`` counts the packed float inst
 zmm / ymm / xmm and scalar ss) in each kernel's object file, as bench_packets.py does.
 
     PYTHONPATH=. python benchmarks/bench_lockstep.py                     # 128x128, 16 spp, W = 8
-    PYTHONPATH=. python benchmarks/bench_lockstep.py --lanes 8 16 --asm
+    PYTHONPATH=. python benchmarks/bench_lockstep.py --lanes 8 16 --asm   # docs/performance.md's table
+
+Cold compiles are long: W=8 at inline threshold 20000 took 48 s, W=16 321 s (2-core machine, load 7).
 """
 
 from __future__ import annotations
@@ -94,8 +96,9 @@ def main() -> None:
     ap.add_argument("--ref-spp", type=int, default=512)
     ap.add_argument("--asm", action="store_true")
     ap.add_argument("--unstaged", action="store_true", help="also the control: lanes stepped whole, one by one")
-    ap.add_argument("--loops", action="store_true", help="also the control: lane loops not unrolled")
-    ap.add_argument("--inline", type=int, nargs="+", default=[2000, 100000],
+    ap.add_argument("--no-loops", dest="loops", action="store_false",
+                    help="leave out the control whose lane loops are not unrolled")
+    ap.add_argument("--inline", type=int, nargs="+", default=[2000, 20000],
                     help="LLVM inline thresholds of the lockstep kernels (the fast kernel's is 2000)")
     args = ap.parse_args()
 

@@ -118,6 +118,17 @@ def test_a_zip_compressed_grid_reads_as_the_uncompressed_one(tmp_path):
     assert np.array_equal(ijk, ijk0) and np.array_equal(vals, vals0) and vals.sum() == 27
 
 
+def _bomb_refused(path) -> int:
+    """The peak of Python's allocations while ``path`` (bomb.nvdb) is refused for inflating too much."""
+    tracemalloc.start()
+    with pytest.raises(SceneError, match=r"bomb\.nvdb: the compressed grids inflate to more than the [\d,]+ bytes "
+                                         "their header declares"):
+        _load(path)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak
+
+
 def test_a_zip_bomb_grid_is_refused_within_its_declared_size(tmp_path):
     data = _grid_file(tmp_path, "zip").read_bytes()
     start = 16 + 176 + struct.unpack("<I", data[16 + 136:16 + 140])[0]
@@ -127,12 +138,7 @@ def test_a_zip_bomb_grid_is_refused_within_its_declared_size(tmp_path):
     head = bytearray(data[:start])
     head[16 + 8:16 + 16] = struct.pack("<Q", 8 + len(bomb))          # the chunk's size as stored
     bad.write_bytes(bytes(head) + struct.pack("<Q", len(bomb)) + bomb)
-    tracemalloc.start()
-    with pytest.raises(SceneError, match=r"bomb\.nvdb: the compressed grids inflate to more than the [\d,]+ bytes "
-                                         "their header declares"):
-        _load(bad)
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
+    peak = _bomb_refused(bad)
     declared = struct.unpack("<Q", data[16:24])[0]
     assert peak < 4 * declared + 2 * bad.stat().st_size, peak        # before: Warp inflated all 256 MB
     head[16:24] = struct.pack("<Q", MAX_GRID_BYTES + 1)              # a header declaring too much: not inflated
@@ -149,3 +155,58 @@ def test_a_density_grid_that_is_a_device_or_too_large_is_refused_unread(tmp_path
         f.truncate(MAX_GRID_BYTES + 1)                               # sparse: no disk used
     with pytest.raises(SceneError, match=r"big\.nvdb: density grid file is larger than the"):
         _load(big)
+
+
+class _Blosc:
+    """Stands in for python-blosc (not installed here), as it behaves: the uncompressed size is taken
+    from the chunk's header and allocated before anything is decoded; only stored (memcpyed) chunks
+    are decoded. ``asked``: the sizes it was asked to allocate (none is, beyond 64 MiB)."""
+
+    def __init__(self):
+        self.asked = []
+
+    def decompress(self, chunk):
+        nbytes, _, cbytes = struct.unpack("<III", chunk[4:16])
+        self.asked.append(nbytes)
+        if nbytes > 1 << 26:
+            raise MemoryError(f"asked for {nbytes} bytes")
+        assert chunk[2] & 0x02 and cbytes == len(chunk) == 16 + nbytes
+        return bytes(chunk[16:])
+
+
+def _blosc_file(tmp_path, name: str, declared: int | None = None):
+    """The 8^3 grid's file with its grid stored as one blosc chunk ("memcpyed": flag 2, the bytes as they
+    are after blosc's 16-byte header), its header declaring ``declared`` uncompressed bytes if given."""
+    data = _grid_file(tmp_path, "none").read_bytes()
+    start = 16 + 176 + struct.unpack("<I", data[16 + 136:16 + 140])[0]
+    grid = data[start:]
+    chunk = struct.pack("<BBBBIII", 2, 1, 0x02, 1, len(grid) if declared is None else declared, len(grid),
+                        16 + len(grid)) + grid
+    head = bytearray(data[:start])
+    head[14:16] = struct.pack("<H", 2)                               # codec: blosc
+    head[16 + 8:16 + 16] = struct.pack("<Q", 8 + len(chunk))
+    path = tmp_path / name
+    path.write_bytes(bytes(head) + struct.pack("<Q", len(chunk)) + chunk)
+    return path
+
+
+def test_a_blosc_compressed_grid_reads_as_the_uncompressed_one(tmp_path, monkeypatch):
+    fake = _Blosc()
+    monkeypatch.setitem(sys.modules, "blosc", fake)
+    _, ijk, vals = _load(_blosc_file(tmp_path, "b.nvdb"))
+    _, ijk0, vals0 = _load(_grid_file(tmp_path, "none"))
+    assert np.array_equal(ijk, ijk0) and np.array_equal(vals, vals0) and vals.sum() == 27 and len(fake.asked) == 1
+
+
+def test_a_blosc_bomb_grid_is_refused_from_its_chunk_header_before_blosc_allocates(tmp_path, monkeypatch):
+    fake = _Blosc()
+    monkeypatch.setitem(sys.modules, "blosc", fake)
+    bomb = _blosc_file(tmp_path, "bomb.nvdb", declared=(1 << 31) - 1)    # a small file, a 2 GiB chunk
+    peak = _bomb_refused(bomb)
+    assert fake.asked == [] and peak < 4 * bomb.stat().st_size + (1 << 20), (fake.asked, peak)  # before: Warp asked 2 GiB
+
+
+def test_without_blosc_a_blosc_grid_names_the_file_and_the_package(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "blosc", None)                  # import blosc: ImportError
+    with pytest.raises(SceneError, match=r"b\.nvdb: the grids are blosc-compressed, which needs the 'blosc' package"):
+        _load(_blosc_file(tmp_path, "b.nvdb"))

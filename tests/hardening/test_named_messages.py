@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 import pytest
 
 from warp_spt.cli.main import main
@@ -90,3 +92,30 @@ def test_the_camera_flag_refuses_what_it_cannot_look_through(tmp_path, capsys, c
 def test_env_strength_beyond_the_sky_bound_is_a_usage_error(tmp_path, capsys):
     assert main(["--env", str(tmp_path / "sky.hdr"), "--env-strength", "1e308", "-out", str(tmp_path / "o.png")]) == 2
     assert "--env-strength must lie in [0, 1e+30], got 1e+308" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("damage, says", [
+    ("truncated", r"\(EXR_ERR_BAD_CHUNK_LEADER\) Preparing to read scanline"),
+    ("offsets", r"\(EXR_ERR_BAD_CHUNK_LEADER\) Invalid chunk size"),
+    ("junk", r"Unable to open '.*junk\.exr' for read"),
+])
+def test_a_damaged_exr_is_one_line_and_nothing_else_on_stdout_or_stderr(tmp_path, capfd, damage, says):
+    OpenEXR = pytest.importorskip("OpenEXR")
+    good = tmp_path / "good.exr"
+    rgb = np.random.default_rng(1).random((64, 128, 3)).astype(np.float32)
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, {"RGB": rgb}) as f:
+        f.write(str(good))
+    data = good.read_bytes()
+    at = data.index(b"dataWindow") + 200                 # into the chunk offset table
+    bad = tmp_path / f"{damage}.exr"
+    bad.write_bytes({"truncated": data[:-1000], "offsets": data[:at] + b"\xff" * 100 + data[at + 100:],
+                     "junk": b"not an exr file " * 10}[damage])
+    obj = tmp_path / "t.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    capfd.readouterr()
+    assert main(["-obj", str(obj), "--env", str(bad), "--quiet", "-res", "4", "4", "-sr", "1",
+                 "-out", str(tmp_path / "o.png")]) == 1
+    out, err = capfd.readouterr()
+    # before: OpenEXR's core printed its own lines to stderr and a "Warning: Exception raised..." to stdout
+    assert out == "" and len(err.splitlines()) == 1, (out, err)
+    assert re.match(rf"warp-spt: error: .*{damage}\.exr: cannot read the environment map: {says}", err), err

@@ -119,3 +119,32 @@ def test_a_damaged_exr_is_one_line_and_nothing_else_on_stdout_or_stderr(tmp_path
     # before: OpenEXR's core printed its own lines to stderr and a "Warning: Exception raised..." to stdout
     assert out == "" and len(err.splitlines()) == 1, (out, err)
     assert re.match(rf"warp-spt: error: .*{damage}\.exr: cannot read the environment map: {says}", err), err
+
+
+@pytest.mark.parametrize("flags, says", [
+    (["--env-strength", "1e308"], r"--env-strength must lie in \[0, 1e\+30\], got 1e\+308"),
+    (["--env-strength", "-1"], r"--env-strength must lie in \[0, 1e\+30\], got -1"),
+    (["--env-rotate", "1e300"], r"--env-rotate must lie in \[-1e\+06, 1e\+06\] degrees, got 1e\+300"),
+    (["--env-background", "1e38", "0", "0"], r"--env-background colour values must lie in \[0, 1e\+30\], got 1e\+38 0 0"),
+    (["--env-background", "0", "-1", "0"], r"--env-background colour values must lie in \[0, 1e\+30\]"),
+])
+def test_the_viewer_and_the_renderer_share_the_environment_flags_bounds(tmp_path, capsys, flags, says):
+    from warp_spt.cli import view
+    from warp_spt.scene.limits import MAX_ENV_ROTATE, MAX_RADIANCE
+    from warp_spt.scene.sky import Sky
+    from warp_spt.viewer.session import ViewSettings, checked_settings
+
+    env = ["--env", str(tmp_path / "sky.hdr")]
+    # before: the viewer took 1e308 and 1e38 (exit 1 after loading the scene) and the renderer 1e300
+    for run in (main, view.main):
+        assert run([*env, *flags, "-out", str(tmp_path / "o.png")] if run is main else [*env, *flags]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and re.search(says, err[0]), (run, err)
+    at_bound = [*env, "--env-strength", f"{MAX_RADIANCE:g}", "--env-rotate", f"{-MAX_ENV_ROTATE:g}",
+                "--env-background", f"{MAX_RADIANCE:g}", "0", "0"]
+    assert view.lighting_settings(view.build_parser().parse_args(at_bound))["env_strength"] == MAX_RADIANCE
+    # the API and the page refuse what the flags refuse
+    with pytest.raises(ValueError, match="environment rotation must be a number of degrees in"):
+        Sky.environment(np.ones((2, 4, 3), np.float32), rotate=2 * MAX_ENV_ROTATE)
+    with pytest.raises(ValueError, match="env_rotate must lie in"):
+        checked_settings(ViewSettings(), "env_rotate", 2 * MAX_ENV_ROTATE)

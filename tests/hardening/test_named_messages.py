@@ -78,7 +78,8 @@ def _cameras(tmp_path, orthographic=False, one=False):
 
 
 @pytest.mark.parametrize("case, camera, says", [
-    ("orthographic", "0", "--camera 0: camera '0' is orthographic \\(/cameras/0\\); only perspective cameras"),
+    # before: no file name
+    ("orthographic", "0", r"--camera 0: \S*cams\.gltf: /cameras/0: camera '0' is orthographic; only perspective cameras"),
     ("one", "1", r"--camera 1: no camera '1'; the files have 1 camera: 0 \(unnamed\)"),
 ])
 def test_the_camera_flag_refuses_what_it_cannot_look_through(tmp_path, capsys, case, camera, says):

@@ -23,14 +23,20 @@ from warp_spt.scene.media import MAX_GRID_BYTES, Medium
 PEAK = """
 import sys
 from warp_spt.images.environment import read_environment_image
+from warp_spt.io.loader import load_scene
 def kib(key):
     with open("/proc/self/status") as f:
         return next(int(line.split()[1]) for line in f if line.startswith(key))
 with open("/proc/self/clear_refs", "w") as f:
     f.write("5")
 before = kib("VmRSS:")
-img = read_environment_image(sys.argv[1])
-print((kib("VmHWM:") - before) * 1024 / (img.shape[0] * img.shape[1]))
+if sys.argv[1].endswith(".obj"):     # a scene whose one texture is 2048 x 1024
+    load_scene([sys.argv[1]])
+    texels = 2048 * 1024
+else:
+    img = read_environment_image(sys.argv[1])
+    texels = img.shape[0] * img.shape[1]
+print((kib("VmHWM:") - before) * 1024 / texels)
 """
 
 
@@ -53,12 +59,40 @@ def maps(tmp_path_factory):
 @pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="measures Linux's /proc high-water mark")
 @pytest.mark.parametrize("ext", [".hdr", ".png", ".npy"])
 def test_reading_an_environment_map_peaks_within_its_budget_per_texel(maps, ext):
-    out = subprocess.run([sys.executable, "-c", PEAK, str(maps / f"m{ext}")], capture_output=True, text=True,
-                         timeout=120, env={**os.environ, "PYTHONPATH": os.getcwd()})
-    assert out.returncode == 0, out.stderr
-    per_texel = float(out.stdout)
+    per_texel = _peak_per_texel(maps / f"m{ext}")
     # before: .hdr 68, .png 107, .npy (float64) 36 bytes a texel
     assert per_texel <= READ_BYTES_PER_TEXEL[ext], (ext, per_texel)
+
+
+def _peak_per_texel(path) -> float:
+    out = subprocess.run([sys.executable, "-c", PEAK, str(path)], capture_output=True, text=True,
+                         timeout=120, env={**os.environ, "PYTHONPATH": os.getcwd()})
+    assert out.returncode == 0, out.stderr
+    return float(out.stdout)
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="measures Linux's /proc high-water mark")
+def test_reading_a_png_texture_peaks_within_its_budget_per_texel(maps):
+    from warp_spt.io.loader import TEXTURE_READ_BYTES_PER_TEXEL
+
+    (maps / "t.mtl").write_text("newmtl m\nKd 1 1 1\nmap_Kd m.png\n")
+    (maps / "t.obj").write_text("mtllib t.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                "f 1/1 2/2 3/3\n")
+    per_texel = _peak_per_texel(maps / "t.obj")
+    assert per_texel <= TEXTURE_READ_BYTES_PER_TEXEL, per_texel            # before: 58
+
+
+@pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "P"])
+def test_8_bit_textures_decode_to_the_values_of_whole_image_arithmetic(tmp_path, mode):
+    from PIL import Image
+
+    from warp_spt.io.loader import _to_rgb, srgb_to_linear
+
+    rng = np.random.default_rng(7)
+    img = Image.fromarray((rng.random((37, 301, 3)) * 256).astype(np.uint8)).convert(mode)
+    raw = np.asarray(img.convert("RGB"), dtype=np.float32) / np.float32(255.0)     # the reader's arithmetic before
+    assert np.array_equal(_to_rgb(img), raw)
+    assert np.array_equal(_to_rgb(img, srgb=True), srgb_to_linear(raw))
 
 
 def test_environment_maps_are_read_as_before(maps):

@@ -18,6 +18,8 @@ from warp_spt.images.environment import READ_BYTES_PER_TEXEL, read_environment_i
 from warp_spt.scene.errors import SceneError
 from warp_spt.scene.media import MAX_GRID_BYTES, Medium
 
+from tests.support.format_files import FakeBlosc, blosc_grid
+
 # The peak resident size of reading one map, in a process of its own: /proc's high-water mark reset
 # first (ru_maxrss would carry the parent's across fork and exec), after the imports
 PEAK = """
@@ -191,41 +193,15 @@ def test_a_density_grid_that_is_a_device_or_too_large_is_refused_unread(tmp_path
         _load(big)
 
 
-class _Blosc:
-    """Stands in for python-blosc (not installed here), as it behaves: the uncompressed size is taken
-    from the chunk's header and allocated before anything is decoded; only stored (memcpyed) chunks
-    are decoded. ``asked``: the sizes it was asked to allocate (none is, beyond 64 MiB)."""
-
-    def __init__(self):
-        self.asked = []
-
-    def decompress(self, chunk):
-        nbytes, _, cbytes = struct.unpack("<III", chunk[4:16])
-        self.asked.append(nbytes)
-        if nbytes > 1 << 26:
-            raise MemoryError(f"asked for {nbytes} bytes")
-        assert chunk[2] & 0x02 and cbytes == len(chunk) == 16 + nbytes
-        return bytes(chunk[16:])
-
-
 def _blosc_file(tmp_path, name: str, declared: int | None = None):
-    """The 8^3 grid's file with its grid stored as one blosc chunk ("memcpyed": flag 2, the bytes as they
-    are after blosc's 16-byte header), its header declaring ``declared`` uncompressed bytes if given."""
-    data = _grid_file(tmp_path, "none").read_bytes()
-    start = 16 + 176 + struct.unpack("<I", data[16 + 136:16 + 140])[0]
-    grid = data[start:]
-    chunk = struct.pack("<BBBBIII", 2, 1, 0x02, 1, len(grid) if declared is None else declared, len(grid),
-                        16 + len(grid)) + grid
-    head = bytearray(data[:start])
-    head[14:16] = struct.pack("<H", 2)                               # codec: blosc
-    head[16 + 8:16 + 16] = struct.pack("<Q", 8 + len(chunk))
+    """The 8^3 grid's file as one stored blosc chunk (``blosc_grid``)."""
     path = tmp_path / name
-    path.write_bytes(bytes(head) + struct.pack("<Q", len(chunk)) + chunk)
+    path.write_bytes(blosc_grid(_grid_file(tmp_path, "none").read_bytes(), declared))
     return path
 
 
 def test_a_blosc_compressed_grid_reads_as_the_uncompressed_one(tmp_path, monkeypatch):
-    fake = _Blosc()
+    fake = FakeBlosc()
     monkeypatch.setitem(sys.modules, "blosc", fake)
     _, ijk, vals = _load(_blosc_file(tmp_path, "b.nvdb"))
     _, ijk0, vals0 = _load(_grid_file(tmp_path, "none"))
@@ -233,7 +209,7 @@ def test_a_blosc_compressed_grid_reads_as_the_uncompressed_one(tmp_path, monkeyp
 
 
 def test_a_blosc_bomb_grid_is_refused_from_its_chunk_header_before_blosc_allocates(tmp_path, monkeypatch):
-    fake = _Blosc()
+    fake = FakeBlosc()
     monkeypatch.setitem(sys.modules, "blosc", fake)
     bomb = _blosc_file(tmp_path, "bomb.nvdb", declared=(1 << 31) - 1)    # a small file, a 2 GiB chunk
     peak = _bomb_refused(bomb)

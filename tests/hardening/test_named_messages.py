@@ -149,3 +149,17 @@ def test_the_viewer_and_the_renderer_share_the_environment_flags_bounds(tmp_path
         Sky.environment(np.ones((2, 4, 3), np.float32), rotate=2 * MAX_ENV_ROTATE)
     with pytest.raises(ValueError, match="env_rotate must lie in"):
         checked_settings(ViewSettings(), "env_rotate", 2 * MAX_ENV_ROTATE)
+
+
+def test_an_environment_png_past_pillows_bomb_guard_names_the_texel_budget(tmp_path, capsys):
+    from PIL import Image
+
+    from warp_spt.scene.atlas_layout import TEXEL_BUDGET
+
+    Image.new("1", (30000, 30000)).save(tmp_path / "huge.png")           # 110 KB, 900 million texels
+    obj = tmp_path / "t.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert main(["-obj", str(obj), "--env", str(tmp_path / "huge.png"), "--quiet", "-out", str(tmp_path / "o.png")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    # before: Pillow's words alone ("cannot read the environment map: Image size (900000000 pixels) exceeds ...")
+    assert len(err) == 1 and f"huge.png: more texels than the texel budget of {TEXEL_BUDGET:,} (Image size" in err[0], err

@@ -53,7 +53,12 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
             return _read_exr(path, p, warn)
         from PIL import Image
 
-        with Image.open(p) as im:
+        try:
+            opened = Image.open(p)
+        except Image.DecompressionBombError as err:     # Pillow's own guard, at twice its own limit
+            raise ValueError(f"{path}: more texels than the texel budget of {TEXEL_BUDGET:,} "
+                             f"({' '.join(str(err).split())})") from None
+        with opened as im:
             _check_size(path, *im.size)              # from the header, before anything is decoded
             rgb = im if im.mode == "RGB" else im.convert("RGB")
             img = np.asarray(rgb, dtype=np.uint8)

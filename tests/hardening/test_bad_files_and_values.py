@@ -315,7 +315,7 @@ def test_textures_beyond_the_budget_are_refused_from_the_header_naming_them(tmp_
     monkeypatch.setattr(loader, "TEXEL_BUDGET", 30000)      # 1x20000 + 20000x1 fit 2**26, not this
     read = []
     real = loader._to_rgb
-    monkeypatch.setattr(loader, "_to_rgb", lambda img: read.append(img.size) or real(img))
+    monkeypatch.setattr(loader, "_to_rgb", lambda img, **kw: read.append(img.size) or real(img, **kw))
     err = scene_error([thin_texture_scene(tmp_path, 20000)])
     assert err.line == 4 and "tall.png" in err.message and "wide.png" in err.message and "budget" in err.message
     assert "40,000 texels" in err.message and read == [(1, 20000)]      # the second was never decoded

@@ -9,6 +9,7 @@ Each reader has a short run in the default tier and a long one in the slow tier 
 from __future__ import annotations
 
 import json
+import sys
 import tracemalloc
 
 import numpy as np
@@ -19,7 +20,8 @@ from hypothesis import strategies as st
 from warp_spt.scene.errors import SceneError
 
 from tests.hardening.test_format_fuzz import mutated_bytes
-from tests.support.format_files import gltf_animated, gltf_camera_and_light, gltf_textured_box, ply_bytes
+from tests.support.format_files import (FakeBlosc, blosc_grid, gltf_animated, gltf_camera_and_light, gltf_textured_box,
+                                        ply_bytes)
 
 SHORT, LONG = 25, 1500
 MEMORY_BOUND = 16 << 20                 # numpy's and the readers' fixed costs, as test_format_fuzz's
@@ -160,14 +162,17 @@ def grid_seeds(folder):
         wp.Volume.load_from_numpy(a, bg_value=0.0, device="cpu").save_to_nvdb(str(folder / f"{codec}.nvdb"),
                                                                                codec=codec)
         out.append((folder / f"{codec}.nvdb").read_bytes())
-    return out
+    return [*out, blosc_grid(out[0])]           # blosc: read through FakeBlosc (_read_grid)
 
 
 def _read_grid(path: str):
+    from unittest import mock
+
     from warp_spt.media.grid import load_grid
     from warp_spt.scene.media import Medium
 
-    _, ijk, vals = load_grid(Medium(sigma_s=1.0, density=path), "cpu", "density")
+    with mock.patch.dict(sys.modules, {"blosc": FakeBlosc()}):
+        _, ijk, vals = load_grid(Medium(sigma_s=1.0, density=path), "cpu", "density")
     assert len(ijk) == len(vals) and np.isfinite(vals).all() and (vals >= 0).all()
 
 

@@ -521,3 +521,32 @@ def test_viewer_picks_volpath_for_a_scene_with_media(scene_dir):
         assert s.settings.integrator == "volpath"
     finally:
         s.close()
+
+
+@pytest.mark.parametrize("g", [-0.999999, 0.999999])
+def test_hg_takes_cosines_an_ulp_beyond_one_as_one(g):
+    """A dot product of two unit float32 vectors can come out an ulp or two above 1 (or below -1); at
+    |g| near 1 that made 1 + g^2 - 2 g cos negative in hg's two-term form: the square root of it NaN.
+    Checked against HG's closed form at cos = +-1, (1 + |g|) / (4 pi (1 - |g|)^2) forward."""
+    one = np.float32(1.0)
+    beyond = [np.nextafter(one, np.float32(2)), np.nextafter(np.nextafter(one, np.float32(2)), np.float32(2))]
+    mu = np.array([*beyond, *(-b for b in beyond), 1.0, -1.0], np.float32)
+    values = _hg_values(mu, g)
+    a = float(np.float32(abs(g)))
+    peak, back = (1 + a) / (4 * math.pi * (1 - a) ** 2), (1 - a) / (4 * math.pi * (1 + a) ** 2)
+    forward = values[[0, 1, 4]] if g > 0 else values[[2, 3, 5]]
+    backward = values[[2, 3, 5]] if g > 0 else values[[0, 1, 4]]
+    assert np.isfinite(values).all()                               # before: NaN beyond +-1 on the peak's side
+    assert np.allclose(forward, peak, rtol=1e-3) and np.allclose(backward, back, rtol=1e-3), (values, peak, back)
+
+
+def test_a_fog_at_the_largest_accepted_g_drops_no_sample(scene_dir, capsys):
+    from warp_spt.cli.main import main
+
+    objs, _ = write_scene_files(scene_dir, "fog_g", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", None)
+    out = scene_dir / "fog_g.npy"
+    for g in ("0.999999", "-0.999999"):
+        assert main(["-obj", objs[0], "--fog", "sigma_s=0.5", "--fog", f"g={g}", "-res", "16", "16", "-sr", "8",
+                     "-out", str(out)]) == 0
+        assert "not finite" not in capsys.readouterr().err           # before: 2 samples dropped at 8x8, 4 spp
+        assert np.isfinite(np.load(out)).all()

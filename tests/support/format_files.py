@@ -365,3 +365,39 @@ def gltf_instanced_grid(n: int) -> GltfBuilder:
     for k in range(n):
         g.node(mesh=0, translation=[2.0 * (k % side), 0.0, 2.0 * (k // side)], scale=[0.5, 0.5, 0.5])
     return g
+
+
+class FakeBlosc:
+    """Stands in for python-blosc (not installed here; ``sys.modules["blosc"]``) as it behaves: the
+    uncompressed size is taken from the chunk's 16-byte header and allocated before anything is
+    decoded. Only stored ("memcpyed", flag 2) chunks are decoded; other data is refused as blosc
+    refuses what it cannot decode. ``asked``: the sizes it was asked to allocate (none is allocated
+    beyond 64 MiB: a MemoryError)."""
+
+    def __init__(self):
+        self.asked = []
+
+    def decompress(self, chunk):
+        if len(chunk) < 16:
+            raise ValueError("input too short")
+        nbytes, _, cbytes = struct.unpack("<III", bytes(chunk[4:16]))
+        self.asked.append(nbytes)
+        if nbytes > 1 << 26:
+            raise MemoryError(f"asked for {nbytes} bytes")
+        if not chunk[2] & 0x02 or not cbytes == len(chunk) == 16 + nbytes:
+            raise ValueError("Error while decompressing data")
+        return bytes(chunk[16:])
+
+
+def blosc_grid(data: bytes, declared: int | None = None) -> bytes:
+    """The uncompressed one-grid NanoVDB file ``data`` with its grid stored as one blosc chunk
+    (memcpyed: the bytes as they are after blosc's header), the chunk's header declaring ``declared``
+    uncompressed bytes if given."""
+    start = 16 + 176 + struct.unpack("<I", data[16 + 136:16 + 140])[0]
+    grid = data[start:]
+    chunk = struct.pack("<BBBBIII", 2, 1, 0x02, 1, len(grid) if declared is None else declared, len(grid),
+                        16 + len(grid)) + grid
+    head = bytearray(data[:start])
+    head[14:16] = struct.pack("<H", 2)                               # codec: blosc
+    head[16 + 8:16 + 16] = struct.pack("<Q", 8 + len(chunk))         # the grid's size as stored
+    return bytes(head) + struct.pack("<Q", len(chunk)) + chunk

@@ -120,7 +120,7 @@ def test_light_and_fog_messages_change_the_image(session):
     ("fog_g", 1.0, "g (Henyey-Greenstein asymmetry) must lie in [-0.999999, 0.999999]"),
     ("fog_sigma_s", [1.0, math.nan, 1.0], "fog_sigma_s[1] must be a finite number"),
     ("fog_sigma_a", [-0.1, 0.0, 0.0], "sigma_a must be finite numbers in [0"),
-    ("env_background", [1.0, -1.0, 0.0], "env_background colour values must be >= 0"),
+    ("env_background", [1.0, -1.0, 0.0], "env_background colour values must lie in [0, 1e+30]"),
 ])
 def test_a_bad_light_or_fog_value_is_refused_naming_its_key(key, value, mentions):
     s = Session(warp_spt.load_scene(*demo_files(), default_material="auto"), width=W, height=H, start=False)

@@ -20,7 +20,7 @@ from warp_spt.cli.light_flags import add_light_flags, light_options
 from warp_spt.cli.common import PROG, Parser, UsageError, finite_float, int_at_least, integrator_options_of
 from warp_spt.demo import PRESETS
 from warp_spt.io.templates import frame_path, is_template, parse_frames
-from warp_spt.scene.limits import MAX_DEPTH, MAX_FPS, MAX_RADIANCE, MAX_SPP, MAX_THREADS, MIN_FPS  # the API's caps (settings.check_args)
+from warp_spt.scene.limits import MAX_DEPTH, MAX_ENV_ROTATE, MAX_FPS, MAX_RADIANCE, MAX_SPP, MAX_THREADS, MIN_FPS  # the API's caps (settings.check_args)
 from warp_spt.runtime.extras import install_hint
 from warp_spt.scene.sky import Sky
 
@@ -111,13 +111,23 @@ def _env_options(ns) -> EnvOptions | None:
         return None
     if not ns.env.strip():
         raise UsageError("--env needs a file name, got an empty one")
-    if ns.env_strength is not None and not 0 <= ns.env_strength <= MAX_RADIANCE:   # the Sky's own bound
-        raise UsageError(f"--env-strength must lie in [0, {MAX_RADIANCE:g}], got {ns.env_strength:g}")
-    if ns.env_background is not None and min(ns.env_background) < 0:
-        raise UsageError("--env-background colour values must be >= 0")
+    check_env_values(ns)
     plus = None if ns.sky is None and ns.sky_color is None else _sky(ns.sky, ns.sky_color, DEFAULT_SKY)
     return EnvOptions(ns.env, ns.env_rotate or 0.0, 1.0 if ns.env_strength is None else ns.env_strength,
                       None if ns.env_background is None else tuple(ns.env_background), plus)
+
+
+def check_env_values(ns) -> None:
+    """--env-strength, --env-rotate and --env-background within the Sky's own bounds (UsageError): the
+    render's flags and the viewer's alike, so that neither takes a value the other refuses."""
+    if ns.env_strength is not None and not 0 <= ns.env_strength <= MAX_RADIANCE:
+        raise UsageError(f"--env-strength must lie in [0, {MAX_RADIANCE:g}], got {ns.env_strength:g}")
+    if ns.env_rotate is not None and not abs(ns.env_rotate) <= MAX_ENV_ROTATE:
+        raise UsageError(f"--env-rotate must lie in [-{MAX_ENV_ROTATE:g}, {MAX_ENV_ROTATE:g}] degrees, "
+                         f"got {ns.env_rotate:g}")
+    if ns.env_background is not None and not all(0 <= c <= MAX_RADIANCE for c in ns.env_background):
+        raise UsageError(f"--env-background colour values must lie in [0, {MAX_RADIANCE:g}], "
+                         f"got {' '.join(f'{c:g}' for c in ns.env_background)}")
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from warp_spt.cli.common import (
     int_at_least,
 )
 from warp_spt.cli.light_flags import add_light_flags, light_options
-from warp_spt.cli.options import UP_AXES, _camera, _fog, _join_up_operand, _smooth_angle
+from warp_spt.cli.options import UP_AXES, _camera, _fog, _join_up_operand, _smooth_angle, check_env_values
 from warp_spt.runtime.extras import install_hint
 from warp_spt.runtime.signals import exit_status
 from warp_spt.scene.errors import SceneError
@@ -118,6 +118,7 @@ def lighting_settings(ns) -> dict:
                             ("--env-background", ns.env_background)) if v is not None]
     if ns.env is None and extra:
         raise UsageError(f"{extra[0]} needs --env FILE")
+    check_env_values(ns)                # the render's bounds, which the page's own settings share
     if ns.env is not None:
         out.update(sky="environment", env_path=ns.env)
         out.update({k: v for k, v in (("env_rotate", ns.env_rotate), ("env_strength", ns.env_strength))

@@ -72,7 +72,7 @@ class CamerasLights(Document):
             raise _err(self.path, f"/nodes/{node}", "the camera's node transform is singular")
         return FileCamera(name=name, index=k, node=node, position=tuple(float(c) for c in world[:3, 3]), direction=direction, up=up,
                           yfov=yfov, aspect=aspect, znear=self.get(p, "znear", float, f"{ptr}/perspective", 0.0),
-                          kind=kind)
+                          kind=kind, path=str(self.path))
 
     def _light(self, ref: dict, ptr: str, world: np.ndarray) -> GltfLight:
         k = self.get(ref, "light", int, ptr, required=True)
@@ -138,9 +138,10 @@ def choose_camera(cameras: list[GltfCamera], choice: str | int, width: int, heig
         listed = ", ".join(f"{k}: {n!r}" if n else f"{k} (unnamed)" for k, n in enumerate(names))
         raise ValueError(f"no camera {text!r}; the files have {len(cameras)} camera{'s' * (len(cameras) > 1)}: "
                          f"{listed}")
-    if cam.kind != "perspective":
-        raise ValueError(f"camera {text!r} is {cam.kind} (/cameras/{cam.index}); only perspective cameras can be "
-                         "looked through")
+    if cam.kind != "perspective":       # the file and its JSON pointer, as a reader's error names them
+        where = f"{cam.path}: " if cam.path else ""
+        raise ValueError(f"{where}/cameras/{cam.index}: camera {text!r} is {cam.kind}; only perspective cameras "
+                         "can be looked through")
     camera = Camera(position=cam.position, direction=cam.direction, fov=cam.fov_degrees(width, height),
                     aperture=0.0, focus=1.0, up=cam.up)
     camera.validate()

@@ -50,24 +50,15 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
         if ext == ".npy":
             return _read_npy(p)
         if ext == ".exr":
-            try:
-                import OpenEXR
-            except ImportError:
-                from warp_spt.runtime.extras import install_hint
-                raise ValueError(f"{path}: reading .exr needs the optional 'openexr' package: "
-                                 f"{install_hint('exr')}") from None
-            with OpenEXR.File(str(p), header_only=True) as head:     # the size before any pixel is decoded
-                (x0, y0), (x1, y1) = head.header()["dataWindow"]
-            _check_size(path, int(x1) - int(x0) + 1, int(y1) - int(y0) + 1)
-            with OpenEXR.File(str(p)) as exr:
-                channels = exr.channels()
-                if "RGB" not in channels:
-                    raise ValueError(f"{path}: expected an RGB (or R, G, B) image, found channels "
-                                     f"{', '.join(sorted(channels))}")
-                return np.asarray(channels["RGB"].pixels, dtype=np.float32)
+            return _read_exr(path, p, warn)
         from PIL import Image
 
-        with Image.open(p) as im:
+        try:
+            opened = Image.open(p)
+        except Image.DecompressionBombError as err:     # Pillow's own guard, at twice its own limit
+            raise ValueError(f"{path}: more texels than the texel budget of {TEXEL_BUDGET:,} "
+                             f"({' '.join(str(err).split())})") from None
+        with opened as im:
             _check_size(path, *im.size)              # from the header, before anything is decoded
             rgb = im if im.mode == "RGB" else im.convert("RGB")
             img = np.asarray(rgb, dtype=np.uint8)
@@ -83,6 +74,51 @@ def read_environment_image(path: str | os.PathLike, warn: Callable[[str], None] 
     except Exception as err:        # the image libraries' own (OpenEXR's RuntimeError, PIL's bomb guard...)
         text = " ".join(str(err).split()) or type(err).__name__
         raise ValueError(f"{path}: cannot read the environment map: {text}") from None
+
+
+def _read_exr(path, p: Path, warn) -> np.ndarray:
+    """An OpenEXR file's RGB image. OpenEXR's C core prints its own account of a damaged file to
+    stdout and stderr before the binding raises a vaguer one ("Unable to open ... for read"): that
+    output is caught, and its first line is the error (or, for a file that still reads, a warning)."""
+    try:
+        import OpenEXR
+    except ImportError:
+        from warp_spt.runtime.extras import install_hint
+        raise ValueError(f"{path}: reading .exr needs the optional 'openexr' package: "
+                         f"{install_hint('exr')}") from None
+    from warp_spt.runtime.warp_init import native_output
+
+    said = bytearray()
+    try:
+        with native_output() as said:
+            with OpenEXR.File(str(p), header_only=True) as head:     # the size before any pixel is decoded
+                (x0, y0), (x1, y1) = head.header()["dataWindow"]
+            _check_size(path, int(x1) - int(x0) + 1, int(y1) - int(y0) + 1)
+            with OpenEXR.File(str(p)) as exr:
+                channels = exr.channels()
+                if "RGB" not in channels:
+                    raise ValueError(f"{path}: expected an RGB (or R, G, B) image, found channels "
+                                     f"{', '.join(sorted(channels))}")
+                img = np.asarray(channels["RGB"].pixels, dtype=np.float32)
+    except Exception as err:        # OpenEXR's RuntimeError or ValueError; ours name the file already
+        if isinstance(err, ValueError) and str(err).startswith(f"{path}: "):
+            raise
+        raise ValueError(f"{path}: cannot read the environment map: {_first_line(said, p) or err}") from None
+    if said and warn is not None:
+        warn(f"{path}: {_first_line(said, p)}")
+    return img
+
+
+def _first_line(text: bytes, p: Path) -> str:
+    """The first non-blank line a library printed, without the file name it starts with."""
+    for line in text.decode("utf-8", "replace").splitlines():
+        line = " ".join(line.split())
+        for name in (str(p), p.name):
+            if line.startswith(f"{name}: "):
+                line = line[len(name) + 2:]
+        if line:
+            return line
+    return ""
 
 
 _SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)

@@ -464,7 +464,7 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
                     raise SceneError(ref.mtl_file, ref.line, f"texture {path} is {w}x{h} = {w * h:,} texels, more "
                                      f"than the budget of {TEXEL_BUDGET:,} (8192x8192); downsample it")
                 check_atlas(w, h)
-                rgb = _alpha(img) if decode == "alpha" else _to_rgb(img)
+                rgb = _alpha(img) if decode == "alpha" else _to_rgb(img, srgb=decode == "srgb")
     except (OSError, ValueError, Image.DecompressionBombError) as err:
         if isinstance(err, SceneError):
             raise
@@ -480,7 +480,7 @@ def _read_image(path: str, ref: TextureRef, note: WarnFn, check_atlas: Callable[
             note(f"{ref.mtl_file}:{ref.line}: texture {path}: {w.message}")
     if decode == "normal":
         _check_normal_map(rgb, path, ref)
-    return srgb_to_linear(rgb) if decode == "srgb" else rgb
+    return rgb
 
 
 # A tangent-space normal map stores z = 2 b - 1 well above 0 (a normal tilted less than 84 degrees: b > 0.55)
@@ -518,6 +518,13 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
                     ((c + np.float32(0.055)) / np.float32(1.055)) ** np.float32(2.4)).astype(np.float32)
 
 
+# The peak memory of reading an 8-bit texture, in bytes a texel, the float32 RGB result's 12 included
+# (tests/hardening/test_reader_memory.py measures load_scene's peak RSS for 2 million texels: 21)
+TEXTURE_READ_BYTES_PER_TEXEL = 24
+_LINEAR_8BIT = np.arange(256, dtype=np.float32) / np.float32(255.0)
+_SRGB_8BIT = srgb_to_linear(_LINEAR_8BIT)
+
+
 def _alpha(img: "Image.Image") -> np.ndarray:
     """The image's alpha channel as grey RGB in [0, 1], or its grey value where it has no alpha."""
     if "A" in img.getbands():
@@ -527,13 +534,19 @@ def _alpha(img: "Image.Image") -> np.ndarray:
     return np.repeat(grey, 3, axis=2).astype(np.float32)
 
 
-def _to_rgb(img: "Image.Image") -> np.ndarray:
-    """Float32 RGB in [0, 1]: 16-bit and 32-bit integer grey scaled by 65535, float grey clipped."""
+def _to_rgb(img: "Image.Image", srgb: bool = False) -> np.ndarray:
+    """Float32 RGB in [0, 1]: 16-bit and 32-bit integer grey scaled by 65535, float grey clipped;
+    ``srgb``: turned into linear values. 8-bit images go through a table of their 256 values (the
+    same float32 arithmetic, value by value), so the peak is the decoded image, its uint8 RGB and the
+    result: float32 temporaries of the whole image took a texture's peak to 58 bytes a texel."""
     if img.mode.startswith("I;16") or img.mode == "I":
         grey = np.clip(np.asarray(img, dtype=np.float64) / 65535.0, 0.0, 1.0).astype(np.float32)
-        return np.repeat(grey[:, :, None], 3, axis=2)
-    if img.mode == "F":
+        rgb = np.repeat(grey[:, :, None], 3, axis=2)
+    elif img.mode == "F":
         grey = np.clip(np.nan_to_num(np.asarray(img, dtype=np.float32)), 0.0, 1.0)
-        return np.repeat(grey[:, :, None], 3, axis=2)
-    return np.asarray(img.convert("RGB"), dtype=np.float32) / np.float32(255.0)
+        rgb = np.repeat(grey[:, :, None], 3, axis=2)
+    else:
+        rgb8 = img if img.mode == "RGB" else img.convert("RGB")
+        return (_SRGB_8BIT if srgb else _LINEAR_8BIT)[np.asarray(rgb8)]
+    return srgb_to_linear(rgb) if srgb else rgb
 

@@ -111,8 +111,9 @@ def load_grid(medium: Medium, device: str, where: str):
     src = medium.density
     if isinstance(src, (str, bytes)) or hasattr(src, "__fspath__"):
         path = os.fsdecode(src)
-        # a regular file (not /dev/zero) of at most MAX_GRID_BYTES, whose zip chunks are inflated here
-        # within that budget: Warp's loader inflates them without a bound (4.2 MB took it to 8.7 GB)
+        # a regular file (not /dev/zero) of at most MAX_GRID_BYTES, whose zip and blosc chunks are
+        # inflated here within that budget: Warp's loader inflates them without a bound (4.2 MB of zip
+        # took it to 8.7 GB; blosc allocates whatever a chunk's header declares)
         data = nvdb_uncompressed(read_file(path, "density grid", limit=MAX_GRID_BYTES, binary=True), path)
         if grid_class(data) == LEVEL_SET:      # its values are distances, negative inside: not densities
             raise SceneError(path, 0, "a signed-distance (level-set) grid; a density (fog) grid is expected "
@@ -223,10 +224,11 @@ def box_triangles(box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def nvdb_uncompressed(data: bytes, path: str) -> bytes:
-    """The NanoVDB file ``data`` with its grids uncompressed (codec 0). Every size in the header is
-    checked against the bytes before it is used, the grids' uncompressed size (each grid's metadata
-    says it) against MAX_GRID_BYTES, and inflating stops there: a chunk that would give more is
-    refused, whatever its compression ratio. Data that is not a NanoVDB file is returned as it is,
+    """The NanoVDB file ``data`` with its grids uncompressed (codec 0) from zip (1) or blosc (2), the
+    codecs Warp's loader takes. Every size in the header is checked against the bytes before it is
+    used, the grids' uncompressed size (each grid's metadata says it) against MAX_GRID_BYTES, and
+    inflating stops there: a chunk that would give more is refused, whatever its compression ratio
+    (a blosc chunk from its own header, before it is decoded). Data that is not a NanoVDB file is returned as it is,
     for Warp's own message."""
     if len(data) < 16 or data[:8] not in (b"NanoVDB0", b"NanoVDB2"):
         return data
@@ -242,19 +244,16 @@ def nvdb_uncompressed(data: bytes, path: str) -> bytes:
     start = offset
     if raw > MAX_GRID_BYTES:
         raise SceneError(path, 0, f"the grids hold {raw:,} bytes, over the budget of {MAX_GRID_BYTES:,}")
-    if codec != 1:          # none (0), or blosc (2), for which Warp needs the blosc module and says so
+    if codec not in (1, 2):     # none (0); another code is Warp's "Unsupported codec" message
         return data
     out = bytearray()
     while offset < start + stored:
         size = struct.unpack("<Q", data[offset:offset + 8])[0] if offset + 8 <= len(data) else None
         if size is None or offset + 8 + size > len(data):
             raise SceneError(path, 0, f"a compressed chunk at byte {offset:,} runs past the end of the file")
-        inflate = zlib.decompressobj()
-        try:
-            part = inflate.decompress(data[offset + 8:offset + 8 + size], raw - len(out) + 1)
-        except zlib.error as err:
-            raise SceneError(path, 0, f"a compressed chunk is not valid zip data ({err})") from None
-        if len(out) + len(part) > raw or inflate.unconsumed_tail:
+        chunk = data[offset + 8:offset + 8 + size]
+        part = _inflate_zip(chunk, raw - len(out), path) if codec == 1 else _inflate_blosc(chunk, raw - len(out), path)
+        if part is None:
             raise SceneError(path, 0, f"the compressed grids inflate to more than the {raw:,} bytes their "
                              "header declares")
         out += part
@@ -269,6 +268,48 @@ def nvdb_uncompressed(data: bytes, path: str) -> bytes:
     head += out
     del out
     return bytes(head)
+
+
+def _inflate_zip(chunk: bytes, budget: int, path: str) -> bytes | None:
+    """One zip chunk inflated, stopping one byte past ``budget`` (the bytes the header has left):
+    None if it gives more."""
+    inflate = zlib.decompressobj()
+    try:
+        part = inflate.decompress(chunk, budget + 1)
+    except zlib.error as err:
+        raise SceneError(path, 0, f"a compressed chunk is not valid zip data ({err})") from None
+    return None if len(part) > budget or inflate.unconsumed_tail else part
+
+
+# a blosc (version 1) chunk's header: version, versionlz, flags, typesize, then its uncompressed size,
+# block size and stored size as uint32s; blosc allocates the uncompressed size before decoding
+BLOSC_HEADER = 16
+
+
+def _inflate_blosc(chunk: bytes, budget: int, path: str) -> bytes | None:
+    """One blosc chunk decoded, its header's sizes checked first: the stored size against the chunk,
+    the uncompressed size against ``budget`` (None if more: python-blosc allocates what a header
+    declares, up to 2 GiB, and Warp's loader hands it every chunk unchecked)."""
+    if len(chunk) < BLOSC_HEADER:
+        raise SceneError(path, 0, f"a blosc chunk of {len(chunk)} bytes is shorter than its {BLOSC_HEADER}-byte header")
+    nbytes, _, cbytes = struct.unpack("<III", chunk[4:16])
+    if cbytes != len(chunk):
+        raise SceneError(path, 0, f"a blosc chunk's header says {cbytes:,} bytes are stored; the chunk holds "
+                                  f"{len(chunk):,}")
+    if nbytes > budget:
+        return None
+    try:
+        import blosc
+    except ImportError:
+        raise SceneError(path, 0, "the grids are blosc-compressed, which needs the 'blosc' package "
+                                  "(pip install blosc); or save them with zip compression or none") from None
+    try:
+        part = blosc.decompress(chunk)
+    except Exception as err:            # blosc's own (its error types differ between versions)
+        raise SceneError(path, 0, f"a compressed chunk is not valid blosc data ({err})") from None
+    if len(part) != nbytes:
+        raise SceneError(path, 0, f"a blosc chunk decoded to {len(part):,} bytes; its header declares {nbytes:,}")
+    return part
 
 
 def transform_problem(vol: wp.Volume) -> str | None:

@@ -19,10 +19,12 @@ def hg(cos_theta: float, g: float) -> float:
     """p(cos theta) of the angle between the propagation directions before and after scattering."""
     # 1 + g^2 - 2 g cos written as a sum of two terms >= 0: in float32 the plain form cancels to 0 or
     # below near the peak once |g| > 0.999 (g = 0.999999 gave NaN samples)
+    # and the cosine clamped to [-1, 1]: a dot product of two unit vectors an ulp above 1 made the
+    # second term negative and larger than the first near |g| = 1 (the square root of a negative)
     a = wp.abs(g)
-    c = cos_theta
+    c = wp.clamp(cos_theta, -1.0, 1.0)
     if g < 0.0:
-        c = -cos_theta
+        c = -c
     den = (1.0 - a) * (1.0 - a) + 2.0 * a * (1.0 - c)
     return INV_FOUR_PI * (1.0 - a) * (1.0 + a) / (den * wp.sqrt(den))
 

@@ -16,10 +16,12 @@ in a new temporary directory in every process, 2.2-2.4 CPU s before the process'
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import sys
 import tempfile
+from contextlib import contextmanager
 
 # The one native line hidden by default (cuda_util.cpp, init_cuda_driver); matched by its start.
 _NO_DRIVER = b"Warp CUDA warning: Could not find or load the NVIDIA CUDA driver"
@@ -133,21 +135,55 @@ def pch_folder(cache_dir: str, native_dir: str) -> str:
 
 def _init_capturing_stderr(wp) -> None:
     """``wp.init()`` with fd 2 redirected; every captured line but the no-driver one is re-emitted."""
+    text = bytearray()
     try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError, AttributeError):   # no usable fd 2 (embedded interpreters)
-        wp.init()
-        return
-    with tempfile.TemporaryFile() as capture:
-        os.dup2(capture.fileno(), 2)
-        try:
+        with native_output((2,)) as text:
             wp.init()
+    finally:
+        kept = b"".join(line for line in text.splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
+        if kept:
+            print(kept.decode("utf-8", "replace"), end="", file=sys.stderr)
+
+
+@contextmanager
+def native_output(fds: tuple[int, ...] = (1, 2)):
+    """What native code writes to the file descriptors ``fds`` while the block runs, kept from the
+    terminal: yields a bytearray that holds it once the block ends (empty where the descriptors cannot
+    be redirected, as in embedded interpreters). Libraries written in C print there directly, past
+    Python's streams (OpenEXR's messages on a damaged file), which are flushed first so that nothing
+    written before is caught. Process-wide while the block runs (other threads' output is caught too)."""
+    captured = bytearray()
+    saved: list[tuple[int, int]] = []
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):   # closed, or None
+            pass
+    try:
+        for fd in fds:
+            saved.append((fd, os.dup(fd)))
+    except OSError:                 # no usable descriptor (embedded interpreters)
+        for _, copy in saved:
+            os.close(copy)
+        saved = []
+    if not saved:
+        yield captured
+        return
+    names = [name for fd, name in ((1, "stdout"), (2, "stderr")) if fd in fds]
+    streams = {name: getattr(sys, name) for name in names}
+    text = io.StringIO()            # a binding's own print (pybind11's py::print) goes to sys.stdout
+    with tempfile.TemporaryFile() as capture:
+        for fd, _ in saved:
+            os.dup2(capture.fileno(), fd)
+        for name in names:
+            setattr(sys, name, text)
+        try:
+            yield captured
         finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+            for name, stream in streams.items():
+                setattr(sys, name, stream)
+            for fd, copy in saved:
+                os.dup2(copy, fd)
+                os.close(copy)
             capture.seek(0)
-            text = capture.read()
-            kept = b"".join(line for line in text.splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
-            if kept:
-                print(kept.decode("utf-8", "replace"), end="", file=sys.stderr)
+            captured += capture.read() + text.getvalue().encode("utf-8", "replace")

@@ -31,6 +31,9 @@ memory or time grow without limit:
 """
 
 MAX_RADIANCE = 1e30
+# an environment map's turn about the up axis, in degrees either way (Sky, --env-rotate, the viewer):
+# a million degrees is thousands of turns already, past any intent
+MAX_ENV_ROTATE = 1e6
 MIN_IOR, MAX_IOR = 1e-3, 1e3
 MAX_COORDINATE = 1e15
 # The camera may stand and focus farther out than geometry may lie, so that every loadable scene,

@@ -35,7 +35,8 @@ class Part:
 class FileCamera:
     """A perspective camera placed in a scene file: ``position``, view ``direction`` and ``up`` in world
     space; ``yfov`` in radians; ``aspect`` None when the file leaves it to the image. ``index`` is its
-    place among the file's cameras, ``node`` the glTF node placing it (-1 for other formats)."""
+    place among the file's cameras, ``node`` the glTF node placing it (-1 for other formats), ``path``
+the file."""
 
     name: str
     index: int
@@ -47,6 +48,7 @@ class FileCamera:
     aspect: float | None
     znear: float
     kind: str = "perspective"    # another type (orthographic) is listed but cannot be looked through
+    path: str = ""               # the file that defines it, for messages ("" where none is known)
 
     def fov_degrees(self, width: int, height: int) -> float:
         """The full horizontal angle for an image of ``width`` x ``height`` (the renderer's ``fov``)."""

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:     # numpy comes with it: the command line reads this module before its Ctrl-C handlers
     from warp_spt.scene.environment import EnvironmentMap
-from warp_spt.scene.limits import MAX_COORDINATE, MAX_RADIANCE, MIN_DIRECTION
+from warp_spt.scene.limits import MAX_COORDINATE, MAX_ENV_ROTATE, MAX_RADIANCE, MIN_DIRECTION
 
 SKY_CONSTANT = 0
 SKY_GRADIENT = 1
@@ -80,8 +80,9 @@ class Sky:
                 return f"environment must be a warp_spt.scene.environment.EnvironmentMap, got {type(self.env).__name__}"
         if not (isinstance(self.strength, (int, float)) and 0.0 <= float(self.strength) <= MAX_RADIANCE):
             return f"environment strength must be a number in [0, {MAX_RADIANCE:g}], got {self.strength!r}"
-        if not (isinstance(self.rotate, (int, float)) and math.isfinite(float(self.rotate))):
-            return f"environment rotation must be a finite number of degrees, got {self.rotate!r}"
+        if not (isinstance(self.rotate, (int, float)) and abs(float(self.rotate)) <= MAX_ENV_ROTATE):   # NaN fails
+            return (f"environment rotation must be a number of degrees in [-{MAX_ENV_ROTATE:g}, {MAX_ENV_ROTATE:g}], "
+                    f"got {self.rotate!r}")
         if self.background is not None:
             return colour_problem("environment background", self.background)
         return None

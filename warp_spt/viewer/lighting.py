@@ -54,8 +54,8 @@ def check(settings) -> None:
                              f"[{MIN_DIRECTION:g}, {MAX_COORDINATE:g}], got {v}")
     if max(abs(x) for x in s.lamp_position) > MAX_COORDINATE:
         raise ValueError(f"lamp_position must lie within +-{MAX_COORDINATE:g}, got {s.lamp_position}")
-    if s.env_background is not None and not all(0.0 <= c for c in s.env_background):
-        raise ValueError(f"env_background colour values must be >= 0, got {s.env_background}")
+    if s.env_background is not None and not all(0.0 <= c <= MAX_RADIANCE for c in s.env_background):
+        raise ValueError(f"env_background colour values must lie in [0, {MAX_RADIANCE:g}], got {s.env_background}")
     _records(s, np.zeros(3))            # the records check colours, radius and angles, on or off
     fog(s, None, force=True)
 

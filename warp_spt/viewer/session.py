@@ -36,7 +36,7 @@ import numpy as np
 
 from warp_spt.rendering.schedule import batch_seed
 from warp_spt.scene.families import DEFAULT_SAMPLER
-from warp_spt.scene.limits import MAX_DEPTH, MAX_RADIANCE, MAX_SPP, MAX_VIEW_PIXELS
+from warp_spt.scene.limits import MAX_DEPTH, MAX_ENV_ROTATE, MAX_RADIANCE, MAX_SPP, MAX_VIEW_PIXELS
 
 from . import display, lighting, messages, navigation
 from .command import CommandSpec, command_line
@@ -152,7 +152,7 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     if key in choices and value not in choices[key]:
         raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
     limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, MAX_DEPTH), "max_spp": (1, MAX_SPP),
-              "preview_scale": (1, 16), "exposure": (-20.0, 20.0), "env_rotate": (-1e6, 1e6),
+              "preview_scale": (1, 16), "exposure": (-20.0, 20.0), "env_rotate": (-MAX_ENV_ROTATE, MAX_ENV_ROTATE),
               "env_strength": (0.0, MAX_RADIANCE)}
     if key in limits and not limits[key][0] <= value <= limits[key][1]:
         raise ValueError(f"{key} must lie in [{limits[key][0]}, {limits[key][1]}], got {value}")

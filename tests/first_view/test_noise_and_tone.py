@@ -164,3 +164,13 @@ def test_opendenoise_brings_a_16_spp_first_image_close_to_the_reference(tmp_path
     ref = np.load(tmp_path / "ref.npy")
     rmse = {k: float(np.sqrt(np.mean((np.load(tmp_path / f"{k}.npy") - ref) ** 2))) for k in ("raw", "den")}
     assert rmse["den"] < 0.6 * rmse["raw"], rmse
+
+
+def test_the_live_view_shows_every_curve():
+    """warp_spt.notebook's PNG goes through the one display transform (filmic was the seed's there)."""
+    from warp_spt.notebook import _png
+
+    image = np.array([[[0.05, 0.18, 2.0]]], np.float32)
+    for curve, mapping in (("filmic", tonemap_filmic), ("seed", tonemap_seed), ("srgb", tonemap_srgb)):
+        assert np.array_equal(np.asarray(Image.open(io.BytesIO(_png(image, curve, 1))).convert("RGB")),
+                              mapping(image))

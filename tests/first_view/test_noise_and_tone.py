@@ -146,7 +146,10 @@ def test_without_the_denoiser_the_first_image_renders_as_before(tmp_path, bunny,
 
     monkeypatch.setattr(dn, "available", lambda: False)
     said = cli(["-obj", bunny, *SIZE, "-out", str(tmp_path / "p.png")])
-    assert "denoised" not in said and "error" not in said
+    hint = [s for s in said.splitlines() if "not denoised" in s]        # one line naming the extra
+    assert len(hint) == 1 and 'pip install ".[denoise]"' in hint[0] and "error:" not in said
+    for argv in (["--no-denoise", "-out", str(tmp_path / "n.png")], ["-out", str(tmp_path / "n.npy")]):
+        assert "denoised" not in cli(["-obj", bunny, *SIZE, *argv])
 
 
 def test_opendenoise_brings_a_16_spp_first_image_close_to_the_reference(tmp_path, bunny):

@@ -155,8 +155,8 @@ def first_image_defaults(opts, scene, say, *, denoise: bool = True):
     for a standard file's tone-mapped output) and, with ``denoise`` (a single image rendered in this
     process: not the frames of an animation, which would flicker, nor a cluster's image), for a
     .png/.jpg by an integrator without passes of its own, Open Image Denoise when it is installed (the
-    denoise itself says so in its line)."""
-    from warp_spt.rendering.first_view import STANDARD_TONEMAP, denoise_by_default, tone_map
+    denoise itself says so in its line), or one line naming the extra that brings it."""
+    from warp_spt.rendering.first_view import STANDARD_TONEMAP, denoise_by_default, seed_look, tone_map
 
     demo = opts.uses_demo_scene
     mapped = bool(opts.gif) or (opts.out is not None and Path(opts.out).suffix.lower() in TONE_MAPPED)
@@ -165,8 +165,14 @@ def first_image_defaults(opts, scene, say, *, denoise: bool = True):
         if mapped and opts.tonemap == STANDARD_TONEMAP:
             say(f"tone map: {STANDARD_TONEMAP} (a standard file: highlights roll off below white; "
                 "--tonemap seed for the seed's curve, srgb for plain sRGB)")
-    if denoise and opts.budget.denoise is None and mapped and _passes_free(opts) and denoise_by_default(scene, demo):
-        opts = replace(opts, budget=replace(opts.budget, denoise=True))
+    if denoise and opts.budget.denoise is None and mapped and _passes_free(opts) and not seed_look(scene, demo):
+        if denoise_by_default(scene, demo):
+            opts = replace(opts, budget=replace(opts.budget, denoise=True))
+        else:
+            from warp_spt.runtime.extras import install_hint
+
+            say(f"not denoised ({opts.spp} spp): Intel Open Image Denoise gives a first image a sixth of its "
+                f"error for half the render's time again (README, noise and tone): {install_hint('denoise')}")
     return opts
 
 

@@ -24,9 +24,9 @@ from warp_spt.rendering.result import RenderResult
 def _png(image: np.ndarray, tonemap: str, zoom: int) -> bytes:
     from PIL import Image
 
-    from warp_spt.images.files import tonemap_seed, tonemap_srgb
+    from warp_spt.images.files import to_display
 
-    img8 = (tonemap_srgb if tonemap == "srgb" else tonemap_seed)(image)
+    img8 = to_display(image, tonemap)
     pil = Image.fromarray(img8)
     if zoom > 1:
         pil = pil.resize((pil.width * zoom, pil.height * zoom), Image.NEAREST)

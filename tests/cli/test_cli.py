@@ -38,7 +38,7 @@ def test_no_arguments_is_the_builtin_demo_at_the_seeds_defaults():
     assert o.sky == Sky(0, (0.3, 0.6, 0.8))          # the seed's blue 'BlackSky' (Q2)
     assert o.out == "output.png"                       # the Readme's name, not the code's Output.png (Q14)
     assert o.camera == Camera((4.0, -55.0, 16.0), (0.0, 1.0, 0.0), 38.0, 0.001, 27.0)
-    assert (o.tonemap, o.texture_filter, o.seed, o.threads, o.quiet) == ("seed", "nearest", 0, None, False)
+    assert (o.tonemap, o.texture_filter, o.seed, o.threads, o.quiet) == (None, "nearest", 0, None, False)
 
 
 def test_the_seeds_demo_command_line_parses_unchanged():

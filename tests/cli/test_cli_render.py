@@ -137,7 +137,8 @@ class FakeEngine:
         self.render_effect = render_effect
         scene = types.SimpleNamespace(warnings=["a warning"], num_triangles=2, spheres=np.zeros((1, 4)),
                                       bounds=np.zeros((2, 3)), meshes=[], dropped_degenerate=0,
-                                      lights=[], fog=None, interiors={}, instanced=False)
+                                      lights=[], fog=None, interiors={}, instanced=False,
+                                      seed_dialect=True)   # the seed's curve, no denoiser: the plain path
         stub_view(monkeypatch)
         fakes = {
             "warp_spt.io.loader": types.SimpleNamespace(load_scene=lambda objs, mtls, **kw: self._record("load", (objs, mtls), scene)),

@@ -85,7 +85,7 @@ def test_the_viewer_the_cli_and_the_api_give_the_same_first_image(tmp_path):
     session = open_session(objs=[obj], width=w, height=h, max_spp=spp)
     try:
         res = session.wait_for(spp, timeout=300)
-        assert session.settings.tonemap == "seed" and session.settings.sky == "studio"
+        assert session.settings.tonemap == "filmic" and session.settings.sky == "studio"   # the CLI's, too
         command = session.command_line()
     finally:
         session.close()
@@ -116,7 +116,7 @@ def test_render_warns_when_the_camera_sees_nothing_and_quick_view_frames_it(tmp_
         warp_spt.render(scene, warp_spt.Camera.frame(scene, up="y"), width=24, height=18, spp=1)
         image = warp_spt.quick_view(scene, width=24, height=18, spp=4)
     fv = warp_spt.first_view(scene, width=24, height=18)
-    assert fv.framed and fv.up.axis == "y" and fv.studio and fv.tonemap == "seed"
+    assert fv.framed and fv.up.axis == "y" and fv.studio and fv.tonemap == "filmic"
     assert image.std() > 0.01
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from warp_spt.animation import CameraPath, ObjSequence, render_animation
 from warp_spt.cli.common import load_texture_modules, say_for
 from warp_spt.cli.options import settings_of
-from warp_spt.cli.view_checks import frame_view, media_integrator, with_flag_lights
+from warp_spt.cli.view_checks import first_image_defaults, frame_view, media_integrator, with_flag_lights
 from warp_spt.images.files import save_gif
 from warp_spt.io.templates import frame_path
 from warp_spt.runtime.signals import ignored_by_children
@@ -168,6 +168,7 @@ def run_cli(opts, err, started: float | None = None) -> int:
     if opts.workers and (warning := workers_warning(opts.workers)):
         say(warning)
     opts = media_integrator(opts, with_flag_lights(opts, first), say)   # a fog or interiors: volpath for every frame
+    opts = first_image_defaults(opts, first, say, denoise=False)     # the tone map
     if opts.animated:
         # no camera given: one framing over every frame's bounds, so that what moves moves in the picture
         free = not (opts.cam_explicit or path is not None or opts.file_camera is not None or opts.uses_demo_scene)

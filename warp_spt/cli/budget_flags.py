@@ -31,7 +31,7 @@ class BudgetOptions:
     error_map: str | None = None
     spp_map: str | None = None
     spp_given: bool = False
-    denoise: bool = False
+    denoise: bool | None = None      # None: the first image's choice (cli/view_checks.first_image_defaults)
     adaptive_metric: str | None = None
 
     def flags(self) -> list[str]:
@@ -107,9 +107,10 @@ def add_flags(parser: argparse.ArgumentParser, int_at_least: Callable) -> None:
                         "relative error with a legend)")
     g.add_argument("--spp-map", metavar="PATH",
                    help="write the samples per pixel (.npy/.pfm, or .png false colour with a legend)")
-    g.add_argument("--denoise", action="store_true",
+    g.add_argument("--denoise", action=argparse.BooleanOptionalAction,
                    help="denoise the output with Intel Open Image Denoise (needs pyoidn: pip install "
-                        "\".[denoise]\" in a clone, or \"warp-spt[denoise]\"); "
+                        "\".[denoise]\" in a clone, or \"warp-spt[denoise]\"); the default for a .png/.jpg "
+                        "of a standard file when pyoidn is installed; "
                         "the error line and maps describe the image before denoising")
 
 

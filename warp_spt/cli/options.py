@@ -147,7 +147,7 @@ class Options:
     threads: int | None = None
     device: str = "cpu"
     seed: int = 0
-    tonemap: str = "seed"
+    tonemap: str | None = None       # None: the first image's (cli/view_checks.first_image_defaults)
     texture_filter: str = "nearest"
     quiet: bool = False
     verbose: bool = False
@@ -298,8 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
     new.add_argument("--env-strength", type=finite_float, metavar="X", help="scale the --env map's radiance (default 1)")
     new.add_argument("--env-background", nargs=3, type=finite_float, metavar=("R", "G", "B"),
                      help="camera rays that miss see this colour; the --env map still lights the scene")
-    new.add_argument("--tonemap", choices=("seed", "srgb"), default="seed",
-                     help="PNG mapping: the seed's curve (default) or sRGB")
+    new.add_argument("--tonemap", choices=("seed", "srgb", "filmic"),
+                     help="PNG mapping: the seed's curve, sRGB, or filmic (a highlight shoulder); default "
+                          "filmic, the seed's curve for the seed's own scenes")
     new.add_argument("--filter", choices=("nearest", "bilinear"), default="nearest", dest="texture_filter",
                      help="texture lookup (default nearest, as the seed)")
     new.add_argument("--quiet", action="store_true", help="no progress bar or messages")

@@ -61,8 +61,9 @@ def render_and_save(opts, scene, *, say: Callable[[str], None], started: float, 
         from warp_spt.rendering.denoise import denoise
 
         image = denoise(res.image, *aux)
-        say("denoised with Intel Open Image Denoise (albedo and normal of the first non-specular hit): the image "
-            "is smoother but biased; the error figures below are those of the image before denoising")
+        say("denoised with Intel Open Image Denoise (albedo and normal of the first non-specular hit; "
+            "--no-denoise for the raw render): the image is smoother but biased; the error figures below are "
+            "those of the image before denoising")
     save_image(opts.out, image, tonemap=opts.tonemap, exposure=opts.exposure)      # the main output first, then the side outputs
     if b.error_map:
         side.write("--error-map", b.error_map, lambda: save_error_map(b.error_map, res.std_error, res.image))
@@ -234,7 +235,7 @@ def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int,
 
     import numpy as np
 
-    from warp_spt.images.files import tonemap_seed, tonemap_srgb
+    from warp_spt.images.files import to_display
 
     t = time.perf_counter()
     blank = np.random.default_rng(0).random((height, width, 3), dtype=np.float32)
@@ -245,7 +246,7 @@ def finish_seconds(out: str, width: int, height: int, tonemap: str, images: int,
     else:
         from PIL import Image
 
-        Image.fromarray((tonemap_srgb if tonemap == "srgb" else tonemap_seed)(blank)).save(buf, format=fmt)
+        Image.fromarray(to_display(blank, tonemap or "seed")).save(buf, format=fmt)
     seconds = images * (time.perf_counter() - t) + EXIT_SECONDS
     if denoise:
         from warp_spt.rendering.denoise import seconds as denoise_seconds

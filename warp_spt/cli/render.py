@@ -23,7 +23,7 @@ from warp_spt.cli.common import (
 )
 from warp_spt.cli.options import Options, settings_of
 from warp_spt.cli.progressive import render_and_save
-from warp_spt.cli.view_checks import media_integrator, prepare_view, with_flag_lights
+from warp_spt.cli.view_checks import first_image_defaults, media_integrator, prepare_view, with_flag_lights
 from warp_spt.runtime.progress import ProgressBar
 from warp_spt.runtime.signals import deferred_signals
 
@@ -68,6 +68,7 @@ def run_image(opts: Options, err: TextIO, started: float) -> int:
     say(f"loaded {what}: {scene.num_triangles:,} triangles{dropped}, {len(scene.spheres)} spheres, "
         f"{describe_bounds(scene)} in {time.perf_counter() - start:.1f} s; rendering {opts.width}x{opts.height}, "
         f"{opts.budget.samples(opts.spp)}, depth {opts.depth}")
+    opts = first_image_defaults(opts, scene, say)      # the tone map; the denoiser when installed
     notice = CompileNotice(say)
     loaded = scene                  # the host Scene: prepare_view may hand back a DeviceScene
     scene, camera, sky = prepare_view(opts, scene, say, notice=notice)

@@ -11,10 +11,12 @@ turns the command's options into its arguments, says its lines, and uploads the 
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
 from warp_spt.cli.common import CompileNotice, RunError, refuse_without_media
+from warp_spt.cli.options import TONE_MAPPED
 from warp_spt.rendering.first_view import (
     PROBE_SIZE,
     Probe,
@@ -145,6 +147,41 @@ def with_flag_lights(opts, scene, say=None):
 
 def _grey(rgb) -> str:
     return f"{rgb[0]:.3g}" if rgb[0] == rgb[1] == rgb[2] else ",".join(f"{x:.3g}" for x in rgb)
+
+
+def first_image_defaults(opts, scene, say, *, denoise: bool = True):
+    """``opts`` with what the command left to the first image (:mod:`warp_spt.rendering.first_view`):
+    the tone map (filmic for a standard file, the seed's curve for the seed's scenes; one line says so
+    for a standard file's tone-mapped output) and, with ``denoise`` (a single image rendered in this
+    process: not the frames of an animation, which would flicker, nor a cluster's image), for a
+    .png/.jpg by an integrator without passes of its own, Open Image Denoise when it is installed (the
+    denoise itself says so in its line), or one line naming the extra that brings it."""
+    from warp_spt.rendering.first_view import STANDARD_TONEMAP, denoise_by_default, seed_look, tone_map
+
+    demo = opts.uses_demo_scene
+    mapped = bool(opts.gif) or (opts.out is not None and Path(opts.out).suffix.lower() in TONE_MAPPED)
+    if opts.tonemap is None:
+        opts = replace(opts, tonemap=tone_map(scene, demo))
+        if mapped and opts.tonemap == STANDARD_TONEMAP:
+            say(f"tone map: {STANDARD_TONEMAP} (a standard file: highlights roll off below white; "
+                "--tonemap seed for the seed's curve, srgb for plain sRGB)")
+    if denoise and opts.budget.denoise is None and mapped and _passes_free(opts) and not seed_look(scene, demo):
+        if denoise_by_default(scene, demo):
+            opts = replace(opts, budget=replace(opts.budget, denoise=True))
+        else:
+            from warp_spt.runtime.extras import install_hint
+
+            say(f"not denoised ({opts.spp} spp): Intel Open Image Denoise gives a first image a sixth of its "
+                f"error for half the render's time again (README, noise and tone): {install_hint('denoise')}")
+    return opts
+
+
+def _passes_free(opts) -> bool:
+    """The integrator renders through the progressive renderer (those that train over passes of their
+    own refuse its flags)."""
+    from warp_spt.integrators import DEFAULT_INTEGRATOR, INTEGRATORS
+
+    return INTEGRATORS[opts.integrator or DEFAULT_INTEGRATOR].render_passes is None
 
 
 def media_integrator(opts, scene, say):

@@ -1,7 +1,8 @@
 """Image files: tone maps and writers (PNG, JPEG, NPY, PFM, EXR, GIF), written atomically.
 
 Tone maps: :func:`tonemap_seed` is the seed's curve (SEMANTICS §4) bit for bit, :func:`tonemap_srgb`
-the standard sRGB transfer function. File formats by extension: ``.png`` (8-bit, tone mapped),
+the standard sRGB transfer function, :func:`tonemap_filmic` a filmic curve (a log-encoded S-curve with
+a highlight shoulder, the first image's curve for standard files). File formats by extension: ``.png`` (8-bit, tone mapped),
 ``.jpg`` (8-bit, tone mapped), ``.npy``, ``.pfm`` and ``.exr`` (float32 linear radiance; EXR needs the
 optional ``openexr`` package). Every file is written to a hidden temporary file beside the target
 and renamed (:func:`atomic_write`), so a failed or interrupted write never leaves a truncated file.
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import errno
 import io
+import math
 import os
 import uuid
 from pathlib import Path
@@ -72,6 +74,47 @@ def tonemap_srgb(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
     return np.floor(y * 255.0 + 0.5).astype(np.uint8)
+
+
+# The filmic curve's published numbers: the range Blender's Filmic view covers, 10 stops below and 6.5
+# above scene middle grey 0.18 (16.5 stops, white at 0.18 * 2^6.5 = 16.3), middle grey shown at half
+# the display range, and there the slope of the sRGB curve at 0.18 (so mid-tones keep sRGB's contrast
+# and only the ends are compressed): d sRGB(0.18 * 2^(16.5 t)) / dt = 2.46 at middle grey.
+FILMIC_GREY, FILMIC_STOPS_BELOW, FILMIC_STOPS_ABOVE = 0.18, 10.0, 6.5
+FILMIC_MID = 0.5
+FILMIC_SLOPE = (1.055 / 2.4 * FILMIC_GREY ** (1 / 2.4)       # sRGB's derivative, times dx/dt
+                * math.log(2.0) * (FILMIC_STOPS_BELOW + FILMIC_STOPS_ABOVE))
+
+
+def _filmic_side(t: np.ndarray, width: float) -> np.ndarray:
+    """One half of the S-curve: u / sqrt(1 + u^2) (slope 1 at 0, tending to 1), scaled so that it
+    reaches 1 at ``width`` (the end of the range) with slope FILMIC_SLOPE / FILMIC_MID at 0; ``t`` >= 0
+    is the distance from middle grey in the log-encoded range. The scale ``a`` solves
+    0.5 * a / sig(a * width) = FILMIC_SLOPE in closed form, so the two halves meet without a kink."""
+    a = np.sqrt((FILMIC_SLOPE * width / FILMIC_MID) ** 2 - 1.0) / width
+    sig = lambda u: u / np.sqrt(1.0 + u * u)            # noqa: E731
+    return sig(a * t) / sig(a * width)
+
+
+def filmic_curve(x: np.ndarray) -> np.ndarray:
+    """The filmic display value in [0, 1] (display-encoded, like an sRGB code value) of linear
+    radiance ``x``: log2(x / 0.18) over [-10, 6.5] stops mapped to [0, 1], then an S-curve through
+    (middle grey, 0.5) with a toe to 0 and a shoulder to 1. Monotone; 0 at and below 0.18 * 2^-10,
+    1 at and above 0.18 * 2^6.5 = 16.3; NaN gives 0."""
+    span = FILMIC_STOPS_BELOW + FILMIC_STOPS_ABOVE
+    x = np.nan_to_num(np.asarray(x, dtype=np.float64), nan=0.0)
+    with np.errstate(divide="ignore"):
+        stops = np.log2(np.maximum(x, 0.0) / FILMIC_GREY)
+    t = np.clip((stops + FILMIC_STOPS_BELOW) / span, 0.0, 1.0)
+    grey = FILMIC_STOPS_BELOW / span
+    above = FILMIC_MID + (1.0 - FILMIC_MID) * _filmic_side(np.maximum(t - grey, 0.0), 1.0 - grey)
+    below = FILMIC_MID - FILMIC_MID * _filmic_side(np.maximum(grey - t, 0.0), grey)
+    return np.where(t >= grey, above, below)
+
+
+def tonemap_filmic(img: np.ndarray) -> np.ndarray:
+    """:func:`filmic_curve` per channel, rounded to uint8 (H, W, 3) in [0, 255]."""
+    return np.floor(filmic_curve(img) * 255.0 + 0.5).astype(np.uint8)
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], None]) -> None:
@@ -185,12 +228,12 @@ def _write_exr(f: BinaryIO, img: np.ndarray) -> None:
 _TONE_MAPPED = (".png", ".jpg", ".jpeg")
 
 
-_TONEMAPS = {"seed": tonemap_seed, "srgb": tonemap_srgb}
+_TONEMAPS = {"seed": tonemap_seed, "srgb": tonemap_srgb, "filmic": tonemap_filmic}
 
 
 def to_display(img: np.ndarray, curve: str = "seed", exposure: float = 0.0) -> np.ndarray:
     """uint8 (H, W, 3): the linear image scaled by 2 ** ``exposure`` (stops), then tone mapped with
-    ``curve`` ("seed" or "srgb"). The one display transform of every front end."""
+    ``curve`` ("seed", "srgb" or "filmic"). The one display transform of every front end."""
     if curve not in _TONEMAPS:
         raise ValueError(f"unknown tone map {curve!r}; expected one of {', '.join(_TONEMAPS)}")
     if not np.isfinite(exposure):
@@ -202,7 +245,7 @@ def to_display(img: np.ndarray, curve: str = "seed", exposure: float = 0.0) -> n
 def save_image(path: str | os.PathLike, img: np.ndarray, tonemap: str = "seed", exposure: float = 0.0) -> None:
     """Save a linear (H, W, 3) image; the format follows the extension (.png, .jpg, .npy, .pfm, .exr).
 
-    ``.png`` and ``.jpg`` are tone mapped with ``tonemap`` ("seed" or "srgb") after ``exposure``
+    ``.png`` and ``.jpg`` are tone mapped with ``tonemap`` ("seed", "srgb" or "filmic") after ``exposure``
     stops; ``.npy``, ``.pfm`` and ``.exr`` (optional ``openexr`` package) keep float32 linear
     radiance (no exposure: they hold the scene's light). The write is atomic (see :func:`atomic_write`).
     """

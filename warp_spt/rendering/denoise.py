@@ -1,8 +1,10 @@
 """Optional denoising with Intel Open Image Denoise (the ``pyoidn`` package, extra ``[denoise]``).
 
-Never the default and never silent: the CLI and the convergence report call it only when asked
-(``--denoise``) and say so. A denoised image is biased (it trades noise for blur); the convergence
-report's "denoised" line measures its error against the reference, so users see that trade.
+Never silent: the CLI denoises when asked (``--denoise``) and, when pyoidn is installed, a
+standard file's .png/.jpg first image (:func:`warp_spt.rendering.first_view.denoise_by_default`;
+``--no-denoise`` turns it off), and says so; the convergence report when asked. A denoised image is
+biased (it trades noise for blur); the convergence report's "denoised" line measures its error
+against the reference, so users see that trade.
 
 Feature buffers: OIDN is better with albedo and normal images of the first non-specular hit;
 :func:`warp_spt.rendering.aux_buffers.feature_buffers` renders them, and the CLI and the convergence report

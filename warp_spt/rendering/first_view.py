@@ -6,8 +6,9 @@ every front end, what the first image shows: the scene recentred if it lies far 
 kept or the scene framed (:func:`should_frame`, ``Camera.frame``), warnings about a view that shows
 nothing, and the studio look for a scene with no light of its own
 (:func:`warp_spt.scene.conventions.studio_look`: with the studio's key light,
-or the user's lights as the key); the tone map is the command line's PNG curve,
-:data:`TONEMAP`. ``warp-spt`` (``cli/view_checks.py``), ``warp-spt view`` and the viewer widget
+or the user's lights as the key); the tone map (:func:`tone_map`: the seed's curve for the seed's
+own scenes, filmic for standard files) and whether to denoise when the denoiser is installed
+(:func:`denoise_by_default`). ``warp-spt`` (``cli/view_checks.py``), ``warp-spt view`` and the viewer widget
 (``viewer/session.py``) and :func:`quick_view` call it.
 
 Two small Warp kernels of this module's own do the geometric queries on a ``wp.Mesh`` per OBJ:
@@ -31,9 +32,28 @@ from warp_spt.scene.recentre import describe_extent, format_point, recentre
 from warp_spt.scene.lights import punctual_lights
 from warp_spt.scene.sky import SKY_ENVIRONMENT, Sky
 
-# The display transform of a first image: the command line's PNG curve (the seed's), which the
-# viewer shows too, so a first look and the file it saves agree.
-TONEMAP = "seed"
+# The display transform of a first image: the seed's curve for the seed's own scenes (their images
+# stay the seed's, bit for bit), a filmic curve for standard files (the seed's curve turns a sunlit
+# scene nearly white; images/files.tonemap_filmic keeps 6.5 stops above middle grey below white).
+SEED_TONEMAP, STANDARD_TONEMAP = "seed", "filmic"
+
+
+def seed_look(scene: Scene, demo: bool) -> bool:
+    """True for the seed's own scenes: its demo, or a file in its dialect (:attr:`Scene.seed_dialect`)."""
+    return demo or scene.seed_dialect
+
+
+def tone_map(scene: Scene, demo: bool = False) -> str:
+    """The first image's tone map: SEED_TONEMAP for the seed's own scenes, STANDARD_TONEMAP otherwise."""
+    return SEED_TONEMAP if seed_look(scene, demo) else STANDARD_TONEMAP
+
+
+def denoise_by_default(scene: Scene, demo: bool = False) -> bool:
+    """Whether the first image is denoised when nobody said: a standard file (the seed's scenes keep
+    the seed's images) and Open Image Denoise installed (:func:`warp_spt.rendering.denoise.available`)."""
+    from warp_spt.rendering.denoise import available
+
+    return not seed_look(scene, demo) and available()
 
 # should_frame: the default camera is kept only if it stands outside the scene's bounds and at
 # least this share of its probe pixels hit geometry, and the scene is not too close.
@@ -335,7 +355,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
     choice = choose_up(scene, up, demo=demo, cam_given=explicit)
     cam = cam.with_(up=AXES[choice.axis])
     if demo and quiet_demo:
-        return FirstView(scene, cam, sky, TONEMAP, offset, choice, False, False, tuple(notes))
+        return FirstView(scene, cam, sky, tone_map(scene, demo), offset, choice, False, False, tuple(notes))
     pr, framed = None, False
     if not demo and not (fixed or (keep and scene.seed_dialect)):
         why = _why_frame(frame, view, scene, choice.axis)
@@ -370,7 +390,7 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
                  f"{'' if scene.bare else ', with its own materials'} (--no-studio to turn off)")
         scene = add_studio(scene, up=choice.axis, camera=cam, key=look != STUDIO_LIGHTS, bounds=local)
         sky = sky if sky is not None else studio_sky(key=look != STUDIO_LIGHTS)
-    return FirstView(scene, cam, sky, TONEMAP, offset, choice, on, framed, tuple(notes), subject)
+    return FirstView(scene, cam, sky, tone_map(subject, demo), offset, choice, on, framed, tuple(notes), subject)
 
 
 def _lights_line(lights, page: bool, env: bool, bare: bool) -> str:

@@ -60,8 +60,9 @@ def quick_view(scene, *, width: int = 384, height: int = 288, spp: int = 16, cam
     :func:`warp_spt.first_view`'s: recentred, Y up for a standard OBJ, framed,
     and the studio look for a scene with no light of its own (its key left out for the scene's
     sun, point or spot lights, or an environment map ``sky``: they light it); its notes are Python warnings
-    (``UserWarning``) when they warn. ``save_image(path, image)`` writes it with the same tone map
-    as the command line. Other keywords are :class:`RenderSettings` fields."""
+    (``UserWarning``) when they warn. ``save_image(path, image, tonemap="filmic")`` writes it with the
+    command line's tone map for a standard file (``first_view(scene).tonemap``; the seed's curve,
+    ``save_image``'s default, for the seed's scenes). Other keywords are :class:`RenderSettings` fields."""
     from warp_spt.rendering.first_view import first_view
 
     if not isinstance(scene, Scene):

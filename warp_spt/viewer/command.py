@@ -83,7 +83,7 @@ def command_args(camera, spec: CommandSpec) -> list[str]:
     args += list(spec.lighting)
     args += ["--integrator", spec.integrator, "--sampler", spec.sampler]
     if spec.out.lower().endswith((".png", ".jpg", ".jpeg")):
-        args += ["--tonemap", spec.tonemap] if spec.tonemap != "seed" else []
+        args += ["--tonemap", spec.tonemap]        # named: the command line's default depends on the scene
         args += ["--exposure", number(spec.exposure)] if spec.exposure else []
     return args + ["-out", spec.out]
 

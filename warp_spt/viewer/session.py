@@ -94,7 +94,7 @@ class ViewSettings:
     max_spp: int = 1024
     preview_scale: int = 4
     exposure: float = 0.0
-    tonemap: str = "seed"           # the command line's PNG curve (rendering.first_view.TONEMAP)
+    tonemap: str = "seed"           # until the first load: the command line's (rendering.first_view.tone_map)
     error_map: bool = False
 
 
@@ -148,7 +148,7 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     else:
         value = type(current)(value)
     choices = {"integrator": _progressive_integrators(), "sampler": warp_spt.SAMPLERS, "sky": SKY_NAMES,
-               "tonemap": ("srgb", "seed")}
+               "tonemap": ("srgb", "seed", "filmic")}
     if key in choices and value not in choices[key]:
         raise ValueError(f"{key} must be one of {', '.join(sorted(choices[key]))}, got {value!r}")
     limits = {"width": (8, 4096), "height": (8, 4096), "max_depth": (1, MAX_DEPTH), "max_spp": (1, MAX_SPP),
@@ -904,6 +904,8 @@ class Session:
                 self._up = fv.up.axis
                 if fv.studio and not self._sky_given:
                     self._settings = replace(self._settings, sky="studio")
+                if "tonemap" not in self._given:        # the command line's curve for this scene
+                    self._settings = replace(self._settings, tonemap=fv.tonemap)
                 self._settings = self._media_integrator(self._settings)   # a fog or an interior medium: volpath
                 self._rig = self._initial_rig(fv.camera)
                 self._home = (self._rig, self._up)

@@ -135,7 +135,7 @@ function build(el) {
     maxSpp: h("input", { type: "number", min: "1", step: "1", class: "wspt-max-spp" }),
     exposure: h("input", { type: "range", min: "-6", max: "6", step: "0.1" }),
     exposureValue: h("span"),
-    tonemap: select(["srgb", "seed"]),
+    tonemap: select(["filmic", "srgb", "seed"]),
     errorMap: h("input", { type: "checkbox" }),
     group: select([]), params: h("div"),
     saves: h("div"),

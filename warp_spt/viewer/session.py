@@ -55,6 +55,10 @@ SLOW_CALL_SECONDS = 1.0      # a render call this slow is compiling a kernel: sa
 SKY_NAMES = ("blue", "gradient", "pink", "studio", "black", "color", "environment")
 DISPLAY_KEYS = ("exposure", "tonemap", "error_map")   # change the picture, not the render
 
+SHARED_NOTICE = ("this view is open in {n} other tab(s): they show the same render, and a change here "
+                 "changes it there too")
+JOINED_NOTICE = "another tab opened this view ({n} in all): a change in any of them changes them all"
+
 Listener = Callable[[dict, list], None]
 
 
@@ -343,15 +347,31 @@ class Session:
         """The scene's or the last render's error message, shown on the page; None if all is well."""
         return self._error
 
-    def add_listener(self, listener: Listener) -> None:
-        """Call ``listener(message, buffers)`` for every message to the front ends."""
+    @property
+    def viewers(self) -> int:
+        """How many front ends (browser tabs, the Jupyter widget) show this session."""
         with self._cond:
+            return len(self._listeners)
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call ``listener(message, buffers)`` for every message to the front ends.
+
+        Every front end shows and steers this one session (one render for the machine: a session
+        per tab would give each a share of the cores); those already open are told another joined,
+        and the new one is told on its "hello" (:data:`SHARED_NOTICE`)."""
+        with self._cond:
+            others = list(self._listeners)
             self._listeners.append(listener)
+        for other in others:
+            other({"type": "notice", "level": "info", "text": JOINED_NOTICE.format(n=len(others) + 1)}, [])
+            other(self.state(), [])
 
     def remove_listener(self, listener: Listener) -> None:
         with self._cond:
-            if listener in self._listeners:
-                self._listeners.remove(listener)
+            if listener not in self._listeners:
+                return
+            self._listeners.remove(listener)
+        self._broadcast(self.state(), [])          # the count of views the pages show
 
     def handle(self, msg: dict, buffers: Sequence = (), reply: Listener | None = None) -> None:
         """Act on one message of a front end (see docs/viewer.md for the protocol). ``reply`` gets the
@@ -455,7 +475,8 @@ class Session:
                     "skies": list(SKY_NAMES), "params": self._param_list(), "error": self._error,
                     "loading": self._scene is None and self._error is None, "can_reload": self._can_reload,
                     "objs": list(self.objs), "mtls": list(self.mtls), "formats": save_formats(),
-                    "camera": None if self._rig is None else camera_info(self._rig)}
+                    "camera": None if self._rig is None else camera_info(self._rig),
+                    "viewers": len(self._listeners)}
 
     def preview_fps(self) -> float:
         """Previews rendered per second over the last drag (render time only, no transport)."""
@@ -464,7 +485,10 @@ class Session:
 
     # ------------------------------------------------------------------ messages
     def _on_hello(self, msg, reply) -> None:
-        reply(self.state(), [])
+        state = self.state()
+        reply(state, [])
+        if state["viewers"] > 1:
+            reply({"type": "notice", "level": "info", "text": SHARED_NOTICE.format(n=state["viewers"] - 1)}, [])
         if self._frame is not None:
             reply(*self._frame)
 

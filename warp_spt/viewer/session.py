@@ -5,8 +5,8 @@ one background render thread. A host passes it the front end's messages (:meth:`
 and gets back JSON-able messages with binary buffers (frames, files) through listeners.
 
 How rendering stays responsive: every change bumps a version number. While the camera moves (a
-drag, or within SETTLE_SECONDS of the last change) the thread renders low-resolution 1-spp
-previews of the newest version; once it settles, it refines at full size pass by pass. A pass
+drag, or within SETTLE_SECONDS of the last change) the thread renders low-resolution previews
+of the newest version, a few samples per pixel (:func:`preview_plan`); once it settles, it refines at full size pass by pass. A pass
 is cut into bands of rows (``render_scene(..., rows=...)``), each a fraction of a second, and the
 version is checked between bands: a new interaction abandons the pass within one band. Threads
 are never killed.
@@ -47,7 +47,11 @@ SETTLE_SECONDS = 0.25        # no change for this long: the camera has stopped, 
 DRAG_TIMEOUT = 2.0           # a drag without events for this long has ended (a lost "interact" message)
 PASS_SECONDS = 0.5           # aim of a refine pass: the display updates about twice a second
 BAND_SECONDS = 0.12          # aim of one render call: the longest a new interaction waits
-PREVIEW_SPP = 1
+# A preview costs one sample per PREVIEW_PIXELS_PER_SAMPLE pixels of the view, spent as preview_scale
+# says: 1/8 of the view's size per side at 4 spp by default. At equal samples (equal time) it shows the
+# view with 0.087 RMS error against a converged image where the 1/4-size 1-spp preview had 0.194
+# (scripts/measure_viewer_preview.py, docs/viewer.md).
+PREVIEW_PIXELS_PER_SAMPLE = 16
 PREVIEW_SECONDS = 0.05       # a preview renders in this long at most (20 fps), shrinking if it must...
 MAX_PREVIEW_SHRINK = 2.0     # ...but to no less than half the preview_scale size per side
 MAX_PASS_SPP = 256
@@ -96,7 +100,7 @@ class ViewSettings:
     fog_sigma_s: tuple = (0.05, 0.05, 0.05)
     fog_g: float = 0.0                         # Henyey-Greenstein asymmetry, |g| <= 0.999999
     max_spp: int = 1024
-    preview_scale: int = 4
+    preview_scale: int = 8
     exposure: float = 0.0
     tonemap: str = "seed"           # the command line's PNG curve (rendering.first_view.TONEMAP)
     error_map: bool = False
@@ -170,15 +174,19 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     return new
 
 
-def preview_size(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int]:
-    """The preview's size: the view's divided by ``preview_scale``, or by up to MAX_PREVIEW_SHRINK
-    times more where that is more than ``budget`` pixels (what renders in PREVIEW_SECONDS); the same
-    factor on both axes (the page stretches it over the view), no side below ``smallest`` pixels."""
-    f = float(settings.preview_scale)
+def preview_plan(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int, int]:
+    """The preview's (width, height, spp): the view's size divided by ``preview_scale`` (no side below
+    ``smallest`` pixels) at the spp that spends one sample per PREVIEW_PIXELS_PER_SAMPLE view
+    pixels; where that is more than ``budget`` samples (what renders in PREVIEW_SECONDS), the size
+    shrinks by up to MAX_PREVIEW_SHRINK times more per side at the same spp (fewer, better pixels
+    beat more, noisier ones: docs/viewer.md). The same factor on both axes (the page stretches it)."""
+    cap = min(settings.width, settings.height) / smallest
+    f = max(1.0, min(float(settings.preview_scale), cap))
+    spp = max(1, round(f * f / PREVIEW_PIXELS_PER_SAMPLE))
     if budget:
-        f = min(max(f, math.sqrt(settings.width * settings.height / budget)), MAX_PREVIEW_SHRINK * f)
-    f = max(1.0, min(f, min(settings.width, settings.height) / smallest))
-    return max(1, round(settings.width / f)), max(1, round(settings.height / f))
+        f = min(max(f, math.sqrt(settings.width * settings.height * spp / budget)), MAX_PREVIEW_SHRINK * f)
+    f = max(1.0, min(f, cap))
+    return max(1, round(settings.width / f)), max(1, round(settings.height / f)), spp
 
 
 class Accumulator:
@@ -788,22 +796,22 @@ class Session:
         import warp_spt
 
         version, s, camera, dev = self._snapshot()
-        w, h = preview_size(s, PREVIEW_SECONDS * self._preview_rate)
-        rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth,
+        w, h, spp = preview_plan(s, PREVIEW_SECONDS * self._preview_rate)
+        rs = warp_spt.RenderSettings(width=w, height=h, spp=spp, max_depth=s.max_depth,
                                      sky=self._make_sky(s),
                                      integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
         start = time.perf_counter()
         res = self._timed(warp_spt.render_scene, dev, camera, rs)
         seconds = time.perf_counter() - start
-        self._measure(w * h * PREVIEW_SPP, seconds)
-        rate = w * h * PREVIEW_SPP / max(seconds, 1e-9)
+        self._measure(w * h * spp, seconds)
+        rate = w * h * spp / max(seconds, 1e-9)
         self._preview_rate = rate if not self._preview_rate else 0.5 * self._preview_rate + 0.5 * rate
         with self._cond:
             self._preview_version = version
             self._preview_times = [t for t in self._preview_times[-40:] if time.monotonic() - t < 2.0]
             self._preview_times.append(time.monotonic())
-        self._show(res.image, None, {"mode": "preview", "spp": PREVIEW_SPP, "error": None,
-                                     "rate": w * h * PREVIEW_SPP / max(seconds, 1e-9), "fps": self.preview_fps(),
+        self._show(res.image, None, {"mode": "preview", "spp": spp, "error": None,
+                                     "rate": rate, "fps": self.preview_fps(),
                                      "size": [w, h]}, version)
 
     def _refine(self) -> None:
@@ -978,6 +986,8 @@ class Session:
             rgb = display.error_colours(display.relative_map(shown.std_error, shown.image))
         else:
             rgb = display.tonemapped(shown.image, s.exposure, s.tonemap)
+            if shown.meta["mode"] == "preview":
+                rgb = display.despeckled(rgb)
         msg = {"type": "frame", **shown.meta, "error_map": bool(s.error_map and shown.std_error is not None),
                "error_range": list(display.ERROR_MAP_RANGE)}
         frame = (msg, [display.encode(rgb)])

@@ -204,7 +204,7 @@ async function showFrame(ui, view, message, buffer) {
   const [w, h] = message.view;
   if (ui.canvas.width !== w || ui.canvas.height !== h) { ui.canvas.width = w; ui.canvas.height = h; }
   ui.ctx.imageSmoothingEnabled = true;
-  ui.ctx.imageSmoothingQuality = "high";       // previews are a quarter of the size: interpolate them
+  ui.ctx.imageSmoothingQuality = "high";       // previews are an eighth of the size: interpolate them
   ui.ctx.drawImage(bitmap, 0, 0, w, h);
   bitmap.close();
   view.drawn += 1;

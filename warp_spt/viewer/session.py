@@ -922,7 +922,7 @@ class Session:
         placed = {k: getattr(s, k) for k in (*lighting.LIGHT_KEYS, *lighting.FOG_KEYS)
                   if getattr(s, k) != getattr(before, k)}
         self._own_lights, self._own_fog = list(fv.scene.lights), getattr(fv.scene, "fog", None)
-        self._key = key_sphere(fv.subject.bounds, fv.up.axis, fv.camera) if fv.studio else None
+        self._key = key_sphere(fv.subject.bounds, fv.up.axis, fv.camera, s.width / s.height) if fv.studio else None
         self._meshes = {}
         self._offset = fv.offset
         dev = DeviceScene(self._lit(fv.scene, s), meshes=self._meshes)

@@ -6,7 +6,7 @@
 Drives Debian's headless Chromium (/usr/bin/chromium) through Playwright, as the tests do, against
 an in-process server on the built-in demo. The measurement drags continuously for ``--seconds``
 (pointer events at 60 Hz) in a ``--size`` view and reports the frames the page drew per second and
-the previews the host rendered per second (1 spp at 1/4 of the view's size).
+the previews the host rendered per second (the session's preview plan: 4 spp at 1/8 of the view's size).
 """
 
 from __future__ import annotations

@@ -85,6 +85,28 @@ def test_help_lists_the_users_flags_first_and_the_integrators_options_last(capsy
     assert "q_min" in text[internal:] and "q_min" not in text[:internal]     # ears' internals, at the end
 
 
+def test_helps_first_screen_shows_the_users_flags_in_order(capsys):
+    """A 24-line terminal's first screen: a one-line usage, then the seed's flags in the parser's
+    order (argparse's own usage listed every flag, 23 lines); every flag of the parser appears, in
+    order, before the integrators' internal parameters."""
+    from warp_spt.cli.main import main
+    from warp_spt.cli.options import build_parser
+
+    assert main(["--help"]) == 0
+    text = capsys.readouterr().out
+    lines = text.splitlines()
+    assert lines[0].startswith("usage: warp-spt ") and lines[1] == "", lines[:3]
+    first_screen = "\n".join(lines[:24])
+    for flag in ("-obj", "-mtl", "-cam", "-res", "-depth", "-sr", "-sky", "-out"):
+        assert f"\n  {flag} " in first_screen, flag
+    import argparse
+    flags = [a.option_strings[0] for a in build_parser()._actions if a.option_strings and a.help != argparse.SUPPRESS]
+    where = [text.index(f"\n  {f}") for f in flags]
+    internal = text.index("integrator parameters (--integrator-option")
+    assert where == sorted(where) and where[-1] < internal
+    assert not any(q in text[:internal] for q in ("q_min", "spatial_c", "train_fraction"))
+
+
 def test_fov_zooms_a_framed_model(tmp_path):
     """The framing places the camera as the default lens frames the model; --fov then narrows or
     widens the view from there (framing at the given fov moved the camera back: the same picture)."""

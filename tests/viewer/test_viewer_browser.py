@@ -198,3 +198,25 @@ def test_the_lights_and_fog_controls(demo_page):
     eventually(lambda: session.settings.fog_g == 0.3)
     wait_refined(page, session)
     assert np.abs(canvas_pixels(page).astype(int) - first.astype(int)).mean() > 2    # the picture changed
+
+
+def test_no_white_patch_in_the_canvas_corner_on_a_tall_model(browser, tmp_path):
+    """Issue 43, item 8: the studio's key light showed as a small white patch in the canvas's
+    top-left corner (the bust in a 4:3 view; tests/viewer/test_key_light_out_of_frame.py). The page's
+    top-left 8x8 pixels now show the ground as the rest of the frame's top row does: their mean
+    within 40 levels of the row's, where the patch was near 240 against about 75."""
+    from tests.support.models import write_model
+
+    model = write_model(tmp_path / "bust.obj", shape="bust")
+    session, server, url = serve(objs=[str(model)], width=96, height=72, max_spp=8)
+    page = browser.new_page()
+    try:
+        page.goto(url)
+        wait_dataset(page, "d.mode === 'refine' && Number(d.spp) >= 8")
+        rgb = canvas_pixels(page).reshape(72, 96, 4)[..., :3].astype(float)
+        corner, row = rgb[:8, :8].mean(), rgb[:8, 24:].mean()
+        assert abs(corner - row) < 40, (corner, row)
+    finally:
+        page.close()
+        server.stop_thread()
+        session.close()

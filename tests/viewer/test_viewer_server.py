@@ -151,3 +151,48 @@ def test_a_bad_message_gets_a_notice_and_the_socket_stays(bad_scene_server):
 
     got = asyncio.run(talk(url, answered, send=sent))
     assert any(m["type"] == "notice" and "max_depth" in m["text"] for m, _ in got)
+
+
+def test_a_second_tab_is_told_it_shares_the_first_tabs_session(bad_scene_server):
+    """Two pages of one server show one session (one render for the machine): the second is told on
+    its hello, the first is told a tab joined, and both states count two views; when one leaves,
+    the other's state counts one. Settings one tab sets reach the other."""
+    import aiohttp
+
+    url, session = bad_scene_server
+
+    async def receive_until(ws, until, got):
+        deadline = time.monotonic() + TIMEOUT
+        while not until(got):
+            raw = await ws.receive(timeout=max(0.1, deadline - time.monotonic()))
+            assert raw.type in (aiohttp.WSMsgType.TEXT, aiohttp.WSMsgType.BINARY), raw
+            got.append(json.loads(raw.data) if raw.type == aiohttp.WSMsgType.TEXT else unpack(raw.data)[0])
+        return got
+
+    def notices(got):
+        return [m["text"] for m in got if m["type"] == "notice"]
+
+    def counts(got):
+        return [m["viewers"] for m in got if m["type"] == "state"]
+
+    async def two_tabs():
+        first_got, second_got = [], []
+        async with aiohttp.ClientSession() as http:
+            ws_url, origin = url.replace("http", "ws") + "ws", url.rstrip("/")
+            async with http.ws_connect(ws_url, origin=origin) as first:
+                await first.send_str(json.dumps({"type": "hello"}))
+                await receive_until(first, lambda g: 1 in counts(g), first_got)
+                async with http.ws_connect(ws_url, origin=origin) as second:
+                    await second.send_str(json.dumps({"type": "hello"}))
+                    await receive_until(second, lambda g: notices(g) and counts(g), second_got)
+                    await receive_until(first, lambda g: notices(g) and 2 in counts(g), first_got)
+                    await second.send_str(json.dumps({"type": "set", "key": "max_depth", "value": 3}))
+                    await receive_until(first, lambda g: any(m["type"] == "state" and m["settings"]["max_depth"] == 3
+                                                             for m in g), first_got)
+                await receive_until(first, lambda g: counts(g)[-1] == 1, first_got)
+        return first_got, second_got
+
+    first_got, second_got = asyncio.run(two_tabs())
+    assert counts(second_got)[0] == 2
+    assert "open in 1 other tab" in notices(second_got)[0] and "a change here changes it there" in notices(second_got)[0]
+    assert counts(first_got)[0] == 1 and notices(first_got)[0].startswith("another tab opened this view (2 in all)")

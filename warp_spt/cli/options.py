@@ -260,7 +260,9 @@ def build_parser() -> argparse.ArgumentParser:
     It stays Warp-free (usage errors and ``--help`` are instant): the integrators' and samplers'
     names are checked against their registries after Warp starts, and ``--help`` lists them after
     the flags (:func:`warp_spt.cli.common.registry_help`)."""
+    # A short usage line: argparse's own lists every flag, 23 lines that filled the first screen.
     p = Parser(prog=PROG, add_help=False, allow_abbrev=False, epilog=EXAMPLES,
+               usage=f"{PROG} [-obj PATH]... [-mtl PATH]... [-cam ...] [-res W H] [-sr N] [-out PATH] [options]",
                 formatter_class=_HelpFormatter,
                 description="A physically based path tracer on NVIDIA Warp. It reads the command lines\n"
                             "and the OBJ/MTL dialect of the seed, SimplePathTracer, and standard OBJ/MTL.")

@@ -388,7 +388,8 @@ def first_view(scene: Scene, camera: Camera | None = None, *, width: int = 384, 
         elif studio is None:
             note(f"studio look: the scene has no light of its own; a ground, a key light and a grey sky"
                  f"{'' if scene.bare else ', with its own materials'} (--no-studio to turn off)")
-        scene = add_studio(scene, up=choice.axis, camera=cam, key=look != STUDIO_LIGHTS, bounds=local)
+        scene = add_studio(scene, up=choice.axis, camera=cam, key=look != STUDIO_LIGHTS, bounds=local,
+                           aspect=width / height)
         sky = sky if sky is not None else studio_sky(key=look != STUDIO_LIGHTS)
     return FirstView(scene, cam, sky, tone_map(subject, demo), offset, choice, on, framed, tuple(notes), subject)
 

@@ -32,6 +32,7 @@ FILL_SKY = (0.1, 0.1, 0.1)
 GROUND_ALBEDO = 0.4
 GROUND_HALF_SIZE = 40.0           # in units of the model's bounding radius
 LIGHT_DISTANCE, LIGHT_RADIUS = 3.0, 1.5    # in units of the model's bounding radius: a big, soft key
+FRAME_MARGIN = 1e-3               # of the radius: rounding, no more (the camera sees only its frustum)
 LIGHT_EMISSION = 2.0              # about 3.5x the sky's contribution on a surface facing it
 LIGHT_NAME = "studio light"       # the key light's material row
 
@@ -43,7 +44,7 @@ def studio_sky(key: bool = True) -> Sky:
 
 
 def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | None = None, *, key: bool = True,
-               bounds: np.ndarray | None = None) -> Scene:
+               bounds: np.ndarray | None = None, aspect: float | None = None) -> Scene:
     """``scene`` plus a ground plane and (``key``) a key-light sphere placed from its bounds and ``camera``.
 
     The light keeps its place relative to the camera: where the default framing sees it (in front
@@ -52,7 +53,8 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | N
     ``key=False`` is the studio lit by the user's lights (``conventions.STUDIO_LIGHTS``): the
     ground, no sphere (its material row is added all the same, so a viewer can put the key back,
     :func:`with_key`, without renumbering materials). ``bounds``: what to stand the ground under
-    and place the key from (an animation's union over its frames); default the scene's."""
+    and place the key from (an animation's union over its frames); default the scene's. ``aspect``
+    (image width / height) with ``camera``: the key is kept out of that frame (:func:`key_sphere`)."""
     u = up_vector(up)
     b = scene.bounds if bounds is None else np.asarray(bounds, np.float64)
     centre = 0.5 * (b[0] + b[1])
@@ -77,11 +79,17 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | N
     below = camera is not None and float(np.dot(np.asarray(camera.position) - floor, u)) < 0.0
     dressed = replace(scene, meshes=[*scene.meshes, *([] if below else [ground])],   # seen from below: no floor
                       materials=_with_rows(scene.materials))
-    return with_key(dressed, key_sphere(b, u, camera) if key else None)
+    return with_key(dressed, key_sphere(b, u, camera, aspect) if key else None)
 
 
-def key_sphere(bounds: np.ndarray, up: str | Sequence[float], camera: Camera | None = None) -> np.ndarray:
-    """The studio's key light for ``bounds`` seen by ``camera``: (4,) float32, centre and radius."""
+def key_sphere(bounds: np.ndarray, up: str | Sequence[float], camera: Camera | None = None,
+               aspect: float | None = None) -> np.ndarray:
+    """The studio's key light for ``bounds`` seen by ``camera``: (4,) float32, centre and radius.
+
+    With ``aspect`` (image width / height), a light that would show in ``camera``'s frame (a white
+    patch in its top-left corner: a 4:3 frame moves the camera back from a tall model) is moved out
+    of it along its line from the model's centre, its radius scaled with its distance, so the model
+    sees it under the same solid angle and is lit the same (:func:`_out_of_frame`)."""
     u = up_vector(up)
     b = np.asarray(bounds, np.float64)
     centre = 0.5 * (b[0] + b[1])
@@ -91,8 +99,64 @@ def key_sphere(bounds: np.ndarray, up: str | Sequence[float], camera: Camera | N
     key_dir = 0.7 * front - 0.6 * side + 1.2 * u       # as the default framing sees it
     if camera is not None:
         key_dir = _as_seen_by(key_dir, Camera.look_at(orbit_vector(u, AZIMUTH, ELEVATION), (0, 0, 0), up=u), camera)
-    key = centre + LIGHT_DISTANCE * radius * key_dir / np.linalg.norm(key_dir)
-    return np.array([*key, LIGHT_RADIUS * radius], dtype=np.float32)
+    offset, light_radius = LIGHT_DISTANCE * radius * key_dir / np.linalg.norm(key_dir), LIGHT_RADIUS * radius
+    if camera is not None and aspect:
+        k = _out_of_frame(centre, offset, light_radius, camera, aspect)
+        offset, light_radius = k * offset, k * light_radius
+    return np.array([*(centre + offset), light_radius], dtype=np.float32)
+
+
+def _out_of_frame(centre: np.ndarray, offset: np.ndarray, radius: float, camera: Camera, aspect: float,
+                  margin: float = FRAME_MARGIN) -> float:
+    """The least k >= 1 (to 1e-3) that puts a sphere at ``centre + k offset`` of radius ``k radius``
+    wholly outside what ``camera`` sees of an ``aspect`` frame, with ``margin`` of the radius to
+    spare; 1 where it already is (the light is left where it was), 1 too where no k up to 64 does it."""
+    d, right, top = camera.axes()
+    tx = float(np.tan(np.radians(camera.fov) / 2.0))        # the fov is the horizontal one
+    ty = tx / aspect
+    c0 = np.asarray(centre, np.float64) - np.asarray(camera.position, np.float64)
+    v = np.asarray(offset, np.float64)
+    edges = [d + sx * tx * right + sy * ty * top for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1))]
+
+    def clear(k: float) -> bool:
+        return _distance_to_pyramid(c0 + k * v, edges) > (1.0 + margin) * k * radius
+
+    if clear(1.0):
+        return 1.0
+    hi = 2.0
+    while not clear(hi):
+        hi *= 2.0
+        if hi > 64.0:
+            return 1.0
+    lo = hi / 2.0
+    while hi - lo > 1e-3:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if clear(mid) else (mid, hi)
+    return hi
+
+
+def _distance_to_pyramid(p: np.ndarray, edges: list) -> float:
+    """The distance from ``p`` to the infinite pyramid from the origin spanned by the four ``edges``
+    (in order around it): 0 inside; else the least over its faces (where ``p``'s projection falls
+    within one), its edge rays and its apex."""
+    units = [e / np.linalg.norm(e) for e in edges]
+    normals = [np.cross(units[i], units[(i + 1) % 4]) for i in range(4)]
+    normals = [-n / np.linalg.norm(n) if n @ sum(units) > 0 else n / np.linalg.norm(n) for n in normals]  # outward
+    if all(n @ p <= 0.0 for n in normals):
+        return 0.0
+    best = float(np.linalg.norm(p))
+    for i, n in enumerate(normals):
+        e1, e2 = units[i], units[(i + 1) % 4]
+        t = float(p @ e1)
+        if t > 0.0:
+            best = min(best, float(np.linalg.norm(p - t * e1)))
+        h = float(n @ p)
+        if h > 0.0:
+            q = p - h * n                                  # in the face's plane: q = a e1 + b e2
+            a, b = np.linalg.lstsq(np.stack([e1, e2], 1), q, rcond=None)[0]
+            if a >= 0.0 and b >= 0.0:
+                best = min(best, h)
+    return best
 
 
 def with_key(scene: Scene, sphere: np.ndarray | None) -> Scene:

@@ -44,6 +44,16 @@ def error_colours(rel: np.ndarray) -> np.ndarray:
     return (rgb * 255 + 0.5).astype(np.uint8)
 
 
+def despeckled(rgb8: np.ndarray) -> np.ndarray:
+    """uint8 (H, W, 3): a 3x3 median per channel, which a moving preview is drawn through. A few
+    samples per pixel leave lone black and white pixels (a path that found the light, or none);
+    the median takes them out and keeps edges, where a blur would smear both (at equal samples it
+    lowers the shown preview's RMS error by another 17%: docs/viewer.md)."""
+    from PIL import Image, ImageFilter
+
+    return np.asarray(Image.fromarray(np.ascontiguousarray(rgb8)).filter(ImageFilter.MedianFilter(3)))
+
+
 def encode(rgb8: np.ndarray, fmt: str = "jpeg") -> bytes:
     """``rgb8`` as JPEG (frames) or PNG bytes."""
     from PIL import Image

@@ -5,8 +5,8 @@ one background render thread. A host passes it the front end's messages (:meth:`
 and gets back JSON-able messages with binary buffers (frames, files) through listeners.
 
 How rendering stays responsive: every change bumps a version number. While the camera moves (a
-drag, or within SETTLE_SECONDS of the last change) the thread renders low-resolution 1-spp
-previews of the newest version; once it settles, it refines at full size pass by pass. A pass
+drag, or within SETTLE_SECONDS of the last change) the thread renders low-resolution previews
+of the newest version, a few samples per pixel (:func:`preview_plan`); once it settles, it refines at full size pass by pass. A pass
 is cut into bands of rows (``render_scene(..., rows=...)``), each a fraction of a second, and the
 version is checked between bands: a new interaction abandons the pass within one band. Threads
 are never killed.
@@ -47,13 +47,21 @@ SETTLE_SECONDS = 0.25        # no change for this long: the camera has stopped, 
 DRAG_TIMEOUT = 2.0           # a drag without events for this long has ended (a lost "interact" message)
 PASS_SECONDS = 0.5           # aim of a refine pass: the display updates about twice a second
 BAND_SECONDS = 0.12          # aim of one render call: the longest a new interaction waits
-PREVIEW_SPP = 1
+# A preview costs one sample per PREVIEW_PIXELS_PER_SAMPLE pixels of the view, spent as preview_scale
+# says: 1/8 of the view's size per side at 4 spp by default. At equal samples (equal time) it shows the
+# view with 0.087 RMS error against a converged image where the 1/4-size 1-spp preview had 0.194
+# (scripts/measure_viewer_preview.py, docs/viewer.md).
+PREVIEW_PIXELS_PER_SAMPLE = 16
 PREVIEW_SECONDS = 0.05       # a preview renders in this long at most (20 fps), shrinking if it must...
 MAX_PREVIEW_SHRINK = 2.0     # ...but to no less than half the preview_scale size per side
 MAX_PASS_SPP = 256
 SLOW_CALL_SECONDS = 1.0      # a render call this slow is compiling a kernel: say so on the page
 SKY_NAMES = ("blue", "gradient", "pink", "studio", "black", "color", "environment")
 DISPLAY_KEYS = ("exposure", "tonemap", "error_map")   # change the picture, not the render
+
+SHARED_NOTICE = ("this view is open in {n} other tab(s): they show the same render, and a change here "
+                 "changes it there too")
+JOINED_NOTICE = "another tab opened this view ({n} in all): a change in any of them changes them all"
 
 Listener = Callable[[dict, list], None]
 
@@ -92,7 +100,7 @@ class ViewSettings:
     fog_sigma_s: tuple = (0.05, 0.05, 0.05)
     fog_g: float = 0.0                         # Henyey-Greenstein asymmetry, |g| <= 0.999999
     max_spp: int = 1024
-    preview_scale: int = 4
+    preview_scale: int = 8
     exposure: float = 0.0
     tonemap: str = "seed"           # until the first load: the command line's (rendering.first_view.tone_map)
     error_map: bool = False
@@ -166,15 +174,19 @@ def checked_settings(settings: ViewSettings, key: str, value) -> ViewSettings:
     return new
 
 
-def preview_size(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int]:
-    """The preview's size: the view's divided by ``preview_scale``, or by up to MAX_PREVIEW_SHRINK
-    times more where that is more than ``budget`` pixels (what renders in PREVIEW_SECONDS); the same
-    factor on both axes (the page stretches it over the view), no side below ``smallest`` pixels."""
-    f = float(settings.preview_scale)
+def preview_plan(settings: ViewSettings, budget: float | None = None, smallest: int = 8) -> tuple[int, int, int]:
+    """The preview's (width, height, spp): the view's size divided by ``preview_scale`` (no side below
+    ``smallest`` pixels) at the spp that spends one sample per PREVIEW_PIXELS_PER_SAMPLE view
+    pixels; where that is more than ``budget`` samples (what renders in PREVIEW_SECONDS), the size
+    shrinks by up to MAX_PREVIEW_SHRINK times more per side at the same spp (fewer, better pixels
+    beat more, noisier ones: docs/viewer.md). The same factor on both axes (the page stretches it)."""
+    cap = min(settings.width, settings.height) / smallest
+    f = max(1.0, min(float(settings.preview_scale), cap))
+    spp = max(1, round(f * f / PREVIEW_PIXELS_PER_SAMPLE))
     if budget:
-        f = min(max(f, math.sqrt(settings.width * settings.height / budget)), MAX_PREVIEW_SHRINK * f)
-    f = max(1.0, min(f, min(settings.width, settings.height) / smallest))
-    return max(1, round(settings.width / f)), max(1, round(settings.height / f))
+        f = min(max(f, math.sqrt(settings.width * settings.height * spp / budget)), MAX_PREVIEW_SHRINK * f)
+    f = max(1.0, min(f, cap))
+    return max(1, round(settings.width / f)), max(1, round(settings.height / f)), spp
 
 
 class Accumulator:
@@ -343,15 +355,31 @@ class Session:
         """The scene's or the last render's error message, shown on the page; None if all is well."""
         return self._error
 
-    def add_listener(self, listener: Listener) -> None:
-        """Call ``listener(message, buffers)`` for every message to the front ends."""
+    @property
+    def viewers(self) -> int:
+        """How many front ends (browser tabs, the Jupyter widget) show this session."""
         with self._cond:
+            return len(self._listeners)
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call ``listener(message, buffers)`` for every message to the front ends.
+
+        Every front end shows and steers this one session (one render for the machine: a session
+        per tab would give each a share of the cores); those already open are told another joined,
+        and the new one is told on its "hello" (:data:`SHARED_NOTICE`)."""
+        with self._cond:
+            others = list(self._listeners)
             self._listeners.append(listener)
+        for other in others:
+            other({"type": "notice", "level": "info", "text": JOINED_NOTICE.format(n=len(others) + 1)}, [])
+            other(self.state(), [])
 
     def remove_listener(self, listener: Listener) -> None:
         with self._cond:
-            if listener in self._listeners:
-                self._listeners.remove(listener)
+            if listener not in self._listeners:
+                return
+            self._listeners.remove(listener)
+        self._broadcast(self.state(), [])          # the count of views the pages show
 
     def handle(self, msg: dict, buffers: Sequence = (), reply: Listener | None = None) -> None:
         """Act on one message of a front end (see docs/viewer.md for the protocol). ``reply`` gets the
@@ -455,7 +483,8 @@ class Session:
                     "skies": list(SKY_NAMES), "params": self._param_list(), "error": self._error,
                     "loading": self._scene is None and self._error is None, "can_reload": self._can_reload,
                     "objs": list(self.objs), "mtls": list(self.mtls), "formats": save_formats(),
-                    "camera": None if self._rig is None else camera_info(self._rig)}
+                    "camera": None if self._rig is None else camera_info(self._rig),
+                    "viewers": len(self._listeners)}
 
     def preview_fps(self) -> float:
         """Previews rendered per second over the last drag (render time only, no transport)."""
@@ -464,7 +493,10 @@ class Session:
 
     # ------------------------------------------------------------------ messages
     def _on_hello(self, msg, reply) -> None:
-        reply(self.state(), [])
+        state = self.state()
+        reply(state, [])
+        if state["viewers"] > 1:
+            reply({"type": "notice", "level": "info", "text": SHARED_NOTICE.format(n=state["viewers"] - 1)}, [])
         if self._frame is not None:
             reply(*self._frame)
 
@@ -764,22 +796,22 @@ class Session:
         import warp_spt
 
         version, s, camera, dev = self._snapshot()
-        w, h = preview_size(s, PREVIEW_SECONDS * self._preview_rate)
-        rs = warp_spt.RenderSettings(width=w, height=h, spp=PREVIEW_SPP, max_depth=s.max_depth,
+        w, h, spp = preview_plan(s, PREVIEW_SECONDS * self._preview_rate)
+        rs = warp_spt.RenderSettings(width=w, height=h, spp=spp, max_depth=s.max_depth,
                                      sky=self._make_sky(s),
                                      integrator=s.integrator, sampler=s.sampler, tile_pixels=_tile(w * h))
         start = time.perf_counter()
         res = self._timed(warp_spt.render_scene, dev, camera, rs)
         seconds = time.perf_counter() - start
-        self._measure(w * h * PREVIEW_SPP, seconds)
-        rate = w * h * PREVIEW_SPP / max(seconds, 1e-9)
+        self._measure(w * h * spp, seconds)
+        rate = w * h * spp / max(seconds, 1e-9)
         self._preview_rate = rate if not self._preview_rate else 0.5 * self._preview_rate + 0.5 * rate
         with self._cond:
             self._preview_version = version
             self._preview_times = [t for t in self._preview_times[-40:] if time.monotonic() - t < 2.0]
             self._preview_times.append(time.monotonic())
-        self._show(res.image, None, {"mode": "preview", "spp": PREVIEW_SPP, "error": None,
-                                     "rate": w * h * PREVIEW_SPP / max(seconds, 1e-9), "fps": self.preview_fps(),
+        self._show(res.image, None, {"mode": "preview", "spp": spp, "error": None,
+                                     "rate": rate, "fps": self.preview_fps(),
                                      "size": [w, h]}, version)
 
     def _refine(self) -> None:
@@ -890,7 +922,7 @@ class Session:
         placed = {k: getattr(s, k) for k in (*lighting.LIGHT_KEYS, *lighting.FOG_KEYS)
                   if getattr(s, k) != getattr(before, k)}
         self._own_lights, self._own_fog = list(fv.scene.lights), getattr(fv.scene, "fog", None)
-        self._key = key_sphere(fv.subject.bounds, fv.up.axis, fv.camera) if fv.studio else None
+        self._key = key_sphere(fv.subject.bounds, fv.up.axis, fv.camera, s.width / s.height) if fv.studio else None
         self._meshes = {}
         self._offset = fv.offset
         dev = DeviceScene(self._lit(fv.scene, s), meshes=self._meshes)
@@ -956,6 +988,8 @@ class Session:
             rgb = display.error_colours(display.relative_map(shown.std_error, shown.image))
         else:
             rgb = display.tonemapped(shown.image, s.exposure, s.tonemap)
+            if shown.meta["mode"] == "preview":
+                rgb = display.despeckled(rgb)
         msg = {"type": "frame", **shown.meta, "error_map": bool(s.error_map and shown.std_error is not None),
                "error_range": list(display.ERROR_MAP_RANGE)}
         frame = (msg, [display.encode(rgb)])

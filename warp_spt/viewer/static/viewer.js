@@ -204,7 +204,7 @@ async function showFrame(ui, view, message, buffer) {
   const [w, h] = message.view;
   if (ui.canvas.width !== w || ui.canvas.height !== h) { ui.canvas.width = w; ui.canvas.height = h; }
   ui.ctx.imageSmoothingEnabled = true;
-  ui.ctx.imageSmoothingQuality = "high";       // previews are a quarter of the size: interpolate them
+  ui.ctx.imageSmoothingQuality = "high";       // previews are an eighth of the size: interpolate them
   ui.ctx.drawImage(bitmap, 0, 0, w, h);
   bitmap.close();
   view.drawn += 1;
@@ -221,7 +221,7 @@ async function showFrame(ui, view, message, buffer) {
 function statusLine(m, fps) {
   const rate = m.rate >= 1e6 ? `${(m.rate / 1e6).toFixed(2)} M` : `${(m.rate / 1e3).toFixed(0)} k`;
   if (m.mode === "preview") {
-    return `moving \u00b7 preview ${m.size[0]}x${m.size[1]}, 1 spp \u00b7 ${fps.toFixed(1)} fps \u00b7 ${rate} samples/s`;
+    return `moving \u00b7 preview ${m.size[0]}x${m.size[1]}, ${m.spp} spp \u00b7 ${fps.toFixed(1)} fps \u00b7 ${rate} samples/s`;
   }
   const err = m.error == null ? "n/a" : `${(100 * m.error).toFixed(2)}%`;
   return `${m.spp} spp \u00b7 estimated relative error ${err} \u00b7 ${rate} samples/s` +
@@ -252,6 +252,7 @@ function showState(ui, view, send, st) {
   ui.error.style.display = st.error ? "block" : "none";
   ui.errorText.textContent = st.error || "";
   ui.reload.style.display = st.can_reload ? "" : "none";
+  ui.root.dataset.viewers = String(st.viewers);        // tabs showing this one session (the host says so)
   if (st.loading) ui.status.textContent = "loading the scene...";
   setOptions(ui.integrator, st.integrators);
   setOptions(ui.sampler, st.samplers);

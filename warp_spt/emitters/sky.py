@@ -152,10 +152,13 @@ def sky_frame(up: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, n
 
 
 def weigh(scene: Scene, sky: Sky) -> Weighed:
-    """One entry if the sky emits, weighed as a sphere of the scene's radius seen from inside."""
+    """One entry if the sky emits, weighed as a sphere of the scene's radius seen from inside (the
+    subject's: a stage prop such as the studio's ground is left out)."""
     if not sky_emits(sky):
         return Weighed(np.zeros(0))
-    b = scene.bounds
+    b = scene.subject_bounds
+    if not np.all(np.isfinite(b)):
+        b = scene.bounds
     radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) if np.all(np.isfinite(b)) else 1.0
     a, _ = sky_density(sky)
     return Weighed(np.array([4 * np.pi * max(radius, 1e-6) ** 2 * a / 3.0]))

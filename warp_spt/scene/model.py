@@ -171,6 +171,10 @@ class MeshData:
     # (I, 4, 4) float64 object-to-world affine maps, one per instance (invertible linear part); None:
     # the positions are world space (one placement, no transform)
     transforms: np.ndarray | None = None
+    # a stage prop (the studio's ground): drawn and lit, but not the subject: left out of the bounds
+    # that weigh the sky's light selection (a ground 30 times the model's size made a user's point
+    # light one pick in a hundred, and a fog lit by it black at low spp)
+    prop: bool = False
 
     def world_bounds(self, rounded: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
         """(lower, upper) float64 bounds of the used vertices in world space, every placement
@@ -412,9 +416,19 @@ class Scene:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 world bounds of all geometry as the engine sees it (float32 coordinates)."""
+        return self._bounds(props=True)
+
+    @property
+    def subject_bounds(self) -> np.ndarray:
+        """:attr:`bounds` without the stage props (``MeshData.prop``: the studio's ground)."""
+        return self._bounds(props=False)
+
+    def _bounds(self, props: bool) -> np.ndarray:
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
         for m in self.meshes:
+            if m.prop and not props:
+                continue
             b = m.world_bounds()
             if b is not None:
                 lo = np.minimum(lo, b[0])

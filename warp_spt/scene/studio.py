@@ -75,7 +75,7 @@ def add_studio(scene: Scene, up: str | Sequence[float] = "z", camera: Camera | N
     ground_row = len(scene.materials)
     ground = MeshData(name="studio ground", positions=quad.astype(np.float32), indices=faces,
                       corner_uv=np.zeros((2, 3, 2), np.float32), corner_normal=None,
-                      face_material=np.full(2, ground_row, np.int32))
+                      face_material=np.full(2, ground_row, np.int32), prop=True)
     below = camera is not None and float(np.dot(np.asarray(camera.position) - floor, u)) < 0.0
     dressed = replace(scene, meshes=[*scene.meshes, *([] if below else [ground])],   # seen from below: no floor
                       materials=_with_rows(scene.materials))

@@ -146,7 +146,8 @@ def shadow_term(bound: Bound, adjoint: np.ndarray, wanted: list, spp: int, seed:
         r = r[seen_hit & (np.linalg.norm(seen_at - y0[r], axis=1) <= SEEN * extent)]
         pix = np.floor(px[r]).astype(np.int64)
         adj = adjoint[pix[:, 1], pix[:, 0]].astype(np.float64)
-        r, pix, adj = r[np.any(adj != 0, axis=1)], pix[np.any(adj != 0, axis=1)], adj[np.any(adj != 0, axis=1)]
+        wanted = np.any(adj != 0, axis=1)
+        r, adj = r[wanted], adj[wanted]
         if not len(r):
             continue
         xr, nr = x[r], ng[r]

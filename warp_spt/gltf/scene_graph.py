@@ -215,12 +215,6 @@ class Reader(Animation, CamerasLights):
                            f"{json.dumps(k)[:40]}")
         return roots
 
-    def _local(self, node: dict, ptr: str, animated: dict | None = None) -> np.ndarray:
-        """The node's local transform (4, 4)."""
-        m = np.eye(4)
-        m[:3] = np.array(self._local_rows(node, ptr, animated), np.float64).reshape(3, 4)
-        return m
-
     def _local_rows(self, node: dict, ptr: str, animated: dict | None = None) -> list[float]:
         """The node's local transform's top three rows, row-major (12 floats): in Python floats, the
         same operations in the same order as a 4 x 4 array's, so the same bits."""
@@ -278,10 +272,7 @@ def quaternion_rows(x: float, y: float, z: float, w: float) -> tuple:
 
 
 def quaternion_matrix(q: np.ndarray) -> np.ndarray:
-    """The rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    """The rotation matrix (3, 3) of a unit quaternion (x, y, z, w): :func:`quaternion_rows` as an array."""
+    return np.array(quaternion_rows(*(float(v) for v in q))).reshape(3, 3)
 
 

@@ -73,6 +73,7 @@ _EXPORTS = {
     "render": "rendering.tiles",
     "render_film": "rendering.tiles",
     "render_gradients": "diff.gradients",
+    "render_arrays": "diff.interop",
     "render_progressive": "rendering.progressive",
     "render_scene": "rendering.tiles",
     "quick_view": "rendering.tiles",
@@ -99,6 +100,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
         texture,
     )
     from warp_spt.diff.gradients import GradientResult, render_gradients
+    from warp_spt.diff.interop import render_arrays
     from warp_spt.diff.params import SceneParameters, parameters
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.images.files import save_image, to_display, tonemap_seed, tonemap_srgb

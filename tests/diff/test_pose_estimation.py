@@ -7,21 +7,9 @@ and a ninth of the start."""
 
 from __future__ import annotations
 
-import os
-import re
-import subprocess
-import sys
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.examples import run_example
 
 
 def test_the_pose_example_converges():
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    out = subprocess.run([sys.executable, str(ROOT / "examples" / "pose_estimation.py"), "--quick"],
-                         capture_output=True, text=True, env=env, timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    m = re.search(r"^final: pose_error ([0-9.]+) \(start ([0-9.]+)\)$", out.stdout, re.M)
-    assert m, out.stdout[-2000:]
-    final, start = float(m.group(1)), float(m.group(2))
+    final, start = run_example("pose_estimation.py", "pose_error")
     assert start > 40 and final < 5.0, (final, start)

@@ -253,14 +253,15 @@ def replay_kind(infos: list[ParamInfo]) -> str:
 @dataclass
 class GradientResult:
     """``image`` (H, W, 3) float32 linear radiance, the fast kernel's (path replay with an adjoint
-    image and no ``gradient_seed`` takes it from its first pass, the same sums); ``loss`` its value
+    image and no ``gradient_seed`` takes it from its first pass, the same sums; None when asked
+    for no image); ``loss`` its value
     (None when an adjoint image was given); ``grads`` d loss / d parameter by name (float64, the
     parameter's shape); ``forward_seconds`` wall-clock of the separate forward render (0 when path
     replay gave the image) and ``backward_seconds`` of the rest; ``backward_bytes`` what the
     backward pass allocated (adjoint image, per-tile gradient buffers, scratch); ``mode`` "prb" or
     "tape", the backward pass that ran."""
 
-    image: np.ndarray
+    image: np.ndarray | None
     loss: float | None
     grads: dict[str, np.ndarray]
     forward_seconds: float
@@ -275,7 +276,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
                      loss: Loss | None = None, adjoint: np.ndarray | None = None,
                      wrt: list[str] | None = None, gradient_seed: int | None = None,
                      mode: str = "auto", boundary: bool = True, boundary_spp: int | None = None,
-                     secondary_spp: int | None = None, secondary_depth: int | None = None) -> GradientResult:
+                     secondary_spp: int | None = None, secondary_depth: int | None = None,
+                     image: bool = True) -> GradientResult:
     """Render ``params.scene`` as seen by ``params.camera`` under ``params.sky`` and return the image
     and the gradients of ``loss(image)`` (or of sum(adjoint * image)) for the parameters named in
     ``wrt`` (default: every parameter). ``settings.sky`` is ignored (the sky is ``params.sky``).
@@ -296,6 +298,9 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     of depth 2 to ``secondary_depth`` (default ``max_depth - 1``; 1: the camera rays' hits alone);
     both budgets default to ``settings.spp``, 0 leaves one out. (The interior term takes
     ``settings.spp``: Mitsuba's sppc, sppp and sppi.)
+
+    ``image``: False skips a forward render that only the returned image needs (with ``adjoint=`` and
+    a ``gradient_seed``: ``GradientResult.image`` is then None).
 
     ``gradient_seed``: replay the backward pass with this seed instead of ``settings.seed``. A loss
     that is not linear in the image (L2) then gets an unbiased gradient of the *expected* image's loss:
@@ -324,7 +329,8 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     # before the image (no loss) and the seeds are the same, its radiance sums are the image
     replay_image = mode == "prb" and loss is None and gradient_seed is None
     shape = (rs.height, rs.width, 3)
-    image, value, adj, forward_seconds = _forward(dev, camera, rs, loss, adjoint, replay_image)
+    skip = replay_image or (loss is None and not image)
+    image, value, adj, forward_seconds = _forward(dev, camera, rs, loss, adjoint, skip)
 
     t0 = time.perf_counter()
     brs = rs if gradient_seed is None else replace(rs, seed=gradient_seed)
@@ -373,11 +379,12 @@ def boundary_terms(bound: Bound, adj: np.ndarray, moved: list, poses: list, seed
     return out
 
 
-def _forward(dev: DeviceScene, camera: Camera, rs: RenderSettings, loss: Loss | None, adjoint, replay_image: bool):
+def _forward(dev: DeviceScene, camera: Camera, rs: RenderSettings, loss: Loss | None, adjoint, skip: bool):
     """(image or None, loss value or None, the adjoint image (H, W, 3) float32, forward seconds):
-    the forward render and the loss, unless path replay's first pass will give the image."""
+    the forward render and the loss, unless ``skip`` (path replay's first pass gives the image, or
+    nobody wants it)."""
     image, value, seconds = None, None, 0.0
-    if replay_image:
+    if skip:
         check(rs, camera)
         adj = adjoint
     else:

@@ -143,3 +143,40 @@ def plot_losses(runs: list[Recovery], width: int = 480, height: int = 240, what:
               fill="black")
     return img
 
+
+@dataclass
+class OptimisationRun:
+    """What a demo's optimisation leaves: its error at the start and per iteration, the loss per
+    iteration, the seconds per iteration, the target and the renders at the start and the end."""
+
+    start_error: float
+    errors: list[float]
+    losses: list[float]
+    seconds_per_iteration: float
+    target: np.ndarray
+    start_image: np.ndarray
+    final_image: np.ndarray
+
+    def strip(self, name: str, scale: int) -> Image.Image:
+        """The start, the result and the target side by side over the error curve (log10)."""
+        return strip_figure([self.start_image, self.final_image, self.target], name, self.errors, scale)
+
+
+def strip_figure(images: list, name: str, errors: list[float], scale: int = 4) -> Image.Image:
+    """``images`` (the start, the result, the target: linear (H, W, 3) arrays) side by side, each
+    scaled up ``scale`` times, over the curve of ``errors`` (log10) named ``name``, as a PIL image."""
+    from types import SimpleNamespace
+
+    from warp_spt.images.files import to_display
+
+    tiles = [Image.fromarray(to_display(a)).resize((a.shape[1] * scale, a.shape[0] * scale), Image.NEAREST)
+             for a in images]
+    w = sum(t.width for t in tiles) + 10 * (len(tiles) - 1)
+    curve = plot_losses([SimpleNamespace(name=name, losses=errors)], width=w, height=200, what="error")
+    out = Image.new("RGB", (w, tiles[0].height + curve.height + 10), "white")
+    x = 0
+    for t in tiles:
+        out.paste(t, (x, 0))
+        x += t.width + 10
+    out.paste(curve, (0, tiles[0].height + 10))
+    return out

@@ -28,6 +28,7 @@ import numpy as np
 
 from warp_spt.diff.geometry_params import rodrigues
 from warp_spt.diff.gradients import render_gradients
+from warp_spt.diff.inverse_demo import OptimisationRun
 from warp_spt.diff.optim import Adam
 from warp_spt.diff.params import parameters
 from warp_spt.io.loader import load_scene
@@ -81,19 +82,11 @@ def pose_error(translation: np.ndarray, rotation: np.ndarray) -> float:
 
 
 @dataclass
-class PoseRun:
-    """The recovered pose (the mean of the last sixth of the iterates), the error per iteration, and
-    the target with the renders at the start and the end."""
+class PoseRun(OptimisationRun):
+    """The recovered pose (the mean of the last sixth of the iterates) beside the run's record."""
 
-    translation: np.ndarray
-    rotation: np.ndarray
-    start_error: float
-    errors: list[float]
-    losses: list[float]
-    seconds_per_iteration: float
-    target: np.ndarray
-    start_image: np.ndarray
-    final_image: np.ndarray
+    translation: np.ndarray = None
+    rotation: np.ndarray = None
 
     @property
     def error(self) -> float:
@@ -140,26 +133,9 @@ def recover(quick: bool = False, seed: int = 0, log=None, boundary: bool = True)
     rot = np.mean([b for _, b in tail], axis=0)
     params[TRANSLATION], params[ROTATION] = t, rot
     final = render_scene(params.scene, CAMERA, replace(rs, sky=SKY, spp=16 * spp)).image
-    return PoseRun(t, rot, start, errors, losses, seconds, target, start_image, final)
+    return PoseRun(start, errors, losses, seconds, target, start_image, final, translation=t, rotation=rot)
 
 
 def figure(run: PoseRun, scale: int = 4):
     """The start, the result and the target side by side over the error curve (log10), as a PIL image."""
-    from types import SimpleNamespace
-
-    from PIL import Image
-
-    from warp_spt.diff.inverse_demo import plot_losses
-    from warp_spt.images.files import to_display
-
-    tiles = [Image.fromarray(to_display(a)).resize((a.shape[1] * scale, a.shape[0] * scale), Image.NEAREST)
-             for a in (run.start_image, run.final_image, run.target)]
-    w = sum(t.width for t in tiles) + 20
-    curve = plot_losses([SimpleNamespace(name="pose_error", losses=run.errors)], width=w, height=200, what="error")
-    out = Image.new("RGB", (w, tiles[0].height + curve.height + 10), "white")
-    x = 0
-    for t in tiles:
-        out.paste(t, (x, 0))
-        x += t.width + 10
-    out.paste(curve, (0, tiles[0].height + 10))
-    return out
+    return run.strip("pose_error", scale)

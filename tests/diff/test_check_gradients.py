@@ -142,3 +142,15 @@ def test_steps_shrink_or_turn_one_sided_at_the_bounds(room):
     free = C._scheme(p.info("wall.diffuse"), np.array([0.5, 0.5, 0.5]), np.array([0, 1.0, 0]), h, 1.0)
     assert free == (h, "central", "")
     assert C.default_step(p, p.info("sphere0.radius"), np.array(0.5)) == pytest.approx(0.005)
+
+
+def test_big_parameters_take_seeded_random_unit_directions(room):
+    p = parameters(room, ROOM_CAM, ROOM_SKY)
+    info = p.info("room.obj.positions")
+    x = p["room.obj.positions"].astype(np.float64)
+    a, b = C._directions(info, x, None, 3, 0), C._directions(info, x, None, 3, 0)
+    assert [label for label, _ in a] == ["random 0", "random 1", "random 2"]
+    for (_, u), (_, v) in zip(a, b):
+        assert u.shape == x.shape and np.linalg.norm(u) == pytest.approx(1.0) and np.array_equal(u, v)
+    assert not np.array_equal(a[0][1], C._directions(info, x, None, 1, 1)[0][1])      # direction_seed
+    assert [label for label, _ in C._directions(p.info("sphere0.radius"), np.array(0.5), None, 3, 0)] == [""]

@@ -24,7 +24,8 @@ passes until a sample count, a time budget or a target error, optionally adaptiv
 
 Gradients: :func:`parameters` names what a user can edit (``"wall.diffuse"``, ``"ball.roughness"``,
 ``"quad.diffuse_map"``, ``"sky.color"``, ``"camera.position"``...); :func:`render_gradients` returns the image and the
-gradients of a loss (``warp_spt.losses``) by name, on every core (docs/gradients.md).
+gradients of a loss (``warp_spt.losses``) by name, on every core (docs/gradients.md);
+:func:`check_gradients` compares them with finite differences of the render and prints a table.
 
 The names are imported on first use (PEP 562), so ``import warp_spt`` is cheap and the command line
 can install its Ctrl-C handling before numpy and Warp are loaded.
@@ -42,6 +43,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Camera": "scene.camera",
     "Film": "rendering.film",
+    "GradientCheck": "diff.check",
     "GradientResult": "diff.gradients",
     "INTEGRATORS": "integrators",
     "RenderResult": "rendering.result",
@@ -67,6 +69,7 @@ _EXPORTS = {
     "load_ply": "io.ply",
     "load_scene": "io.loader",
     "parameters": "diff.params",
+    "check_gradients": "diff.check",
     "proc_texture": "device.proctex",
     "register_texture": "device.proctex",
     "relative_error": "rendering.result",
@@ -99,6 +102,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
         register_texture,
         texture,
     )
+    from warp_spt.diff.check import GradientCheck, check_gradients
     from warp_spt.diff.gradients import GradientResult, render_gradients
     from warp_spt.diff.interop import render_arrays
     from warp_spt.diff.params import SceneParameters, parameters

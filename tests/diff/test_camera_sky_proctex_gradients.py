@@ -29,6 +29,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from warp_spt.diff.check import check_gradients
 from warp_spt.diff.gradients import render_gradients
 from warp_spt.diff.params import parameters
 from warp_spt.io.loader import load_scene
@@ -122,8 +123,7 @@ def test_sky_and_texture_colour_gradients_match_finite_differences(big_quad):
     """Seed integrator: its paths do not depend on the sky (NEE's light table is weighted by it)."""
     p = parameters(big_quad, CAM, SKY)
     names = ["sky.zenith", "sky.nadir", "quad.diffuse_map.color1", "quad.diffuse_map.color2"]
-    r = render_gradients(p, RS, adjoint=_ones(RS), wrt=names)
-    _assert_colours_match_fd(p, RS, r, names, least=1e-2, abs_tol=1e-4)
+    _assert_colours_match_fd(p, RS, names, least=1e-2, abs_tol=1e-4)
 
 
 def test_path_replay_equals_the_tape_for_sky_and_procedural_parameters(big_quad):
@@ -191,20 +191,16 @@ def test_procedural_scale_gradient_matches_finite_differences(big_quad):
 def test_a_silhouette_in_view_needs_the_boundary_term(scene_dir):
     """The same quad, small and seen whole against the sky. Moving the camera down enlarges it in the
     image: the pathwise (interior) gradient does not see its edges move, the boundary term
-    (diff.boundary) does. Four seeds give the standard errors of the gradient and of finite differences
-    (h = 0.02, 256 spp): with the boundary term the two agree within 4 of them; without it they differ
-    by more than 6 (the big quad above needs none: no edge of it is in view)."""
+    (diff.boundary) does. check_gradients over four seeds (gradient and finite differences with
+    h = 0.02 at 256 spp, seed s of each a pair) gives the standard error of their difference: with
+    the boundary term the two agree within 4 of them (resolved to a fifth of the derivative); without
+    it they differ by more than 6 (the big quad above needs none: no edge of it is in view)."""
     p = parameters(noise_quad(scene_dir / "noisequad", 0.5), CAM, SKY)
-    g, g0, fd = [], [], []
-    for seed in range(4):
-        rs = replace(RS, spp=256, seed=seed)
-        g.append(render_gradients(p, rs, adjoint=_ones(rs), wrt=["camera.position"]).grads["camera.position"][2])
-        g0.append(render_gradients(p, rs, adjoint=_ones(rs), wrt=["camera.position"], boundary=False)
-                  .grads["camera.position"][2])
-        fd.append(central_difference(p, rs, "camera.position", 2, 0.02))
-    se = math.sqrt(np.var(g, ddof=1) / len(g) + np.var(fd, ddof=1) / len(fd))
-    se0 = math.sqrt(np.var(g0, ddof=1) / len(g0) + np.var(fd, ddof=1) / len(fd))
-    print(f"camera height: gradient {np.mean(g):.4f}, interior only {np.mean(g0):.4f}, FD {np.mean(fd):.4f}"
-          f" (se {se:.4f}, {se0:.4f})")
-    assert abs(np.mean(fd) - np.mean(g0)) > 6 * se0, (g0, fd)
-    assert abs(np.mean(fd) - np.mean(g)) < 4 * se, (g, fd)
+    kw = dict(adjoint=_ones(RS), wrt=["camera.position"], directions={"camera.position": (0.0, 0.0, 1.0)},
+              seeds=range(4), step=0.02, rtol=0.0, print_table=False)
+    rs = replace(RS, spp=256)
+    (row,) = check_gradients(p, rs, sigmas=4.0, **kw).rows
+    (row0,) = check_gradients(p, rs, sigmas=6.0, boundary=False, **kw).rows
+    print(f"camera height: {row}\n  interior only: {row0}")
+    assert row0.verdict == "DISAGREE", row0
+    assert row.verdict == "agree", row

@@ -22,6 +22,7 @@ import pytest
 from PIL import Image
 
 from warp_spt import losses
+from warp_spt.diff.check import check_gradients
 from warp_spt.diff.gradients import render_gradients
 from warp_spt.diff.params import parameters
 from warp_spt.io.loader import load_scene
@@ -75,14 +76,16 @@ def _fd(params, rs, name: str, index, h: float) -> float:
     return (out[0] - out[1]) / (2 * h)
 
 
-def _assert_colours_match_fd(params, rs, result, names, least: float, abs_tol: float) -> None:
+def _assert_colours_match_fd(params, rs, names, least: float, abs_tol: float) -> None:
     """Each colour channel of each parameter in ``names``: a gradient of at least ``least`` in
-    magnitude (not vacuous) that equals the central difference (step 1e-2) within rel 2e-3 / ``abs_tol``."""
-    for n in names:
-        for c in range(3):
-            fd = _fd(params, rs, n, c, 1e-2)
-            assert abs(result.grads[n][c]) > least, (n, c)
-            assert result.grads[n][c] == pytest.approx(fd, rel=2e-3, abs=abs_tol), (n, c)
+    magnitude (not vacuous) that equals the central difference (step 1e-2, the render's own seed:
+    the same paths, check_gradients) within rel 2e-3 + ``abs_tol``."""
+    r = check_gradients(params, rs, adjoint=_ones(rs), wrt=names, seeds=[rs.seed], step=1e-2, rtol=2e-3,
+                        atol=abs_tol, print_table=False)
+    assert [row.direction for row in r.rows] == ["[0]", "[1]", "[2]"] * len(names)
+    for row in r.rows:
+        assert abs(row.gradient) > least, row
+        assert row.verdict == "agree", r.table()
 
 
 def _ones(rs):
@@ -144,9 +147,7 @@ def test_loss_adjoints_match_finite_differences(make):
 def test_colour_gradients_match_finite_differences(room, integrator, sampler, names):
     p = parameters(room, ROOM_CAM, ROOM_SKY)
     rs = replace(ROOM_RS, integrator=integrator, sampler=sampler)
-    r = render_gradients(p, rs, adjoint=_ones(rs), wrt=names)
-    assert r.image.shape == (rs.height, rs.width, 3)
-    _assert_colours_match_fd(p, rs, r, names, least=1e-3, abs_tol=1e-3)
+    _assert_colours_match_fd(p, rs, names, least=1e-3, abs_tol=1e-3)
 
 
 def test_loss_gradient_is_the_adjoint_weighted_one(room):
@@ -198,11 +199,13 @@ def test_texel_gradients_match_finite_differences(quad_scene, texture_filter):
 
 def test_fuzz_gradient_matches_finite_differences(quad_scene):
     """Pathwise, through the fuzzed mirror direction into the gradient sky; the view is steep, so no
-    fuzzed direction dips below the quad (absorption would be a step). FD of float32 images."""
+    fuzzed direction dips below the quad (absorption would be a step). FD with the render's seed (the
+    same paths: CRN), h = 1e-3, within 2%."""
     p = parameters(quad_scene, QUAD_CAM, Sky.gradient())
-    g = float(render_gradients(p, QUAD_RS, adjoint=_ones(QUAD_RS), wrt=["quad.fuzz"]).grads["quad.fuzz"])
-    assert abs(g) > 0.1
-    assert g == pytest.approx(_fd(p, QUAD_RS, "quad.fuzz", (), 1e-3), rel=0.02)
+    (row,) = check_gradients(p, QUAD_RS, adjoint=_ones(QUAD_RS), wrt=["quad.fuzz"], seeds=[QUAD_RS.seed], step=1e-3,
+                             rtol=0.02, print_table=False).rows
+    assert abs(row.gradient) > 0.1 and row.scheme == "central"
+    assert row.verdict == "agree", row
 
 
 def test_roughness_gradient_is_the_derivative_of_the_expected_image(quad_scene):

@@ -113,6 +113,7 @@ MAX_UNROLLED_DEPTH = 8     # compile time grows quickly with the unrolled depth
 TAPE_INTEGRATOR = "seed"
 TAPE_KERNEL_SAMPLER = "independent"
 MODES = ("auto", "prb", "tape")
+DEFAULT_SETTINGS = RenderSettings(width=64, height=64, spp=4, max_depth=4)     # render_gradients' without settings
 # Parameters path replay differentiates (it holds sampled directions fixed and finds hits outside
 # the differentiated vertex, see warp_spt.diff.prb); the others (fuzz bends directions, the camera moves
 # rays and hit points) need the tape's pathwise derivative.
@@ -307,7 +308,7 @@ def render_gradients(params: SceneParameters, settings: RenderSettings | None = 
     with the same seed, the image's noise and its derivative are correlated and the gradient of
     E[(I - T)^2] is biased (inverse rendering at low spp converges to the wrong value).
     """
-    rs = settings or RenderSettings(width=64, height=64, spp=4, max_depth=4)
+    rs = settings or DEFAULT_SETTINGS
     if (loss is None) == (adjoint is None):
         raise ValueError("give exactly one of loss= and adjoint=")
     if isinstance(wrt, str) or not (wrt is None or isinstance(wrt, (list, tuple))):

@@ -40,6 +40,7 @@ compiled in) and its light table (an emission change re-weights light sampling).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -283,6 +284,52 @@ class SceneParameters:
     def update(self, values: dict) -> None:
         for k, v in values.items():
             self[k] = v
+
+    @contextmanager
+    def restored(self, names):
+        """A context in which the parameters ``names`` may be changed: on leaving it they hold their
+        values of entering it bit for bit, at the precision they are kept (``self[name]`` is a float32
+        copy; a pose, a light or a sky holds float64): the camera and sky objects themselves, the
+        host Scene of the geometry with its base meshes and poses, the light and medium records and
+        textures set back, the device arrays written from them again."""
+        infos = [self.info(n) for n in names]
+        camera, sky, dev = self.camera, self.sky, self.scene
+        scene = dev.scene
+        geometry = any(p.kind in geo_params.GEOMETRY_KINDS for p in infos)
+        bases = list(self._base_meshes)
+        poses = [(q, q.translation.copy(), q.rotation.copy(), q.scale.copy()) for q in self._poses]
+        lights = list(scene.lights)
+        fog, interiors = getattr(scene, "fog", None), dict(getattr(scene, "interiors", None) or {})
+        rows = {p.name: getattr(scene.materials, p.field)[p.index].copy() for p in infos if p.kind == "material"}
+        kept = {p.name: (p, scene.textures[p.index] if p.kind == "texture" else scene.procedural[p.index])
+                for p in infos if p.kind in ("texture", "proc")}
+        media = {p.name: np.array(getattr(self._medium(p), p.field), np.float64) for p in infos if p.kind == MEDIUM}
+        try:
+            yield self
+        finally:
+            if geometry:            # first: the host Scene it puts back is the one the others write to
+                for q, t, r, s in poses:
+                    q.translation, q.rotation, q.scale = t, r, s
+                self._base_meshes[:] = bases
+                dev.update_geometry(scene)
+            self.camera, self.sky = camera, sky
+            for n, row in rows.items():
+                self[n] = row
+            for n, (p, held) in kept.items():     # the device's float32 copy, then the host's own object
+                if p.kind == "texture":
+                    self[n] = held
+                else:
+                    off, size = proc_slice(scene, p)
+                    self[n] = np.reshape(held.params[off:off + size], p.shape)
+                (scene.textures if p.kind == "texture" else scene.procedural)[p.index] = held
+            for n, v in media.items():
+                self[n] = v
+            if media:
+                scene.fog = fog
+                scene.interiors.update(interiors)
+            if any(p.kind == "punctual" for p in infos):
+                scene.lights[:] = lights
+                self._refresh()
 
     # --- writing through to host and device ------------------------------------------------------
     def _set_material(self, p: ParamInfo, v: np.ndarray) -> None:

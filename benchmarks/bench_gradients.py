@@ -1,7 +1,7 @@
 """Backward against forward: time and peak memory of gradient renders, and texel-gradient contention.
 
     PYTHONPATH=. python benchmarks/bench_gradients.py [--size 128] [--spp 4] [--depth 6]
-        [--integrator nee] [--sampler sobol] [--skip modes tape growth texels geometry]
+        [--integrator nee] [--sampler sobol] [--skip modes tape growth texels geometry interop]
 
 Scene: the demo Cornell box (cornell.obj, demo.mtl); by default the renderer's default integrator
 and sampler (nee + sobol). Modes:
@@ -31,6 +31,8 @@ triangle moving) and the camera's position at the same spp: the forward render, 
 term's parts (the host's curves and samples, the kernel tracing its pairs of rays, the chain rule) and
 the secondary term; what setting a
 pose costs (a world-space mesh's BVH is rebuilt; an instance's only the top-level BVH).
+Interop (``interop``): an iteration through ``render_arrays`` on a ``wp.Tape`` against the same calls
+made directly, and the bytes it copies.
 """
 
 from __future__ import annotations
@@ -263,6 +265,61 @@ def bench_geometry(size: int, spp: int, depth: int, integrator: str, sampler: st
     params["cornell.obj.translation"] = (0.0, 0.0, 0.0)
 
 
+def bench_interop(size: int, spp: int, depth: int, integrator: str, sampler: str) -> None:
+    """One iteration through ``render_arrays`` on a ``wp.Tape`` (positions from a wp.array, the loss
+    in a Warp kernel, ``tape.backward``) against the same work called directly (``params[name] = v``,
+    ``render_scene``, ``render_gradients(adjoint=...)``): the interop's overhead, and what it copies."""
+    import warp as wp
+
+    from warp_spt.diff.interop import render_arrays
+
+    params, rs = cornell(size, spp, depth, integrator, sampler)
+    name = "cornell.obj.positions"
+    base = params[name].astype(np.float64)
+    target = np.zeros((size, size, 3), np.float32)
+
+    @wp.kernel
+    def l2(image: wp.array(dtype=float, ndim=3), t: wp.array(dtype=float, ndim=3), loss: wp.array(dtype=float)):
+        y, x, c = wp.tid()
+        d = image[y, x, c] - t[y, x, c]
+        wp.atomic_add(loss, 0, d * d)
+
+    t_wp = wp.array(target, dtype=float)
+
+    def on_tape(k):
+        x = wp.array(base + 1e-4 * k, dtype=wp.vec3, requires_grad=True)
+        loss = wp.zeros(1, dtype=float, requires_grad=True)
+        tape = wp.Tape()
+        with tape:
+            image = render_arrays(params, {name: x}, replace(rs, seed=k), gradient_seed=1000 + k)
+            wp.launch(l2, dim=image.shape, inputs=[image, t_wp], outputs=[loss])
+        tape.backward(loss)
+        return x.grad.numpy()
+
+    def direct(k):
+        params[name] = base + 1e-4 * k
+        image = render_scene(params.scene, params.camera, replace(rs, seed=k, sky=params.sky)).image
+        adj = 2.0 * (image - target)
+        return render_gradients(params, replace(rs, seed=k), adjoint=adj, wrt=[name], gradient_seed=1000 + k,
+                                image=False).grads[name]
+
+    on_tape(0), direct(0)                              # compile (or load) and warm up
+    runs = {"on_tape": [], "direct": []}
+    for k in range(1, 4):
+        for key, fn in (("direct", direct), ("on_tape", on_tape)):
+            t0 = time.perf_counter()
+            fn(k)
+            runs[key].append(time.perf_counter() - t0)
+    d, t = min(runs["direct"]), min(runs["on_tape"])
+    v = len(base)
+    print(f"\nInterop: Cornell box {size}x{size}, spp {spp}, depth {depth}; wrt {name} ({v} vertices); best of 3")
+    print(f"  direct (params[name] = v, render_scene, render_gradients)   {d * 1e3:8.0f} ms")
+    print(f"  render_arrays on a wp.Tape + Warp L2 + tape.backward        {t * 1e3:8.0f} ms  {t / d:5.2f}x")
+    print(f"  copied per iteration on the CPU device: the input 0 B (numpy() is a view), the image "
+          f"{size * size * 3 * 4} B, the gradient {2 * v * 3 * 4} B (read and written back through the host)")
+    params[name] = base
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=128)
@@ -270,7 +327,7 @@ def main() -> None:
     ap.add_argument("--depth", type=int, default=6)
     ap.add_argument("--integrator", default=DEFAULT_INTEGRATOR)
     ap.add_argument("--sampler", default=DEFAULT_SAMPLER)
-    ap.add_argument("--skip", nargs="*", default=[], choices=["modes", "tape", "growth", "texels", "geometry"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["modes", "tape", "growth", "texels", "geometry", "interop"])
     a = ap.parse_args()
     if "modes" not in a.skip:
         bench_modes(a.size, a.spp, a.depth, a.integrator, a.sampler, with_tape="tape" not in a.skip)
@@ -280,6 +337,8 @@ def main() -> None:
         bench_texels(a.size, a.spp)
     if "geometry" not in a.skip:
         bench_geometry(a.size, a.spp, a.depth, a.integrator, a.sampler)
+    if "interop" not in a.skip:
+        bench_interop(a.size, a.spp, a.depth, a.integrator, a.sampler)
 
 
 if __name__ == "__main__":

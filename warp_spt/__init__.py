@@ -77,6 +77,7 @@ _EXPORTS = {
     "render_film": "rendering.tiles",
     "render_gradients": "diff.gradients",
     "render_arrays": "diff.interop",
+    "render_torch": "diff.interop",
     "render_progressive": "rendering.progressive",
     "render_scene": "rendering.tiles",
     "quick_view": "rendering.tiles",
@@ -104,7 +105,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     )
     from warp_spt.diff.check import GradientCheck, check_gradients
     from warp_spt.diff.gradients import GradientResult, render_gradients
-    from warp_spt.diff.interop import render_arrays
+    from warp_spt.diff.interop import render_arrays, render_torch
     from warp_spt.diff.params import SceneParameters, parameters
     from warp_spt.integrators import INTEGRATORS
     from warp_spt.images.files import save_image, to_display, tonemap_seed, tonemap_srgb

@@ -148,3 +148,26 @@ def test_without_a_tape_it_is_a_render():
     want = render_scene(p.scene, p.camera, replace(RS, sky=p.sky)).image
     assert image.shape == (H, W, 3) and image.requires_grad
     np.testing.assert_array_equal(image.numpy(), want)
+
+
+def test_torch_tensors_in_and_the_gradient_back_through_autograd():
+    """``render_torch``: the render as one node of torch's graph. The centre's gradient from
+    ``loss.backward()`` is render_gradients' with the same adjoint and gradient seed (skips without
+    torch, an optional extra: ``pip install torch``)."""
+    torch = pytest.importorskip("torch")
+    from warp_spt.diff.interop import render_torch
+
+    p = _sphere_params()
+    start = torch.tensor(CENTRE, dtype=torch.float64)
+    v = torch.tensor(DRIFT, dtype=torch.float64, requires_grad=True)
+    image = render_torch(p, {"sphere0.center": start + 0.5 * v}, RS, gradient_seed=11)
+    loss = ((image - torch.from_numpy(TARGET)) ** 2).sum()
+    loss.backward()
+    p["sphere0.center"] = CENTRE + 0.5 * DRIFT
+    want_image = render_scene(p.scene, p.camera, replace(RS, sky=p.sky)).image
+    np.testing.assert_array_equal(image.detach().numpy(), want_image)
+    adj = (2.0 * (want_image - TARGET)).astype(np.float32)
+    g_c = render_gradients(p, RS, adjoint=adj, wrt=["sphere0.center"], gradient_seed=11).grads["sphere0.center"]
+    np.testing.assert_allclose(v.grad.numpy(), 0.5 * g_c, rtol=1e-4, atol=1e-5 * np.abs(g_c).max())
+    with pytest.raises(TypeError, match="expected a torch.Tensor"):
+        render_torch(p, {"sphere0.center": np.zeros(3)}, RS)

@@ -22,13 +22,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a small run (under two minutes on 2 cores)")
     ap.add_argument("--seed", type=int, default=0, help="the run's seed (target and iterations)")
+    ap.add_argument("--no-boundary", action="store_true", help="leave the boundary terms out (the control)")
     ap.add_argument("--figure", help="write the start, the result, the target and the error curve to this PNG")
     args = ap.parse_args()
 
     def log(it, loss, err):
         print(f"iteration {it:3d}: loss {loss:.4e}, v0 error {err:.4f} m/s")
 
-    r = recover(args.quick, seed=args.seed, log=log)
+    r = recover(args.quick, seed=args.seed, log=log, boundary=not args.no_boundary)
     print(f"v0 = ({r.v0[0]:.3f}, {r.v0[1]:.3f}, {r.v0[2]:.3f}) m/s ({r.seconds_per_iteration:.2f} s per iteration)")
     if args.figure:
         figure(r).save(args.figure)

@@ -193,9 +193,10 @@ def velocity_error(v0) -> float:
     return float(np.linalg.norm(np.asarray(v0, np.float64) - TRUE_V0))
 
 
-def recover(quick: bool = False, seed: int = 0, log=None) -> Throw:
+def recover(quick: bool = False, seed: int = 0, log=None, boundary: bool = True) -> Throw:
     """Adam on ``v0`` from START_V0, the step size decaying (``quick``: 48x32 pixels, 4 spp, 60
-    iterations; else 96x64, 8 spp, 120); ``log(iteration, loss, error)`` after each step."""
+    iterations; else 96x64, 8 spp, 120); ``log(iteration, loss, error)`` after each step; ``boundary``
+    False leaves the boundary terms out (the control of docs/gradients.md)."""
     rs = settings(quick)
     iterations, lr, decay = (60, 0.1, 0.96) if quick else (120, 0.1, 0.98)
     params = parameters(scene(), CAMERA, SKY)
@@ -208,7 +209,8 @@ def recover(quick: bool = False, seed: int = 0, log=None) -> Throw:
     errors, losses, tail = [], [], []
     t0 = time.perf_counter()
     for it in range(iterations):
-        value, g = loss_and_gradient(params, v, target, rs, 1000 * seed + 2 * it, 1000 * seed + 2 * it + 1)
+        value, g = loss_and_gradient(params, v, target, rs, 1000 * seed + 2 * it, 1000 * seed + 2 * it + 1,
+                                     boundary=boundary)
         m = b1 * m + (1 - b1) * g
         s = b2 * s + (1 - b2) * g * g
         v = v - lr * decay ** it * (m / (1 - b1 ** (it + 1))) / (np.sqrt(s / (1 - b2 ** (it + 1))) + 1e-8)

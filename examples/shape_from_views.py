@@ -1,7 +1,7 @@
-"""Shape from views with warp_spt: a sphere mesh refined into a blob from eight rendered views of it.
+"""Shape from views with warp_spt: a sphere mesh refined into a blob from rendered views (8; 6 with --quick).
 
     python examples/shape_from_views.py            (PYTHONPATH=. python ... from a checkout not installed)
-    python examples/shape_from_views.py --quick    (642 vertices, 24 x 24 pixels a view: what tests/ runs)
+    python examples/shape_from_views.py --quick    (642 vertices, 6 views of 24 x 24 pixels: what tests/ runs)
 
 The blob (a sphere with four low-frequency bumps, grey, under a procedural environment map) is seen
 by eight cameras; an icosphere starts in its place and Large Steps (warp_spt.diff.large_steps:

@@ -120,8 +120,8 @@ SLOW: dict[str, str] = {
                                              "of compiling its four kernels",
     "tests/diff/test_pose_estimation.py": "the example's --quick run in a process of its own: 25 s warm, "
                                           "its scene's three kernels compiled first",
-    "tests/diff/test_shape_from_views.py": "the example's --quick run in a process of its own: 101 s cold "
-                                           "on 2 cores (40 iterations of 8 views at 1.2-2.2 s each)",
+    "tests/diff/test_shape_from_views.py": "the example's --quick run in a process of its own: about 50 s "
+                                           "on 2 loaded cores (40 iterations of 6 views; 8 views took 101 s cold)",
     # The readers' long fuzzing runs (1,500 cases each; their short runs of 25 stay): seconds on 2
     # cores, warm (2026-12-02), 38 s together
     "tests/hardening/test_reader_fuzz.py::test_gltf_files_with_extreme_values_load_or_name_file_and_pointer_long":

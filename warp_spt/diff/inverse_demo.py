@@ -162,9 +162,10 @@ class OptimisationRun:
         return strip_figure([self.start_image, self.final_image, self.target], name, self.errors, scale)
 
 
-def strip_figure(images: list, name: str, errors: list[float], scale: int = 4) -> Image.Image:
+def strip_figure(images: list, name: str, errors: list[float], scale: int = 4, what: str = "error") -> Image.Image:
     """``images`` (the start, the result, the target: linear (H, W, 3) arrays) side by side, each
-    scaled up ``scale`` times, over the curve of ``errors`` (log10) named ``name``, as a PIL image."""
+    scaled up ``scale`` times, over the curve of ``errors`` (log10) named ``name`` (``what`` they
+    are: the legend's word), as a PIL image."""
     from types import SimpleNamespace
 
     from warp_spt.images.files import to_display
@@ -172,7 +173,7 @@ def strip_figure(images: list, name: str, errors: list[float], scale: int = 4) -
     tiles = [Image.fromarray(to_display(a)).resize((a.shape[1] * scale, a.shape[0] * scale), Image.NEAREST)
              for a in images]
     w = sum(t.width for t in tiles) + 10 * (len(tiles) - 1)
-    curve = plot_losses([SimpleNamespace(name=name, losses=errors)], width=w, height=200, what="error")
+    curve = plot_losses([SimpleNamespace(name=name, losses=errors)], width=w, height=200, what=what)
     out = Image.new("RGB", (w, tiles[0].height + curve.height + 10), "white")
     x = 0
     for t in tiles:

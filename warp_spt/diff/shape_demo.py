@@ -182,14 +182,15 @@ class ShapeRun:
         return self.chamfers[-1]
 
 
-def recover(quick: bool = False, seed: int = 0, log=None, views: int = 8, lam: float | None = None,
+def recover(quick: bool = False, seed: int = 0, log=None, views: int | None = None, lam: float | None = None,
             lr: float | None = None, iterations: int | None = None) -> ShapeRun:
-    """Run the optimisation on a 642-vertex sphere (``quick``: 24x24 pixels per view, 4 spp, 40
-    iterations; else 32x32, 8 spp, 80) with Large Steps' ``lr`` 0.3 and ``lam`` 20 (of lr 0.02, 0.08,
+    """Run the optimisation on a 642-vertex sphere (``quick``: 6 views of 24x24 pixels, 4 spp, 40
+    iterations; else 8 views of 32x32, 8 spp, 80) with Large Steps' ``lr`` 0.3 and ``lam`` 20 (of lr 0.02, 0.08,
     0.2 and 0.3 over 30 quick iterations, 0.3 fell furthest; lam 40 with lr 0.4 no further than lam 20);
     ``log(iteration, loss, chamfer)`` is called after each step."""
     sub, size, spp, its, step, smooth = (3, 24, 4, 40, 0.3, 20.0) if quick else (3, 32, 8, 80, 0.3, 20.0)
     its = iterations or its
+    views = views or (6 if quick else 8)
     lam = smooth if lam is None else lam
     lr = step if lr is None else lr
     samples = target_samples()
@@ -231,22 +232,7 @@ def recover(quick: bool = False, seed: int = 0, log=None, views: int = 8, lam: f
 def figure(run: ShapeRun, scale: int = 4):
     """The start, the result and the target (the first view) side by side over the Chamfer curve
     (log10), as a PIL image."""
-    from types import SimpleNamespace
+    from warp_spt.diff.inverse_demo import strip_figure
 
-    from PIL import Image
-
-    from warp_spt.diff.inverse_demo import plot_losses
-    from warp_spt.images.files import to_display
-
-    tiles = [Image.fromarray(to_display(a)).resize((a.shape[1] * scale, a.shape[0] * scale), Image.NEAREST)
-             for a in (run.start_image, run.final_image, run.target)]
-    w = sum(t.width for t in tiles) + 20
-    curve = plot_losses([SimpleNamespace(name="chamfer", losses=[run.start_chamfer] + run.chamfers)],
-                        width=w, height=200, what="Chamfer distance")
-    out = Image.new("RGB", (w, tiles[0].height + curve.height + 10), "white")
-    x = 0
-    for t in tiles:
-        out.paste(t, (x, 0))
-        x += t.width + 10
-    out.paste(curve, (0, tiles[0].height + 10))
-    return out
+    return strip_figure([run.start_image, run.final_image, run.target], "chamfer",
+                        [run.start_chamfer] + run.chamfers, scale, what="Chamfer distance")

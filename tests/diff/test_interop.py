@@ -153,7 +153,7 @@ def test_without_a_tape_it_is_a_render():
 def test_torch_tensors_in_and_the_gradient_back_through_autograd():
     """``render_torch``: the render as one node of torch's graph. The centre's gradient from
     ``loss.backward()`` is render_gradients' with the same adjoint and gradient seed (skips without
-    torch, an optional extra: ``pip install torch``)."""
+    torch, an optional extra: ``pip install ".[torch]"``)."""
     torch = pytest.importorskip("torch")
     from warp_spt.diff.interop import render_torch
 

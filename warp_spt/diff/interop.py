@@ -29,7 +29,7 @@ The choice of interface: recorded on the tape, so that the common case (simulate
 ``tape.backward``) is one call inside the user's ``with tape:`` block. The other way round works
 too: ``render_gradients(params, settings, adjoint=...)`` returns the gradients as numpy arrays, and
 ``tape.backward(grads={x: wp.array(g)})`` continues from them. For PyTorch, :func:`render_torch` is the
-same render as a ``torch.autograd.Function`` (torch is not a dependency; ``pip install torch``):
+same render as a ``torch.autograd.Function`` (torch is not a dependency; ``pip install ".[torch]"`` in the clone):
 tensors in, an image tensor out, ``loss.backward()`` through it.
 
 What is copied: on the CPU device a ``wp.array``'s ``numpy()`` is a view, so the inputs cost no copy;

@@ -77,11 +77,14 @@ def _value_of(params: SceneParameters, name: str, a) -> np.ndarray:
     """The parameter's new value from array ``a`` (any shape with the parameter's number of elements)."""
     if not isinstance(a, wp.array):
         raise TypeError(f"{name}: expected a wp.array, got {type(a).__name__}")
+    return _reshaped(params, name, a.numpy(), f"the array has shape {tuple(a.shape)} of {a.dtype.__name__}")
+
+
+def _reshaped(params: SceneParameters, name: str, v: np.ndarray, what: str) -> np.ndarray:
+    """``v`` as the parameter's float64 value, refused (naming ``what`` was given) if its size differs."""
     shape = params.info(name).shape
-    v = a.numpy()
     if v.size != int(np.prod(shape, dtype=np.int64)):
-        raise ValueError(f"{name}: expected {int(np.prod(shape))} numbers (shape {shape}), "
-                         f"the array has shape {tuple(a.shape)} of {a.dtype.__name__}")
+        raise ValueError(f"{name}: expected {int(np.prod(shape))} numbers (shape {shape}), {what}")
     return v.astype(np.float64).reshape(shape)
 
 
@@ -201,14 +204,8 @@ def _torch_function():
     class RenderFunction(torch.autograd.Function):
         @staticmethod
         def forward(ctx, params, rs, names, kw, *tensors):
-            values = {}
-            for n, t in zip(names, tensors):
-                v = t.detach().cpu().numpy().astype(np.float64)
-                shape = params.info(n).shape
-                if v.size != int(np.prod(shape, dtype=np.int64)):
-                    raise ValueError(f"{n}: expected {int(np.prod(shape))} numbers (shape {shape}), "
-                                     f"the tensor has shape {tuple(t.shape)}")
-                values[n] = v.reshape(shape)
+            values = {n: _reshaped(params, n, t.detach().cpu().numpy(), f"the tensor has shape {tuple(t.shape)}")
+                      for n, t in zip(names, tensors)}
             image = _render(params, values, rs)
             ctx.record = _Recorded(params, dict(zip(names, tensors)), values, params.camera, params.sky, rs,
                                    None, kw)

@@ -2,7 +2,8 @@
 
     python benchmarks/gpu_check.py             # 512x512, 16 spp (about 5 minutes on 16 cores + an H100, cold caches)
     python benchmarks/gpu_check.py --quick     # 128x128, 4 spp, the tests too: a smoke run
-    python benchmarks/gpu_check.py --no-tests  # the table alone
+    python benchmarks/gpu_check.py --no-tests  # the tables alone
+    python benchmarks/gpu_check.py --device cpu --quick --no-tests   # a rehearsal without a GPU
 
 Where Warp finds no CUDA device it prints why and exits with status 0 (nothing to check). Nothing is
 fetched from the network; Warp's kernel cache may start empty: every kernel the run needs is first
@@ -27,6 +28,14 @@ Steps, each printed with its time:
    statistic, the standard error estimated from the spread of the per-block differences
    (16x16-pixel blocks; the two renders use different seeds, so they are independent estimates
    of the same image and the differences' spread is their noise). |t| above 4 is flagged.
+5. Against Mitsuba on the same GPU: ``bench_vs_mitsuba``'s Cornell box and indirectly lit room at
+   256x256 and the table's spp, ours (``nee`` + ``sobol``) beside Mitsuba 3's ``cuda_ad_rgb`` ``path``
+   with each of its samplers (the best kept), against a Mitsuba reference of 8192 spp: wall seconds
+   of a whole render to host memory (after a warm-up render, so neither side's compile counts),
+   RMSE, and the equal-error efficiency ratio 1 / (MSE x seconds). Where Mitsuba cannot run (not
+   installed, no such variant, its backend does not start) it prints why and goes on. A GPU
+   machine without network access gets Mitsuba, drjit and Warp as wheels: ``benchmarks/gpu_carry.py``
+   prepares them here and prints the commands. ``--device cpu`` compares with ``llvm_ad_rgb``.
 """
 
 from __future__ import annotations
@@ -315,6 +324,106 @@ def table(scenes: dict, size: int, spp: int, repeat: int, gpu: str) -> None:
                 say(f"  ({best.stats.dropped_samples} non-finite samples dropped)")
 
 
+# ---------------------------------------------------------------------------------------------
+# Against Mitsuba on the same device
+
+
+MITSUBA_SCENES = ("cornell", "indirect")
+
+
+def mitsuba_on(variant: str):
+    """(Mitsuba set to ``variant``, None) or (None, why not). A one-sample probe render runs in a
+    subprocess first: drjit aborts the process where its backend cannot start (no CUDA driver or
+    OptiX for ``cuda_ad_rgb``, too old a libLLVM for ``llvm_ad_rgb``)."""
+    try:
+        import mitsuba as mi
+    except ImportError as err:
+        return None, (f"Mitsuba is not installed here ({err}); benchmarks/gpu_carry.py prepares its wheels "
+                      f"for a machine without network access")
+    if variant not in mi.variants():
+        return None, f"Mitsuba {mi.__version__} has no variant {variant} (it has {', '.join(mi.variants())})"
+    probe = (f"import mitsuba as mi; mi.set_variant({variant!r}); "
+             f"mi.render(mi.load_dict(mi.cornell_box()), spp=1)")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    if out.returncode != 0:
+        lines = out.stderr.strip().splitlines() or [f"exit status {out.returncode}"]
+        first = next((ln for ln in lines if "error" in ln.lower()), lines[-1])     # LLVM's is its first line
+        return None, f"Mitsuba {mi.__version__}'s {variant} cannot render here: {first.strip()[:200]}"
+    mi.set_variant(variant)
+    mi.set_log_level(mi.LogLevel.Error)       # its samplers' rounding notes would interleave with the table
+    return mi, None
+
+
+def best_seconds(render, repeat: int):
+    """(image, least wall seconds) over ``repeat`` runs of ``render()`` after one warm-up run (kernel
+    compiles, Mitsuba's JIT, first launches). The same seed each time, so that a JIT that bakes the
+    seed into its kernel compiles it once; the image is the last run's."""
+    render()
+    best, image = float("inf"), None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        image = render()
+        best = min(best, time.perf_counter() - t)
+    return image, best
+
+
+def vs_mitsuba(folder: Path, size: int, spp: int, ref_spp: int, repeat: int, gpu: str, variant: str) -> None:
+    """bench_vs_mitsuba's Cornell box and indirectly lit room on ``gpu``, ours (``nee`` + ``sobol``)
+    beside Mitsuba's ``path`` (``variant``, every sampler of bench_vs_mitsuba, the best one kept) at the
+    same samples per pixel: wall seconds of a whole ``render`` call to an image in host memory (best of
+    ``repeat``), RMSE against a Mitsuba reference (``ref_spp``, two independent halves whose spread
+    gives its own error, subtracted) and the equal-error efficiency 1 / (MSE x seconds), as a ratio."""
+    import bench_vs_mitsuba as mb
+
+    from warp_spt.io.loader import load_scene
+    from warp_spt.rendering.settings import RenderSettings
+    from warp_spt.rendering.tiles import render_scene
+    from warp_spt.upload.device_scene import DeviceScene
+
+    half = 1
+    while half * 4 <= ref_spp // 2:          # Mitsuba's ldsampler takes powers of 4
+        half *= 4
+    say(f"## {gpu} against Mitsuba {variant}: {size}x{size}, {spp} spp, depth {mb.DEPTH}; wall seconds of a "
+        f"whole render to host memory, best of {repeat}; reference: Mitsuba, 2 x {half} spp (ldsampler)")
+    mi, why = mitsuba_on(variant)
+    if mi is None:
+        say(f"not run: {why}")
+        return
+    mb.mi = mi
+    threads = os.cpu_count() or 1        # Mitsuba's LLVM variant only; the GPU ignores it
+    say(f"Mitsuba {mi.__version__}, variant {variant}")
+    say("| scene | Mitsuba's best sampler | Mitsuba s | Mitsuba RMSE | warp_spt s | warp_spt RMSE | "
+        "efficiency warp_spt / Mitsuba |")
+    say("|---|---|---|---|---|---|---|")
+    for name in MITSUBA_SCENES:
+        desc = mb.SCENES[name]
+        sub = folder / f"vs_mitsuba_{name}"
+        sub.mkdir()
+        ref_scene = mb.mitsuba_scene(desc, sub, size, "ldsampler", half)
+        ref_a, ref_b = (mb.mitsuba_render(ref_scene, half, seed, threads) for seed in (1, 2))
+        ref, ref_mse = 0.5 * (ref_a + ref_b), float(np.mean((ref_a - ref_b) ** 2)) / 4
+        theirs = {}
+        for sampler in mb.MITSUBA_SAMPLERS:
+            n = mb.sampler_spp(sampler, spp)
+            scene = mb.mitsuba_scene(desc, sub, size, sampler, n)
+            img, sec = best_seconds(lambda scene=scene, n=n: mb.mitsuba_render(scene, n, 7, threads), repeat)
+            theirs[sampler] = (mb.efficiency(img, sec, ref, ref_mse), sec, img)
+        best = max(theirs, key=lambda k: theirs[k][0])
+        (sub / "scene.obj").write_text(mb.obj_text(desc["shapes"]))
+        (sub / "scene.mtl").write_text(mb.mtl_text(desc["materials"]))
+        dev = DeviceScene(load_scene([str(sub / "scene.obj")], [str(sub / "scene.mtl")], warn=lambda message: None),
+                          device=gpu)
+        rs = RenderSettings(**mb.warp_settings(desc, size, spp, "nee", "sobol", 7, threads), device=gpu)
+        img, sec = best_seconds(lambda: render_scene(dev, mb.warp_camera(desc), rs).image.astype(np.float64), repeat)
+        ours = mb.efficiency(img, sec, ref, ref_mse)
+
+        def rmse(image):
+            return max(float(np.mean((image - ref) ** 2)) - ref_mse, 0.0) ** 0.5
+
+        say(f"| {name} | {best} ({mb.sampler_spp(best, spp)} spp) | {theirs[best][1]:.4f} | "
+            f"{rmse(theirs[best][2]):.4f} | {sec:.4f} | {rmse(img):.4f} | {ours / theirs[best][0]:.2f} |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="128x128, 4 spp")
@@ -332,6 +441,14 @@ def main() -> int:
                     help="on any machine (no GPU needed): compile the check's CUDA kernels to PTX for sm_ARCH "
                          "(90 for an H100/H200) into Warp's kernel cache, then stop; carry the cache to the "
                          "GPU machine (WARP_CACHE_PATH) so that its run skips NVRTC")
+    ap.add_argument("--no-mitsuba", action="store_true", help="leave out the comparison with Mitsuba")
+    ap.add_argument("--mitsuba-variant", default=None,
+                    help="Mitsuba's variant for the comparison (default cuda_ad_rgb; llvm_ad_rgb with --device cpu)")
+    ap.add_argument("--mitsuba-size", type=int, default=None, help="the comparison's image size (default 256; "
+                    "--quick: 64)")
+    ap.add_argument("--mitsuba-ref-spp", type=int, default=None,
+                    help="samples per pixel of the comparison's Mitsuba reference, two halves of a power of 4 each "
+                         "(default 8192; --quick: 512)")
     args = ap.parse_args()
     size = args.size or (128 if args.quick else 512)
     spp = args.spp or (4 if args.quick else 16)
@@ -362,6 +479,11 @@ def main() -> int:
             status = run_tests(args.test_timeout, args.device, media=not args.no_media)
         say("")
         table(scenes, size, spp, args.repeat, args.device)
+        if not args.no_mitsuba:
+            say("")
+            variant = args.mitsuba_variant or ("llvm_ad_rgb" if args.device == "cpu" else "cuda_ad_rgb")
+            vs_mitsuba(folder, args.mitsuba_size or (64 if args.quick else 256), spp,
+                       args.mitsuba_ref_spp or (512 if args.quick else 8192), args.repeat, args.device, variant)
     say(f"\ngpu_check: {time.perf_counter() - t0:.0f} s in all")
     return status
 

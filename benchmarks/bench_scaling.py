@@ -197,16 +197,16 @@ print("PHASES", repr(rows))
 """
 
 
-def phases(sizes: list[int], threads: int) -> None:
+def phases(sizes: list[int], threads: int, fmt: str = "ply") -> None:
     """Where one warp_spt render's CPU seconds go, and the peak memory after each step (fresh
-    processes, after an uncounted round that fills the caches)."""
+    processes, after an uncounted round that fills the caches), the heightfield written as ``fmt``."""
     import ast
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
         for i, k in enumerate(sizes):
-            mesh, tris = write_scene(folder, k, "ply")
+            mesh, tris = write_scene(folder, k, fmt)
             code = _PHASES_CHILD.format(mesh=str(mesh), light=str(folder / "light.obj"), mtl=str(folder / "light.mtl"),
                                         camera=CAMERA, size=SIZE, spp=SPP, depth=DEPTH, sky=SKY, threads=threads)
             for _ in range(2 if i == 0 else 1):
@@ -214,7 +214,7 @@ def phases(sizes: list[int], threads: int) -> None:
                 if out.returncode != 0:
                     raise RuntimeError(out.stderr[-3000:])
             rows = ast.literal_eval(next(x for x in out.stdout.splitlines() if x.startswith("PHASES"))[7:])
-            print(f"\n{tris:,} triangles (load average {os.getloadavg()[0]:.1f})\n")
+            print(f"\n{tris:,} triangles, {fmt} (load average {os.getloadavg()[0]:.1f})\n")
             print("| step | CPU s | peak RSS so far, MB |")
             print("|---|---|---|")
             for name, sec, peak in rows:
@@ -339,7 +339,7 @@ def main() -> int:
         parse_speed(sizes)
         return 0
     if args.phases:
-        phases(sizes, args.threads)
+        phases(sizes, args.threads, args.format)
         return 0
     who = [args.only] if args.only else ["warp_spt", "Mitsuba"]
     variant = ""

@@ -121,7 +121,7 @@ SLOW: dict[str, str] = {
     "tests/diff/test_pose_estimation.py": "the example's --quick run in a process of its own: 25 s warm, "
                                           "its scene's three kernels compiled first",
     "tests/diff/test_shape_from_views.py": "the example's --quick run in a process of its own: about 50 s "
-                                           "on 2 loaded cores (40 iterations of 6 views; 8 views took 101 s cold)",
+                                           "on 2 loaded cores at 40 iterations of 6 views, now 30 (8 views took 101 s cold)",
     # The readers' long fuzzing runs (1,500 cases each; their short runs of 25 stay): seconds on 2
     # cores, warm (2026-12-02), 38 s together
     "tests/hardening/test_reader_fuzz.py::test_gltf_files_with_extreme_values_load_or_name_file_and_pointer_long":
@@ -149,9 +149,43 @@ def pytest_configure(config):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+# Files that take minutes of a tier on CI's 2 workers, heaviest first: seconds of their tests in a
+# cold run of both tiers on 2 cores (2026-12-03, before that day's trims), default + slow tier.
+# pytest-xdist's --dist loadfile hands out whole files in the order it is given (pyproject's
+# --no-loadscope-reorder): these first, then the rest by their number of tests as xdist's own order
+# would, so that no worker starts a long file when the other is nearly done (longest first). In that
+# run the slow tier took 960 s on 2 workers, test_cuda_compile.py's 405 s among them.
+HEAVY_FIRST = (
+    "tests/gpu/test_cuda_compile.py",               # 0 + 405 s (NVRTC on 2 threads)
+    "tests/integrators/test_light_transport.py",    # 106 + 252 s
+    "tests/diff/test_geometry_gradients.py",        # 0 + 259 s
+    "tests/diff/test_volumes_gradients.py",         # 0 + 187 s
+    "tests/house/test_notebooks.py",                # 0 + 113 s
+    "tests/media/test_volumes.py",                  # 83 + 7 s
+    "tests/diff/test_replay_pathwise.py",           # 52 s
+    "tests/bsdfs/test_microfacet.py",               # 46 s
+    "tests/diff/test_shape_from_views.py",          # 0 + 42 s
+    "tests/house/test_house_hashes.py",             # 40 s
+)
+
+
+def heavy_first(items: list) -> list:
+    """``items`` with whole files reordered: HEAVY_FIRST's in its order, then the others by their
+    number of tests, most first (xdist's own order); within a file, the collected order."""
+    files: dict[str, list] = {}
+    for item in items:
+        files.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    rank = {name: k for k, name in enumerate(HEAVY_FIRST)}
+    order = sorted(files, key=lambda f: (rank.get(f, len(rank)), -len(files[f]) if f not in rank else 0))
+    return [item for f in order for item in files[f]]
+
+
 def pytest_collection_modifyitems(config, items):
-    """Markers from NEEDS and SLOW, and ``cluster`` for every test that starts a Dask client."""
+    """Markers from NEEDS and SLOW, ``cluster`` for every test that starts a Dask client, and the
+    files in HEAVY_FIRST's order."""
     import inspect
+
+    items[:] = heavy_first(items)
 
     for item in items:
         node = item.nodeid

@@ -1,10 +1,11 @@
 """examples/shape_from_views.py --quick, as a user runs it: a sphere refined into the blob from six
 views, ending with ``final: chamfer VALUE (start VALUE)``.
 
-Tolerance from the runs' own spread: over seeds 0..2 the quick run (6 views, 40 iterations) went from
-a Chamfer distance of 0.0566 to 0.0162, 0.0154 and 0.0177 (a factor 3.2 to 3.7; about 50 s on 2
-loaded cores); a fall by a factor of 2 leaves room for the worst of them (the optimisation was still
-falling at the end: the factor grows with iterations)."""
+Tolerance from the runs' own spread: over seeds 0..2 the quick run (6 views, 30 iterations) went from
+a Chamfer distance of 0.0566 to 0.0194, 0.0215 and 0.0181 (a factor 2.6 to 3.1; 37-47 s for 40
+iterations on 2 loaded cores, which fell to 0.0162, 0.0154, 0.0177); a fall by a factor of 2 leaves
+room for the worst of them (the optimisation was still falling at the end: the factor grows with
+iterations)."""
 
 from __future__ import annotations
 

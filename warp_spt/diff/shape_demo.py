@@ -184,11 +184,11 @@ class ShapeRun:
 
 def recover(quick: bool = False, seed: int = 0, log=None, views: int | None = None, lam: float | None = None,
             lr: float | None = None, iterations: int | None = None) -> ShapeRun:
-    """Run the optimisation on a 642-vertex sphere (``quick``: 6 views of 24x24 pixels, 4 spp, 40
+    """Run the optimisation on a 642-vertex sphere (``quick``: 6 views of 24x24 pixels, 4 spp, 30
     iterations; else 8 views of 32x32, 8 spp, 80) with Large Steps' ``lr`` 0.3 and ``lam`` 20 (of lr 0.02, 0.08,
     0.2 and 0.3 over 30 quick iterations, 0.3 fell furthest; lam 40 with lr 0.4 no further than lam 20);
     ``log(iteration, loss, chamfer)`` is called after each step."""
-    sub, size, spp, its, step, smooth = (3, 24, 4, 40, 0.3, 20.0) if quick else (3, 32, 8, 80, 0.3, 20.0)
+    sub, size, spp, its, step, smooth = (3, 24, 4, 30, 0.3, 20.0) if quick else (3, 32, 8, 80, 0.3, 20.0)
     its = iterations or its
     views = views or (6 if quick else 8)
     lam = smooth if lam is None else lam

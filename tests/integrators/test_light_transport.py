@@ -150,7 +150,7 @@ def test_nee_with_a_light_too_unlikely_to_share_its_pick_number(scene_dir):
     dev = scene_from_text(scene_dir, "tiny_lamp_floor", obj, mtl)
     prob = light_table(dev, sky(sky_l)).entry_prob.numpy()
     assert len(prob) == 3 and (prob[:2] < 2.0**-12).all() and (prob[:2] > 2.0**-13).all()   # the branch under test
-    w, h, spp, batches = 4, 2, 1 << 15, 12
+    w, h, spp, batches = 4, 2, 1 << 14, 12
 
     def expected_at(sub):
         pts = floor_points(FLOOR_CAM, w, h, sub)

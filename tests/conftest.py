@@ -118,7 +118,7 @@ SLOW: dict[str, str] = {
     "tests/hardening/test_bad_text_paths_and_flags.py::test_ctrl_c_to_the_process_group_with_local_workers_is_one_line":
         "11 s: worker processes",
     "tests/diff/test_geometry_gradients.py": "about 130 s warm (1-39 s a test: 4 gradient seeds and 16-32 renders "
-                                             "of 2048-8192 spp per check; the shadow's 39 s) after 40-60 s "
+                                             "of 512-8192 spp per check; the shadow's 39 s) after 40-60 s "
                                              "of compiling its four kernels",
     "tests/diff/test_pose_estimation.py": "the example's --quick run in a process of its own: 25 s warm, "
                                           "its scene's three kernels compiled first",

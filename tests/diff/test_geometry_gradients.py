@@ -154,8 +154,8 @@ def test_an_emitter_translated():
 
 def test_a_sphere_moved_and_scaled():
     p = _params([], [[0.1, -0.1, 0, 0.4]], [gs.RED])
-    check_against_fd(p, "sphere0.center", (0.5, 1.0, -0.8), 0.01, fd_spp=8192)
-    check_against_fd(p, "sphere0.radius", 1.0, 0.01, control=False)
+    check_against_fd(p, "sphere0.center", (0.5, 1.0, -0.8), 0.01, fd_spp=4096)
+    check_against_fd(p, "sphere0.radius", 1.0, 0.01, control=False, fd_spp=512)
 
 
 def test_the_camera_translated_past_a_silhouette():
@@ -253,7 +253,7 @@ def test_an_area_light_moved_over_a_floor():
     sees it (the secondary term), which the control without it (secondary_spp=0) lacks entirely."""
     p = _lit_floor()
     check_against_fd(p, "lamp.translation", (1.0, 0.0, 0.0), 0.02, adjoint=RAMP, without={"secondary_spp": 0},
-                     fd_spp=8192, resolve=0.2, secondary_spp=64)
+                     fd_spp=4096, resolve=0.2, secondary_spp=64)
 
 
 def test_an_area_light_moved_over_a_floor_under_nee():
@@ -263,7 +263,7 @@ def test_an_area_light_moved_over_a_floor_under_nee():
     BSDF-sample MIS weights' derivatives, both held, cancel in expectation."""
     p = _lit_floor()
     check_against_fd(p, "lamp.translation", (1.0, 0.0, 0.0), 0.02, adjoint=RAMP, without={"secondary_spp": 0},
-                     fd_spp=8192, resolve=0.2, secondary_spp=64, rs=replace(RS, integrator="nee"), mode="prb")
+                     fd_spp=4096, resolve=0.2, secondary_spp=64, rs=replace(RS, integrator="nee"), mode="prb")
 
 
 def test_an_occluder_moved_between_a_light_and_a_floor():
@@ -327,8 +327,8 @@ def test_a_punctual_light_and_an_occluder_moved_over_a_floor(light):
     # (the square's forces are checked under the point light, whose shadow magnifies its motion; under
     # the sun its shadow's translation changes this image's sum too little to resolve)
     sun = light == "sun"
-    checks = ((own, turn, ADJ, 0.003, 0.35),) if sun else \
-        ((own, turn, ADJ, 0.01, 0.2), ("occluder.translation", (1.0, 0.5, 0.0), RAMP, 0.005, 0.2))
-    for name, direction, adjoint, h, resolve in checks:
-        check_against_fd(p, name, direction, h, rs=rs, adjoint=adjoint, fd_spp=4096, resolve=resolve,
-                         boundary_spp=2048)
+    checks = ((own, turn, ADJ, 0.003, 0.35, 4096, 2048),) if sun else \
+        ((own, turn, ADJ, 0.01, 0.2, 4096, 2048), ("occluder.translation", (1.0, 0.5, 0.0), RAMP, 0.005, 0.2, 1024, 2048))
+    for name, direction, adjoint, h, resolve, fd_spp, boundary_spp in checks:
+        check_against_fd(p, name, direction, h, rs=rs, adjoint=adjoint, fd_spp=fd_spp, resolve=resolve,
+                         boundary_spp=boundary_spp)

@@ -122,8 +122,15 @@ SLOW: dict[str, str] = {
                                              "of compiling its four kernels",
     "tests/diff/test_pose_estimation.py": "the example's --quick run in a process of its own: 25 s warm, "
                                           "its scene's three kernels compiled first",
-    "tests/diff/test_shape_from_views.py": "the example's --quick run in a process of its own: about 50 s "
-                                           "on 2 loaded cores at 40 iterations of 6 views, now 30 (8 views took 101 s cold)",
+    "tests/diff/test_shape_from_views.py": "the example's --quick run in a process of its own: 37-58 s on 2 "
+                                           "loaded cores (30 iterations of 6 views; 8 views took 101 s cold)",
+    # Figures: seconds in the default tier of a cold run of both tiers on 2 cores at load (2026-12-03),
+    # moved here when CI's default tier on 90d52fa took 620 s; each file's other tests stay
+    "tests/diff/test_replay_pathwise.py::test_the_pathwise_replay_gives_the_tapes_geometry_and_camera_gradients[nee]":
+        "34 s: the pathwise replay kernel under nee (its seed case stays)",
+    "tests/media/test_volume_flag.py::test_volume_places_the_grid_in_its_own_bounds_as_a_hand_built_box_would": "26 s",
+    "tests/media/test_volumes.py::test_a_fog_at_the_largest_accepted_g_drops_no_sample": "20 s",
+    "tests/media/test_volumes.py::test_majorant_invariance": "17 s",
     # The readers' long fuzzing runs (1,500 cases each; their short runs of 25 stay): seconds on 2
     # cores, warm (2026-12-02), 38 s together
     "tests/hardening/test_reader_fuzz.py::test_gltf_files_with_extreme_values_load_or_name_file_and_pointer_long":
@@ -151,43 +158,9 @@ def pytest_configure(config):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-# Files that take minutes of a tier on CI's 2 workers, heaviest first: seconds of their tests in a
-# cold run of both tiers on 2 cores (2026-12-03, before that day's trims), default + slow tier.
-# pytest-xdist's --dist loadfile hands out whole files in the order it is given (pyproject's
-# --no-loadscope-reorder): these first, then the rest by their number of tests as xdist's own order
-# would, so that no worker starts a long file when the other is nearly done (longest first). In that
-# run the slow tier took 960 s on 2 workers, test_cuda_compile.py's 405 s among them.
-HEAVY_FIRST = (
-    "tests/gpu/test_cuda_compile.py",               # 0 + 405 s (NVRTC on 2 threads)
-    "tests/integrators/test_light_transport.py",    # 106 + 252 s
-    "tests/diff/test_geometry_gradients.py",        # 0 + 259 s
-    "tests/diff/test_volumes_gradients.py",         # 0 + 187 s
-    "tests/house/test_notebooks.py",                # 0 + 113 s
-    "tests/media/test_volumes.py",                  # 83 + 7 s
-    "tests/diff/test_replay_pathwise.py",           # 52 s
-    "tests/bsdfs/test_microfacet.py",               # 46 s
-    "tests/diff/test_shape_from_views.py",          # 0 + 42 s
-    "tests/house/test_house_hashes.py",             # 40 s
-)
-
-
-def heavy_first(items: list) -> list:
-    """``items`` with whole files reordered: HEAVY_FIRST's in its order, then the others by their
-    number of tests, most first (xdist's own order); within a file, the collected order."""
-    files: dict[str, list] = {}
-    for item in items:
-        files.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
-    rank = {name: k for k, name in enumerate(HEAVY_FIRST)}
-    order = sorted(files, key=lambda f: (rank.get(f, len(rank)), -len(files[f]) if f not in rank else 0))
-    return [item for f in order for item in files[f]]
-
-
 def pytest_collection_modifyitems(config, items):
-    """Markers from NEEDS and SLOW, ``cluster`` for every test that starts a Dask client, and the
-    files in HEAVY_FIRST's order."""
+    """Markers from NEEDS and SLOW, and ``cluster`` for every test that starts a Dask client."""
     import inspect
-
-    items[:] = heavy_first(items)
 
     for item in items:
         node = item.nodeid

@@ -193,13 +193,13 @@ def obj_text(shapes: list) -> str:
     return "\n".join([f"v {x} {y} {z}" for x, y, z in verts] + body) + "\n"
 
 
-def warp_scene(desc: dict, folder: Path):
-    """Write the description as OBJ/MTL into ``folder`` and load it with warp_spt."""
+def warp_scene(desc: dict, folder: Path, device: str = "cpu"):
+    """Write the description as OBJ/MTL into ``folder`` and load it with warp_spt onto ``device``."""
     from warp_spt import load_scene
     from warp_spt.upload.device_scene import DeviceScene
     (folder / "scene.obj").write_text(obj_text(desc["shapes"]))
     (folder / "scene.mtl").write_text(mtl_text(desc["materials"]))
-    return DeviceScene(load_scene([str(folder / "scene.obj")], [str(folder / "scene.mtl")]))
+    return DeviceScene(load_scene([str(folder / "scene.obj")], [str(folder / "scene.mtl")]), device=device)
 
 
 def warp_settings(desc: dict, size: int, spp: int, integrator: str, sampler: str, seed: int, threads: int) -> dict:

@@ -375,10 +375,8 @@ def vs_mitsuba(folder: Path, size: int, spp: int, ref_spp: int, repeat: int, gpu
     gives its own error, subtracted) and the equal-error efficiency 1 / (MSE x seconds), as a ratio."""
     import bench_vs_mitsuba as mb
 
-    from warp_spt.io.loader import load_scene
     from warp_spt.rendering.settings import RenderSettings
     from warp_spt.rendering.tiles import render_scene
-    from warp_spt.upload.device_scene import DeviceScene
 
     half = 1
     while half * 4 <= ref_spp // 2:          # Mitsuba's ldsampler takes powers of 4
@@ -409,10 +407,7 @@ def vs_mitsuba(folder: Path, size: int, spp: int, ref_spp: int, repeat: int, gpu
             img, sec = best_seconds(lambda scene=scene, n=n: mb.mitsuba_render(scene, n, 7, threads), repeat)
             theirs[sampler] = (mb.efficiency(img, sec, ref, ref_mse), sec, img)
         best = max(theirs, key=lambda k: theirs[k][0])
-        (sub / "scene.obj").write_text(mb.obj_text(desc["shapes"]))
-        (sub / "scene.mtl").write_text(mb.mtl_text(desc["materials"]))
-        dev = DeviceScene(load_scene([str(sub / "scene.obj")], [str(sub / "scene.mtl")], warn=lambda message: None),
-                          device=gpu)
+        dev = mb.warp_scene(desc, sub, device=gpu)
         rs = RenderSettings(**mb.warp_settings(desc, size, spp, "nee", "sobol", 7, threads), device=gpu)
         img, sec = best_seconds(lambda: render_scene(dev, mb.warp_camera(desc), rs).image.astype(np.float64), repeat)
         ours = mb.efficiency(img, sec, ref, ref_mse)
